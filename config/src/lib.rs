@@ -1,0 +1,1 @@
+//! Every setting, loaded from TOML and validated into types that cannot hold invalid values.

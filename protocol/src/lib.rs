@@ -1,0 +1,1 @@
+//! The Navtech Colossus TCP wire format. No IO, no clock.

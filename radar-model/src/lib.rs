@@ -1,0 +1,1 @@
+//! The paper's power-range physics. No IO, no clock.

@@ -1,0 +1,1 @@
+//! A simulated Navtech radar serving synthetic spectra over the Colossus protocol.

@@ -1,0 +1,1 @@
+//! Detection, association, the augmented-state EKF, map management and outputs; the daemon.
