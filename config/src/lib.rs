@@ -1,1 +1,197 @@
-//! Every setting, loaded from TOML and validated into types that cannot hold invalid values.
+//! Every setting of the radar SLAM system, loaded from TOML and validated into types that
+//! cannot hold invalid values.
+//!
+//! Two stages. [`RawConfig`] mirrors the file: serde structs, one per section, every field
+//! with a documented default and `deny_unknown_fields`, so a misspelt key is an error that
+//! names the key and its line. [`RawConfig::validate`] turns it into [`Config`], whose fields
+//! are newtypes ([`PositiveF64`], [`Probability`], [`Capacity`], ...), parsed socket
+//! addresses, [`std::time::Duration`]s and enums; every invalid field is reported with its
+//! full dotted path (`filter.initial_sigma_loss_db must be > 0, got -1`).
+//!
+//! IO: [`Config::load`] reads one file (at most [`MAX_CONFIG_BYTES`]); nothing else here does
+//! IO. The shipped example files are compiled in ([`examples`]), so binaries can run on shipped
+//! defaults with no file on disk.
+//!
+//! ```
+//! let config = config::Config::from_toml_str("[radar]\naddress = \"192.168.0.1:6317\"\n")?;
+//! assert_eq!(config.radar.address.port(), 6317);
+//! # Ok::<(), config::ConfigError>(())
+//! ```
+
+mod check;
+pub mod detector;
+mod error;
+pub mod examples;
+pub mod faults;
+pub mod filter;
+pub mod model;
+pub mod odometry;
+pub mod output;
+mod parse;
+pub mod radar;
+pub mod sim;
+pub mod values;
+
+use std::io::Read;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+pub use detector::{DetectorSettings, RawDetector};
+pub use error::{ConfigError, FieldError, FieldErrors, Location};
+pub use faults::{FaultSettings, RawFaults};
+pub use filter::{FilterSettings, RawFilter};
+pub use model::{ModelSettings, RawModel};
+pub use odometry::{OdometrySettings, RawOdometry};
+pub use output::{OutputSettings, RawOutput};
+pub use radar::{RadarSettings, RawRadar};
+pub use sim::{RawSim, SimSettings};
+pub use values::{
+    Capacity, FiniteF64, NonNegativeF64, OpenProbability, PositiveF64, Probability, ValueError,
+};
+
+use check::Checker;
+
+/// The largest configuration file [`Config::load`] reads: 1 MiB.
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
+/// The name used in errors for text given to [`Config::from_toml_str`].
+pub const STRING_ORIGIN: &str = "<string>";
+
+/// The whole file as written: one table per section, each optional.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RawConfig {
+    /// `[radar]`.
+    pub radar: RawRadar,
+    /// `[odometry]`.
+    pub odometry: RawOdometry,
+    /// `[sim]` (and `[sim.faults]`).
+    pub sim: RawSim,
+    /// `[model]`.
+    pub model: RawModel,
+    /// `[detector]`.
+    pub detector: RawDetector,
+    /// `[filter]`.
+    pub filter: RawFilter,
+    /// `[output]`.
+    pub output: RawOutput,
+}
+
+/// Every setting, validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Config {
+    /// The radar link (driver).
+    pub radar: RadarSettings,
+    /// Odometry source and motion model.
+    pub odometry: OdometrySettings,
+    /// The simulator.
+    pub sim: SimSettings,
+    /// The radar model.
+    pub model: ModelSettings,
+    /// Detection.
+    pub detector: DetectorSettings,
+    /// The EKF.
+    pub filter: FilterSettings,
+    /// Outputs.
+    pub output: OutputSettings,
+}
+
+/// The three ways the system is used, each with a shipped example file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Preset {
+    /// On the vehicle against a real radar (`examples/vehicle.toml`).
+    Vehicle,
+    /// Against the simulator (`examples/sim.toml`).
+    Sim,
+    /// Integration tests over loopback (`examples/test.toml`).
+    Test,
+}
+
+impl RawConfig {
+    /// Validates every section, reporting every invalid field.
+    pub fn validate(&self) -> Result<Config, FieldErrors> {
+        let mut c = Checker::new();
+        let config = self.check(&mut c);
+        c.finish(config)
+    }
+
+    fn check(&self, c: &mut Checker) -> Config {
+        Config {
+            radar: self.radar.check(c),
+            odometry: self.odometry.check(c),
+            sim: self.sim.check(c),
+            model: self.model.check(c),
+            detector: self.detector.check(c),
+            filter: self.filter.check(c),
+            output: self.output.check(c),
+        }
+    }
+
+    /// Parses TOML text without validating it; errors are named `<string>`.
+    pub fn from_toml_str(text: &str) -> Result<Self, ConfigError> {
+        parse::raw_from_str(text, STRING_ORIGIN)
+    }
+
+    /// Serialises back to TOML (for printing the effective settings).
+    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
+        toml::to_string(self)
+    }
+}
+
+impl Default for Config {
+    /// Every section's documented defaults: the simulator on loopback, real-time pacing.
+    fn default() -> Self {
+        let mut c = Checker::new();
+        let config = RawConfig::default().check(&mut c);
+        debug_assert!(c.is_clean(), "the defaults must be valid");
+        config
+    }
+}
+
+impl Config {
+    /// Parses and validates TOML text; errors are named `<string>`.
+    pub fn from_toml_str(text: &str) -> Result<Self, ConfigError> {
+        Self::from_toml_str_named(text, STRING_ORIGIN)
+    }
+
+    /// Parses and validates TOML text; `origin` names the text in errors.
+    pub fn from_toml_str_named(text: &str, origin: &str) -> Result<Self, ConfigError> {
+        parse::raw_from_str(text, origin)?
+            .validate()
+            .map_err(|errors| ConfigError::Invalid {
+                origin: origin.to_owned(),
+                errors,
+            })
+    }
+
+    /// Reads, parses and validates a file of at most [`MAX_CONFIG_BYTES`].
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, ConfigError> {
+        let path = path.as_ref();
+        let io = |source| ConfigError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let file = std::fs::File::open(path).map_err(io)?;
+        let mut text = String::new();
+        file.take(MAX_CONFIG_BYTES + 1)
+            .read_to_string(&mut text)
+            .map_err(io)?;
+        if u64::try_from(text.len()).map_or(true, |n| n > MAX_CONFIG_BYTES) {
+            return Err(ConfigError::TooLarge {
+                path: path.to_path_buf(),
+                max_bytes: MAX_CONFIG_BYTES,
+            });
+        }
+        Self::from_toml_str_named(&text, &path.display().to_string())
+    }
+
+    /// The settings of a shipped example file, compiled in.
+    ///
+    /// The shipped files are validated by this crate's tests, so this fails only if a shipped
+    /// file was broken, which those tests catch.
+    pub fn preset(preset: Preset) -> Result<Self, ConfigError> {
+        let (text, name) = examples::text(preset);
+        Self::from_toml_str_named(text, name)
+    }
+}

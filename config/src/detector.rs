@@ -1,0 +1,218 @@
+//! `[detector]`: which detector finds the targets down each beam, and its parameters.
+
+use serde::{Deserialize, Serialize};
+
+use crate::check::Checker;
+use crate::error::FieldErrors;
+use crate::values::{
+    Capacity, FiniteF64, NonNegativeF64, OpenProbability, PositiveF64, Probability, ValueError,
+};
+
+/// Most reference cells a CFAR window may have.
+pub const MAX_REFERENCE_CELLS: usize = 4096;
+/// Most guard cells.
+pub const MAX_GUARD_CELLS: u64 = 4096;
+/// Most targets kept per beam.
+pub const MAX_TARGETS_PER_BEAM: usize = 1024;
+/// Default CFAR false-alarm probability.
+pub const DEFAULT_PFA: f64 = 1e-4;
+
+/// The detector.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DetectorKind {
+    /// Cell-averaging CFAR.
+    CaCfar,
+    /// Ordered-statistic CFAR (`os_rank`-th smallest reference cell).
+    OsCfar,
+    /// The authors' target presence probability.
+    Tpp,
+}
+
+/// How the detection threshold is set: by a false-alarm probability or a fixed margin.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Threshold {
+    /// False-alarm probability, `(0, 1)`.
+    Pfa(OpenProbability),
+    /// Fixed margin over the noise estimate, dB.
+    Db(FiniteF64),
+}
+
+/// `[detector]` as written in the file.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RawDetector {
+    /// `"ca-cfar"`, `"os-cfar"` or `"tpp"`. Default `"ca-cfar"`.
+    pub kind: DetectorKind,
+    /// Reference cells (both sides together), `[1, 4096]`. Default 70 (book chapter).
+    pub reference_cells: i64,
+    /// Guard cells on each side, `[0, 4096]`. Default 2.
+    pub guard_cells: i64,
+    /// False-alarm probability in `(0, 1)`; set this or `threshold_db`, not both. Default
+    /// 1e-4 when neither is set.
+    pub pfa: Option<f64>,
+    /// Fixed threshold over the noise estimate, dB; instead of `pfa`.
+    pub threshold_db: Option<f64>,
+    /// OS-CFAR rank, `[1, reference_cells]`. Default 3/4 of `reference_cells`, rounded.
+    pub os_rank: Option<i64>,
+    /// TPP recursive smoothing factor, `(0, 1)`. Default 0.1.
+    pub tpp_alpha: f64,
+    /// TPP presence probability at which a target is declared, `[0, 1]`. Default 0.8.
+    pub tpp_detect: f64,
+    /// Most targets kept per beam, `[1, 1024]`. Default 16.
+    pub max_targets_per_beam: i64,
+    /// Nearest range searched, m >= 0. Default 1.
+    pub min_range_m: f64,
+    /// Farthest range searched, m > `min_range_m`. Default 200.
+    pub max_range_m: f64,
+}
+
+impl Default for RawDetector {
+    fn default() -> Self {
+        Self {
+            kind: DetectorKind::CaCfar,
+            reference_cells: 70,
+            guard_cells: 2,
+            pfa: None,
+            threshold_db: None,
+            os_rank: None,
+            tpp_alpha: 0.1,
+            tpp_detect: 0.8,
+            max_targets_per_beam: 16,
+            min_range_m: 1.0,
+            max_range_m: 200.0,
+        }
+    }
+}
+
+/// The ranges searched: `min_m < max_m` always holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RangeWindow {
+    min_m: NonNegativeF64,
+    max_m: PositiveF64,
+}
+
+impl RangeWindow {
+    /// A window; `min_m` must be below `max_m`.
+    pub fn new(min_m: NonNegativeF64, max_m: PositiveF64) -> Result<Self, ValueError> {
+        if min_m.get() < max_m.get() {
+            Ok(Self { min_m, max_m })
+        } else {
+            Err(ValueError::Rule(format!(
+                "must be < detector.max_range_m ({max_m}), got {min_m}"
+            )))
+        }
+    }
+    /// Nearest range, m.
+    pub fn min_m(&self) -> f64 {
+        self.min_m.get()
+    }
+    /// Farthest range, m.
+    pub fn max_m(&self) -> f64 {
+        self.max_m.get()
+    }
+}
+
+/// `[detector]`, validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DetectorSettings {
+    /// Detector.
+    pub kind: DetectorKind,
+    /// Reference cells, both sides together.
+    pub reference_cells: Capacity,
+    /// Guard cells per side.
+    pub guard_cells: usize,
+    /// Threshold.
+    pub threshold: Threshold,
+    /// OS-CFAR rank, `1..=reference_cells`.
+    pub os_rank: Capacity,
+    /// TPP smoothing factor.
+    pub tpp_alpha: OpenProbability,
+    /// TPP detection probability.
+    pub tpp_detect: Probability,
+    /// Most targets per beam.
+    pub max_targets_per_beam: Capacity,
+    /// Ranges searched.
+    pub range: RangeWindow,
+}
+
+impl Default for DetectorSettings {
+    fn default() -> Self {
+        let mut c = Checker::new();
+        let settings = RawDetector::default().check(&mut c);
+        debug_assert!(c.is_clean(), "the [detector] defaults must be valid");
+        settings
+    }
+}
+
+impl RawDetector {
+    /// Validates this section alone; errors name `detector.<field>`.
+    pub fn validate(&self) -> Result<DetectorSettings, FieldErrors> {
+        let mut c = Checker::new();
+        let settings = self.check(&mut c);
+        c.finish(settings)
+    }
+
+    pub(crate) fn check(&self, c: &mut Checker) -> DetectorSettings {
+        let reference_cells = c.check(
+            "detector.reference_cells",
+            Capacity::new(self.reference_cells, MAX_REFERENCE_CELLS),
+        );
+        let threshold = match (self.pfa, self.threshold_db) {
+            (Some(_), Some(_)) => {
+                c.fail(
+                    "detector.threshold_db",
+                    ValueError::Rule("cannot be set together with detector.pfa".into()),
+                );
+                Threshold::Pfa(OpenProbability::HALF)
+            }
+            (None, Some(db)) => Threshold::Db(c.check("detector.threshold_db", FiniteF64::new(db))),
+            (pfa, None) => Threshold::Pfa(c.check(
+                "detector.pfa",
+                OpenProbability::new(pfa.unwrap_or(DEFAULT_PFA)),
+            )),
+        };
+        let default_rank = (reference_cells.get() * 3).div_ceil(4);
+        let os_rank = match self.os_rank {
+            None => Capacity::new(
+                i64::try_from(default_rank).unwrap_or(1),
+                reference_cells.get(),
+            ),
+            Some(rank) => Capacity::new(rank, reference_cells.get()),
+        };
+        let os_rank = c.check("detector.os_rank", os_rank);
+        let min = c.check(
+            "detector.min_range_m",
+            NonNegativeF64::new(self.min_range_m),
+        );
+        let max = c.check("detector.max_range_m", PositiveF64::new(self.max_range_m));
+        let range = match RangeWindow::new(min, max) {
+            Ok(window) => window,
+            Err(problem) => {
+                c.fail("detector.min_range_m", problem);
+                RangeWindow {
+                    min_m: NonNegativeF64::ZERO,
+                    max_m: PositiveF64::ONE,
+                }
+            }
+        };
+        DetectorSettings {
+            kind: self.kind,
+            reference_cells,
+            guard_cells: c.check(
+                "detector.guard_cells",
+                crate::values::count(self.guard_cells, MAX_GUARD_CELLS)
+                    .map(|v| usize::try_from(v).unwrap_or(0)),
+            ),
+            threshold,
+            os_rank,
+            tpp_alpha: c.check("detector.tpp_alpha", OpenProbability::new(self.tpp_alpha)),
+            tpp_detect: c.check("detector.tpp_detect", Probability::new(self.tpp_detect)),
+            max_targets_per_beam: c.check(
+                "detector.max_targets_per_beam",
+                Capacity::new(self.max_targets_per_beam, MAX_TARGETS_PER_BEAM),
+            ),
+            range,
+        }
+    }
+}

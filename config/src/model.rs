@@ -1,0 +1,325 @@
+//! `[model]`: the radar model's choices and constants (spreading form, receiver
+//! compensation, beam, noise) as `radar-model` and the filter use them.
+
+use serde::{Deserialize, Serialize};
+
+use crate::check::Checker;
+use crate::error::FieldErrors;
+use crate::values::{FiniteF64, PositiveF64, ValueError};
+
+/// Most points a compensation gain table may hold.
+pub const MAX_GAIN_POINTS: usize = 4096;
+
+/// How power spreads with range for targets behind other targets (see `radar-model.md` §3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Spreading {
+    /// The paper's eq. 13: spreading over the separations `(R_{j+1} - R_j)^4`.
+    Paper,
+    /// The textbook radar equation: `R_i^4` with `tau_j^2` for every target in front.
+    Textbook,
+}
+
+/// The receiver compensation, as written: `compensation = "40db" | "60db" | "table"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, Serialize)]
+pub enum CompensationKind {
+    /// 40 dB per decade: ideal for the radar equation's R^-4.
+    #[serde(rename = "40db")]
+    Slope40,
+    /// 60 dB per decade: the paper's model of its unit's filter.
+    #[serde(rename = "60db")]
+    Slope60,
+    /// A measured gain curve, from `compensation_table`.
+    #[serde(rename = "table")]
+    Table,
+}
+
+/// One point of a measured receiver gain curve.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawGainPoint {
+    /// Range, m.
+    pub range_m: f64,
+    /// Receiver gain at that range, dB.
+    pub gain_db: f64,
+}
+
+/// A validated gain point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GainPoint {
+    /// Range, m (> 0).
+    pub range_m: PositiveF64,
+    /// Gain, dB.
+    pub gain_db: FiniteF64,
+}
+
+/// A measured gain curve: at least two points, ranges strictly increasing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GainTable(Vec<GainPoint>);
+
+impl GainTable {
+    /// Checks the table's shape (each point's values are checked by the caller).
+    pub fn new(points: Vec<GainPoint>) -> Result<Self, ValueError> {
+        if points.len() < 2 || points.len() > MAX_GAIN_POINTS {
+            return Err(ValueError::Rule(format!(
+                "must hold between 2 and {MAX_GAIN_POINTS} points, got {}",
+                points.len()
+            )));
+        }
+        if let Some(w) = points
+            .windows(2)
+            .find(|w| w[1].range_m.get() <= w[0].range_m.get())
+        {
+            return Err(ValueError::Rule(format!(
+                "ranges must increase strictly, got {} m then {} m",
+                w[0].range_m, w[1].range_m
+            )));
+        }
+        Ok(Self(points))
+    }
+    /// The points, ranges strictly increasing.
+    pub fn points(&self) -> &[GainPoint] {
+        &self.0
+    }
+}
+
+/// Receiver range compensation, validated.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Compensation {
+    /// 40 dB per decade.
+    Slope40DbPerDecade,
+    /// 60 dB per decade (the paper's).
+    Slope60DbPerDecade,
+    /// Interpolated measured gain.
+    Table(GainTable),
+}
+
+/// `[model]` as written in the file.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RawModel {
+    /// `"paper"` or `"textbook"`. Default `"paper"`.
+    pub spreading: Spreading,
+    /// `"40db"`, `"60db"` or `"table"`. Default `"60db"` (the paper's).
+    pub compensation: CompensationKind,
+    /// With `compensation = "table"`: `[{ range_m = .., gain_db = .. }, ..]`.
+    pub compensation_table: Option<Vec<RawGainPoint>>,
+    /// Beam width, degrees in `(0, 360)`. Default 1.8.
+    pub beam_width_deg: f64,
+    /// Range resolution c / 2B, m > 0. Default 0.25 (600 MHz sweep).
+    pub range_resolution_m: f64,
+    /// Bearing noise, degrees > 0. Default 1.0 (book chapter).
+    pub sigma_bearing_deg: f64,
+    /// Range noise, m > 0. Default 0.25 (one range bin).
+    pub sigma_range_m: f64,
+    /// Target-present power noise, dB > 0. Default 2.02 (variance 4.07 dB^2, book chapter).
+    pub sigma_power_db: f64,
+    /// Target-absent noise close in: mean power, dB. Default -14.8 (book chapter, 10 m).
+    pub noise_floor_near_mean_db: f64,
+    /// Target-absent noise close in: variance, dB^2 > 0. Default 0.35.
+    pub noise_floor_near_variance_db2: f64,
+    /// Range beyond which target-absent noise is Weibull, m > 0. Default 45.
+    pub noise_floor_transition_m: f64,
+    /// Target-absent Weibull scale, > 0. Default 26.706 (book chapter, 100 m).
+    pub noise_floor_weibull_scale: f64,
+    /// Target-absent Weibull shape, > 0. Default 5.333.
+    pub noise_floor_weibull_shape: f64,
+}
+
+impl Default for RawModel {
+    fn default() -> Self {
+        Self {
+            spreading: Spreading::Paper,
+            compensation: CompensationKind::Slope60,
+            compensation_table: None,
+            beam_width_deg: 1.8,
+            range_resolution_m: 0.25,
+            sigma_bearing_deg: 1.0,
+            sigma_range_m: 0.25,
+            sigma_power_db: 4.07_f64.sqrt(),
+            noise_floor_near_mean_db: -14.8,
+            noise_floor_near_variance_db2: 0.35,
+            noise_floor_transition_m: 45.0,
+            noise_floor_weibull_scale: 26.706,
+            noise_floor_weibull_shape: 5.333,
+        }
+    }
+}
+
+/// Target-absent noise floor parameters (book chapter figures by default).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseFloor {
+    /// Mean power close in, dB.
+    pub near_mean_db: FiniteF64,
+    /// Variance close in, dB^2.
+    pub near_variance_db2: PositiveF64,
+    /// Range beyond which the Weibull applies, m.
+    pub transition_m: PositiveF64,
+    /// Weibull scale.
+    pub weibull_scale: PositiveF64,
+    /// Weibull shape.
+    pub weibull_shape: PositiveF64,
+}
+
+/// `[model]`, validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelSettings {
+    /// Spreading form.
+    pub spreading: Spreading,
+    /// Receiver compensation.
+    pub compensation: Compensation,
+    /// Beam width, degrees.
+    pub beam_width_deg: PositiveF64,
+    /// Range resolution, m.
+    pub range_resolution_m: PositiveF64,
+    /// Bearing noise, degrees.
+    pub sigma_bearing_deg: PositiveF64,
+    /// Range noise, m.
+    pub sigma_range_m: PositiveF64,
+    /// Target-present power noise, dB.
+    pub sigma_power_db: PositiveF64,
+    /// Target-absent noise floor.
+    pub noise_floor: NoiseFloor,
+}
+
+impl ModelSettings {
+    /// Beam width in radians.
+    pub fn beam_width_rad(&self) -> f64 {
+        self.beam_width_deg.get().to_radians()
+    }
+    /// Bearing noise in radians.
+    pub fn sigma_bearing_rad(&self) -> f64 {
+        self.sigma_bearing_deg.get().to_radians()
+    }
+}
+
+impl Default for ModelSettings {
+    fn default() -> Self {
+        let mut c = Checker::new();
+        let settings = RawModel::default().check(&mut c);
+        debug_assert!(c.is_clean(), "the [model] defaults must be valid");
+        settings
+    }
+}
+
+impl RawModel {
+    /// Validates this section alone; errors name `model.<field>`.
+    pub fn validate(&self) -> Result<ModelSettings, FieldErrors> {
+        let mut c = Checker::new();
+        let settings = self.check(&mut c);
+        c.finish(settings)
+    }
+
+    fn check_table(&self, c: &mut Checker) -> Compensation {
+        let Some(raw) = &self.compensation_table else {
+            c.fail(
+                "model.compensation_table",
+                ValueError::Rule("is required with model.compensation = \"table\"".into()),
+            );
+            return Compensation::Slope60DbPerDecade;
+        };
+        if raw.len() > MAX_GAIN_POINTS {
+            c.fail(
+                "model.compensation_table",
+                ValueError::Rule(format!("must hold at most {MAX_GAIN_POINTS} points")),
+            );
+            return Compensation::Slope60DbPerDecade;
+        }
+        let points = raw
+            .iter()
+            .enumerate()
+            .map(|(i, p)| GainPoint {
+                range_m: c.check(
+                    &format!("model.compensation_table[{i}].range_m"),
+                    PositiveF64::new(p.range_m),
+                ),
+                gain_db: c.check(
+                    &format!("model.compensation_table[{i}].gain_db"),
+                    FiniteF64::new(p.gain_db),
+                ),
+            })
+            .collect();
+        match GainTable::new(points) {
+            Ok(table) => Compensation::Table(table),
+            Err(problem) => {
+                c.fail("model.compensation_table", problem);
+                Compensation::Slope60DbPerDecade
+            }
+        }
+    }
+
+    pub(crate) fn check(&self, c: &mut Checker) -> ModelSettings {
+        let compensation = match self.compensation {
+            CompensationKind::Slope40 | CompensationKind::Slope60
+                if self.compensation_table.is_some() =>
+            {
+                c.fail(
+                    "model.compensation_table",
+                    ValueError::Rule(
+                        "is only used with model.compensation = \"table\"; remove it".into(),
+                    ),
+                );
+                Compensation::Slope60DbPerDecade
+            }
+            CompensationKind::Slope40 => Compensation::Slope40DbPerDecade,
+            CompensationKind::Slope60 => Compensation::Slope60DbPerDecade,
+            CompensationKind::Table => self.check_table(c),
+        };
+        let beam = c.check(
+            "model.beam_width_deg",
+            PositiveF64::new(self.beam_width_deg),
+        );
+        let beam_width_deg = if beam.get() >= 360.0 {
+            c.fail(
+                "model.beam_width_deg",
+                ValueError::OutOfRange {
+                    range: "(0, 360)".into(),
+                    got: beam.to_string(),
+                },
+            );
+            PositiveF64::ONE
+        } else {
+            beam
+        };
+        ModelSettings {
+            spreading: self.spreading,
+            compensation,
+            beam_width_deg,
+            range_resolution_m: c.check(
+                "model.range_resolution_m",
+                PositiveF64::new(self.range_resolution_m),
+            ),
+            sigma_bearing_deg: c.check(
+                "model.sigma_bearing_deg",
+                PositiveF64::new(self.sigma_bearing_deg),
+            ),
+            sigma_range_m: c.check("model.sigma_range_m", PositiveF64::new(self.sigma_range_m)),
+            sigma_power_db: c.check(
+                "model.sigma_power_db",
+                PositiveF64::new(self.sigma_power_db),
+            ),
+            noise_floor: NoiseFloor {
+                near_mean_db: c.check(
+                    "model.noise_floor_near_mean_db",
+                    FiniteF64::new(self.noise_floor_near_mean_db),
+                ),
+                near_variance_db2: c.check(
+                    "model.noise_floor_near_variance_db2",
+                    PositiveF64::new(self.noise_floor_near_variance_db2),
+                ),
+                transition_m: c.check(
+                    "model.noise_floor_transition_m",
+                    PositiveF64::new(self.noise_floor_transition_m),
+                ),
+                weibull_scale: c.check(
+                    "model.noise_floor_weibull_scale",
+                    PositiveF64::new(self.noise_floor_weibull_scale),
+                ),
+                weibull_shape: c.check(
+                    "model.noise_floor_weibull_shape",
+                    PositiveF64::new(self.noise_floor_weibull_shape),
+                ),
+            },
+        }
+    }
+}

@@ -1,0 +1,227 @@
+//! `[odometry]`: where the vehicle's speed and steering come from, and the motion model that
+//! turns them into a pose change.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+
+use crate::check::Checker;
+use crate::error::FieldErrors;
+use crate::values::{self, NonNegativeF64, PositiveF64, ValueError};
+
+/// The odometry source, as written: `source = "tcp" | "file" | "none"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum OdometrySourceKind {
+    /// The odometry stream of `docs/contracts.md` over TCP, at `address`.
+    Tcp,
+    /// The same format read from the file at `path`.
+    File,
+    /// No odometry: the daemon says so and refuses to pretend.
+    None,
+}
+
+/// The motion model, as written: `motion_model = "paper" | "bicycle"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MotionModelKind {
+    /// The paper's eq. 2, with `step_s`.
+    Paper,
+    /// Kinematic bicycle, with `wheelbase_m`.
+    Bicycle,
+}
+
+/// Default odometry address: the simulator's odometry port.
+pub const DEFAULT_ODOMETRY_ADDRESS: &str = "127.0.0.1:6318";
+/// Default step of the paper's motion model, seconds.
+pub const DEFAULT_STEP_S: f64 = 0.05;
+/// Default wheelbase of the bicycle model, metres.
+pub const DEFAULT_WHEELBASE_M: f64 = 2.7;
+
+/// `[odometry]` as written in the file.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RawOdometry {
+    /// `"tcp"`, `"file"` or `"none"`. Default `"tcp"`.
+    pub source: OdometrySourceKind,
+    /// With `source = "tcp"`: `ip:port`. Default `127.0.0.1:6318`.
+    pub address: Option<String>,
+    /// With `source = "file"`: the odometry file (required then).
+    pub path: Option<PathBuf>,
+    /// `"paper"` (eq. 2) or `"bicycle"`. Default `"paper"`.
+    pub motion_model: MotionModelKind,
+    /// With `motion_model = "paper"`: the step, s > 0, over which a steer value is the whole
+    /// heading change. Default 0.05.
+    pub step_s: Option<f64>,
+    /// With `motion_model = "bicycle"`: wheelbase, m > 0. Default 2.7.
+    pub wheelbase_m: Option<f64>,
+    /// Standard deviation of the speed input, m/s >= 0 (process noise). Default 0.1.
+    pub sigma_speed_mps: f64,
+    /// Standard deviation of the steering input, rad >= 0 (process noise). Default 0.01.
+    pub sigma_steer_rad: f64,
+    /// Odometry older than this (ms > 0) is stale. Default 500.
+    pub stale_after_ms: i64,
+}
+
+impl Default for RawOdometry {
+    fn default() -> Self {
+        Self {
+            source: OdometrySourceKind::Tcp,
+            address: None,
+            path: None,
+            motion_model: MotionModelKind::Paper,
+            step_s: None,
+            wheelbase_m: None,
+            sigma_speed_mps: 0.1,
+            sigma_steer_rad: 0.01,
+            stale_after_ms: 500,
+        }
+    }
+}
+
+/// Where odometry comes from, validated.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub enum OdometrySource {
+    /// A TCP stream.
+    Tcp {
+        /// Where it is served.
+        address: SocketAddr,
+    },
+    /// A file in the stream format.
+    File {
+        /// The file.
+        path: PathBuf,
+    },
+    /// None.
+    None,
+}
+
+/// The motion model, validated. The equations live in `radar-model`'s `motion` module.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MotionModel {
+    /// The paper's eq. 2; `steer * dt / step_s` is the heading change over `dt`.
+    Paper {
+        /// The step, seconds.
+        step_s: PositiveF64,
+    },
+    /// Kinematic bicycle: heading rate `v tan(steer) / wheelbase_m`.
+    Bicycle {
+        /// Wheelbase, metres.
+        wheelbase_m: PositiveF64,
+    },
+}
+
+/// `[odometry]`, validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OdometrySettings {
+    /// Source.
+    pub source: OdometrySource,
+    /// Motion model.
+    pub motion_model: MotionModel,
+    /// Speed input noise, m/s.
+    pub sigma_speed_mps: NonNegativeF64,
+    /// Steering input noise, rad.
+    pub sigma_steer_rad: NonNegativeF64,
+    /// Age past which odometry is stale.
+    pub stale_after: Duration,
+}
+
+impl Default for OdometrySettings {
+    fn default() -> Self {
+        let mut c = Checker::new();
+        let settings = RawOdometry::default().check(&mut c);
+        debug_assert!(c.is_clean(), "the [odometry] defaults must be valid");
+        settings
+    }
+}
+
+fn only_with(other_key: &str, value: &str) -> ValueError {
+    ValueError::Rule(format!(
+        "is only used with {other_key} = \"{value}\"; remove it"
+    ))
+}
+
+impl RawOdometry {
+    /// Validates this section alone; errors name `odometry.<field>`.
+    pub fn validate(&self) -> Result<OdometrySettings, FieldErrors> {
+        let mut c = Checker::new();
+        let settings = self.check(&mut c);
+        c.finish(settings)
+    }
+
+    pub(crate) fn check(&self, c: &mut Checker) -> OdometrySettings {
+        if self.source != OdometrySourceKind::Tcp && self.address.is_some() {
+            c.fail("odometry.address", only_with("odometry.source", "tcp"));
+        }
+        if self.source != OdometrySourceKind::File && self.path.is_some() {
+            c.fail("odometry.path", only_with("odometry.source", "file"));
+        }
+        let source = match self.source {
+            OdometrySourceKind::Tcp => OdometrySource::Tcp {
+                address: c.check(
+                    "odometry.address",
+                    values::socket_addr(
+                        self.address.as_deref().unwrap_or(DEFAULT_ODOMETRY_ADDRESS),
+                    ),
+                ),
+            },
+            OdometrySourceKind::File => match &self.path {
+                Some(path) => OdometrySource::File {
+                    path: c.check("odometry.path", values::non_empty_path(path)),
+                },
+                None => {
+                    c.fail(
+                        "odometry.path",
+                        ValueError::Rule("is required with odometry.source = \"file\"".into()),
+                    );
+                    OdometrySource::None
+                }
+            },
+            OdometrySourceKind::None => OdometrySource::None,
+        };
+        if self.motion_model != MotionModelKind::Paper && self.step_s.is_some() {
+            c.fail(
+                "odometry.step_s",
+                only_with("odometry.motion_model", "paper"),
+            );
+        }
+        if self.motion_model != MotionModelKind::Bicycle && self.wheelbase_m.is_some() {
+            c.fail(
+                "odometry.wheelbase_m",
+                only_with("odometry.motion_model", "bicycle"),
+            );
+        }
+        let motion_model = match self.motion_model {
+            MotionModelKind::Paper => MotionModel::Paper {
+                step_s: c.check(
+                    "odometry.step_s",
+                    PositiveF64::new(self.step_s.unwrap_or(DEFAULT_STEP_S)),
+                ),
+            },
+            MotionModelKind::Bicycle => MotionModel::Bicycle {
+                wheelbase_m: c.check(
+                    "odometry.wheelbase_m",
+                    PositiveF64::new(self.wheelbase_m.unwrap_or(DEFAULT_WHEELBASE_M)),
+                ),
+            },
+        };
+        OdometrySettings {
+            source,
+            motion_model,
+            sigma_speed_mps: c.check(
+                "odometry.sigma_speed_mps",
+                NonNegativeF64::new(self.sigma_speed_mps),
+            ),
+            sigma_steer_rad: c.check(
+                "odometry.sigma_steer_rad",
+                NonNegativeF64::new(self.sigma_steer_rad),
+            ),
+            stale_after: c.check(
+                "odometry.stale_after_ms",
+                values::duration_from_ms(self.stale_after_ms),
+            ),
+        }
+    }
+}

@@ -1,0 +1,124 @@
+//! `[output]`: where the daemon writes its trajectory, map and diagnostics, and what it shows
+//! while running.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::check::Checker;
+use crate::error::FieldErrors;
+use crate::values::ValueError;
+
+/// `[output]` as written in the file.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RawOutput {
+    /// Output directory. Default `"out"`.
+    pub directory: PathBuf,
+    /// Trajectory file (TUM format), relative to `directory`. Default `"trajectory.tum"`.
+    pub trajectory: PathBuf,
+    /// Map file, relative to `directory`. Default `"map.csv"`.
+    pub map: PathBuf,
+    /// Diagnostics file, relative to `directory`. Default `"diagnostics.csv"`.
+    pub diagnostics: PathBuf,
+    /// Draw pictures (SVG). Default true.
+    pub pictures: bool,
+    /// Show progress while running. Default true.
+    pub progress: bool,
+}
+
+impl Default for RawOutput {
+    fn default() -> Self {
+        Self {
+            directory: "out".into(),
+            trajectory: "trajectory.tum".into(),
+            map: "map.csv".into(),
+            diagnostics: "diagnostics.csv".into(),
+            pictures: true,
+            progress: true,
+        }
+    }
+}
+
+/// `[output]`, validated: the file names are relative, non-empty and inside `directory`.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct OutputSettings {
+    /// Output directory.
+    pub directory: PathBuf,
+    /// Trajectory file name.
+    pub trajectory: PathBuf,
+    /// Map file name.
+    pub map: PathBuf,
+    /// Diagnostics file name.
+    pub diagnostics: PathBuf,
+    /// Draw pictures.
+    pub pictures: bool,
+    /// Show progress.
+    pub progress: bool,
+}
+
+impl OutputSettings {
+    /// `directory/trajectory`.
+    pub fn trajectory_path(&self) -> PathBuf {
+        self.directory.join(&self.trajectory)
+    }
+    /// `directory/map`.
+    pub fn map_path(&self) -> PathBuf {
+        self.directory.join(&self.map)
+    }
+    /// `directory/diagnostics`.
+    pub fn diagnostics_path(&self) -> PathBuf {
+        self.directory.join(&self.diagnostics)
+    }
+}
+
+impl Default for OutputSettings {
+    fn default() -> Self {
+        let mut c = Checker::new();
+        let settings = RawOutput::default().check(&mut c);
+        debug_assert!(c.is_clean(), "the [output] defaults must be valid");
+        settings
+    }
+}
+
+/// A file name inside the output directory: not empty, not absolute, no `..`.
+fn relative_file(path: &Path) -> Result<PathBuf, ValueError> {
+    use std::path::Component;
+    if path.as_os_str().is_empty() {
+        return Err(ValueError::Empty);
+    }
+    let inside = path
+        .components()
+        .all(|part| matches!(part, Component::Normal(_) | Component::CurDir));
+    if inside {
+        Ok(path.to_path_buf())
+    } else {
+        Err(ValueError::Rule(format!(
+            "must be a relative path inside output.directory, got {:?}",
+            path.display().to_string()
+        )))
+    }
+}
+
+impl RawOutput {
+    /// Validates this section alone; errors name `output.<field>`.
+    pub fn validate(&self) -> Result<OutputSettings, FieldErrors> {
+        let mut c = Checker::new();
+        let settings = self.check(&mut c);
+        c.finish(settings)
+    }
+
+    pub(crate) fn check(&self, c: &mut Checker) -> OutputSettings {
+        OutputSettings {
+            directory: c.check(
+                "output.directory",
+                crate::values::non_empty_path(&self.directory),
+            ),
+            trajectory: c.check("output.trajectory", relative_file(&self.trajectory)),
+            map: c.check("output.map", relative_file(&self.map)),
+            diagnostics: c.check("output.diagnostics", relative_file(&self.diagnostics)),
+            pictures: self.pictures,
+            progress: self.progress,
+        }
+    }
+}

@@ -1,0 +1,96 @@
+//! From TOML text to [`RawConfig`], with parser errors turned into [`ConfigError`]s that say
+//! which key, where.
+
+use std::ops::Range;
+
+use crate::error::{ConfigError, Location};
+use crate::RawConfig;
+
+/// Parses TOML text; `origin` names the text in errors (a file path or `<string>`).
+pub(crate) fn raw_from_str(text: &str, origin: &str) -> Result<RawConfig, ConfigError> {
+    toml::from_str::<RawConfig>(text).map_err(|e| classify(&e, text, origin))
+}
+
+fn classify(error: &toml::de::Error, text: &str, origin: &str) -> ConfigError {
+    let message = error.message().trim().to_owned();
+    let span = error.span();
+    let location = span.as_ref().map(|s| location_of(text, s.start));
+    let key_path = span.as_ref().and_then(|s| key_path_at(text, s));
+    match (unknown_field_name(&message), key_path, location) {
+        (Some(name), key_path, Some(location)) => ConfigError::UnknownKey {
+            origin: origin.to_owned(),
+            key_path: key_path.unwrap_or(name),
+            location,
+            message,
+        },
+        (_, key_path, location) => ConfigError::Parse {
+            origin: origin.to_owned(),
+            key_path,
+            location,
+            message,
+        },
+    }
+}
+
+/// The field name in serde's "unknown field `name`, expected ..." message.
+fn unknown_field_name(message: &str) -> Option<String> {
+    let rest = message.strip_prefix("unknown field `")?;
+    let end = rest.find('`')?;
+    rest.get(..end).map(str::to_owned)
+}
+
+/// 1-based line and column (in characters) of a byte offset.
+pub(crate) fn location_of(text: &str, offset: usize) -> Location {
+    let mut cut = offset.min(text.len());
+    while !text.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    let before = text.get(..cut).unwrap_or("");
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    Location {
+        line: before.matches('\n').count() + 1,
+        column: before.get(line_start..).map_or(0, |s| s.chars().count()) + 1,
+    }
+}
+
+/// The dotted key path of the key written on the line of `span`: a table header line
+/// (`[a.b]`, `[[a.b]]`) names itself; a `key = value` line is the nearest header above it
+/// joined with `key`.
+///
+/// This reads the text line by line, so keys inside multi-line inline tables or arrays are
+/// named by their header and the key on the error's line only.
+fn key_path_at(text: &str, span: &Range<usize>) -> Option<String> {
+    let start = span.start.min(text.len());
+    let line_start = text.get(..start)?.rfind('\n').map_or(0, |i| i + 1);
+    let line_end = text
+        .get(start..)?
+        .find('\n')
+        .map_or(text.len(), |i| start + i);
+    let line = text.get(line_start..line_end)?.trim();
+    if line.starts_with('[') {
+        return header_name(line);
+    }
+    let (left, _) = line.split_once('=')?;
+    let key: String = left.trim().chars().filter(|c| *c != '"').collect();
+    if key.is_empty() {
+        return None;
+    }
+    let header = text
+        .get(..line_start)?
+        .lines()
+        .rev()
+        .map(str::trim)
+        .find(|l| l.starts_with('['))
+        .and_then(header_name);
+    Some(match header {
+        Some(h) => format!("{h}.{key}"),
+        None => key,
+    })
+}
+
+/// `a.b` from a `[a.b]` or `[[a.b]]` line (a trailing comment is ignored).
+fn header_name(line: &str) -> Option<String> {
+    let inner = line.trim_start_matches('[');
+    let name = inner.split(']').next()?.trim();
+    (!name.is_empty()).then(|| name.chars().filter(|c| *c != '"').collect())
+}
