@@ -1,0 +1,17 @@
+//! The daemon's outputs: trajectory (TUM), map (JSON), per-rotation diagnostics (JSONL),
+//! spectrum comparisons (CSV) and SVG figures. The formats are documented in
+//! `slam-node/README.md`.
+//!
+//! The file writers are generic over `std::io::Write`; [`writer`] runs them on their own
+//! thread behind a channel so the filter never waits for a disk.
+
+pub mod diagnostics;
+pub mod figures;
+pub mod map;
+pub mod trajectory;
+pub mod writer;
+
+pub use diagnostics::{RotationDiagnostics, SpectrumComparison};
+pub use map::{MapFeature, MapSnapshot};
+pub use trajectory::{PoseSample, TumWriter};
+pub use writer::{OutputEvent, OutputFiles, OutputHandle, WriterError};

@@ -1,0 +1,225 @@
+//! The writer thread: every output leaves the filter on a bounded channel and is written
+//! here, so a slow disk never blocks the filter. When the channel is full the event is
+//! dropped and counted (the filter's state is unaffected; a gap appears in the files).
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
+
+use super::diagnostics::{RotationDiagnostics, SpectrumComparison};
+use super::figures::{draw_map, draw_spectrum, FigureError, TruthOverlay};
+use super::map::MapSnapshot;
+use super::trajectory::{PoseSample, TumWriter};
+
+/// Something for the writer.
+#[derive(Debug, Clone)]
+pub enum OutputEvent {
+    /// One trajectory pose.
+    Pose(PoseSample),
+    /// One rotation's diagnostics.
+    Rotation(Box<RotationDiagnostics>),
+    /// A map snapshot (rewrites `map.json`).
+    Map(MapSnapshot),
+    /// A predicted/measured spectrum pair.
+    Spectrum(SpectrumComparison),
+    /// Ground truth for the final figure.
+    Truth(TruthOverlay),
+}
+
+/// Where and what to write.
+#[derive(Debug, Clone)]
+pub struct OutputFiles {
+    /// Output folder (created if missing).
+    pub dir: PathBuf,
+    /// Draw SVG figures at the end.
+    pub figures: bool,
+    /// At most this many spectrum figures.
+    pub spectrum_figures: usize,
+    /// Channel capacity, events.
+    pub capacity: usize,
+}
+
+/// A writer failure (the daemon logs it; the filter carries on).
+#[derive(Debug, thiserror::Error)]
+pub enum WriterError {
+    /// A file could not be created or written.
+    #[error("writing {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A figure failed.
+    #[error(transparent)]
+    Figure(#[from] FigureError),
+    /// The writer thread panicked.
+    #[error("the writer thread panicked")]
+    Panicked,
+}
+
+/// What the writer wrote.
+#[derive(Debug, Clone, Default)]
+pub struct WriterSummary {
+    /// Poses written.
+    pub poses: u64,
+    /// Rotations written.
+    pub rotations: u64,
+    /// Map snapshots written.
+    pub maps: u64,
+    /// Spectrum comparisons written.
+    pub spectra: u64,
+    /// Figures drawn.
+    pub figures: Vec<PathBuf>,
+}
+
+/// The filter's end of the output channel.
+#[derive(Debug)]
+pub struct OutputHandle {
+    sender: Option<Sender<OutputEvent>>,
+    dropped: Arc<AtomicU64>,
+    join: Option<JoinHandle<Result<WriterSummary, WriterError>>>,
+}
+
+fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> WriterError + '_ {
+    move |source| WriterError::Io {
+        path: path.display().to_string(),
+        source,
+    }
+}
+
+fn create(path: &Path) -> Result<BufWriter<File>, WriterError> {
+    File::create(path).map(BufWriter::new).map_err(io_err(path))
+}
+
+impl OutputHandle {
+    /// Creates the folder and files and starts the writer thread.
+    pub fn spawn(files: OutputFiles) -> Result<Self, WriterError> {
+        std::fs::create_dir_all(&files.dir).map_err(io_err(&files.dir))?;
+        let (tx, rx) = bounded(files.capacity.max(1));
+        let traj_path = files.dir.join("trajectory.tum");
+        let traj = TumWriter::new(create(&traj_path)?).map_err(io_err(&traj_path))?;
+        let diag_path = files.dir.join("diagnostics.jsonl");
+        let diag = create(&diag_path)?;
+        let spec_path = files.dir.join("spectra.jsonl");
+        let spec = create(&spec_path)?;
+        let join = std::thread::Builder::new()
+            .name("slam-writer".into())
+            .spawn(move || run(files, rx, traj, diag, spec))
+            .map_err(io_err(Path::new("<writer thread>")))?;
+        Ok(Self {
+            sender: Some(tx),
+            dropped: Arc::new(AtomicU64::new(0)),
+            join: Some(join),
+        })
+    }
+
+    /// Hands an event to the writer without ever blocking; returns false (and counts a
+    /// drop) when the channel is full or the writer has stopped.
+    pub fn send(&self, event: OutputEvent) -> bool {
+        match self.sender.as_ref().map(|s| s.try_send(event)) {
+            Some(Ok(())) => true,
+            Some(Err(TrySendError::Full(_) | TrySendError::Disconnected(_))) | None => {
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+                false
+            }
+        }
+    }
+
+    /// Hands an event to the writer, waiting for room (end of run only).
+    pub fn send_blocking(&self, event: OutputEvent) -> bool {
+        self.sender.as_ref().is_some_and(|s| s.send(event).is_ok())
+    }
+
+    /// Events dropped because the writer could not keep up.
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+
+    /// Closes the channel, waits for the writer to drain it, draws the figures.
+    pub fn finish(mut self) -> Result<WriterSummary, WriterError> {
+        self.sender.take();
+        match self.join.take().map(JoinHandle::join) {
+            Some(Ok(r)) => r,
+            Some(Err(_)) => Err(WriterError::Panicked),
+            None => Ok(WriterSummary::default()),
+        }
+    }
+}
+
+fn run(
+    files: OutputFiles,
+    rx: Receiver<OutputEvent>,
+    mut traj: TumWriter<BufWriter<File>>,
+    mut diag: BufWriter<File>,
+    mut spec: BufWriter<File>,
+) -> Result<WriterSummary, WriterError> {
+    let mut summary = WriterSummary::default();
+    let mut poses = Vec::new();
+    let mut last_map: Option<MapSnapshot> = None;
+    let mut truth = TruthOverlay::default();
+    let map_path = files.dir.join("map.json");
+    let diag_path = files.dir.join("diagnostics.jsonl");
+    let spec_path = files.dir.join("spectra.jsonl");
+    let traj_path = files.dir.join("trajectory.tum");
+    for event in rx {
+        match event {
+            OutputEvent::Pose(p) => {
+                traj.write(&p).map_err(io_err(&traj_path))?;
+                poses.push(p);
+                summary.poses += 1;
+            }
+            OutputEvent::Rotation(r) => {
+                serde_json::to_writer(&mut diag, &r)
+                    .map_err(std::io::Error::other)
+                    .and_then(|()| writeln!(diag))
+                    .map_err(io_err(&diag_path))?;
+                summary.rotations += 1;
+            }
+            OutputEvent::Map(m) => {
+                let tmp = files.dir.join("map.json.tmp");
+                let mut w = create(&tmp)?;
+                m.write_json(&mut w)
+                    .and_then(|()| w.flush())
+                    .map_err(io_err(&tmp))?;
+                drop(w);
+                std::fs::rename(&tmp, &map_path).map_err(io_err(&map_path))?;
+                last_map = Some(m);
+                summary.maps += 1;
+            }
+            OutputEvent::Spectrum(s) => {
+                serde_json::to_writer(&mut spec, &s)
+                    .map_err(std::io::Error::other)
+                    .and_then(|()| writeln!(spec))
+                    .map_err(io_err(&spec_path))?;
+                if files.figures && (summary.spectra as usize) < files.spectrum_figures {
+                    let p = files.dir.join(format!(
+                        "spectrum_r{}_b{:.0}.svg",
+                        s.rotation,
+                        s.bearing_rad.to_degrees()
+                    ));
+                    draw_spectrum(&p, &s)?;
+                    summary.figures.push(p);
+                }
+                summary.spectra += 1;
+            }
+            OutputEvent::Truth(t) => truth = t,
+        }
+    }
+    traj.flush().map_err(io_err(&traj_path))?;
+    diag.flush().map_err(io_err(&diag_path))?;
+    spec.flush().map_err(io_err(&spec_path))?;
+    if files.figures {
+        let p = files.dir.join("map.svg");
+        let features = last_map.map(|m| m.features).unwrap_or_default();
+        draw_map(&p, &features, &poses, &truth)?;
+        summary.figures.push(p);
+    }
+    Ok(summary)
+}
