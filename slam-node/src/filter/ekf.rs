@@ -1,0 +1,556 @@
+//! The filter as the daemon uses it: odometry in, one beam at a time in, estimates out.
+//!
+//! Per beam: reject non-finite input (state untouched), predict to the beam's timestamp,
+//! find the features inside the beam (sorted by range), predict their `(R, beta, P)`,
+//! associate (gate, nearest neighbour or JCBB), apply one batched update, count misses and
+//! retire features not seen where they should be, and pass unclaimed targets to the
+//! tentative list, initialising the ones it confirms.
+
+use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Matrix4};
+use radar_model::geometry::{range_bearing, wrap_angle, Pose2};
+use radar_model::material::Material;
+
+use super::association::{associate, innovation, rows_of, BeamContext, GateTable};
+use super::error::FilterError;
+use super::health::{covariance_health, pose_nees, position_nees, CovarianceHealth};
+use super::lifecycle::{inverse_observation, Sighting, TentativeList};
+use super::observation::{state_columns, BeamObservation, BeamObservationModel, Target};
+use super::predict::{predict_to, OdometrySample, ProcessModel};
+use super::settings::FilterSettings;
+use super::state::{FeatureId, FeatureParams, SlamState, FEATURE_DIM};
+use super::update::{batched_update, LinearisedObservation, UpdateOutcome};
+
+/// A feature as reported: position, material shares (not the logits), uncertainty.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FeatureEstimate {
+    /// Stable id.
+    pub id: FeatureId,
+    /// World x (m).
+    pub x_m: f64,
+    /// World y (m).
+    pub y_m: f64,
+    /// Reflected share.
+    pub rho: f64,
+    /// Absorbed share.
+    pub alpha: f64,
+    /// Position covariance (m^2).
+    pub position_cov: Matrix2<f64>,
+    /// Observations used.
+    pub hits: u64,
+}
+
+/// What processing one beam did.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BeamReport {
+    /// The beam's features (in range order) that were candidates.
+    pub candidates: Vec<FeatureId>,
+    /// `(target index, feature)` pairs used in the update.
+    pub associated: Vec<(usize, FeatureId)>,
+    /// The batched update's NIS and dof, if one ran.
+    pub update: Option<UpdateOutcome>,
+    /// Features initialised from confirmed tentatives.
+    pub initialised: Vec<FeatureId>,
+    /// Features retired for repeated misses.
+    pub retired: Vec<FeatureId>,
+    /// Targets that started a new tentative.
+    pub new_tentatives: usize,
+    /// Whether JCBB ran, and whether it exhausted its budget.
+    pub used_jcbb: bool,
+    /// JCBB stopped at its node budget.
+    pub jcbb_budget_exhausted: bool,
+}
+
+/// Running totals.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FilterStats {
+    /// Batched updates applied.
+    pub updates: u64,
+    /// Sum of NIS over updates.
+    pub nis_sum: f64,
+    /// Sum of their degrees of freedom (mean NIS / mean dof ~ 1 when consistent).
+    pub nis_dof_sum: u64,
+    /// Features initialised.
+    pub initialised: u64,
+    /// Features retired.
+    pub retired: u64,
+    /// Beams where JCBB ran.
+    pub jcbb_runs: u64,
+    /// Odometry samples older than the state (held from the state's time instead).
+    pub late_odometry: u64,
+    /// Targets dropped because the tentative list was full.
+    pub dropped_targets: u64,
+}
+
+/// The augmented-state EKF with its models.
+#[derive(Debug)]
+pub struct Ekf<M, O> {
+    settings: FilterSettings,
+    gates: GateTable,
+    state: SlamState,
+    motion: M,
+    observer: O,
+    odometry: Option<OdometrySample>,
+    tentatives: TentativeList,
+    stats: FilterStats,
+}
+
+impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
+    /// A filter at `pose` (covariance `pose_cov`) at `time_s`, with no features.
+    pub fn new(
+        settings: FilterSettings,
+        pose: Pose2,
+        pose_cov: Matrix3<f64>,
+        time_s: f64,
+        motion: M,
+        observer: O,
+    ) -> Result<Self, FilterError> {
+        settings.validate()?;
+        let state = SlamState::new(
+            pose,
+            pose_cov,
+            settings.initial_loss_db,
+            settings.initial_loss_std_db.powi(2),
+            time_s,
+        )?;
+        Ok(Self {
+            gates: GateTable::new(settings.gate_probability, 24),
+            settings,
+            state,
+            motion,
+            observer,
+            odometry: None,
+            tentatives: TentativeList::default(),
+            stats: FilterStats::default(),
+        })
+    }
+
+    /// The settings in force.
+    pub fn settings(&self) -> &FilterSettings {
+        &self.settings
+    }
+
+    /// The whole state (mean, covariance, tracks).
+    pub fn state(&self) -> &SlamState {
+        &self.state
+    }
+
+    /// Running totals.
+    pub fn stats(&self) -> &FilterStats {
+        &self.stats
+    }
+
+    /// The tentative targets.
+    pub fn tentatives(&self) -> &TentativeList {
+        &self.tentatives
+    }
+
+    /// Estimated pose.
+    pub fn pose(&self) -> Pose2 {
+        self.state.pose()
+    }
+
+    /// Pose covariance.
+    pub fn pose_covariance(&self) -> Matrix3<f64> {
+        self.state.pose_covariance()
+    }
+
+    /// Number of features in the state.
+    pub fn feature_count(&self) -> usize {
+        self.state.feature_count()
+    }
+
+    /// Every feature's estimate, in slot order.
+    pub fn features(&self) -> Vec<FeatureEstimate> {
+        (0..self.state.feature_count())
+            .filter_map(|s| self.feature_estimate_at(s))
+            .collect()
+    }
+
+    fn feature_estimate_at(&self, slot: usize) -> Option<FeatureEstimate> {
+        let p = self.state.params(slot)?;
+        let track = self.state.tracks().get(slot)?;
+        let shares = Material::new(p.u, p.v).shares();
+        Some(FeatureEstimate {
+            id: track.id,
+            x_m: p.x_m,
+            y_m: p.y_m,
+            rho: shares.rho,
+            alpha: shares.alpha,
+            position_cov: self.state.position_covariance(slot)?,
+            hits: track.hits,
+        })
+    }
+
+    /// One feature's estimate.
+    pub fn feature(&self, id: FeatureId) -> Option<FeatureEstimate> {
+        self.feature_estimate_at(self.state.slot_of(id)?)
+    }
+
+    /// Pose NEES against the true pose.
+    pub fn pose_nees(&self, truth: &Pose2) -> Result<f64, FilterError> {
+        pose_nees(&self.pose(), &self.pose_covariance(), truth)
+    }
+
+    /// Feature position NEES against its true position.
+    pub fn feature_nees(&self, id: FeatureId, truth_xy: [f64; 2]) -> Result<f64, FilterError> {
+        let f = self.feature(id).ok_or(FilterError::UnknownFeature(id))?;
+        position_nees([f.x_m, f.y_m], &f.position_cov, truth_xy)
+    }
+
+    /// Covariance health (`with_eigenvalues` adds an O(n^3) eigen-decomposition).
+    pub fn covariance_health(&self, with_eigenvalues: bool) -> CovarianceHealth {
+        covariance_health(self.state.covariance(), with_eigenvalues)
+    }
+
+    /// Takes a new odometry sample: predicts to its timestamp with the previous sample held,
+    /// then holds this one. The first sample only starts the clock (the vehicle is assumed
+    /// still at the initial pose until then). A sample older than the state is held from
+    /// the state's time (counted in [`FilterStats::late_odometry`]).
+    pub fn apply_odometry(&mut self, sample: OdometrySample) -> Result<(), FilterError> {
+        sample.check()?;
+        match self.odometry {
+            None => {
+                if sample.timestamp_s > self.state.time_s() {
+                    self.state.set_time_s(sample.timestamp_s);
+                }
+            }
+            Some(held) => {
+                if sample.timestamp_s >= self.state.time_s() {
+                    predict_to(
+                        &mut self.state,
+                        &self.motion,
+                        &held,
+                        sample.timestamp_s,
+                        &self.settings,
+                    )?;
+                } else {
+                    self.stats.late_odometry += 1;
+                }
+            }
+        }
+        self.odometry = Some(sample);
+        Ok(())
+    }
+
+    /// Predicts the state to `time_s` with the held odometry.
+    pub fn predict_to(&mut self, time_s: f64) -> Result<(), FilterError> {
+        let held = self.odometry.ok_or(FilterError::NoOdometry)?;
+        predict_to(&mut self.state, &self.motion, &held, time_s, &self.settings)
+    }
+
+    /// Removes a feature (map management); its id is never reused.
+    pub fn remove_feature(&mut self, id: FeatureId) -> Result<(), FilterError> {
+        self.state.remove(id)
+    }
+
+    /// The features inside a beam at `bearing_rad` seen from the current pose, sorted by range:
+    /// `(slot, range)`.
+    pub fn features_in_beam(&self, bearing_rad: f64) -> Vec<(usize, f64)> {
+        let pose = self.pose();
+        let mut out = Vec::new();
+        for slot in 0..self.state.feature_count() {
+            let Some(p) = self.state.params(slot) else {
+                continue;
+            };
+            let rb = range_bearing(&pose, [p.x_m, p.y_m]);
+            if rb.range_m >= self.settings.min_range_m
+                && rb.range_m <= self.settings.max_range_m
+                && wrap_angle(rb.bearing_rad - bearing_rad).abs()
+                    <= self.settings.beam_half_width_rad
+            {
+                out.push((slot, rb.range_m));
+            }
+        }
+        out.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+        out
+    }
+
+    /// Processes every target detected down one beam. Non-finite input is rejected before
+    /// the state is touched. On a model or update error the state has been predicted to the
+    /// beam's time but not updated.
+    pub fn process_beam(&mut self, beam: &BeamObservation) -> Result<BeamReport, FilterError> {
+        beam.check()?;
+        self.predict_to(beam.timestamp_s)?;
+        let mut report = BeamReport::default();
+        let in_beam = self.features_in_beam(beam.bearing_rad);
+        let slots: Vec<usize> = in_beam.iter().map(|&(s, _)| s).collect();
+        report.candidates = slots
+            .iter()
+            .filter_map(|&s| self.state.tracks().get(s).map(|t| t.id))
+            .collect();
+        let mut unclaimed: Vec<usize> = (0..beam.targets.len()).collect();
+        if !slots.is_empty() {
+            let claimed = self.update_beam(beam, &slots, &mut report)?;
+            unclaimed.retain(|j| !claimed.contains(j));
+        }
+        self.handle_unclaimed(beam, &unclaimed, &mut report)?;
+        self.tentatives
+            .expire(beam.timestamp_s, self.settings.tentative_timeout_s);
+        Ok(report)
+    }
+
+    fn beam_params(&self, slots: &[usize]) -> Vec<FeatureParams> {
+        slots.iter().filter_map(|&s| self.state.params(s)).collect()
+    }
+
+    fn noise_var(&self) -> [f64; 3] {
+        [
+            self.settings.range_std_m.powi(2),
+            self.settings.bearing_std_rad.powi(2),
+            self.settings.power_std_db.powi(2),
+        ]
+    }
+
+    /// Associates and updates; returns the claimed target indices.
+    fn update_beam(
+        &mut self,
+        beam: &BeamObservation,
+        slots: &[usize],
+        report: &mut BeamReport,
+    ) -> Result<Vec<usize>, FilterError> {
+        let params = self.beam_params(slots);
+        let pred = self
+            .observer
+            .predict_beam(&self.pose(), &params, self.state.loss_db())?;
+        if pred.z.len() != slots.len() || pred.jacobian.nrows() != 3 * slots.len() {
+            return Err(FilterError::Shape(
+                "beam prediction does not match its features",
+            ));
+        }
+        let use_power: Vec<bool> = pred
+            .power_usable
+            .iter()
+            .map(|&u| u && self.settings.use_power)
+            .collect();
+        let columns = state_columns(slots);
+        let p_cc = self
+            .state
+            .covariance()
+            .select_rows(columns.iter())
+            .select_columns(columns.iter());
+        let ctx = BeamContext {
+            prediction: &pred,
+            p_cc: &p_cc,
+            use_power: &use_power,
+            noise_var: self.noise_var(),
+        };
+        let assoc = associate(
+            &ctx,
+            &beam.targets,
+            &self.gates,
+            self.settings.jcbb_max_nodes,
+        );
+        report.used_jcbb = assoc.used_jcbb;
+        report.jcbb_budget_exhausted = assoc.budget_exhausted;
+        if assoc.used_jcbb {
+            self.stats.jcbb_runs += 1;
+        }
+        let mut rows = Vec::new();
+        let mut nu = Vec::new();
+        let mut claimed = Vec::new();
+        let mut seen = vec![false; slots.len()];
+        for (j, f) in assoc.pairs.iter().enumerate() {
+            let (Some(i), Some(t)) = (*f, beam.targets.get(j)) else {
+                continue;
+            };
+            let r = rows_of(i, use_power.get(i).copied().unwrap_or(false));
+            nu.extend(innovation(&pred, i, t, &r));
+            rows.extend(r);
+            claimed.push(j);
+            if let Some(s) = seen.get_mut(i) {
+                *s = true;
+            }
+        }
+        if !rows.is_empty() {
+            let var = self.noise_var();
+            let noise = DMatrix::from_diagonal(&DVector::from_iterator(
+                rows.len(),
+                rows.iter().map(|&r| var[r % 3]),
+            ));
+            let obs = LinearisedObservation {
+                columns,
+                jacobian: pred.jacobian.select_rows(rows.iter()),
+                innovation: DVector::from_vec(nu),
+                noise,
+            };
+            let outcome = batched_update(&mut self.state, &obs)?;
+            self.stats.updates += 1;
+            self.stats.nis_sum += outcome.nis;
+            self.stats.nis_dof_sum += outcome.dof as u64;
+            report.update = Some(outcome);
+        }
+        // Book-keeping: hits, misses, retirement.
+        let now = beam.timestamp_s;
+        let mut retire = Vec::new();
+        for (i, &slot) in slots.iter().enumerate() {
+            let expected = !self.settings.use_power
+                || pred
+                    .z
+                    .get(i)
+                    .map_or(true, |z| z[2] >= self.settings.min_detectable_power_db);
+            let Some(track) = self.state.track_mut(slot) else {
+                continue;
+            };
+            if seen.get(i).copied().unwrap_or(false) {
+                track.hits += 1;
+                track.consecutive_misses = 0;
+                track.last_seen_s = now;
+                report.associated.extend(
+                    assoc
+                        .pairs
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, f)| **f == Some(i))
+                        .map(|(j, _)| (j, track.id)),
+                );
+            } else if expected {
+                track.consecutive_misses += 1;
+                if track.consecutive_misses >= self.settings.retire_after_misses {
+                    retire.push(track.id);
+                }
+            }
+        }
+        for id in retire {
+            self.state.remove(id)?;
+            self.stats.retired += 1;
+            report.retired.push(id);
+        }
+        Ok(claimed)
+    }
+
+    fn handle_unclaimed(
+        &mut self,
+        beam: &BeamObservation,
+        unclaimed: &[usize],
+        report: &mut BeamReport,
+    ) -> Result<(), FilterError> {
+        let gate2 = self.gates.threshold(2);
+        for &j in unclaimed {
+            let Some(t) = beam.targets.get(j) else {
+                continue;
+            };
+            if t.range_m < self.settings.min_range_m || t.range_m > self.settings.max_range_m {
+                continue;
+            }
+            let sighting = self.tentatives.offer(
+                &self.pose(),
+                &self.pose_covariance(),
+                [
+                    self.settings.range_std_m.powi(2),
+                    self.settings.bearing_std_rad.powi(2),
+                ],
+                t,
+                beam.timestamp_s,
+                gate2,
+                self.settings.confirm_min_separation_s,
+                self.settings.max_tentatives,
+            );
+            match sighting {
+                Sighting::New => report.new_tentatives += 1,
+                Sighting::Refreshed => {}
+                Sighting::Dropped => self.stats.dropped_targets += 1,
+                Sighting::Confirmed => {
+                    if self.state.feature_count() >= self.settings.max_features {
+                        self.stats.dropped_targets += 1;
+                        continue;
+                    }
+                    let id = self.initialise_feature(t, beam.bearing_rad, beam.timestamp_s)?;
+                    report.initialised.push(id);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds a feature from target `t` (eq. 3, 4 inverted, with full cross-covariances); u, v
+    /// start from the prior shares with no correlation; then, if power is used, the target's
+    /// power alone updates the state (range and bearing were spent on the position).
+    pub fn initialise_feature(
+        &mut self,
+        t: &Target,
+        beam_bearing_rad: f64,
+        time_s: f64,
+    ) -> Result<FeatureId, FilterError> {
+        t.check()?;
+        let pose = self.pose();
+        let (p, g_pose, g_rb) = inverse_observation(&pose, t);
+        let material =
+            Material::from_rho_alpha(self.settings.initial_rho, self.settings.initial_alpha)
+                .map_err(|e| FilterError::Model(e.to_string()))?;
+        let n = self.state.dim();
+        let cov = self.state.covariance();
+        let mut cross = DMatrix::zeros(FEATURE_DIM, n);
+        let pose_rows = cov.rows(0, 3);
+        let gx = g_pose * pose_rows; // 2 x n
+        cross.rows_mut(0, 2).copy_from(&gx);
+        let rz = Matrix2::new(
+            self.settings.range_std_m.powi(2),
+            0.0,
+            0.0,
+            self.settings.bearing_std_rad.powi(2),
+        );
+        let p_vv = self.state.pose_covariance();
+        let p_ff = g_pose * p_vv * g_pose.transpose() + g_rb * rz * g_rb.transpose();
+        let mut block = Matrix4::zeros();
+        block.fixed_view_mut::<2, 2>(0, 0).copy_from(&p_ff);
+        let m_var = self.settings.initial_material_std.powi(2);
+        block[(2, 2)] = m_var;
+        block[(3, 3)] = m_var;
+        let id = self.state.augment(
+            [p.x, p.y, material.u, material.v],
+            &cross,
+            &block,
+            time_s,
+            self.settings.max_features,
+        )?;
+        self.stats.initialised += 1;
+        if self.settings.use_power {
+            self.power_update_new(id, t, beam_bearing_rad)?;
+        }
+        Ok(id)
+    }
+
+    /// The power-only update of a feature just initialised, within its beam.
+    fn power_update_new(
+        &mut self,
+        id: FeatureId,
+        t: &Target,
+        beam_bearing_rad: f64,
+    ) -> Result<(), FilterError> {
+        let Some(new_slot) = self.state.slot_of(id) else {
+            return Err(FilterError::UnknownFeature(id));
+        };
+        let mut slots: Vec<usize> = self
+            .features_in_beam(beam_bearing_rad)
+            .into_iter()
+            .map(|(s, _)| s)
+            .collect();
+        if !slots.contains(&new_slot) {
+            // The target's bearing put it just outside the nominal beam: predict it alone
+            // with the beam's other features.
+            slots.push(new_slot);
+        }
+        let params = self.beam_params(&slots);
+        let pred = self
+            .observer
+            .predict_beam(&self.pose(), &params, self.state.loss_db())?;
+        let Some(local) = slots.iter().position(|&s| s == new_slot) else {
+            return Ok(());
+        };
+        if !pred.power_usable.get(local).copied().unwrap_or(false) {
+            return Ok(());
+        }
+        let Some(zhat) = pred.z.get(local) else {
+            return Ok(());
+        };
+        let row = 3 * local + 2;
+        let obs = LinearisedObservation {
+            columns: state_columns(&slots),
+            jacobian: pred.jacobian.select_rows([row].iter()),
+            innovation: DVector::from_element(1, t.power_db - zhat[2]),
+            noise: DMatrix::from_element(1, 1, self.settings.power_std_db.powi(2)),
+        };
+        batched_update(&mut self.state, &obs)?;
+        Ok(())
+    }
+}

@@ -1,0 +1,170 @@
+//! Prediction: the process model (radar-model's `motion`, eq. 2 or the bicycle) applied
+//! from the state's time to any requested time with the odometry held since its timestamp.
+//!
+//! Only the pose rows and columns change: `P_vv <- F P_vv F^T + G Q G^T`, `P_vm <- F P_vm`
+//! (mirrored into `P_mv`), plus a small variance growth on every u and v. Features'
+//! positions and L get no process noise. The cost is O(n) per step.
+//!
+//! Input noise is modelled as white with spectral density `std^2 * correlation_s` (see
+//! [`FilterSettings::input_noise_correlation_s`]): over a step of `dt` the inputs'
+//! covariance is `Q = diag(speed_std^2, steer_std^2) * correlation_s / dt`, so the pose
+//! covariance grows by `G Q G^T`, linear in `dt`, whatever the step size.
+
+use nalgebra::{Matrix2, Matrix3, Matrix3x2, Vector3};
+use radar_model::geometry::{wrap_angle, Pose2};
+
+use super::error::FilterError;
+use super::settings::FilterSettings;
+use super::state::{feature_index, SlamState, POSE_DIM};
+
+/// One odometry sample: what the vehicle reports at `timestamp_s`, held until the next.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometrySample {
+    /// Unix time (s).
+    pub timestamp_s: f64,
+    /// Forward speed (m/s).
+    pub speed_mps: f64,
+    /// Steering input (rad), interpreted by the process model.
+    pub steer_rad: f64,
+}
+
+impl OdometrySample {
+    /// Rejects NaN and infinities.
+    pub fn check(&self) -> Result<(), FilterError> {
+        for (what, value) in [
+            ("timestamp_s", self.timestamp_s),
+            ("speed_mps", self.speed_mps),
+            ("steer_rad", self.steer_rad),
+        ] {
+            if !value.is_finite() {
+                return Err(FilterError::NonFiniteOdometry { what, value });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The pose after one step and the step's Jacobians.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotionStep {
+    /// The new pose (heading wrapped).
+    pub pose: Pose2,
+    /// `d f / d [x, y, theta]`.
+    pub wrt_pose: Matrix3<f64>,
+    /// `d f / d [speed, steer]`.
+    pub wrt_input: Matrix3x2<f64>,
+}
+
+/// A vehicle process model with its Jacobians (implemented for radar-model's
+/// [`radar_model::motion::MotionModel`] in [`super::radar`]).
+pub trait ProcessModel {
+    /// Moves `pose` by `speed_mps`, `steer_rad` over `dt_s`.
+    fn step(
+        &self,
+        pose: &Pose2,
+        speed_mps: f64,
+        steer_rad: f64,
+        dt_s: f64,
+    ) -> Result<MotionStep, FilterError>;
+}
+
+/// Applies one step of length `dt_s > 0` to the state: O(n).
+pub fn predict_step<M: ProcessModel + ?Sized>(
+    state: &mut SlamState,
+    model: &M,
+    input: &OdometrySample,
+    dt_s: f64,
+    settings: &FilterSettings,
+) -> Result<(), FilterError> {
+    if !(dt_s > 0.0 && dt_s.is_finite()) {
+        return Ok(());
+    }
+    let step = model.step(&state.pose(), input.speed_mps, input.steer_rad, dt_s)?;
+    let f = step.wrt_pose;
+    let g = step.wrt_input;
+    if f.iter().chain(g.iter()).any(|v| !v.is_finite())
+        || !(step.pose.x.is_finite() && step.pose.y.is_finite() && step.pose.theta.is_finite())
+    {
+        return Err(FilterError::NonFiniteInput("process model step"));
+    }
+    let q_scale = settings.input_noise_correlation_s / dt_s;
+    let q = Matrix2::new(
+        settings.speed_std_mps.powi(2) * q_scale,
+        0.0,
+        0.0,
+        settings.steer_std_rad.powi(2) * q_scale,
+    );
+    let n = state.dim();
+    let cov = &mut state.cov;
+    // Pose block.
+    let p_vv = cov.fixed_view::<3, 3>(0, 0).into_owned();
+    let mut new_vv = f * p_vv * f.transpose() + g * q * g.transpose();
+    new_vv = 0.5 * (new_vv + new_vv.transpose());
+    cov.fixed_view_mut::<3, 3>(0, 0).copy_from(&new_vv);
+    // Pose-map cross blocks: columns 3..n of the pose rows, mirrored.
+    for j in POSE_DIM..n {
+        let c = Vector3::new(cov[(0, j)], cov[(1, j)], cov[(2, j)]);
+        let fc = f * c;
+        for r in 0..POSE_DIM {
+            cov[(r, j)] = fc[r];
+            cov[(j, r)] = fc[r];
+        }
+    }
+    // Material drift on u and v.
+    let q_uv = settings.material_variance_per_s * dt_s;
+    if q_uv > 0.0 {
+        for slot in 0..state.feature_count() {
+            let i = feature_index(slot);
+            state.cov[(i + 2, i + 2)] += q_uv;
+            state.cov[(i + 3, i + 3)] += q_uv;
+        }
+    }
+    state.mean[0] = step.pose.x;
+    state.mean[1] = step.pose.y;
+    state.mean[2] = wrap_angle(step.pose.theta);
+    Ok(())
+}
+
+/// Predicts from the state's time to `to_s` with `input` held, in steps of at most
+/// `settings.max_predict_step_s`. Checks the request before touching the state.
+pub fn predict_to<M: ProcessModel + ?Sized>(
+    state: &mut SlamState,
+    model: &M,
+    input: &OdometrySample,
+    to_s: f64,
+    settings: &FilterSettings,
+) -> Result<(), FilterError> {
+    if !to_s.is_finite() {
+        return Err(FilterError::NonFiniteObservation {
+            what: "timestamp_s",
+            value: to_s,
+        });
+    }
+    let from_s = state.time_s();
+    let gap_s = to_s - from_s;
+    if gap_s < 0.0 {
+        return Err(FilterError::TimeWentBackwards {
+            state_s: from_s,
+            requested_s: to_s,
+        });
+    }
+    if gap_s > settings.max_predict_gap_s {
+        return Err(FilterError::GapTooLong {
+            gap_s,
+            limit_s: settings.max_predict_gap_s,
+        });
+    }
+    if gap_s == 0.0 {
+        return Ok(());
+    }
+    // gap_s / max_step is bounded by max_predict_gap_s / max_predict_step_s (validated).
+    let steps = (gap_s / settings.max_predict_step_s).ceil().max(1.0);
+    let dt = gap_s / steps;
+    let mut done = 0.0;
+    while done < steps {
+        predict_step(state, model, input, dt, settings)?;
+        done += 1.0;
+    }
+    state.set_time_s(to_s);
+    Ok(())
+}

@@ -1,0 +1,274 @@
+//! The filter's own settings: plain values, validated once, independent of the config crate.
+
+use thiserror::Error;
+
+/// Everything the EKF needs to know that is not state. Units are in the names.
+///
+/// Build one with [`FilterSettings::default`] and adjust fields; [`FilterSettings::validate`]
+/// is called by the filter's constructor and rejects any value that would make the filter
+/// meaningless (non-finite, non-positive standard deviations, probabilities outside (0, 1)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterSettings {
+    /// Use the received power as a third observation row (the paper's filter). When false the
+    /// filter is ordinary range-bearing SLAM (for the evaluation's comparison); u, v and L are
+    /// then unobserved and keep their priors.
+    pub use_power: bool,
+    /// Standard deviation of an observed range (m).
+    pub range_std_m: f64,
+    /// Standard deviation of an observed bearing (rad). The paper: 1 degree.
+    pub bearing_std_rad: f64,
+    /// Standard deviation of an observed (uncompensated) power (dB).
+    pub power_std_db: f64,
+    /// Standard deviation of one odometry speed sample (m/s).
+    pub speed_std_mps: f64,
+    /// Standard deviation of one odometry steering sample (rad).
+    pub steer_std_rad: f64,
+    /// The time over which one odometry sample's error persists (s): usually the odometry
+    /// period. Input noise is treated as white with spectral density `std^2 * correlation`, so
+    /// predicting over `dt` in one step or many gives the same pose covariance growth.
+    pub input_noise_correlation_s: f64,
+    /// Growth rate of the variance of each feature's u and v (1/s): the paper's Gaussian
+    /// change of reflectivity and absorption with viewing angle.
+    pub material_variance_per_s: f64,
+    /// Longest single integration step of the process model (s); longer predictions are split.
+    pub max_predict_step_s: f64,
+    /// Longest gap the filter will predict across in one call (s); a longer one is an error
+    /// (stale odometry or a clock jump), not something to integrate blindly.
+    pub max_predict_gap_s: f64,
+    /// Probability mass inside the association gate (for example 0.95 or 0.99).
+    pub gate_probability: f64,
+    /// Node budget of the joint compatibility branch and bound per beam.
+    pub jcbb_max_nodes: usize,
+    /// Half the beam width (rad): features within this of a beam's azimuth are in that beam
+    /// and attenuate each other. The paper's radar: 0.9 degrees.
+    pub beam_half_width_rad: f64,
+    /// Features nearer than this are not predicted (m): a feature on top of the radar has no
+    /// bearing.
+    pub min_range_m: f64,
+    /// Features further than this are not predicted (m).
+    pub max_range_m: f64,
+    /// A feature predicted weaker than this (dB, uncompensated) is not expected to be detected,
+    /// so not seeing it is not a miss.
+    pub min_detectable_power_db: f64,
+    /// A tentative target must be seen again at least this much later (s) to be confirmed
+    /// (so two adjacent beams of one rotation do not confirm each other).
+    pub confirm_min_separation_s: f64,
+    /// A tentative target not seen again within this time is forgotten (s).
+    pub tentative_timeout_s: f64,
+    /// Upper bound on the number of tentative targets held (bounded memory).
+    pub max_tentatives: usize,
+    /// Upper bound on the number of features in the state (bounded memory).
+    pub max_features: usize,
+    /// A feature is retired after this many consecutive beams in which it was predicted to be
+    /// visible and was not associated.
+    pub retire_after_misses: u32,
+    /// Reflected share a new feature starts from.
+    pub initial_rho: f64,
+    /// Absorbed share a new feature starts from.
+    pub initial_alpha: f64,
+    /// Standard deviation of a new feature's u and v (softmax logits).
+    pub initial_material_std: f64,
+    /// Initial radar loss L (dB).
+    pub initial_loss_db: f64,
+    /// Standard deviation of the initial loss (dB).
+    pub initial_loss_std_db: f64,
+}
+
+impl Default for FilterSettings {
+    fn default() -> Self {
+        Self {
+            use_power: true,
+            range_std_m: 0.25,
+            bearing_std_rad: 1.0_f64.to_radians(),
+            power_std_db: 2.4,
+            speed_std_mps: 0.05,
+            steer_std_rad: 0.5_f64.to_radians(),
+            input_noise_correlation_s: 0.05,
+            material_variance_per_s: 1e-4,
+            max_predict_step_s: 0.05,
+            max_predict_gap_s: 5.0,
+            gate_probability: 0.99,
+            jcbb_max_nodes: 5_000,
+            beam_half_width_rad: 0.9_f64.to_radians(),
+            min_range_m: 0.5,
+            max_range_m: 200.0,
+            min_detectable_power_db: f64::NEG_INFINITY,
+            confirm_min_separation_s: 0.1,
+            tentative_timeout_s: 2.0,
+            max_tentatives: 4_096,
+            max_features: 2_000,
+            retire_after_misses: 8,
+            initial_rho: 0.3,
+            initial_alpha: 0.3,
+            initial_material_std: 2.0,
+            initial_loss_db: 0.0,
+            initial_loss_std_db: 10.0,
+        }
+    }
+}
+
+/// A setting that makes no sense.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SettingsError {
+    /// The value must be finite and strictly positive.
+    #[error("{name} must be finite and > 0, got {value}")]
+    NotPositive {
+        /// Field name.
+        name: &'static str,
+        /// Offending value.
+        value: f64,
+    },
+    /// The value must be finite and >= 0.
+    #[error("{name} must be finite and >= 0, got {value}")]
+    Negative {
+        /// Field name.
+        name: &'static str,
+        /// Offending value.
+        value: f64,
+    },
+    /// The value must lie strictly between 0 and 1.
+    #[error("{name} must lie in (0, 1), got {value}")]
+    NotAProbability {
+        /// Field name.
+        name: &'static str,
+        /// Offending value.
+        value: f64,
+    },
+    /// rho + alpha must be < 1 so the transmitted share is positive.
+    #[error("initial rho + alpha must be < 1, got {rho} + {alpha}")]
+    SharesExceedOne {
+        /// Initial rho.
+        rho: f64,
+        /// Initial alpha.
+        alpha: f64,
+    },
+    /// A count must be at least one.
+    #[error("{name} must be at least 1")]
+    ZeroCount {
+        /// Field name.
+        name: &'static str,
+    },
+    /// The value must not be NaN (infinities are allowed where documented).
+    #[error("{name} must not be NaN")]
+    NaN {
+        /// Field name.
+        name: &'static str,
+    },
+}
+
+fn positive(name: &'static str, value: f64) -> Result<(), SettingsError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(SettingsError::NotPositive { name, value })
+    }
+}
+
+fn non_negative(name: &'static str, value: f64) -> Result<(), SettingsError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(SettingsError::Negative { name, value })
+    }
+}
+
+fn probability(name: &'static str, value: f64) -> Result<(), SettingsError> {
+    if value.is_finite() && value > 0.0 && value < 1.0 {
+        Ok(())
+    } else {
+        Err(SettingsError::NotAProbability { name, value })
+    }
+}
+
+fn count(name: &'static str, value: usize) -> Result<(), SettingsError> {
+    if value >= 1 {
+        Ok(())
+    } else {
+        Err(SettingsError::ZeroCount { name })
+    }
+}
+
+impl FilterSettings {
+    /// Checks every field; the filter's constructor calls this.
+    pub fn validate(&self) -> Result<(), SettingsError> {
+        positive("range_std_m", self.range_std_m)?;
+        positive("bearing_std_rad", self.bearing_std_rad)?;
+        positive("power_std_db", self.power_std_db)?;
+        positive("speed_std_mps", self.speed_std_mps)?;
+        positive("steer_std_rad", self.steer_std_rad)?;
+        positive("input_noise_correlation_s", self.input_noise_correlation_s)?;
+        non_negative("material_variance_per_s", self.material_variance_per_s)?;
+        positive("max_predict_step_s", self.max_predict_step_s)?;
+        positive("max_predict_gap_s", self.max_predict_gap_s)?;
+        probability("gate_probability", self.gate_probability)?;
+        count("jcbb_max_nodes", self.jcbb_max_nodes)?;
+        positive("beam_half_width_rad", self.beam_half_width_rad)?;
+        positive("min_range_m", self.min_range_m)?;
+        positive("max_range_m", self.max_range_m)?;
+        if self.min_detectable_power_db.is_nan() {
+            return Err(SettingsError::NaN {
+                name: "min_detectable_power_db",
+            });
+        }
+        non_negative("confirm_min_separation_s", self.confirm_min_separation_s)?;
+        positive("tentative_timeout_s", self.tentative_timeout_s)?;
+        count("max_tentatives", self.max_tentatives)?;
+        count("max_features", self.max_features)?;
+        count("retire_after_misses", self.retire_after_misses as usize)?;
+        probability("initial_rho", self.initial_rho)?;
+        probability("initial_alpha", self.initial_alpha)?;
+        if self.initial_rho + self.initial_alpha >= 1.0 {
+            return Err(SettingsError::SharesExceedOne {
+                rho: self.initial_rho,
+                alpha: self.initial_alpha,
+            });
+        }
+        positive("initial_material_std", self.initial_material_std)?;
+        if !self.initial_loss_db.is_finite() {
+            return Err(SettingsError::Negative {
+                name: "initial_loss_db",
+                value: self.initial_loss_db,
+            });
+        }
+        positive("initial_loss_std_db", self.initial_loss_std_db)?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_defaults_are_valid() {
+        assert_eq!(FilterSettings::default().validate(), Ok(()));
+    }
+
+    #[test]
+    fn a_nan_standard_deviation_is_rejected_by_name() {
+        let s = FilterSettings {
+            range_std_m: f64::NAN,
+            ..FilterSettings::default()
+        };
+        assert!(matches!(
+            s.validate(),
+            Err(SettingsError::NotPositive {
+                name: "range_std_m",
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn shares_that_leave_nothing_transmitted_are_rejected() {
+        let s = FilterSettings {
+            initial_rho: 0.6,
+            initial_alpha: 0.4,
+            ..FilterSettings::default()
+        };
+        assert!(matches!(
+            s.validate(),
+            Err(SettingsError::SharesExceedOne { .. })
+        ));
+    }
+}

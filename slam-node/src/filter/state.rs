@@ -1,0 +1,278 @@
+//! The augmented state: mean, covariance, and which feature lives where.
+//!
+//! # Layout
+//!
+//! | index            | element                                   |
+//! |------------------|-------------------------------------------|
+//! | 0, 1, 2          | vehicle pose `x`, `y` (m), `theta` (rad)  |
+//! | 3                | radar loss `L` (dB)                       |
+//! | 4 + 4 s + 0, 1   | feature in slot `s`: `x_s`, `y_s` (m)     |
+//! | 4 + 4 s + 2, 3   | feature in slot `s`: `u_s`, `v_s`         |
+//!
+//! `L` is stored right after the pose (the paper puts it last) so that appending a feature
+//! is a resize that leaves every existing index in place, and removing one shifts only the
+//! features after it. `(rho, alpha, tau) = softmax(u, v, 0)` (radar-model's `material`), so
+//! every value of `u, v` is a valid material and no clamping is ever needed.
+//!
+//! The covariance `P` is kept exactly symmetric: every operation writes one triangle and
+//! mirrors it. Feature ids are stable for the life of the filter; slots are not.
+
+use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Matrix4};
+use radar_model::geometry::{wrap_angle, Pose2};
+
+use super::error::FilterError;
+
+/// Number of pose elements.
+pub const POSE_DIM: usize = 3;
+/// Index of the radar loss L.
+pub const LOSS_INDEX: usize = 3;
+/// Index of the first feature's first element.
+pub const FEATURE_BASE: usize = 4;
+/// Elements per feature: x, y, u, v.
+pub const FEATURE_DIM: usize = 4;
+
+/// A feature's identity: never reused, unchanged when other features come and go.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct FeatureId(pub u64);
+
+/// Book-keeping for one feature in the state (not part of the estimate).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FeatureTrack {
+    /// Stable id.
+    pub id: FeatureId,
+    /// Consecutive beams in which it was expected to be seen and was not.
+    pub consecutive_misses: u32,
+    /// Number of observations used in updates.
+    pub hits: u64,
+    /// Time it entered the state (s).
+    pub created_s: f64,
+    /// Time it was last associated (s).
+    pub last_seen_s: f64,
+}
+
+/// A feature's estimated state elements.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FeatureParams {
+    /// World x (m).
+    pub x_m: f64,
+    /// World y (m).
+    pub y_m: f64,
+    /// Softmax logit of rho.
+    pub u: f64,
+    /// Softmax logit of alpha.
+    pub v: f64,
+}
+
+/// The mean and covariance of the augmented state, with its feature book-keeping.
+#[derive(Debug, Clone)]
+pub struct SlamState {
+    pub(crate) mean: DVector<f64>,
+    pub(crate) cov: DMatrix<f64>,
+    tracks: Vec<FeatureTrack>,
+    next_id: u64,
+    time_s: f64,
+}
+
+/// Index of slot `s`'s first element.
+pub const fn feature_index(slot: usize) -> usize {
+    FEATURE_BASE + FEATURE_DIM * slot
+}
+
+fn check_finite(values: &[f64], what: &'static str) -> Result<(), FilterError> {
+    if values.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(FilterError::NonFiniteInput(what))
+    }
+}
+
+impl SlamState {
+    /// A state with no features: pose and loss with their (independent) covariances.
+    pub fn new(
+        pose: Pose2,
+        pose_cov: Matrix3<f64>,
+        loss_db: f64,
+        loss_var_db2: f64,
+        time_s: f64,
+    ) -> Result<Self, FilterError> {
+        check_finite(
+            &[pose.x, pose.y, pose.theta, loss_db, loss_var_db2, time_s],
+            "initial state",
+        )?;
+        check_finite(pose_cov.as_slice(), "initial pose covariance")?;
+        if pose_cov.cholesky().is_none() && pose_cov != Matrix3::zeros() {
+            return Err(FilterError::CovarianceNotPositiveDefinite);
+        }
+        if loss_var_db2 <= 0.0 {
+            return Err(FilterError::CovarianceNotPositiveDefinite);
+        }
+        let mut mean = DVector::zeros(FEATURE_BASE);
+        mean[0] = pose.x;
+        mean[1] = pose.y;
+        mean[2] = wrap_angle(pose.theta);
+        mean[LOSS_INDEX] = loss_db;
+        let mut cov = DMatrix::zeros(FEATURE_BASE, FEATURE_BASE);
+        for r in 0..3 {
+            for c in 0..3 {
+                // Mirror the lower triangle so the stored matrix is exactly symmetric.
+                let (i, j) = if r >= c { (r, c) } else { (c, r) };
+                cov[(r, c)] = pose_cov[(i, j)];
+            }
+        }
+        cov[(LOSS_INDEX, LOSS_INDEX)] = loss_var_db2;
+        Ok(Self {
+            mean,
+            cov,
+            tracks: Vec::new(),
+            next_id: 0,
+            time_s,
+        })
+    }
+
+    /// State dimension n = 4 + 4 N.
+    pub fn dim(&self) -> usize {
+        self.mean.len()
+    }
+
+    /// Number of features N.
+    pub fn feature_count(&self) -> usize {
+        self.tracks.len()
+    }
+
+    /// Time the estimate refers to (s).
+    pub fn time_s(&self) -> f64 {
+        self.time_s
+    }
+
+    pub(crate) fn set_time_s(&mut self, t: f64) {
+        self.time_s = t;
+    }
+
+    /// The mean vector (layout in the module docs).
+    pub fn mean(&self) -> &DVector<f64> {
+        &self.mean
+    }
+
+    /// The covariance matrix (exactly symmetric).
+    pub fn covariance(&self) -> &DMatrix<f64> {
+        &self.cov
+    }
+
+    /// The vehicle pose.
+    pub fn pose(&self) -> Pose2 {
+        Pose2::new(self.mean[0], self.mean[1], self.mean[2])
+    }
+
+    /// The pose's 3x3 covariance block.
+    pub fn pose_covariance(&self) -> Matrix3<f64> {
+        self.cov.fixed_view::<3, 3>(0, 0).into_owned()
+    }
+
+    /// The radar loss L (dB).
+    pub fn loss_db(&self) -> f64 {
+        self.mean[LOSS_INDEX]
+    }
+
+    /// Feature book-keeping in slot order.
+    pub fn tracks(&self) -> &[FeatureTrack] {
+        &self.tracks
+    }
+
+    pub(crate) fn track_mut(&mut self, slot: usize) -> Option<&mut FeatureTrack> {
+        self.tracks.get_mut(slot)
+    }
+
+    /// The slot of a feature id (linear in N; N is bounded by the settings).
+    pub fn slot_of(&self, id: FeatureId) -> Option<usize> {
+        self.tracks.iter().position(|t| t.id == id)
+    }
+
+    /// A feature's parameters by slot.
+    pub fn params(&self, slot: usize) -> Option<FeatureParams> {
+        if slot >= self.tracks.len() {
+            return None;
+        }
+        let i = feature_index(slot);
+        Some(FeatureParams {
+            x_m: self.mean[i],
+            y_m: self.mean[i + 1],
+            u: self.mean[i + 2],
+            v: self.mean[i + 3],
+        })
+    }
+
+    /// A feature's 2x2 position covariance by slot.
+    pub fn position_covariance(&self, slot: usize) -> Option<Matrix2<f64>> {
+        if slot >= self.tracks.len() {
+            return None;
+        }
+        let i = feature_index(slot);
+        Some(self.cov.fixed_view::<2, 2>(i, i).into_owned())
+    }
+
+    /// Appends a feature. `mean` is `[x, y, u, v]`, `cross` its 4 x n covariance with the
+    /// existing state, `block` its own 4x4 covariance (its lower triangle is used). Existing
+    /// indices are unchanged; the cost is one O(n^2) copy into the larger matrix.
+    pub fn augment(
+        &mut self,
+        mean: [f64; 4],
+        cross: &DMatrix<f64>,
+        block: &Matrix4<f64>,
+        time_s: f64,
+        max_features: usize,
+    ) -> Result<FeatureId, FilterError> {
+        let n = self.dim();
+        if self.tracks.len() >= max_features {
+            return Err(FilterError::TooManyFeatures(max_features));
+        }
+        if cross.nrows() != FEATURE_DIM || cross.ncols() != n {
+            return Err(FilterError::Shape("augment cross-covariance must be 4 x n"));
+        }
+        check_finite(&mean, "new feature mean")?;
+        check_finite(cross.as_slice(), "new feature cross-covariance")?;
+        check_finite(block.as_slice(), "new feature covariance")?;
+        let old = std::mem::replace(&mut self.cov, DMatrix::zeros(0, 0));
+        let mut cov = old.resize(n + FEATURE_DIM, n + FEATURE_DIM, 0.0);
+        for r in 0..FEATURE_DIM {
+            for c in 0..n {
+                cov[(n + r, c)] = cross[(r, c)];
+                cov[(c, n + r)] = cross[(r, c)];
+            }
+            for c in 0..FEATURE_DIM {
+                let (i, j) = if r >= c { (r, c) } else { (c, r) };
+                cov[(n + r, n + c)] = block[(i, j)];
+            }
+        }
+        self.cov = cov;
+        let old_mean = std::mem::replace(&mut self.mean, DVector::zeros(0));
+        let mut m = old_mean.resize_vertically(n + FEATURE_DIM, 0.0);
+        for (k, v) in mean.iter().enumerate() {
+            m[n + k] = *v;
+        }
+        self.mean = m;
+        let id = FeatureId(self.next_id);
+        self.next_id += 1;
+        self.tracks.push(FeatureTrack {
+            id,
+            consecutive_misses: 0,
+            hits: 1,
+            created_s: time_s,
+            last_seen_s: time_s,
+        });
+        Ok(id)
+    }
+
+    /// Removes a feature's rows and columns; the features after it move down one slot.
+    pub fn remove(&mut self, id: FeatureId) -> Result<(), FilterError> {
+        let slot = self.slot_of(id).ok_or(FilterError::UnknownFeature(id))?;
+        let i = feature_index(slot);
+        let cov = std::mem::replace(&mut self.cov, DMatrix::zeros(0, 0));
+        self.cov = cov
+            .remove_rows(i, FEATURE_DIM)
+            .remove_columns(i, FEATURE_DIM);
+        let mean = std::mem::replace(&mut self.mean, DVector::zeros(0));
+        self.mean = mean.remove_rows(i, FEATURE_DIM);
+        self.tracks.remove(slot);
+        Ok(())
+    }
+}

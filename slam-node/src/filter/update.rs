@@ -1,0 +1,189 @@
+//! The batched EKF update with a sparse Jacobian, a Cholesky-factorised innovation
+//! covariance, and a symmetric covariance update that costs O(n^2 m).
+//!
+//! With `H` nonzero only in the columns `c` (pose, the beam's features, L):
+//!
+//! - `PHt = P[:, c] H^T` (n x m), O(n |c| m)
+//! - `S = H P[c, c] H^T + R`, factorised `S = L_S L_S^T` (never inverted)
+//! - `W = PHt L_S^{-T}` (n x m), so that `K S K^T = W W^T` and `K nu = W (L_S^{-1} nu)`
+//! - `x += W e` with `e = L_S^{-1} nu`, `NIS = e^T e = nu^T S^{-1} nu`
+//! - `P -= W W^T`, lower triangle only, then mirrored: O(n^2 m / 2)
+//!
+//! `P - K S K^T` is the Joseph form `(I - KH) P (I - KH)^T + K R K^T` for the optimal gain,
+//! written so that it is symmetric by construction and never forms the n x n `I - KH`.
+//! Before anything is written the new diagonal `P_ii - sum_k W_ik^2` is checked: an update
+//! that would leave a non-positive variance is refused and the state is left unchanged.
+
+use nalgebra::{DMatrix, DVector};
+use radar_model::geometry::wrap_angle;
+
+use super::error::FilterError;
+use super::state::SlamState;
+
+/// A linearised observation of some state elements, ready for the update.
+#[derive(Debug, Clone)]
+pub struct LinearisedObservation {
+    /// State indices of the Jacobian's columns (distinct).
+    pub columns: Vec<usize>,
+    /// The Jacobian restricted to `columns`: m x columns.len().
+    pub jacobian: DMatrix<f64>,
+    /// The innovation `z - h(x)`, m, with angle rows already wrapped.
+    pub innovation: DVector<f64>,
+    /// Observation noise covariance, m x m, symmetric positive definite.
+    pub noise: DMatrix<f64>,
+}
+
+/// What one update did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UpdateOutcome {
+    /// Normalised innovation squared `nu^T S^{-1} nu`.
+    pub nis: f64,
+    /// Its degrees of freedom (rows of the observation).
+    pub dof: usize,
+}
+
+impl LinearisedObservation {
+    fn check(&self, n: usize) -> Result<(), FilterError> {
+        let m = self.innovation.len();
+        if m == 0 {
+            return Err(FilterError::Shape("empty observation"));
+        }
+        if self.jacobian.nrows() != m || self.jacobian.ncols() != self.columns.len() {
+            return Err(FilterError::Shape("Jacobian must be m x columns"));
+        }
+        if self.noise.nrows() != m || self.noise.ncols() != m {
+            return Err(FilterError::Shape("noise must be m x m"));
+        }
+        if self.columns.iter().any(|&c| c >= n) {
+            return Err(FilterError::Shape("Jacobian column outside the state"));
+        }
+        for (what, s) in [
+            ("innovation", self.innovation.as_slice()),
+            ("Jacobian", self.jacobian.as_slice()),
+            ("observation noise", self.noise.as_slice()),
+        ] {
+            if s.iter().any(|v| !v.is_finite()) {
+                return Err(FilterError::NonFiniteInput(what));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `P[:, c] H^T`: n x m, reading only the columns of P that H touches.
+pub(crate) fn p_ht(cov: &DMatrix<f64>, columns: &[usize], h: &DMatrix<f64>) -> DMatrix<f64> {
+    let n = cov.nrows();
+    let m = h.nrows();
+    let mut out = DMatrix::zeros(n, m);
+    for (local, &state_col) in columns.iter().enumerate() {
+        let p_col = cov.column(state_col);
+        for k in 0..m {
+            let hk = h[(k, local)];
+            if hk != 0.0 {
+                out.column_mut(k).axpy(hk, &p_col, 1.0);
+            }
+        }
+    }
+    out
+}
+
+/// `S = H P[c, c] H^T + R` from `PHt`, symmetrised.
+pub(crate) fn innovation_covariance(
+    pht: &DMatrix<f64>,
+    columns: &[usize],
+    h: &DMatrix<f64>,
+    noise: &DMatrix<f64>,
+) -> DMatrix<f64> {
+    let m = h.nrows();
+    let gathered = pht.select_rows(columns.iter()); // |c| x m = P[c, c] H^T
+    let mut s = h * gathered + noise;
+    for i in 0..m {
+        for j in 0..i {
+            let avg = 0.5 * (s[(i, j)] + s[(j, i)]);
+            s[(i, j)] = avg;
+            s[(j, i)] = avg;
+        }
+    }
+    s
+}
+
+/// Applies one batched update to `state`. Rows whose innovation is an angle must already be
+/// wrapped. On error the state is unchanged.
+pub fn batched_update(
+    state: &mut SlamState,
+    obs: &LinearisedObservation,
+) -> Result<UpdateOutcome, FilterError> {
+    let n = state.dim();
+    obs.check(n)?;
+    let m = obs.innovation.len();
+    let pht = p_ht(&state.cov, &obs.columns, &obs.jacobian);
+    let s = innovation_covariance(&pht, &obs.columns, &obs.jacobian, &obs.noise);
+    let chol = s
+        .cholesky()
+        .ok_or(FilterError::InnovationNotPositiveDefinite { dim: m })?;
+    let l = chol.l();
+    // W^T = L_S^{-1} PHt^T (m x n); W = its transpose, stored column-major (n x m).
+    let wt = l
+        .solve_lower_triangular(&pht.transpose())
+        .ok_or(FilterError::InnovationNotPositiveDefinite { dim: m })?;
+    let w = wt.transpose();
+    let e = l
+        .solve_lower_triangular(&obs.innovation)
+        .ok_or(FilterError::InnovationNotPositiveDefinite { dim: m })?;
+    let nis = e.norm_squared();
+    if !nis.is_finite() || w.iter().any(|v| !v.is_finite()) {
+        return Err(FilterError::NonFiniteInput("update gain"));
+    }
+    // Refuse before writing anything if a variance would go non-positive.
+    for i in 0..n {
+        let mut reduction = 0.0;
+        for k in 0..m {
+            reduction += w[(i, k)] * w[(i, k)];
+        }
+        let new_var = state.cov[(i, i)] - reduction;
+        if !(new_var > 0.0 && new_var.is_finite()) {
+            return Err(FilterError::CovarianceLostDefiniteness {
+                index: i,
+                value: new_var,
+            });
+        }
+    }
+    state.mean += &w * &e;
+    state.mean[2] = wrap_angle(state.mean[2]);
+    subtract_wwt_lower_and_mirror(&mut state.cov, &w);
+    Ok(UpdateOutcome { nis, dof: m })
+}
+
+/// `P -= W W^T` on the lower triangle (column slices, contiguous), then mirrored.
+pub(crate) fn subtract_wwt_lower_and_mirror(cov: &mut DMatrix<f64>, w: &DMatrix<f64>) {
+    let n = cov.nrows();
+    let m = w.ncols();
+    let w_data = w.as_slice();
+    {
+        let p_data = cov.as_mut_slice();
+        for j in 0..n {
+            let p_col = &mut p_data[j * n + j..(j + 1) * n];
+            for k in 0..m {
+                let w_col = &w_data[k * n + j..(k + 1) * n];
+                let wjk = w_col[0];
+                if wjk == 0.0 {
+                    continue;
+                }
+                for (p, wi) in p_col.iter_mut().zip(w_col) {
+                    *p -= wjk * wi;
+                }
+            }
+        }
+    }
+    mirror_lower(cov);
+}
+
+/// Copies the lower triangle onto the upper one.
+pub(crate) fn mirror_lower(cov: &mut DMatrix<f64>) {
+    let n = cov.nrows();
+    for j in 0..n {
+        for i in (j + 1)..n {
+            cov[(j, i)] = cov[(i, j)];
+        }
+    }
+}
