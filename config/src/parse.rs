@@ -12,14 +12,27 @@ pub(crate) fn raw_from_str(text: &str, origin: &str) -> Result<RawConfig, Config
 }
 
 fn classify(error: &toml::de::Error, text: &str, origin: &str) -> ConfigError {
-    let message = error.message().trim().to_owned();
+    let message = error
+        .message()
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect::<Vec<_>>()
+        .join(": ");
     let span = error.span();
     let location = span.as_ref().map(|s| location_of(text, s.start));
     let key_path = span.as_ref().and_then(|s| key_path_at(text, s));
     match (unknown_field_name(&message), key_path, location) {
         (Some(name), key_path, Some(location)) => ConfigError::UnknownKey {
             origin: origin.to_owned(),
-            key_path: key_path.unwrap_or(name),
+            key_path: match key_path {
+                // A key inside an inline table: the line's key names the table.
+                Some(path) if path.rsplit('.').next() != Some(name.as_str()) => {
+                    format!("{path}.{name}")
+                }
+                Some(path) => path,
+                None => name,
+            },
             location,
             message,
         },
