@@ -1,0 +1,205 @@
+//! Beam geometry: the vehicle pose, angle wrapping, range and bearing to a feature
+//! (the paper's eq. 3 and 4) with their Jacobians, and which features a beam contains.
+//!
+//! Bearing follows the paper's eq. 4 and `docs/contracts.md`: `beta = wrap(theta -
+//! atan2(y_f - y, x_f - x))`, measured clockwise from the vehicle's forward axis, so a
+//! Navtech azimuth angle is a bearing. The radar sits at the vehicle's origin.
+
+use crate::error::{finite, ModelError};
+use std::f64::consts::PI;
+
+/// Below this range (m) a feature is "at the sensor": its bearing is undefined.
+pub const MIN_JACOBIAN_RANGE_M: f64 = 1e-6;
+
+/// The paper's pencil beam width, 1.8 degrees, in radians.
+pub const DEFAULT_BEAM_WIDTH_RAD: f64 = 1.8 * PI / 180.0;
+
+/// Vehicle pose in the world frame: position (m) and heading (rad, counter-clockwise from +x).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Pose2 {
+    /// East-ish position (m).
+    pub x: f64,
+    /// North-ish position (m).
+    pub y: f64,
+    /// Heading (rad), counter-clockwise from +x.
+    pub theta: f64,
+}
+
+impl Pose2 {
+    /// A pose from its three components.
+    pub fn new(x: f64, y: f64, theta: f64) -> Self {
+        Self { x, y, theta }
+    }
+
+    /// World position of a point seen at range `range_m` and bearing `bearing_rad`
+    /// (the inverse of eq. 3 and 4).
+    pub fn point_at(&self, range_m: f64, bearing_rad: f64) -> [f64; 2] {
+        let a = self.theta - bearing_rad;
+        [self.x + range_m * a.cos(), self.y + range_m * a.sin()]
+    }
+
+    fn check(&self) -> Result<(), ModelError> {
+        finite(self.x, "pose x")?;
+        finite(self.y, "pose y")?;
+        finite(self.theta, "pose theta")?;
+        Ok(())
+    }
+}
+
+/// Wraps an angle to (-pi, pi]. Non-finite input comes back unchanged (NaN stays NaN).
+pub fn wrap_angle(angle_rad: f64) -> f64 {
+    if !angle_rad.is_finite() {
+        return angle_rad;
+    }
+    let two_pi = 2.0 * PI;
+    let mut a = angle_rad.rem_euclid(two_pi); // [0, 2 pi)
+    if a > PI {
+        a -= two_pi;
+    }
+    // rem_euclid may round up to exactly 2 pi for tiny negative inputs.
+    if a <= -PI {
+        a += two_pi;
+    }
+    a
+}
+
+/// Range (m) from the radar to a feature: the paper's eq. 3.
+pub fn range_eq3(pose: &Pose2, feature_xy: [f64; 2]) -> f64 {
+    (feature_xy[0] - pose.x).hypot(feature_xy[1] - pose.y)
+}
+
+/// Bearing (rad, clockwise from forward, wrapped) of a feature: the paper's eq. 4.
+pub fn bearing_eq4(pose: &Pose2, feature_xy: [f64; 2]) -> f64 {
+    wrap_angle(pose.theta - (feature_xy[1] - pose.y).atan2(feature_xy[0] - pose.x))
+}
+
+/// Range and bearing of one feature.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RangeBearing {
+    /// Eq. 3 (m).
+    pub range_m: f64,
+    /// Eq. 4 (rad).
+    pub bearing_rad: f64,
+}
+
+/// Range and bearing of a feature (eq. 3 and 4).
+pub fn range_bearing(pose: &Pose2, feature_xy: [f64; 2]) -> RangeBearing {
+    RangeBearing {
+        range_m: range_eq3(pose, feature_xy),
+        bearing_rad: bearing_eq4(pose, feature_xy),
+    }
+}
+
+/// Jacobian of `[R, beta]` (eq. 3, 4) with respect to the pose `[x, y, theta]` and the
+/// feature `[x_f, y_f]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RangeBearingJacobian {
+    /// `d R / d [x, y, theta]`.
+    pub range_wrt_pose: [f64; 3],
+    /// `d R / d [x_f, y_f]`.
+    pub range_wrt_feature: [f64; 2],
+    /// `d beta / d [x, y, theta]`.
+    pub bearing_wrt_pose: [f64; 3],
+    /// `d beta / d [x_f, y_f]`.
+    pub bearing_wrt_feature: [f64; 2],
+}
+
+/// Range, bearing and their Jacobian (eq. 3, 4). With `dx = x_f - x`, `dy = y_f - y`:
+/// `dR/d(x, y, theta) = (-dx/R, -dy/R, 0)`, `dR/d(x_f, y_f) = (dx/R, dy/R)`,
+/// `dbeta/d(x, y, theta) = (-dy/R^2, dx/R^2, 1)`, `dbeta/d(x_f, y_f) = (dy/R^2, -dx/R^2)`.
+///
+/// # Errors
+/// Non-finite inputs, or a feature within [`MIN_JACOBIAN_RANGE_M`] of the sensor.
+pub fn range_bearing_with_jacobian(
+    pose: &Pose2,
+    feature_xy: [f64; 2],
+) -> Result<(RangeBearing, RangeBearingJacobian), ModelError> {
+    pose.check()?;
+    finite(feature_xy[0], "feature x")?;
+    finite(feature_xy[1], "feature y")?;
+    let dx = feature_xy[0] - pose.x;
+    let dy = feature_xy[1] - pose.y;
+    let r = dx.hypot(dy);
+    if r < MIN_JACOBIAN_RANGE_M {
+        return Err(ModelError::FeatureAtSensor { range_m: r });
+    }
+    let r2 = r * r;
+    let rb = RangeBearing {
+        range_m: r,
+        bearing_rad: wrap_angle(pose.theta - dy.atan2(dx)),
+    };
+    let jac = RangeBearingJacobian {
+        range_wrt_pose: [-dx / r, -dy / r, 0.0],
+        range_wrt_feature: [dx / r, dy / r],
+        bearing_wrt_pose: [-dy / r2, dx / r2, 1.0],
+        bearing_wrt_feature: [dy / r2, -dx / r2],
+    };
+    Ok((rb, jac))
+}
+
+/// One beam: where it points and what it can see.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Beam {
+    /// Bearing of the beam's axis (rad, clockwise from forward, like eq. 4).
+    pub bearing_rad: f64,
+    /// Full width (rad); a feature is inside when `|wrap(beta - bearing)| <= width / 2`.
+    pub width_rad: f64,
+    /// Features nearer than this (m) are not seen.
+    pub min_range_m: f64,
+    /// Features farther than this (m) are not seen.
+    pub max_range_m: f64,
+}
+
+impl Beam {
+    /// A beam of the default 1.8 degree width seeing from `min_range_m` to `max_range_m`.
+    pub fn new(bearing_rad: f64, min_range_m: f64, max_range_m: f64) -> Self {
+        Self {
+            bearing_rad,
+            width_rad: DEFAULT_BEAM_WIDTH_RAD,
+            min_range_m,
+            max_range_m,
+        }
+    }
+
+    /// Whether a feature at this range and bearing lies inside the beam.
+    pub fn contains(&self, rb: &RangeBearing) -> bool {
+        rb.range_m >= self.min_range_m
+            && rb.range_m <= self.max_range_m
+            && wrap_angle(rb.bearing_rad - self.bearing_rad).abs() <= 0.5 * self.width_rad
+    }
+}
+
+/// A feature found inside a beam.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BeamHit {
+    /// Index of the feature in the caller's sequence.
+    pub index: usize,
+    /// Its range (m), eq. 3.
+    pub range_m: f64,
+    /// Its bearing (rad), eq. 4.
+    pub bearing_rad: f64,
+}
+
+/// Collects into `out` (cleared first) the features inside `beam`, sorted by range
+/// (ties by index, so the order is deterministic). Features with non-finite coordinates
+/// are skipped. Allocates only if `out` must grow.
+pub fn features_in_beam<I>(pose: &Pose2, beam: &Beam, features: I, out: &mut Vec<BeamHit>)
+where
+    I: IntoIterator<Item = [f64; 2]>,
+{
+    out.clear();
+    for (index, xy) in features.into_iter().enumerate() {
+        if !(xy[0].is_finite() && xy[1].is_finite()) {
+            continue;
+        }
+        let rb = range_bearing(pose, xy);
+        if beam.contains(&rb) {
+            out.push(BeamHit {
+                index,
+                range_m: rb.range_m,
+                bearing_rad: rb.bearing_rad,
+            });
+        }
+    }
+    out.sort_by(|a, b| a.range_m.total_cmp(&b.range_m).then(a.index.cmp(&b.index)));
+}

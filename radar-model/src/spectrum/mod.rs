@@ -1,0 +1,321 @@
+//! Whole-spectrum prediction and synthesis for one beam (the paper's figures 8 and 9), the
+//! comparison of a prediction with a measurement (figure 10), and quantisation to the wire.
+//!
+//! A [`SpectrumModel`] precomputes, once per geometry and settings, every bin's range, its
+//! compensation gain and its target-absent floor distribution. After that:
+//!
+//! - [`SpectrumModel::predict_into`] writes the expected measured power of every bin: the
+//!   floor's mean power-summed with each target's peak, `P_i + gain(R_b) + k(R_b - R_i)`,
+//!   where `k` is the expected peak shape in dB (a Gaussian of the expected sigma of
+//!   [`RangeSpread`](crate::noise::RangeSpread), 0 dB at its centre, so the peak bin reads
+//!   `P_i` plus compensation).
+//! - [`SpectrumModel::synthesize_into`] writes one noisy look: a floor draw in every bin,
+//!   and for each target a peak of one look's shape, its centre moved by phase noise and its
+//!   power by the target-present noise, power-summed in.
+//!
+//! Both write into a caller-provided buffer and allocate nothing; their cost is one pass
+//! over the bins plus, per target, the few bins its peak covers (`KERNEL_SPAN_SIGMAS`
+//! sigma each side), never anything that grows with the map. Powers are combined in dB by
+//! `max + 10 log10(1 + 10^(-|a - b| / 10))`, so no level overflows linear arithmetic.
+//! Real FMCW peaks have windowed-sinc sidelobes; the Gaussian shape leaves them out.
+
+mod compare;
+mod quantize;
+
+pub use compare::{compare_spectra, difference_into, SpectrumComparison};
+pub use quantize::{
+    quantize_16bit, quantize_8bit, quantize_spectrum_16bit, quantize_spectrum_8bit,
+    wire_16bit_to_db, DB_PER_16BIT_COUNT,
+};
+
+use crate::compensation::Compensation;
+use crate::error::{finite, ModelError};
+use crate::noise::{FloorDistribution, NoiseModel};
+use crate::power::{for_each_power_db, PowerModel, PowerTarget, DB_PER_NEPER_POWER};
+use rand::Rng;
+use rand_distr::{Distribution, Exp1, StandardNormal};
+
+/// A peak contributes over this many of its sigmas each side of its centre (the Gaussian
+/// has fallen 128 dB there, below the 8-bit wire's whole range).
+pub const KERNEL_SPAN_SIGMAS: f64 = 7.7;
+/// Largest number of bins a spectrum model accepts (bounds the tables it allocates).
+pub const MAX_BINS: usize = 1 << 20;
+/// Contributions more than this far (dB) below the running sum are skipped.
+const NEGLIGIBLE_DB: f64 = 100.0;
+
+/// Where the bins of one spectrum lie in range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpectrumGeometry {
+    /// Number of bins.
+    pub bins: usize,
+    /// Bin size (m), including any range gain.
+    pub bin_size_m: f64,
+    /// Range of bin 0 (m).
+    pub range_offset_m: f64,
+}
+
+impl Default for SpectrumGeometry {
+    /// The Oxford Radar RobotCar CTS350-X: 3768 bins of 0.0438 m.
+    fn default() -> Self {
+        Self {
+            bins: 3768,
+            bin_size_m: 0.0438,
+            range_offset_m: 0.0,
+        }
+    }
+}
+
+impl SpectrumGeometry {
+    /// The paper's unit: 0.25 m bins out to 200 m.
+    pub fn paper_unit() -> Self {
+        Self {
+            bins: 800,
+            bin_size_m: 0.25,
+            range_offset_m: 0.0,
+        }
+    }
+
+    /// Range (m) of bin `b`.
+    pub fn bin_range_m(&self, b: usize) -> f64 {
+        self.range_offset_m + b as f64 * self.bin_size_m
+    }
+
+    /// Validates the geometry.
+    ///
+    /// # Errors
+    /// Zero or more than [`MAX_BINS`] bins, non-positive bin size, non-finite offset.
+    pub fn check(&self) -> Result<(), ModelError> {
+        if self.bins == 0 || self.bins > MAX_BINS {
+            return Err(ModelError::InvalidSetting {
+                what: "bins",
+                reason: "must be between 1 and MAX_BINS",
+            });
+        }
+        if !(self.bin_size_m.is_finite() && self.bin_size_m > 0.0) {
+            return Err(ModelError::InvalidSetting {
+                what: "bin_size_m",
+                reason: "must be finite and positive",
+            });
+        }
+        finite(self.range_offset_m, "range offset")?;
+        Ok(())
+    }
+}
+
+/// A target as the spectrum sees it: its range and uncompensated power.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpectrumTarget {
+    /// Range (m).
+    pub range_m: f64,
+    /// Uncompensated received power (dBm), eq. 13 minus `L`.
+    pub power_db: f64,
+}
+
+/// Computes the spectrum targets of one beam (eq. 13 powers) into `out` (cleared first;
+/// allocates only if it must grow). `targets` must be sorted by range.
+///
+/// # Errors
+/// As [`for_each_power_db`](crate::power::for_each_power_db).
+pub fn beam_spectrum_targets(
+    model: &PowerModel,
+    targets: &[PowerTarget],
+    loss_db: f64,
+    out: &mut Vec<SpectrumTarget>,
+) -> Result<(), ModelError> {
+    out.clear();
+    out.extend(targets.iter().map(|t| SpectrumTarget {
+        range_m: t.range_m,
+        power_db: f64::NAN,
+    }));
+    let result = for_each_power_db(model, targets, loss_db, |i, p| {
+        if let Some(slot) = out.get_mut(i) {
+            slot.power_db = p;
+        }
+    });
+    if result.is_err() {
+        out.clear();
+    }
+    result
+}
+
+/// Power sum of two levels in dB.
+#[inline]
+pub fn db_power_sum(a_db: f64, b_db: f64) -> f64 {
+    let (hi, lo) = if a_db >= b_db {
+        (a_db, b_db)
+    } else {
+        (b_db, a_db)
+    };
+    let d = lo - hi;
+    if d < -NEGLIGIBLE_DB {
+        hi
+    } else {
+        hi + DB_PER_NEPER_POWER * (d / DB_PER_NEPER_POWER).exp().ln_1p()
+    }
+}
+
+/// Precomputed per-bin tables for one spectrum geometry and set of settings.
+#[derive(Debug, Clone)]
+pub struct SpectrumModel {
+    geometry: SpectrumGeometry,
+    noise: NoiseModel,
+    gain_db: Vec<f64>,
+    floor_mean_db: Vec<f64>,
+    floor: Vec<FloorDistribution>,
+}
+
+impl SpectrumModel {
+    /// Builds the per-bin tables (the only allocation).
+    ///
+    /// # Errors
+    /// Invalid geometry, compensation or noise settings.
+    pub fn new(
+        geometry: SpectrumGeometry,
+        compensation: &Compensation,
+        noise: NoiseModel,
+    ) -> Result<Self, ModelError> {
+        geometry.check()?;
+        compensation.check()?;
+        noise.absent.check()?;
+        let spread_ok = noise.range.resolution_fwhm_m.is_finite()
+            && noise.range.resolution_fwhm_m > 0.0
+            && noise.range.phase_noise_sigma_m.is_finite()
+            && noise.range.phase_noise_sigma_m >= 0.0
+            && noise.present.variance_db2.is_finite()
+            && noise.present.variance_db2 >= 0.0;
+        if !spread_ok {
+            return Err(ModelError::InvalidSetting {
+                what: "noise",
+                reason: "range spread and present variance must be finite and non-negative",
+            });
+        }
+        let ranges = (0..geometry.bins).map(|b| geometry.bin_range_m(b));
+        let gain_db = ranges.clone().map(|r| compensation.gain_db(r)).collect();
+        let floor_mean_db = ranges.clone().map(|r| noise.absent.mean_db(r)).collect();
+        let floor = ranges.map(|r| noise.absent.distribution_at(r)).collect();
+        Ok(Self {
+            geometry,
+            noise,
+            gain_db,
+            floor_mean_db,
+            floor,
+        })
+    }
+
+    /// The geometry.
+    pub fn geometry(&self) -> &SpectrumGeometry {
+        &self.geometry
+    }
+
+    /// The noise settings.
+    pub fn noise(&self) -> &NoiseModel {
+        &self.noise
+    }
+
+    /// Compensation gain (dB) per bin.
+    pub fn gain_db(&self) -> &[f64] {
+        &self.gain_db
+    }
+
+    /// Mean target-absent floor (dB, wire scale) per bin.
+    pub fn floor_mean_db(&self) -> &[f64] {
+        &self.floor_mean_db
+    }
+
+    fn check_buffer(&self, out: &[f64]) -> Result<(), ModelError> {
+        if out.len() != self.geometry.bins {
+            return Err(ModelError::BufferTooSmall {
+                needed: self.geometry.bins,
+                got: out.len(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Bins `[lo, hi)` within the kernel span of `range_m` for a shape of `sigma_m`.
+    fn window(&self, range_m: f64, sigma_m: f64) -> Option<(usize, usize)> {
+        let g = &self.geometry;
+        let centre = (range_m - g.range_offset_m) / g.bin_size_m;
+        let half = KERNEL_SPAN_SIGMAS * sigma_m / g.bin_size_m + 1.0;
+        let lo = (centre - half).ceil().max(0.0);
+        let hi = (centre + half).floor() + 1.0;
+        let hi = hi.min(g.bins as f64);
+        if lo >= hi {
+            return None;
+        }
+        // Both are finite, non-negative and at most `bins`, so the casts are exact.
+        Some((lo as usize, hi as usize))
+    }
+
+    /// Power-sums one Gaussian peak (centre `range_m`, level `level_db` before
+    /// compensation, shape sigma `sigma_m`) into `out`.
+    fn add_peak(&self, range_m: f64, level_db: f64, sigma_m: f64, out: &mut [f64]) {
+        let Some((lo, hi)) = self.window(range_m, sigma_m) else {
+            return;
+        };
+        let coef = -DB_PER_NEPER_POWER / (2.0 * sigma_m * sigma_m);
+        for ((b, value), gain) in out[lo..hi]
+            .iter_mut()
+            .enumerate()
+            .zip(&self.gain_db[lo..hi])
+        {
+            let d = self.geometry.bin_range_m(lo + b) - range_m;
+            *value = db_power_sum(*value, level_db + gain + coef * d * d);
+        }
+    }
+
+    fn check_targets(targets: &[SpectrumTarget]) -> Result<(), ModelError> {
+        for t in targets {
+            finite(t.range_m, "spectrum target range")?;
+            finite(t.power_db, "spectrum target power")?;
+        }
+        Ok(())
+    }
+
+    /// Expected measured spectrum (dB per bin) for the targets in one beam (figure 8).
+    /// `out` must have exactly `bins` elements.
+    ///
+    /// # Errors
+    /// Wrong buffer length or non-finite targets.
+    pub fn predict_into(
+        &self,
+        targets: &[SpectrumTarget],
+        out: &mut [f64],
+    ) -> Result<(), ModelError> {
+        self.check_buffer(out)?;
+        Self::check_targets(targets)?;
+        out.copy_from_slice(&self.floor_mean_db);
+        let sigma = self.noise.range.expected_sigma_m();
+        for t in targets {
+            self.add_peak(t.range_m, t.power_db, sigma, out);
+        }
+        Ok(())
+    }
+
+    /// One noisy measured spectrum (dB per bin) for the targets in one beam (figure 9).
+    /// `out` must have exactly `bins` elements. Deterministic for a seeded `rng`.
+    ///
+    /// # Errors
+    /// Wrong buffer length or non-finite targets.
+    pub fn synthesize_into<R: Rng + ?Sized>(
+        &self,
+        targets: &[SpectrumTarget],
+        rng: &mut R,
+        out: &mut [f64],
+    ) -> Result<(), ModelError> {
+        self.check_buffer(out)?;
+        Self::check_targets(targets)?;
+        for (value, floor) in out.iter_mut().zip(&self.floor) {
+            let e: f64 = Exp1.sample(rng);
+            *value = floor.from_exp1(e);
+        }
+        let sigma = self.noise.range.look_sigma_m();
+        let present_sd = self.noise.present.variance_db2.sqrt();
+        for t in targets {
+            let jitter = self.noise.range.sample_offset_m(rng);
+            let n: f64 = StandardNormal.sample(rng);
+            self.add_peak(t.range_m + jitter, t.power_db + n * present_sd, sigma, out);
+        }
+        Ok(())
+    }
+}
