@@ -71,6 +71,19 @@ impl Checker {
         }
     }
 
+    /// The value, or `None` after recording `path`'s error. For fields that take part in a
+    /// rule across fields: the rule is checked only when each of its fields is valid, so one
+    /// mistake is reported once.
+    pub(crate) fn check_ok<T>(&mut self, path: &str, result: Result<T, ValueError>) -> Option<T> {
+        match result {
+            Ok(value) => Some(value),
+            Err(problem) => {
+                self.fail(path, problem);
+                None
+            }
+        }
+    }
+
     /// Checks an optional raw value; `None` stays `None`.
     pub(crate) fn check_opt<R, T>(
         &mut self,

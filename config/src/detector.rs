@@ -154,7 +154,7 @@ impl RawDetector {
     }
 
     pub(crate) fn check(&self, c: &mut Checker) -> DetectorSettings {
-        let reference_cells = c.check(
+        let reference_cells = c.check_ok(
             "detector.reference_cells",
             Capacity::new(self.reference_cells, MAX_REFERENCE_CELLS),
         );
@@ -172,33 +172,36 @@ impl RawDetector {
                 OpenProbability::new(pfa.unwrap_or(DEFAULT_PFA)),
             )),
         };
-        let default_rank = (reference_cells.get() * 3).div_ceil(4);
-        let os_rank = match self.os_rank {
-            None => Capacity::new(
-                i64::try_from(default_rank).unwrap_or(1),
-                reference_cells.get(),
-            ),
-            Some(rank) => Capacity::new(rank, reference_cells.get()),
+        // The rank is checked against the window only when the window itself is valid.
+        let os_rank = match (reference_cells, self.os_rank) {
+            (Some(cells), None) => Capacity::new(
+                i64::try_from((cells.get() * 3).div_ceil(4)).unwrap_or(1),
+                cells.get(),
+            )
+            .unwrap_or(Capacity::ONE),
+            (Some(cells), Some(rank)) => {
+                c.check("detector.os_rank", Capacity::new(rank, cells.get()))
+            }
+            (None, _) => Capacity::ONE,
         };
-        let os_rank = c.check("detector.os_rank", os_rank);
-        let min = c.check(
+        let min = c.check_ok(
             "detector.min_range_m",
             NonNegativeF64::new(self.min_range_m),
         );
-        let max = c.check("detector.max_range_m", PositiveF64::new(self.max_range_m));
-        let range = match RangeWindow::new(min, max) {
-            Ok(window) => window,
-            Err(problem) => {
-                c.fail("detector.min_range_m", problem);
-                RangeWindow {
-                    min_m: NonNegativeF64::ZERO,
-                    max_m: PositiveF64::ONE,
-                }
-            }
+        let max = c.check_ok("detector.max_range_m", PositiveF64::new(self.max_range_m));
+        let fallback = RangeWindow {
+            min_m: NonNegativeF64::ZERO,
+            max_m: PositiveF64::ONE,
+        };
+        let range = match (min, max) {
+            (Some(min), Some(max)) => c
+                .check_ok("detector.min_range_m", RangeWindow::new(min, max))
+                .unwrap_or(fallback),
+            _ => fallback,
         };
         DetectorSettings {
             kind: self.kind,
-            reference_cells,
+            reference_cells: reference_cells.unwrap_or(Capacity::ONE),
             guard_cells: c.check(
                 "detector.guard_cells",
                 crate::values::count(self.guard_cells, MAX_GUARD_CELLS)

@@ -192,11 +192,11 @@ impl RawRadar {
     }
 
     pub(crate) fn check(&self, c: &mut Checker) -> RadarSettings {
-        let initial = c.check(
+        let initial = c.check_ok(
             "radar.reconnect_initial_backoff_ms",
             values::duration_from_ms(self.reconnect_initial_backoff_ms),
         );
-        let max = c.check(
+        let max = c.check_ok(
             "radar.reconnect_max_backoff_ms",
             values::duration_from_ms(self.reconnect_max_backoff_ms),
         );
@@ -204,13 +204,22 @@ impl RawRadar {
             "radar.reconnect_jitter",
             Probability::new(self.reconnect_jitter),
         );
-        let reconnect_backoff = match Backoff::new(initial, max, jitter) {
-            Ok(b) => b,
-            Err(problem) => {
-                c.fail("radar.reconnect_initial_backoff_ms", problem);
-                Backoff {
+        let reconnect_backoff = match (initial, max) {
+            (Some(initial), Some(max)) => c
+                .check_ok(
+                    "radar.reconnect_initial_backoff_ms",
+                    Backoff::new(initial, max, jitter),
+                )
+                .unwrap_or(Backoff {
                     initial: max,
                     max,
+                    jitter,
+                }),
+            (initial, max) => {
+                let d = initial.or(max).unwrap_or(Duration::from_secs(1));
+                Backoff {
+                    initial: d,
+                    max: d,
                     jitter,
                 }
             }
