@@ -1,1 +1,68 @@
-//! Async tokio client for a Navtech radar: handshake, watchdog, reconnection, rotation assembly, hand-off.
+//! Async tokio client for a Navtech radar speaking the Colossus protocol (or the project's
+//! simulator): it keeps the radar's stream flowing into the filter.
+//!
+//! **Does IO**: TCP sockets (radar and odometry), timers, an optional recording file, and a
+//! writer thread for it. The wire format itself is the `protocol` crate's.
+//!
+//! - [`socket`]: socket options (TCP_NODELAY, keep-alive, receive buffer, connect timeout)
+//!   set in one place from the `[radar]` settings.
+//! - [`session`]: one connection: read the configuration (10), request data (21 or 140),
+//!   decode, hand off; a keep-alive watchdog declares a silent link dead.
+//! - [`driver`]: reconnection with exponential backoff and jitter, forever by default;
+//!   session state (counters, rotation assembly, geometry) survives reconnections; a
+//!   cancellation handle stops it cleanly (stop FFT data, 22, before closing).
+//! - [`assembly`]: azimuths into [`Rotation`]s, counting skipped azimuths and sweep-counter
+//!   gaps.
+//! - [`handoff`]: the [`Sink`] seam and bounded crossbeam channels with a counted drop policy.
+//! - [`metrics`]: lock-free counters and read-to-send latency (median, p99).
+//! - [`record`]: raw byte-stream recording.
+//! - [`odometry`]: the odometry stream client (TCP, file) behind [`OdometrySource`].
+//! - [`clock`]: the [`Clock`] seam.
+//!
+//! ```no_run
+//! # async fn demo() -> Result<(), radar_driver::DriverError> {
+//! use radar_driver::{Driver, DriverSettings};
+//! let (driver, receivers) = Driver::new(DriverSettings::new("127.0.0.1:6317".parse().unwrap()));
+//! let handle = driver.spawn();
+//! let azimuths = receivers.azimuths.expect("azimuth channel configured");
+//! std::thread::spawn(move || {
+//!     for azimuth in azimuths {
+//!         let _peak = azimuth.bins_db().fold(f64::MIN, f64::max);
+//!     }
+//! });
+//! // ... later:
+//! let exit = handle.stop().await?;
+//! println!("{} azimuths, {} dropped", exit.metrics.azimuths_sent, exit.metrics.azimuth_drops);
+//! # Ok(()) }
+//! ```
+
+pub mod assembly;
+pub mod azimuth;
+pub mod backoff;
+pub mod clock;
+pub mod driver;
+pub mod error;
+pub mod handoff;
+pub mod metrics;
+pub mod odometry;
+pub mod record;
+pub mod resync;
+pub mod session;
+pub mod settings;
+pub mod shutdown;
+pub mod socket;
+
+pub use assembly::RotationAssembler;
+pub use azimuth::{Azimuth, Rotation};
+pub use clock::{Clock, SystemClock};
+pub use driver::{Driver, DriverExit, DriverHandle};
+pub use error::{DriverError, SessionError};
+pub use handoff::{ChannelSink, Delivery, DropPolicy, HandoffSettings, Receivers, Sink};
+pub use metrics::{DecodeErrorCounts, DecodeErrorKind, LatencySummary, Metrics, MetricsSnapshot};
+pub use odometry::{
+    FileOdometry, OdometryError, OdometryPoll, OdometryRecord, OdometrySource, TcpOdometry,
+    TcpOdometrySettings,
+};
+pub use protocol::{BinWidth, Geometry};
+pub use settings::DriverSettings;
+pub use shutdown::{shutdown_pair, Shutdown, ShutdownTrigger};

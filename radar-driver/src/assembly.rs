@@ -1,0 +1,296 @@
+//! Rotation assembly: azimuths in encoder order into [`Rotation`]s. Pure state, no IO.
+//!
+//! Rules:
+//! - An encoder value smaller than the previous one starts a new rotation; the finished one
+//!   is handed out then.
+//! - Azimuth slots are `round(encoder x azimuth_samples / encoder_size)`. A jump of more
+//!   than one slot counts the slots in between as skipped; so do the slots before the first
+//!   azimuth and after the last one of a rotation that began at a wrap.
+//! - The sweep counter should rise by one per azimuth message (wrapping at 65535); any
+//!   other step is a gap, and its size (modulo 2^16) the number of messages missing. The
+//!   counter is the radar's, so it is checked across reconnections too.
+//! - A changed geometry (a re-sent configuration that differs) closes the rotation in
+//!   progress as partial: encoder values of two geometries cannot be compared.
+//!
+//! The assembler lives in the driver's session state and survives reconnections.
+
+use std::sync::Arc;
+
+use protocol::Geometry;
+
+use crate::azimuth::{Azimuth, Rotation};
+
+/// What one [`RotationAssembler::push`] found.
+#[derive(Debug, Default)]
+pub struct PushReport {
+    /// A rotation finished by this azimuth (or by a geometry change it carried).
+    pub finished: Option<Rotation>,
+    /// Azimuth slots found missing by this push.
+    pub skipped_azimuths: u32,
+    /// Messages missing before this azimuth according to the sweep counter (0: none).
+    pub sweep_missing: u32,
+}
+
+/// Assembles rotations. See the module documentation for the rules.
+#[derive(Debug, Default)]
+pub struct RotationAssembler {
+    geometry: Option<Arc<Geometry>>,
+    current: Vec<Azimuth>,
+    next_sequence: u64,
+    started_at_wrap: bool,
+    last_encoder: Option<u16>,
+    last_sweep: Option<u16>,
+    skipped: u32,
+    sweep_gaps: u32,
+    sweep_missing: u32,
+    duplicates: u32,
+}
+
+/// The azimuth slot of an encoder value, in `[0, azimuth_samples)`.
+fn slot(geometry: &Geometry, encoder: u16) -> u32 {
+    let samples = u32::from(geometry.azimuth_samples);
+    let size = u32::from(geometry.encoder_size.max(1));
+    // u16 x u16 fits u32; round to nearest.
+    let s = (u32::from(encoder) * samples + size / 2) / size;
+    s.min(samples.saturating_sub(1))
+}
+
+impl RotationAssembler {
+    /// An empty assembler.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Azimuths held for the rotation in progress.
+    pub fn pending(&self) -> usize {
+        self.current.len()
+    }
+
+    /// Takes a (re-sent) geometry. If it differs from the one in force, the rotation in
+    /// progress is closed as partial and returned.
+    pub fn set_geometry(&mut self, geometry: Arc<Geometry>) -> Option<Rotation> {
+        let changed = self.geometry.as_deref() != Some(&*geometry);
+        let finished = if changed { self.flush() } else { None };
+        self.geometry = Some(geometry);
+        finished
+    }
+
+    /// Adds one azimuth (its geometry must be the one set last; a different one is taken
+    /// as a geometry change).
+    pub fn push(&mut self, azimuth: Azimuth) -> PushReport {
+        let mut report = PushReport::default();
+        if self.geometry.as_deref() != Some(&*azimuth.geometry) {
+            report.finished = self.set_geometry(Arc::clone(&azimuth.geometry));
+        }
+        let geometry = Arc::clone(&azimuth.geometry);
+        let now = slot(&geometry, azimuth.encoder);
+        match self.last_encoder {
+            Some(last) if azimuth.encoder < last => {
+                let tail = u32::from(geometry.azimuth_samples)
+                    .saturating_sub(1)
+                    .saturating_sub(slot(&geometry, last));
+                self.skipped = self.skipped.saturating_add(tail);
+                report.skipped_azimuths += tail;
+                // A geometry flush above leaves `last_encoder` empty, so at most one
+                // rotation finishes per push.
+                report.finished = self.close(true);
+                self.started_at_wrap = true;
+                self.skipped = now;
+                report.skipped_azimuths += now;
+            }
+            Some(last) if azimuth.encoder == last => {
+                self.duplicates = self.duplicates.saturating_add(1);
+            }
+            Some(last) => {
+                let gap = now.saturating_sub(slot(&geometry, last)).saturating_sub(1);
+                self.skipped = self.skipped.saturating_add(gap);
+                report.skipped_azimuths += gap;
+            }
+            None => {}
+        }
+        if let Some(last) = self.last_sweep {
+            let expected = last.wrapping_add(1);
+            if azimuth.sweep_counter != expected {
+                let missing = u32::from(azimuth.sweep_counter.wrapping_sub(expected));
+                self.sweep_gaps = self.sweep_gaps.saturating_add(1);
+                self.sweep_missing = self.sweep_missing.saturating_add(missing);
+                report.sweep_missing = missing;
+            }
+        }
+        self.last_sweep = Some(azimuth.sweep_counter);
+        self.last_encoder = Some(azimuth.encoder);
+        if self.current.capacity() == 0 {
+            self.current
+                .reserve(usize::from(geometry.azimuth_samples).max(1));
+        }
+        self.current.push(azimuth);
+        report
+    }
+
+    /// Hands out the rotation in progress as partial (shutdown, geometry change).
+    pub fn flush(&mut self) -> Option<Rotation> {
+        let finished = self.close(false);
+        self.started_at_wrap = false;
+        self.last_encoder = None;
+        finished
+    }
+
+    fn close(&mut self, at_wrap: bool) -> Option<Rotation> {
+        let geometry = self.geometry.clone();
+        let azimuths = std::mem::take(&mut self.current);
+        let skipped = std::mem::take(&mut self.skipped);
+        let sweep_gaps = std::mem::take(&mut self.sweep_gaps);
+        let sweep_missing = std::mem::take(&mut self.sweep_missing);
+        let duplicates = std::mem::take(&mut self.duplicates);
+        let geometry = geometry?;
+        if azimuths.is_empty() {
+            return None;
+        }
+        let rotation = Rotation {
+            sequence: self.next_sequence,
+            azimuths,
+            geometry,
+            skipped_azimuths: skipped,
+            sweep_gaps,
+            sweep_missing,
+            duplicate_azimuths: duplicates,
+            complete: at_wrap && self.started_at_wrap,
+        };
+        self.next_sequence += 1;
+        Some(rotation)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bytes::Bytes;
+    use protocol::BinWidth;
+
+    pub(crate) fn geometry(azimuths: u16, encoder: u16) -> Arc<Geometry> {
+        Arc::new(Geometry {
+            azimuth_samples: azimuths,
+            range_in_bins: 4,
+            bin_size_m: 0.25,
+            encoder_size: encoder,
+            rotation_hz: 4.0,
+            packet_rate: azimuths * 4,
+            range_gain: 1.0,
+            range_offset_m: 0.0,
+            data_width: BinWidth::Eight,
+            range_resolution_m: None,
+        })
+    }
+
+    fn az(g: &Arc<Geometry>, slot: u16, sweep: u16) -> Azimuth {
+        let encoder = slot * (g.encoder_size / g.azimuth_samples);
+        Azimuth {
+            encoder,
+            angle_rad: g.azimuth_rad(encoder),
+            timestamp_s: 1000.0 + f64::from(sweep) * 1e-3,
+            sweep_counter: sweep,
+            width: BinWidth::Eight,
+            bins: Bytes::from_static(&[1, 2, 3, 4]),
+            geometry: Arc::clone(g),
+        }
+    }
+
+    #[test]
+    fn a_wrap_hands_out_the_previous_rotation() {
+        let g = geometry(8, 80);
+        let mut a = RotationAssembler::new();
+        a.set_geometry(Arc::clone(&g));
+        let mut sweep = 0;
+        for s in 3..8 {
+            assert!(a.push(az(&g, s, sweep)).finished.is_none());
+            sweep += 1;
+        }
+        let first = a.push(az(&g, 0, sweep)).finished.unwrap();
+        sweep += 1;
+        assert_eq!(first.sequence, 0);
+        assert!(!first.complete, "the first rotation starts mid-way");
+        assert_eq!(first.azimuths.len(), 5);
+        assert_eq!(first.skipped_azimuths, 0);
+        for s in 1..8 {
+            assert!(a.push(az(&g, s, sweep)).finished.is_none());
+            sweep += 1;
+        }
+        let second = a.push(az(&g, 0, sweep)).finished.unwrap();
+        assert_eq!(second.sequence, 1);
+        assert!(second.complete);
+        assert_eq!(second.azimuths.len(), 8);
+        assert_eq!(
+            second
+                .azimuths
+                .iter()
+                .map(|a| a.encoder)
+                .collect::<Vec<_>>(),
+            vec![0, 10, 20, 30, 40, 50, 60, 70]
+        );
+        assert_eq!((second.skipped_azimuths, second.sweep_gaps), (0, 0));
+    }
+
+    #[test]
+    fn skipped_slots_are_counted_inside_and_at_both_ends() {
+        let g = geometry(8, 80);
+        let mut a = RotationAssembler::new();
+        a.set_geometry(Arc::clone(&g));
+        a.push(az(&g, 7, 0));
+        // Rotation starting at slot 1 (slot 0 missing), slots 3 and 4 missing, ends at 6.
+        let r = a.push(az(&g, 1, 1));
+        assert_eq!(r.skipped_azimuths, 1);
+        assert_eq!(a.push(az(&g, 2, 2)).skipped_azimuths, 0);
+        assert_eq!(a.push(az(&g, 5, 3)).skipped_azimuths, 2);
+        a.push(az(&g, 6, 4));
+        let done = a.push(az(&g, 0, 5));
+        assert_eq!(done.skipped_azimuths, 1, "slot 7 missing at the end");
+        let rot = done.finished.unwrap();
+        assert_eq!(rot.skipped_azimuths, 4);
+        assert_eq!(rot.sweep_gaps, 0);
+    }
+
+    #[test]
+    fn sweep_counter_gaps_are_counted_modulo_two_to_the_sixteen() {
+        let g = geometry(8, 80);
+        let mut a = RotationAssembler::new();
+        a.set_geometry(Arc::clone(&g));
+        a.push(az(&g, 1, 65_534));
+        assert_eq!(a.push(az(&g, 2, 65_535)).sweep_missing, 0);
+        assert_eq!(a.push(az(&g, 3, 0)).sweep_missing, 0, "65535 wraps to 0");
+        assert_eq!(a.push(az(&g, 4, 3)).sweep_missing, 2);
+        let rot = a.flush().unwrap();
+        assert_eq!((rot.sweep_gaps, rot.sweep_missing), (1, 2));
+        assert!(!rot.complete);
+    }
+
+    #[test]
+    fn a_changed_geometry_closes_the_rotation_in_progress() {
+        let g1 = geometry(8, 80);
+        let g2 = geometry(4, 80);
+        let mut a = RotationAssembler::new();
+        a.set_geometry(Arc::clone(&g1));
+        a.push(az(&g1, 1, 0));
+        a.push(az(&g1, 2, 1));
+        // The same values again: nothing happens.
+        assert!(a.set_geometry(geometry(8, 80)).is_none());
+        let closed = a.set_geometry(Arc::clone(&g2)).unwrap();
+        assert_eq!(closed.azimuths.len(), 2);
+        assert!(!closed.complete);
+        assert_eq!(a.pending(), 0);
+        // An azimuth with yet another geometry closes the rotation in progress itself.
+        a.push(az(&g2, 1, 2));
+        let report = a.push(az(&g1, 3, 3));
+        assert_eq!(report.finished.unwrap().geometry, g2);
+    }
+
+    #[test]
+    fn a_repeated_encoder_value_is_a_duplicate_not_a_new_rotation() {
+        let g = geometry(8, 80);
+        let mut a = RotationAssembler::new();
+        a.push(az(&g, 2, 0));
+        assert!(a.push(az(&g, 2, 1)).finished.is_none());
+        let rot = a.flush().unwrap();
+        assert_eq!(rot.duplicate_azimuths, 1);
+        assert_eq!(rot.azimuths.len(), 2);
+    }
+}

@@ -1,0 +1,210 @@
+//! The driver: connects, serves the connection, and reconnects with backoff, forever by
+//! default, until its [`ShutdownTrigger`] fires.
+
+use std::sync::Arc;
+
+use crate::assembly::RotationAssembler;
+use crate::backoff::Backoff;
+use crate::clock::{Clock, SystemClock};
+use crate::error::{DriverError, SessionError};
+use crate::handoff::{ChannelSink, Receivers, Sink};
+use crate::metrics::{Metrics, MetricsSnapshot};
+use crate::record::{RecordSummary, Recorder};
+use crate::session::{SessionEnd, SessionState};
+use crate::settings::DriverSettings;
+use crate::shutdown::{shutdown_pair, Shutdown, ShutdownTrigger};
+use crate::socket::connect;
+
+/// How the driver ended after a shutdown.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DriverExit {
+    /// The counters at the end.
+    pub metrics: MetricsSnapshot,
+    /// The recording, when one was made.
+    pub recording: Option<RecordSummary>,
+}
+
+/// A configured driver, ready to run.
+#[derive(Debug)]
+pub struct Driver {
+    state: SessionState,
+}
+
+impl Driver {
+    /// A driver delivering into crossbeam channels per `settings.handoff`; returns the
+    /// receivers for the consumers.
+    pub fn new(settings: DriverSettings) -> (Self, Receivers) {
+        let (sink, receivers) = ChannelSink::new(settings.handoff);
+        (Self::with_sink(settings, Box::new(sink)), receivers)
+    }
+
+    /// A driver delivering into any [`Sink`].
+    pub fn with_sink(settings: DriverSettings, sink: Box<dyn Sink>) -> Self {
+        Self {
+            state: SessionState {
+                settings,
+                sink,
+                clock: Arc::new(SystemClock::new()),
+                metrics: Arc::new(Metrics::new()),
+                recorder: None,
+                assembler: RotationAssembler::new(),
+                geometry: None,
+            },
+        }
+    }
+
+    /// Replaces the clock (tests).
+    pub fn with_clock(mut self, clock: Arc<dyn Clock>) -> Self {
+        self.state.clock = clock;
+        self
+    }
+
+    /// The live counters.
+    pub fn metrics(&self) -> Arc<Metrics> {
+        Arc::clone(&self.state.metrics)
+    }
+
+    /// Runs on the current tokio runtime; returns a handle to stop it and read its metrics.
+    pub fn spawn(self) -> DriverHandle {
+        let (trigger, shutdown) = shutdown_pair();
+        let metrics = self.metrics();
+        let task = tokio::spawn(self.run(shutdown));
+        DriverHandle {
+            trigger,
+            metrics,
+            task,
+        }
+    }
+
+    /// Runs until `shutdown` fires (then `Ok`) or the attempts run out (then `Err`).
+    pub async fn run(mut self, mut shutdown: Shutdown) -> Result<DriverExit, DriverError> {
+        self.state
+            .settings
+            .validate()
+            .map_err(DriverError::Settings)?;
+        if let Some(path) = self.state.settings.record_path.clone() {
+            let recorder = Recorder::create(&path).map_err(|source| DriverError::Record {
+                path: path.clone(),
+                source,
+            })?;
+            tracing::info!(path = %path.display(), "recording the raw byte stream");
+            self.state.recorder = Some(recorder);
+        }
+        let result = self.reconnect_loop(&mut shutdown).await;
+        if let Some(partial) = self.state.assembler.flush() {
+            self.state.deliver_rotation(partial);
+        }
+        let recording = self.state.recorder.take().map(|r| {
+            // Joining the writer thread blocks; keep it off the runtime's worker.
+            tokio::task::block_in_place(|| r.finish())
+        });
+        result.map(|()| DriverExit {
+            metrics: self.state.metrics.snapshot(),
+            recording,
+        })
+    }
+
+    async fn reconnect_loop(&mut self, shutdown: &mut Shutdown) -> Result<(), DriverError> {
+        let settings = self.state.settings.clone();
+        let metrics = Arc::clone(&self.state.metrics);
+        let mut backoff = Backoff::new(settings.backoff);
+        let mut failures_in_a_row = 0u32;
+        let mut connected_before = false;
+        loop {
+            if shutdown.is_triggered() {
+                return Ok(());
+            }
+            metrics.add_connect_attempts(1);
+            tracing::info!(address = %settings.address, attempt = failures_in_a_row + 1, "connecting to the radar");
+            let connected = tokio::select! {
+                biased;
+                () = shutdown.triggered() => return Ok(()),
+                c = connect(settings.address, &settings.socket) => c,
+            };
+            let error: SessionError = match connected {
+                Ok(stream) => {
+                    metrics.add_connections(1);
+                    if connected_before {
+                        metrics.add_reconnects(1);
+                    }
+                    connected_before = true;
+                    tracing::info!(address = %settings.address, "connected");
+                    let outcome = self.state.serve(stream, shutdown).await;
+                    if outcome.configured {
+                        backoff.reset();
+                        failures_in_a_row = 0;
+                    }
+                    match outcome.end {
+                        Ok(SessionEnd::Shutdown) => return Ok(()),
+                        Err(e) => e,
+                    }
+                }
+                Err(e) => e,
+            };
+            failures_in_a_row = failures_in_a_row.saturating_add(1);
+            if let Some(max) = settings.max_attempts {
+                if failures_in_a_row >= max.get() {
+                    tracing::error!(attempts = failures_in_a_row, error = %error, "giving up on the radar");
+                    return Err(DriverError::GaveUp {
+                        attempts: failures_in_a_row,
+                        last: error,
+                    });
+                }
+            }
+            let delay = backoff.next_delay();
+            tracing::warn!(
+                address = %settings.address,
+                failures_in_a_row,
+                delay_ms = delay.as_millis() as u64,
+                error = %error,
+                "radar link lost; reconnecting"
+            );
+            tokio::select! {
+                biased;
+                () = shutdown.triggered() => return Ok(()),
+                () = tokio::time::sleep(delay) => {}
+            }
+        }
+    }
+}
+
+/// Controls a spawned driver.
+#[derive(Debug)]
+pub struct DriverHandle {
+    trigger: ShutdownTrigger,
+    metrics: Arc<Metrics>,
+    task: tokio::task::JoinHandle<Result<DriverExit, DriverError>>,
+}
+
+impl DriverHandle {
+    /// A copy of the counters now.
+    pub fn metrics(&self) -> MetricsSnapshot {
+        self.metrics.snapshot()
+    }
+
+    /// The live counters.
+    pub fn metrics_handle(&self) -> Arc<Metrics> {
+        Arc::clone(&self.metrics)
+    }
+
+    /// A listener on this driver's shutdown, for tasks that should stop with it.
+    pub fn shutdown_listener(&self) -> Shutdown {
+        self.trigger.subscribe()
+    }
+
+    /// Asks the driver to stop: it sends stop FFT data (22) and closes.
+    pub fn shutdown(&self) {
+        self.trigger.trigger();
+    }
+
+    /// Waits for the driver to end.
+    pub async fn join(self) -> Result<DriverExit, DriverError> {
+        self.task.await?
+    }
+
+    /// Stops the driver and waits for it.
+    pub async fn stop(self) -> Result<DriverExit, DriverError> {
+        self.shutdown();
+        self.join().await
+    }
+}

@@ -1,0 +1,70 @@
+//! Odometry: the vehicle's speed and steering, read from the stream format of
+//! `docs/contracts.md` over TCP ([`TcpOdometry`]) or from a file ([`FileOdometry`]), behind
+//! the [`OdometrySource`] seam so the daemon and tests can substitute their own.
+//!
+//! The seam is synchronous: the filter runs on its own thread without async.
+
+mod file;
+mod format;
+mod tcp;
+
+pub use file::FileOdometry;
+pub use format::{
+    parse_line, Line, LineError, LineSplitter, OdometryRecord, RecordParser, MAX_LINE_BYTES,
+    ODOMETRY_HEADER,
+};
+pub use tcp::{OdometryStats, OdometryStatsSnapshot, TcpOdometry, TcpOdometrySettings};
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// The result of asking a source for its next record.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OdometryPoll {
+    /// A record.
+    Record(OdometryRecord),
+    /// Nothing yet (a live source within the timeout).
+    Pending,
+    /// The source has no more records (end of file, or the source was shut down).
+    Ended,
+}
+
+/// Why a source could not give a record.
+#[derive(Debug, thiserror::Error)]
+pub enum OdometryError {
+    /// One line was bad; the source carries on with the next one.
+    #[error("odometry line {line}: {source}")]
+    Line {
+        /// 1-based line number within the file or connection.
+        line: u64,
+        /// What was wrong.
+        #[source]
+        source: LineError,
+    },
+    /// The odometry file cannot be opened.
+    #[error("cannot open odometry file {path}: {source}")]
+    Open {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Reading the file failed; the source has ended.
+    #[error("reading odometry failed: {0}")]
+    Read(#[source] std::io::Error),
+}
+
+impl OdometryError {
+    /// True when the source can carry on after this error (it cost one line only).
+    pub fn is_recoverable(&self) -> bool {
+        matches!(self, OdometryError::Line { .. })
+    }
+}
+
+/// A source of odometry records in time order.
+pub trait OdometrySource: Send {
+    /// The next record, waiting at most `timeout` for a live source (a file answers at once).
+    /// A recoverable error costs one line: call again for the next.
+    fn poll_next(&mut self, timeout: Duration) -> Result<OdometryPoll, OdometryError>;
+}

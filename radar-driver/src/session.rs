@@ -1,0 +1,332 @@
+//! One connection to the radar: handshake, reading, decoding, hand-off, watchdog.
+//!
+//! The [`SessionState`] (geometry, rotation assembly, sink, metrics, recorder) belongs to
+//! the driver and survives reconnections; [`SessionState::serve`] runs one connection until
+//! it fails or the shutdown fires.
+//!
+//! Handshake (`docs/colossus-protocol.md`, section 4): the radar speaks first with its
+//! configuration (10); only then does the client send start FFT data (21, or 140 for
+//! non-contoured data). A configuration re-sent while streaming replaces the geometry and,
+//! as Navtech's 2016 SDK does, is answered with the start message again.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use bytes::{Buf, BytesMut};
+use protocol::{DecodeError, FftData, FrameDecoder, Geometry, Message, PayloadError};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::TcpStream;
+
+use crate::assembly::RotationAssembler;
+use crate::azimuth::{Azimuth, Rotation};
+use crate::clock::Clock;
+use crate::error::SessionError;
+use crate::handoff::Sink;
+use crate::metrics::{DecodeErrorKind, Metrics};
+use crate::record::Recorder;
+use crate::resync::TruncationGuard;
+use crate::settings::DriverSettings;
+use crate::shutdown::Shutdown;
+
+impl From<&DecodeError> for DecodeErrorKind {
+    fn from(e: &DecodeError) -> Self {
+        match e {
+            DecodeError::BadSignature { .. } => DecodeErrorKind::Signature,
+            DecodeError::BadVersion { .. } => DecodeErrorKind::Version,
+            DecodeError::Oversized { .. } => DecodeErrorKind::Oversized,
+            DecodeError::Payload { source, .. } => match source {
+                PayloadError::Truncated { .. } | PayloadError::WrongLength { .. } => {
+                    DecodeErrorKind::Truncated
+                }
+                PayloadError::FftDataOffsetTooSmall { .. }
+                | PayloadError::FftDataOffsetBeyondPayload { .. }
+                | PayloadError::OddBinPayload { .. } => DecodeErrorKind::FftLayout,
+                PayloadError::BadNanos { .. } => DecodeErrorKind::Timestamp,
+                PayloadError::Protobuf(_) => DecodeErrorKind::Protobuf,
+                _ => DecodeErrorKind::Other,
+            },
+        }
+    }
+}
+
+/// How a connection ended without error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SessionEnd {
+    /// The shutdown fired; stop (22) was sent if data had been requested.
+    Shutdown,
+}
+
+/// What one connection achieved, whatever its end.
+#[derive(Debug)]
+pub struct SessionOutcome {
+    /// True once the radar's configuration was received on this connection.
+    pub configured: bool,
+    /// The end.
+    pub end: Result<SessionEnd, SessionError>,
+}
+
+/// State that outlives a connection.
+#[derive(Debug)]
+pub struct SessionState {
+    pub(crate) settings: DriverSettings,
+    pub(crate) sink: Box<dyn Sink>,
+    pub(crate) clock: Arc<dyn Clock>,
+    pub(crate) metrics: Arc<Metrics>,
+    pub(crate) recorder: Option<Recorder>,
+    pub(crate) assembler: RotationAssembler,
+    pub(crate) geometry: Option<Arc<Geometry>>,
+}
+
+/// What handling one message asks of the connection.
+enum Reply {
+    None,
+    StartData,
+}
+
+impl SessionState {
+    /// The geometry from the last configuration received (on any connection).
+    pub fn geometry(&self) -> Option<&Arc<Geometry>> {
+        self.geometry.as_ref()
+    }
+
+    /// Runs one connection until it fails or `shutdown` fires.
+    pub async fn serve(
+        &mut self,
+        mut stream: TcpStream,
+        shutdown: &mut Shutdown,
+    ) -> SessionOutcome {
+        let mut configured = false;
+        let mut streaming = false;
+        let end = self
+            .serve_inner(&mut stream, shutdown, &mut configured, &mut streaming)
+            .await;
+        if streaming
+            && matches!(
+                end,
+                Ok(SessionEnd::Shutdown) | Err(SessionError::Garbled { .. })
+            )
+        {
+            // Best effort: the link is alive, so tell the radar to stop before closing.
+            match send(
+                &mut stream,
+                &Message::StopFftData,
+                self.settings.stop_timeout,
+            )
+            .await
+            {
+                Ok(()) => tracing::debug!("sent stop FFT data (22)"),
+                Err(e) => tracing::warn!(error = %e, "could not send stop FFT data (22)"),
+            }
+            let _ = tokio::time::timeout(self.settings.stop_timeout, stream.shutdown()).await;
+        }
+        SessionOutcome { configured, end }
+    }
+
+    async fn serve_inner(
+        &mut self,
+        stream: &mut TcpStream,
+        shutdown: &mut Shutdown,
+        configured: &mut bool,
+        streaming: &mut bool,
+    ) -> Result<SessionEnd, SessionError> {
+        let chunk = self.settings.read_chunk_bytes;
+        let watchdog = self.settings.watchdog_timeout;
+        let mut buf = BytesMut::with_capacity(chunk * 2);
+        let mut record_pending = BytesMut::new();
+        let mut decoder = FrameDecoder::new();
+        let mut guard = TruncationGuard::new();
+        let mut errors_in_a_row = 0u32;
+        loop {
+            buf.reserve(chunk);
+            let before = buf.len();
+            let read = tokio::select! {
+                biased;
+                () = shutdown.triggered() => return Ok(SessionEnd::Shutdown),
+                r = tokio::time::timeout(watchdog, stream.read_buf(&mut buf)) => r,
+            };
+            let n = match read {
+                Err(_) => {
+                    self.metrics.add_watchdog_timeouts(1);
+                    return Err(SessionError::Watchdog(watchdog));
+                }
+                Ok(Err(e)) => return Err(SessionError::Read(e)),
+                Ok(Ok(0)) => return Err(SessionError::Closed),
+                Ok(Ok(n)) => n,
+            };
+            let read_ns = self.clock.monotonic_ns();
+            self.metrics.add_bytes(n as u64);
+            if self.recorder.is_some() {
+                record_pending.extend_from_slice(buf.get(before..).unwrap_or_default());
+            }
+            loop {
+                if let Some(cut) = guard.check(&buf) {
+                    // A frame cut short by the next frame's signature: drop the stub.
+                    buf.advance(cut);
+                    self.metrics.add_decode_error(DecodeErrorKind::Truncated);
+                    tracing::debug!(
+                        bytes = cut,
+                        "frame cut short; resynchronised on the next signature"
+                    );
+                    errors_in_a_row += 1;
+                    continue;
+                }
+                match decoder.decode(&mut buf) {
+                    Ok(None) => break,
+                    Ok(Some(message)) => {
+                        guard.reset();
+                        errors_in_a_row = 0;
+                        self.metrics.add_frames(1);
+                        match self.on_message(message, read_ns, configured) {
+                            Reply::None => {}
+                            Reply::StartData => {
+                                let start = self.settings.start_message();
+                                send(stream, &start, watchdog).await?;
+                                if !*streaming {
+                                    tracing::info!(message = start.id(), "requested FFT data");
+                                }
+                                *streaming = true;
+                            }
+                        }
+                    }
+                    Err(e) => {
+                        guard.reset();
+                        self.metrics.add_decode_error(DecodeErrorKind::from(&e));
+                        tracing::debug!(error = %e, "decode error; frame skipped");
+                        errors_in_a_row += 1;
+                        if errors_in_a_row >= self.settings.max_consecutive_decode_errors {
+                            return Err(SessionError::Garbled {
+                                count: errors_in_a_row,
+                                last: e,
+                            });
+                        }
+                    }
+                }
+            }
+            if let Some(recorder) = &self.recorder {
+                let consumed = record_pending.len().saturating_sub(buf.len());
+                if consumed > 0 {
+                    let bytes = record_pending.split_to(consumed).freeze();
+                    self.metrics.add_record_bytes(bytes.len() as u64);
+                    recorder.write(bytes);
+                }
+            }
+        }
+    }
+
+    fn on_message(&mut self, message: Message, read_ns: u64, configured: &mut bool) -> Reply {
+        match message {
+            Message::FftData(fft) => {
+                self.on_fft(fft, read_ns);
+                Reply::None
+            }
+            Message::KeepAlive => {
+                self.metrics.add_keep_alives(1);
+                Reply::None
+            }
+            Message::Configuration(configuration) => {
+                self.metrics.add_configurations(1);
+                match configuration.geometry() {
+                    Ok(geometry) => {
+                        tracing::info!(
+                            azimuths = geometry.azimuth_samples,
+                            bins = geometry.range_in_bins,
+                            bin_size_m = geometry.bin_size_m,
+                            encoder_size = geometry.encoder_size,
+                            rotation_hz = geometry.rotation_hz,
+                            width = geometry.data_width.bits(),
+                            "radar configuration"
+                        );
+                        let geometry = Arc::new(geometry);
+                        if let Some(partial) = self.assembler.set_geometry(Arc::clone(&geometry)) {
+                            self.deliver_rotation(partial);
+                        }
+                        self.geometry = Some(geometry);
+                        *configured = true;
+                        Reply::StartData
+                    }
+                    Err(e) => {
+                        // An unusable configuration costs that message; the previous
+                        // geometry (if any) stays in force.
+                        self.metrics.add_decode_error(DecodeErrorKind::Other);
+                        tracing::warn!(error = %e, "unusable radar configuration ignored");
+                        Reply::None
+                    }
+                }
+            }
+            _ => {
+                self.metrics.add_other_messages(1);
+                Reply::None
+            }
+        }
+    }
+
+    fn on_fft(&mut self, fft: FftData, read_ns: u64) {
+        let Some(geometry) = &self.geometry else {
+            self.metrics.add_fft_before_configuration(1);
+            return;
+        };
+        if fft.azimuth >= geometry.encoder_size {
+            self.metrics.add_encoder_out_of_range(1);
+            return;
+        }
+        self.metrics.add_fft_frames(1);
+        let azimuth = Azimuth::from_fft(fft, Arc::clone(geometry));
+        if self.sink.wants_azimuths() {
+            let delivery = self.sink.send_azimuth(azimuth.clone());
+            let sent_ns = self.clock.monotonic_ns();
+            self.metrics.add_azimuths_sent(1);
+            if delivery.queued() {
+                self.metrics.add_azimuths_delivered(1);
+            }
+            self.metrics.add_azimuth_drops(delivery.dropped());
+            self.metrics
+                .record_latency_ns(sent_ns.saturating_sub(read_ns));
+        }
+        let report = self.assembler.push(azimuth);
+        self.metrics
+            .add_skipped_azimuths(u64::from(report.skipped_azimuths));
+        if report.sweep_missing > 0 {
+            self.metrics.add_sweep_gaps(1);
+            self.metrics
+                .add_sweep_missing(u64::from(report.sweep_missing));
+        }
+        if let Some(rotation) = report.finished {
+            self.deliver_rotation(rotation);
+        }
+    }
+
+    pub(crate) fn deliver_rotation(&mut self, rotation: Rotation) {
+        if !self.sink.wants_rotations() {
+            return;
+        }
+        let delivery = self.sink.send_rotation(rotation);
+        self.metrics.add_rotations_sent(1);
+        if delivery.queued() {
+            self.metrics.add_rotations_delivered(1);
+        }
+        self.metrics.add_rotation_drops(delivery.dropped());
+    }
+}
+
+async fn send(
+    stream: &mut TcpStream,
+    message: &Message,
+    timeout: Duration,
+) -> Result<(), SessionError> {
+    let id = message.id();
+    let bytes = message.to_bytes().map_err(|e| SessionError::Write {
+        message_id: id,
+        source: std::io::Error::other(e),
+    })?;
+    match tokio::time::timeout(timeout, stream.write_all(&bytes)).await {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(source)) => Err(SessionError::Write {
+            message_id: id,
+            source,
+        }),
+        Err(_) => Err(SessionError::Write {
+            message_id: id,
+            source: std::io::Error::new(std::io::ErrorKind::TimedOut, "write timed out"),
+        }),
+    }
+}

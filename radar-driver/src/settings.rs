@@ -1,0 +1,114 @@
+//! The driver's settings, built from the `[radar]` section of the configuration in one
+//! place ([`DriverSettings::from_config`]) or directly (tests, the CLI).
+
+use std::net::SocketAddr;
+use std::num::NonZeroU32;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use config::radar::ReconnectAttempts;
+use config::RadarSettings;
+
+use crate::backoff::BackoffPolicy;
+use crate::handoff::HandoffSettings;
+use crate::socket::SocketOptions;
+
+/// Everything the driver needs to know.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DriverSettings {
+    /// The radar (or simulator).
+    pub address: SocketAddr,
+    /// Socket options and connect timeout.
+    pub socket: SocketOptions,
+    /// Nothing received for this long is a dead link (Navtech's client: 7 s).
+    pub watchdog_timeout: Duration,
+    /// Reconnection delays.
+    pub backoff: BackoffPolicy,
+    /// Failed attempts in a row before giving up; `None`: never give up.
+    pub max_attempts: Option<NonZeroU32>,
+    /// Request non-contoured data (140) instead of contoured (21).
+    pub non_contoured: bool,
+    /// Channels and drop policy.
+    pub handoff: HandoffSettings,
+    /// Record the raw byte stream here.
+    pub record_path: Option<PathBuf>,
+    /// Decode errors in a row, without one good frame, after which the link is taken as
+    /// garbled and reconnected.
+    pub max_consecutive_decode_errors: u32,
+    /// Bytes requested per socket read.
+    pub read_chunk_bytes: usize,
+    /// Time allowed for sending stop (22) at shutdown.
+    pub stop_timeout: Duration,
+}
+
+impl DriverSettings {
+    /// Defaults for `address`, equal to the `[radar]` section's defaults.
+    pub fn new(address: SocketAddr) -> Self {
+        Self {
+            address,
+            ..Self::from_config(&RadarSettings::default())
+        }
+    }
+
+    /// The settings of the `[radar]` section.
+    pub fn from_config(radar: &RadarSettings) -> Self {
+        Self {
+            address: radar.address,
+            socket: SocketOptions {
+                connect_timeout: radar.connect_timeout,
+                tcp_nodelay: radar.tcp_nodelay,
+                tcp_keepalive: radar.tcp_keepalive,
+                recv_buffer_bytes: Some(radar.recv_buffer_bytes.get()),
+            },
+            watchdog_timeout: radar.watchdog_timeout,
+            backoff: BackoffPolicy {
+                initial: radar.reconnect_backoff.initial(),
+                max: radar.reconnect_backoff.max(),
+                jitter: radar.reconnect_backoff.jitter.get(),
+            },
+            max_attempts: match radar.reconnect_max_attempts {
+                ReconnectAttempts::Forever => None,
+                ReconnectAttempts::AtMost(n) => Some(n),
+            },
+            non_contoured: radar.non_contoured,
+            handoff: HandoffSettings {
+                azimuth_capacity: Some(radar.azimuth_channel_capacity.get()),
+                rotation_capacity: Some(radar.rotation_channel_capacity.get()),
+                drop_policy: radar.drop_policy,
+            },
+            record_path: radar.record_path.clone(),
+            max_consecutive_decode_errors: 64,
+            read_chunk_bytes: 64 * 1024,
+            stop_timeout: Duration::from_millis(500),
+        }
+    }
+
+    /// The id of the message that starts the FFT stream: 140 or 21.
+    pub fn start_message(&self) -> protocol::Message {
+        if self.non_contoured {
+            protocol::Message::StartNonContourFftData
+        } else {
+            protocol::Message::StartFftData
+        }
+    }
+
+    /// Checks what the types cannot.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.watchdog_timeout.is_zero() {
+            return Err("watchdog_timeout must be > 0".into());
+        }
+        if self.socket.connect_timeout.is_zero() {
+            return Err("connect_timeout must be > 0".into());
+        }
+        if self.read_chunk_bytes == 0 {
+            return Err("read_chunk_bytes must be > 0".into());
+        }
+        if self.max_consecutive_decode_errors == 0 {
+            return Err("max_consecutive_decode_errors must be > 0".into());
+        }
+        if self.backoff.initial > self.backoff.max {
+            return Err("reconnect initial backoff exceeds the maximum".into());
+        }
+        Ok(())
+    }
+}
