@@ -1,0 +1,145 @@
+//! The simulator's error types.
+
+use std::path::PathBuf;
+
+/// A scene file (or a preset override) that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The TOML did not parse or had an unknown key; toml's message names the key, line and
+    /// column.
+    #[error("scene {name}: {source}")]
+    Parse {
+        /// The scene's file path or shipped name.
+        name: String,
+        /// toml's error.
+        #[source]
+        source: toml::de::Error,
+    },
+    /// A value outside its allowed range; `field` is the dotted path in the scene file.
+    #[error("scene field {field}: {reason}")]
+    Invalid {
+        /// Dotted path, e.g. `features[3].rho`.
+        field: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// No shipped scene of that name.
+    #[error("no shipped scene named {0:?} (shipped: {list})", list = crate::scene::shipped::NAMES.join(", "))]
+    UnknownShipped(String),
+    /// A scene file that could not be read.
+    #[error("reading scene {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// A recording that cannot be replayed.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// Reading a file or directory failed.
+    #[error("reading {path}: {source}")]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A PNG that does not decode.
+    #[error("decoding PNG {path}: {source}")]
+    Png {
+        /// The file.
+        path: PathBuf,
+        /// The decoder's error.
+        #[source]
+        source: png::DecodingError,
+    },
+    /// A PNG that is not in the Oxford/Boreas polar layout.
+    #[error("PNG {path} is not an Oxford/Boreas polar scan: {reason}")]
+    Layout {
+        /// The file.
+        path: PathBuf,
+        /// What differs.
+        reason: String,
+    },
+    /// A directory with no scans in it.
+    #[error("no .png scans in {0}")]
+    Empty(PathBuf),
+    /// A raw Colossus stream without a configuration message before its first FFT frame.
+    #[error("raw stream {path}: {reason}")]
+    RawStream {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+/// Why the simulator could not start or stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// A scene problem.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// A replay problem.
+    #[error(transparent)]
+    Replay(#[from] ReplayError),
+    /// Binding a listening socket failed.
+    #[error("binding {what} on {addr}: {source}")]
+    Bind {
+        /// "radar" or "odometry".
+        what: &'static str,
+        /// The requested address.
+        addr: std::net::SocketAddr,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Creating or writing the ground-truth file failed.
+    #[error("ground truth file {path}: {source}")]
+    GroundTruth {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A setting that cannot be used.
+    #[error("setting {field}: {reason}")]
+    Setting {
+        /// Which setting.
+        field: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The radar model rejected a scene value.
+    #[error("radar model: {0}")]
+    Model(String),
+    /// A server task panicked or was cancelled abnormally.
+    #[error("server task failed: {0}")]
+    Task(String),
+}
+
+/// Why one client's session ended (logged; never stops the server).
+#[derive(Debug, thiserror::Error)]
+pub enum ClientError {
+    /// The socket failed.
+    #[error("socket: {0}")]
+    Io(#[from] std::io::Error),
+    /// The client sent bytes that do not decode.
+    #[error("client sent garbage: {0}")]
+    Garbage(String),
+    /// The client closed its end.
+    #[error("client closed the connection")]
+    Closed,
+    /// A fault injection closed the connection on purpose.
+    #[error("fault injection: {0}")]
+    Fault(&'static str),
+    /// Replay data failed while serving.
+    #[error(transparent)]
+    Replay(#[from] ReplayError),
+}

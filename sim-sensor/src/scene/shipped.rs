@@ -1,0 +1,74 @@
+//! The scenes shipped in `sim-sensor/scenes/`, embedded so the binary runs with no files on
+//! disk.
+
+use super::Scene;
+use crate::error::SceneError;
+
+/// Names of the shipped scenes.
+pub const NAMES: [&str; 5] = [
+    "penetration-wood",
+    "penetration-perspex",
+    "outdoor-field",
+    "dense-clutter",
+    "long-loop",
+];
+
+/// The TOML text of a shipped scene.
+pub fn text(name: &str) -> Option<&'static str> {
+    match name {
+        "penetration-wood" => Some(include_str!("../../scenes/penetration-wood.toml")),
+        "penetration-perspex" => Some(include_str!("../../scenes/penetration-perspex.toml")),
+        "outdoor-field" => Some(include_str!("../../scenes/outdoor-field.toml")),
+        "dense-clutter" => Some(include_str!("../../scenes/dense-clutter.toml")),
+        "long-loop" => Some(include_str!("../../scenes/long-loop.toml")),
+        _ => None,
+    }
+}
+
+/// Parses a shipped scene.
+pub fn load(name: &str) -> Result<Scene, SceneError> {
+    let text = text(name).ok_or_else(|| SceneError::UnknownShipped(name.to_string()))?;
+    Scene::from_toml_str(name, text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::FeatureKind;
+
+    #[test]
+    fn every_shipped_scene_parses_and_validates() {
+        for name in NAMES {
+            let scene = load(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!(scene.name, name);
+            assert!(!scene.features.is_empty(), "{name}");
+        }
+    }
+
+    #[test]
+    fn the_penetration_scene_is_the_papers_geometry() {
+        let scene = load("penetration-wood").expect("valid");
+        let sheet = &scene.features[0];
+        let reflector = &scene.features[1];
+        assert_eq!(sheet.kind, FeatureKind::WoodenFence);
+        assert_eq!((sheet.x_m, sheet.y_m), (8.5, 0.0));
+        assert_eq!(reflector.kind, FeatureKind::Reflector);
+        assert_eq!((reflector.x_m, reflector.y_m), (14.0, 0.0));
+    }
+
+    #[test]
+    fn the_outdoor_field_has_a_paper_sized_feature_count() {
+        let scene = load("outdoor-field").expect("valid");
+        assert!(
+            (30..=65).contains(&scene.features.len()),
+            "{}",
+            scene.features.len()
+        );
+    }
+
+    #[test]
+    fn an_unknown_shipped_name_lists_the_shipped_ones() {
+        let err = load("nowhere").expect_err("unknown");
+        assert!(err.to_string().contains("outdoor-field"), "{err}");
+    }
+}

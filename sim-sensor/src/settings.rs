@@ -1,0 +1,223 @@
+//! Programmatic settings of a simulator instance ([`SimOptions`]), and their construction
+//! from config's validated `[sim]` section.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use crate::error::SimError;
+use crate::faults::{FaultScope, FaultSettings};
+use crate::radar::{DataWidth, RadarPreset};
+use crate::scene::{shipped, Scene};
+
+/// How fast azimuths go out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Pacing {
+    /// At the radar's own rate: azimuth `k` leaves when the wall clock reaches its timestamp.
+    #[default]
+    Realtime,
+    /// As fast as the client reads (TCP back-pressure paces the server).
+    AsFastAsPossible,
+}
+
+impl From<config::sim::Pacing> for Pacing {
+    fn from(p: config::sim::Pacing) -> Self {
+        match p {
+            config::sim::Pacing::Realtime => Pacing::Realtime,
+            config::sim::Pacing::AsFastAsPossible => Pacing::AsFastAsPossible,
+        }
+    }
+}
+
+/// What the server streams.
+#[derive(Debug, Clone)]
+pub enum SourceSpec {
+    /// Spectra rendered from a scene.
+    Scene(Box<Scene>),
+    /// A directory of Oxford/Boreas polar PNG scans, served in file-name order.
+    OxfordPng(PathBuf),
+    /// A raw Colossus byte stream recorded from a radar (or by the driver): its first
+    /// configuration is announced and its FFT frames re-served.
+    RawStream(PathBuf),
+}
+
+/// Odometry noise: each record is `v + bias_speed + N(0, sigma_speed^2)`,
+/// `steer + bias_steer + N(0, sigma_steer^2)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometryNoise {
+    /// Records per second.
+    pub rate_hz: f64,
+    /// Speed noise standard deviation, m/s.
+    pub sigma_speed_mps: f64,
+    /// Steering noise standard deviation, rad.
+    pub sigma_steer_rad: f64,
+    /// Constant speed bias, m/s.
+    pub bias_speed_mps: f64,
+    /// Constant steering bias, rad.
+    pub bias_steer_rad: f64,
+}
+
+impl Default for OdometryNoise {
+    fn default() -> Self {
+        Self {
+            rate_hz: 20.0,
+            sigma_speed_mps: 0.1,
+            sigma_steer_rad: 0.01,
+            bias_speed_mps: 0.0,
+            bias_steer_rad: 0.0,
+        }
+    }
+}
+
+/// Everything one simulator instance needs.
+#[derive(Debug, Clone)]
+pub struct SimOptions {
+    /// Radar port (6317 by default; `127.0.0.1:0` in tests).
+    pub bind: SocketAddr,
+    /// Odometry port; `None` serves no odometry. Only scenes have odometry.
+    pub odometry_bind: Option<SocketAddr>,
+    /// Clients served at once (3 like a real radar); more are refused and closed.
+    pub max_clients: usize,
+    /// Real time or as fast as the client reads.
+    pub pacing: Pacing,
+    /// Keep-alive interval (1 s like a real radar).
+    pub keepalive_interval: Duration,
+    /// What to stream.
+    pub source: SourceSpec,
+    /// Faults to inject.
+    pub faults: FaultSettings,
+    /// Which connections get the faults.
+    pub fault_scope: FaultScope,
+    /// Odometry rate and noise.
+    pub odometry: OdometryNoise,
+    /// Write the ground truth here (scenes only).
+    pub ground_truth_path: Option<PathBuf>,
+    /// Write one ground-truth pose every this many azimuths (1 = every azimuth).
+    pub ground_truth_every_n_azimuths: u32,
+    /// Unix time of azimuth 0, nanoseconds; overrides the scene; `None` = the scene's, or
+    /// the moment the server starts.
+    pub start_time_ns: Option<u64>,
+    /// Overrides the scene's seed.
+    pub seed: Option<u64>,
+    /// The scene ends after this many azimuths (streams stop, keep-alives go on).
+    pub stop_after_azimuths: Option<u64>,
+    /// Replays start again from the first frame when they reach the end.
+    pub replay_loop: bool,
+}
+
+impl SimOptions {
+    /// Defaults of a real radar for a scene: port 6317 and odometry on 6318 on 127.0.0.1,
+    /// 3 clients, real time, keep-alive every second, no faults.
+    pub fn new(source: SourceSpec) -> Self {
+        Self {
+            bind: SocketAddr::from(([127, 0, 0, 1], 6317)),
+            odometry_bind: Some(SocketAddr::from(([127, 0, 0, 1], 6318))),
+            max_clients: 3,
+            pacing: Pacing::Realtime,
+            keepalive_interval: Duration::from_secs(1),
+            source,
+            faults: FaultSettings::default(),
+            fault_scope: FaultScope::EveryConnection,
+            odometry: OdometryNoise::default(),
+            ground_truth_path: None,
+            ground_truth_every_n_azimuths: 1,
+            start_time_ns: None,
+            seed: None,
+            stop_after_azimuths: None,
+            replay_loop: false,
+        }
+    }
+
+    /// For tests: both ports on `127.0.0.1:0`, as fast as the client reads, and a fixed
+    /// start time (2024-01-01T00:00:00Z) so timestamps are reproducible.
+    pub fn for_tests(scene: Scene) -> Self {
+        let mut options = Self::new(SourceSpec::Scene(Box::new(scene)));
+        options.bind = SocketAddr::from(([127, 0, 0, 1], 0));
+        options.odometry_bind = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
+        options.pacing = Pacing::AsFastAsPossible;
+        options.start_time_ns = Some(1_704_067_200_000_000_000);
+        options
+    }
+
+    /// Builds options from config's validated `[sim]` section (reading the scene file when
+    /// the section names one).
+    pub fn from_config(sim: &config::SimSettings) -> Result<Self, SimError> {
+        let scene = match &sim.scene {
+            config::sim::SceneRef::Shipped(name) => shipped::load(name)?,
+            config::sim::SceneRef::File(path) => Scene::load(path)?,
+        };
+        let preset = match sim.radar_preset {
+            config::sim::RadarPreset::Paper200 => RadarPreset::Paper200,
+            config::sim::RadarPreset::Cts350x400 => RadarPreset::Cts350x400,
+        };
+        let width = match sim.data_width {
+            config::sim::DataWidth::Bits8 => DataWidth::Bits8,
+            config::sim::DataWidth::Bits16 => DataWidth::Bits16,
+        };
+        // The config's preset and width apply only when they differ from the defaults, so a
+        // scene file's own radar section is not silently replaced by an unset config.
+        let scene =
+            if preset != scene.preset && sim.radar_preset != config::sim::RadarPreset::Paper200 {
+                scene.with_preset(preset)
+            } else {
+                scene
+            };
+        let scene = if width == DataWidth::Bits16 {
+            scene.with_data_width(width)
+        } else {
+            scene
+        };
+        let mut options = Self::new(SourceSpec::Scene(Box::new(scene)));
+        options.bind = sim.bind;
+        options.odometry_bind = Some(sim.odometry_bind);
+        options.max_clients = sim.max_clients.get();
+        options.pacing = sim.pacing.into();
+        options.keepalive_interval = sim.keepalive_interval;
+        options.faults = sim.faults.clone();
+        options.seed = Some(sim.seed);
+        options.odometry = OdometryNoise {
+            rate_hz: sim.odometry_rate_hz.get(),
+            sigma_speed_mps: sim.sigma_speed_mps.get(),
+            sigma_steer_rad: sim.sigma_steer_rad.get(),
+            bias_speed_mps: sim.bias_speed_mps.get(),
+            bias_steer_rad: sim.bias_steer_rad.get(),
+        };
+        options.ground_truth_path.clone_from(&sim.ground_truth_path);
+        Ok(options)
+    }
+
+    /// Checks the values a caller could have set by hand.
+    pub fn validate(&self) -> Result<(), SimError> {
+        let bad = |field: &str, reason: &str| {
+            Err(SimError::Setting {
+                field: field.into(),
+                reason: reason.into(),
+            })
+        };
+        if self.max_clients == 0 {
+            return bad("max_clients", "must be >= 1");
+        }
+        if self.keepalive_interval.is_zero() {
+            return bad("keepalive_interval", "must be > 0");
+        }
+        let o = &self.odometry;
+        if !(o.rate_hz.is_finite() && o.rate_hz > 0.0 && o.rate_hz <= 1000.0) {
+            return bad("odometry.rate_hz", "must be in (0, 1000]");
+        }
+        for (name, v) in [
+            ("odometry.sigma_speed_mps", o.sigma_speed_mps),
+            ("odometry.sigma_steer_rad", o.sigma_steer_rad),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(name, "must be finite and >= 0");
+            }
+        }
+        if !(o.bias_speed_mps.is_finite() && o.bias_steer_rad.is_finite()) {
+            return bad("odometry.bias", "must be finite");
+        }
+        if self.ground_truth_every_n_azimuths == 0 {
+            return bad("ground_truth_every_n_azimuths", "must be >= 1");
+        }
+        Ok(())
+    }
+}
