@@ -27,7 +27,9 @@ use crate::message::Message;
 pub struct DecoderStats {
     /// Frames decoded into a message (unknown ids included).
     pub frames_decoded: u64,
-    /// Of those, frames with an id this crate does not know.
+    /// Bytes of the frames decoded (headers included).
+    pub bytes_decoded: u64,
+    /// Of the frames decoded, those with an id this crate does not know.
     pub frames_unknown_id: u64,
     /// Bytes dropped while resynchronising (garbage and signatures of rejected headers).
     pub bytes_skipped: u64,
@@ -47,6 +49,11 @@ impl DecoderStats {
     /// Frames rejected for any reason.
     pub fn frames_rejected(&self) -> u64 {
         self.frames_bad_version + self.frames_oversized + self.frames_bad_payload
+    }
+
+    /// Every byte the decoder has consumed: decoded, rejected or skipped.
+    pub fn bytes_consumed(&self) -> u64 {
+        self.bytes_decoded + self.bytes_skipped + self.bytes_bad_payload
     }
 }
 
@@ -127,6 +134,7 @@ impl FrameDecoder {
         match Message::decode_payload(header.message_id, payload) {
             Ok(message) => {
                 self.stats.frames_decoded += 1;
+                self.stats.bytes_decoded += frame_len as u64;
                 if matches!(message, Message::Unknown { .. }) {
                     self.stats.frames_unknown_id += 1;
                 }
