@@ -40,6 +40,17 @@ pub enum ValueError {
     Rule(String),
 }
 
+/// Writes a number for a message: plainly in the usual range, in exponent form when very
+/// small or very large (`1e-308`, not three hundred zeros).
+pub fn number(value: f64) -> String {
+    let magnitude = value.abs();
+    if value == 0.0 || !value.is_finite() || (1e-4..1e16).contains(&magnitude) {
+        format!("{value}")
+    } else {
+        format!("{value:e}")
+    }
+}
+
 fn finite(value: f64) -> Result<f64, ValueError> {
     if value.is_finite() {
         Ok(value)
@@ -78,7 +89,7 @@ impl PositiveF64 {
         if value > 0.0 {
             Ok(Self(value))
         } else {
-            Err(ValueError::NotPositive(value.to_string()))
+            Err(ValueError::NotPositive(number(value)))
         }
     }
     /// The value.
@@ -98,7 +109,7 @@ impl NonNegativeF64 {
         if value >= 0.0 {
             Ok(Self(value + 0.0))
         } else {
-            Err(ValueError::Negative(value.to_string()))
+            Err(ValueError::Negative(number(value)))
         }
     }
     /// Zero.
@@ -124,7 +135,7 @@ impl Probability {
         } else {
             Err(ValueError::OutOfRange {
                 range: "[0, 1]".into(),
-                got: value.to_string(),
+                got: number(value),
             })
         }
     }
@@ -151,7 +162,7 @@ impl OpenProbability {
         } else {
             Err(ValueError::OutOfRange {
                 range: "(0, 1)".into(),
-                got: value.to_string(),
+                got: number(value),
             })
         }
     }
@@ -224,7 +235,7 @@ pub fn duration_from_s(s: f64) -> Result<Duration, ValueError> {
     if s > MAX_DURATION.as_secs_f64() {
         return Err(ValueError::OutOfRange {
             range: format!("(0, {}] s", MAX_DURATION.as_secs()),
-            got: s.to_string(),
+            got: number(s),
         });
     }
     Duration::try_from_secs_f64(s).map_err(|e| ValueError::Rule(e.to_string()))
@@ -240,19 +251,19 @@ pub fn socket_addr(text: &str) -> Result<std::net::SocketAddr, ValueError> {
 
 impl fmt::Display for PositiveF64 {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        self.0.fmt(f)
+        f.write_str(&number(self.0))
     }
 }
 
 impl fmt::Display for NonNegativeF64 {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        self.0.fmt(f)
+        f.write_str(&number(self.0))
     }
 }
 
 impl fmt::Display for Probability {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        self.0.fmt(f)
+        f.write_str(&number(self.0))
     }
 }
 
@@ -262,5 +273,17 @@ pub fn non_empty_path(path: &std::path::Path) -> Result<std::path::PathBuf, Valu
         Err(ValueError::Empty)
     } else {
         Ok(path.to_path_buf())
+    }
+}
+
+impl fmt::Display for FiniteF64 {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&number(self.0))
+    }
+}
+
+impl fmt::Display for OpenProbability {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&number(self.0))
     }
 }
