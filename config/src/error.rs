@@ -8,6 +8,7 @@ use crate::values::ValueError;
 
 /// Everything that can go wrong loading a configuration.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum ConfigError {
     /// The file could not be opened or read (missing, permissions, not UTF-8).
     #[error("cannot read config file {path}: {source}")]
@@ -49,6 +50,15 @@ pub enum ConfigError {
         /// Where the error is, when the parser says.
         location: Option<Location>,
         /// The parser's message.
+        message: String,
+    },
+    /// A command-line override (`path=value`) that is malformed, names an unknown key or
+    /// gives a value of the wrong type.
+    #[error("override `{text}`: {message}")]
+    Override {
+        /// The override as given.
+        text: String,
+        /// What is wrong.
         message: String,
     },
     /// The TOML parsed, but one or more values are not valid settings. Every invalid field

@@ -27,6 +27,7 @@ pub mod filter;
 pub mod model;
 pub mod odometry;
 pub mod output;
+mod overrides;
 mod parse;
 pub mod radar;
 pub mod sim;
@@ -44,6 +45,7 @@ pub use filter::{FilterSettings, RawFilter};
 pub use model::{ModelSettings, RawModel};
 pub use odometry::{OdometrySettings, RawOdometry};
 pub use output::{OutputSettings, RawOutput};
+pub use overrides::Override;
 pub use radar::{RadarSettings, RawRadar};
 pub use sim::{RawSim, SimSettings};
 pub use values::{
@@ -168,22 +170,30 @@ impl Config {
     /// Reads, parses and validates a file of at most [`MAX_CONFIG_BYTES`].
     pub fn load(path: impl AsRef<Path>) -> Result<Self, ConfigError> {
         let path = path.as_ref();
-        let io = |source| ConfigError::Io {
-            path: path.to_path_buf(),
-            source,
+        Self::from_toml_str_named(&read_limited(path)?, &path.display().to_string())
+    }
+
+    /// What a binary runs with: the file at `path` (or, without one, the shipped `preset`),
+    /// then `overrides` in order, then validation. Errors name the file (or the shipped
+    /// example) and the field.
+    pub fn resolve(
+        path: Option<&Path>,
+        preset: Preset,
+        overrides: &[Override],
+    ) -> Result<Self, ConfigError> {
+        let (mut raw, origin) = match path {
+            Some(path) => (
+                parse::raw_from_str(&read_limited(path)?, &path.display().to_string())?,
+                path.display().to_string(),
+            ),
+            None => {
+                let (text, name) = examples::text(preset);
+                (parse::raw_from_str(text, name)?, name.to_owned())
+            }
         };
-        let file = std::fs::File::open(path).map_err(io)?;
-        let mut text = String::new();
-        file.take(MAX_CONFIG_BYTES + 1)
-            .read_to_string(&mut text)
-            .map_err(io)?;
-        if u64::try_from(text.len()).map_or(true, |n| n > MAX_CONFIG_BYTES) {
-            return Err(ConfigError::TooLarge {
-                path: path.to_path_buf(),
-                max_bytes: MAX_CONFIG_BYTES,
-            });
-        }
-        Self::from_toml_str_named(&text, &path.display().to_string())
+        raw.apply_overrides(overrides)?;
+        raw.validate()
+            .map_err(|errors| ConfigError::Invalid { origin, errors })
     }
 
     /// The settings of a shipped example file, compiled in.
@@ -194,4 +204,24 @@ impl Config {
         let (text, name) = examples::text(preset);
         Self::from_toml_str_named(text, name)
     }
+}
+
+/// Reads a UTF-8 file of at most [`MAX_CONFIG_BYTES`], never allocating more.
+fn read_limited(path: &Path) -> Result<String, ConfigError> {
+    let io = |source| ConfigError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let mut text = String::new();
+    file.take(MAX_CONFIG_BYTES + 1)
+        .read_to_string(&mut text)
+        .map_err(io)?;
+    if u64::try_from(text.len()).map_or(true, |n| n > MAX_CONFIG_BYTES) {
+        return Err(ConfigError::TooLarge {
+            path: path.to_path_buf(),
+            max_bytes: MAX_CONFIG_BYTES,
+        });
+    }
+    Ok(text)
 }
