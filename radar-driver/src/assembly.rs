@@ -106,7 +106,9 @@ impl RotationAssembler {
                 self.skipped = self.skipped.saturating_add(gap);
                 report.skipped_azimuths += gap;
             }
-            None => {}
+            // The first azimuth (after start-up or a flush): the rotation is whole from
+            // here only if it starts at slot 0.
+            None => self.started_at_wrap = now == 0,
         }
         if let Some(last) = self.last_sweep {
             let expected = last.wrapping_add(1);

@@ -108,9 +108,9 @@ pub struct Rotation {
     pub sweep_missing: u32,
     /// Azimuths whose encoder value repeated the previous one.
     pub duplicate_azimuths: u32,
-    /// True when the rotation began at an encoder wrap and ended at the next one. The
-    /// first rotation after start-up, and one cut short by a geometry change or shutdown,
-    /// is partial.
+    /// True when the rotation began at an encoder wrap (or, the very first one, at slot 0)
+    /// and ended at the next wrap. A first rotation starting mid-way, and one cut short by
+    /// a geometry change or shutdown, is partial.
     pub complete: bool,
 }
 

@@ -1,0 +1,280 @@
+//! Recovery from every fault mode over loopback: the frames after the fault are delivered,
+//! the right counters move, and nothing panics.
+
+mod common;
+
+use std::time::Duration;
+
+use common::*;
+use protocol::{Message, SIGNATURE};
+use radar_driver::{Driver, DriverHandle, Receivers};
+
+const BOUND: Duration = Duration::from_secs(30);
+
+async fn start(radar: &FakeRadar) -> (DriverHandle, Receivers) {
+    let (driver, rx) = Driver::new(test_settings(radar.addr));
+    (driver.spawn(), rx)
+}
+
+fn expected(ranges: &[std::ops::Range<u16>]) -> Vec<u16> {
+    ranges.iter().cloned().flatten().collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_dropped_connection_costs_a_reconnect_and_the_rotation_in_progress_survives_it() {
+    tokio::time::timeout(BOUND, async {
+        let radar = FakeRadar::bind().await;
+        let (handle, rx) = start(&radar).await;
+        let config = small_configuration();
+        let mut conn = radar.accept().await;
+        conn.handshake(&config).await;
+        send_ffts(&mut conn, &config, 0..20).await;
+        drop(conn);
+        let mut conn = radar.accept().await;
+        assert_eq!(conn.handshake(&config).await, 21);
+        send_ffts(&mut conn, &config, 20..40).await;
+        let az = take_async(rx.azimuths.as_ref().unwrap(), 40).await;
+        assert_eq!(sweeps(&az), expected(&[0..40]));
+        // Rotation 1 (azimuths 16..31) straddles the reconnection and is whole.
+        let rots = take_async(rx.rotations.as_ref().unwrap(), 2).await;
+        assert!(rots[1].complete);
+        assert_eq!(sweeps(&rots[1].azimuths), expected(&[16..32]));
+        assert_eq!(rots[1].skipped_azimuths, 0);
+        let m = handle.stop().await.unwrap().metrics;
+        assert_eq!((m.connections, m.reconnects, m.configurations), (2, 1, 2));
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn half_a_frame_followed_by_more_frames_costs_only_that_frame() {
+    tokio::time::timeout(BOUND, async {
+        let radar = FakeRadar::bind().await;
+        let (handle, rx) = start(&radar).await;
+        let config = small_configuration();
+        let mut conn = radar.accept().await;
+        conn.handshake(&config).await;
+        send_ffts(&mut conn, &config, 0..10).await;
+        let cut = fft_frame(&config, 10);
+        conn.send(&cut[..cut.len() / 2]).await.unwrap();
+        send_ffts(&mut conn, &config, 11..30).await;
+        let az = take_async(rx.azimuths.as_ref().unwrap(), 29).await;
+        assert_eq!(sweeps(&az), expected(&[0..10, 11..30]));
+        let m = handle.stop().await.unwrap().metrics;
+        assert_eq!(m.decode_errors.truncated, 1);
+        assert_eq!(
+            (m.sweep_gaps, m.sweep_missing, m.skipped_azimuths),
+            (1, 1, 1)
+        );
+        assert_eq!(m.reconnects, 0);
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn half_a_frame_then_a_closed_connection_costs_that_frame_and_a_reconnect() {
+    tokio::time::timeout(BOUND, async {
+        let radar = FakeRadar::bind().await;
+        let (handle, rx) = start(&radar).await;
+        let config = small_configuration();
+        let mut conn = radar.accept().await;
+        conn.handshake(&config).await;
+        send_ffts(&mut conn, &config, 0..10).await;
+        let cut = fft_frame(&config, 10);
+        conn.send(&cut[..30]).await.unwrap();
+        drop(conn);
+        let mut conn = radar.accept().await;
+        conn.handshake(&config).await;
+        send_ffts(&mut conn, &config, 11..30).await;
+        let az = take_async(rx.azimuths.as_ref().unwrap(), 29).await;
+        assert_eq!(sweeps(&az), expected(&[0..10, 11..30]));
+        let m = handle.stop().await.unwrap().metrics;
+        assert_eq!(m.reconnects, 1);
+        assert_eq!(
+            m.decode_errors.total(),
+            0,
+            "an unfinished frame at a disconnect is not a decode error"
+        );
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn corrupt_bytes_between_frames_and_a_corrupt_signature_cost_only_what_they_hit() {
+    tokio::time::timeout(BOUND, async {
+        let radar = FakeRadar::bind().await;
+        let (handle, rx) = start(&radar).await;
+        let config = small_configuration();
+        let mut conn = radar.accept().await;
+        conn.handshake(&config).await;
+        send_ffts(&mut conn, &config, 0..10).await;
+        // Garbage with a near-signature in it.
+        let mut garbage: Vec<u8> = (0..200u32).map(|i| (i * 37 % 256) as u8).collect();
+        garbage.extend_from_slice(&SIGNATURE[..12]);
+        garbage.extend_from_slice(&[0xAB; 50]);
+        conn.send(&garbage).await.unwrap();
+        send_ffts(&mut conn, &config, 10..20).await;
+        // Frame 20 with one signature byte flipped: it is garbage now.
+        let mut bad = fft_frame(&config, 20);
+        bad[5] ^= 0xFF;
+        conn.send(&bad).await.unwrap();
+        // Frame 21 claims version 2: rejected.
+        let mut v2 = fft_frame(&config, 21);
+        v2[16] = 2;
+        conn.send(&v2).await.unwrap();
+        send_ffts(&mut conn, &config, 22..40).await;
+        let az = take_async(rx.azimuths.as_ref().unwrap(), 38).await;
+        assert_eq!(sweeps(&az), expected(&[0..20, 22..40]));
+        let m = handle.stop().await.unwrap().metrics;
+        assert!(m.decode_errors.signature >= 2, "{:?}", m.decode_errors);
+        assert_eq!(m.decode_errors.version, 1);
+        assert_eq!(m.reconnects, 0);
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_oversized_length_is_rejected_without_reserving_it_and_the_stream_goes_on() {
+    tokio::time::timeout(BOUND, async {
+        let radar = FakeRadar::bind().await;
+        let (handle, rx) = start(&radar).await;
+        let config = small_configuration();
+        let mut conn = radar.accept().await;
+        conn.handshake(&config).await;
+        send_ffts(&mut conn, &config, 0..10).await;
+        let mut huge = SIGNATURE.to_vec();
+        huge.extend_from_slice(&[1, 30]);
+        huge.extend_from_slice(&4_000_000_000u32.to_be_bytes());
+        huge.extend_from_slice(&[0x55; 64]);
+        conn.send(&huge).await.unwrap();
+        send_ffts(&mut conn, &config, 10..20).await;
+        let az = take_async(rx.azimuths.as_ref().unwrap(), 20).await;
+        assert_eq!(sweeps(&az), expected(&[0..20]));
+        let m = handle.stop().await.unwrap().metrics;
+        assert_eq!(m.decode_errors.oversized, 1);
+        assert_eq!(m.reconnects, 0);
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stall_longer_than_the_watchdog_is_a_dead_link_and_the_driver_reconnects() {
+    tokio::time::timeout(BOUND, async {
+        let radar = FakeRadar::bind().await;
+        let (handle, rx) = start(&radar).await;
+        let config = small_configuration();
+        let mut conn = radar.accept().await;
+        conn.handshake(&config).await;
+        send_ffts(&mut conn, &config, 0..10).await;
+        // Hold the connection open and silent; the watchdog is 400 ms.
+        let mut conn2 = radar.accept().await;
+        assert!(
+            conn.closed_by_client().await,
+            "the driver drops the dead link"
+        );
+        conn2.handshake(&config).await;
+        send_ffts(&mut conn2, &config, 10..20).await;
+        let az = take_async(rx.azimuths.as_ref().unwrap(), 20).await;
+        assert_eq!(sweeps(&az), expected(&[0..20]));
+        let m = handle.stop().await.unwrap().metrics;
+        assert_eq!((m.watchdog_timeouts, m.reconnects), (1, 1));
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn missing_keep_alives_on_an_idle_link_trip_the_watchdog_but_keep_alives_alone_keep_it_up() {
+    tokio::time::timeout(BOUND, async {
+        let radar = FakeRadar::bind().await;
+        let (handle, rx) = start(&radar).await;
+        let config = small_configuration();
+        let mut conn = radar.accept().await;
+        conn.handshake(&config).await;
+        // Keep-alives every 100 ms for 1.2 s (three watchdog periods): the link stays up.
+        for _ in 0..12 {
+            conn.send_message(&Message::KeepAlive).await;
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+        assert_eq!(handle.metrics().watchdog_timeouts, 0);
+        assert!(handle.metrics().keep_alives >= 12);
+        // Then silence: no keep-alives, no data.
+        let mut conn2 = radar.accept().await;
+        conn2.handshake(&config).await;
+        send_ffts(&mut conn2, &config, 0..5).await;
+        let az = take_async(rx.azimuths.as_ref().unwrap(), 5).await;
+        assert_eq!(sweeps(&az), expected(&[0..5]));
+        let m = handle.stop().await.unwrap().metrics;
+        assert_eq!((m.watchdog_timeouts, m.reconnects), (1, 1));
+        drop(conn);
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_radar_that_never_sends_its_configuration_is_abandoned_by_the_watchdog() {
+    tokio::time::timeout(BOUND, async {
+        let radar = FakeRadar::bind().await;
+        let (handle, rx) = start(&radar).await;
+        let config = small_configuration();
+        let mut conn = radar.accept().await;
+        // FFT data before any configuration cannot be interpreted.
+        send_ffts(&mut conn, &config, 0..3).await;
+        let mut conn2 = radar.accept().await;
+        conn2.handshake(&config).await;
+        send_ffts(&mut conn2, &config, 3..6).await;
+        let az = take_async(rx.azimuths.as_ref().unwrap(), 3).await;
+        assert_eq!(sweeps(&az), expected(&[3..6]));
+        let m = handle.stop().await.unwrap().metrics;
+        assert_eq!(m.fft_before_configuration, 3);
+        assert_eq!(m.watchdog_timeouts, 1);
+        drop(conn);
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_driver_gives_up_after_the_configured_attempts_with_a_typed_error() {
+    tokio::time::timeout(BOUND, async {
+        let addr = {
+            let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+            l.local_addr().unwrap()
+        };
+        let mut settings = test_settings(addr);
+        settings.max_attempts = std::num::NonZeroU32::new(3);
+        let (driver, _rx) = Driver::new(settings);
+        let metrics = driver.metrics();
+        let err = driver.spawn().join().await.unwrap_err();
+        assert!(
+            matches!(err, radar_driver::DriverError::GaveUp { attempts: 3, .. }),
+            "{err}"
+        );
+        assert_eq!(metrics.snapshot().connect_attempts, 3);
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_driver_reconnects_forever_by_default_until_shut_down() {
+    tokio::time::timeout(BOUND, async {
+        let addr = {
+            let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+            l.local_addr().unwrap()
+        };
+        let (driver, _rx) = Driver::new(test_settings(addr));
+        let handle = driver.spawn();
+        assert!(eventually(|| handle.metrics().connect_attempts >= 10).await);
+        let exit = handle.stop().await.unwrap();
+        assert_eq!(exit.metrics.connections, 0);
+    })
+    .await
+    .expect("bounded");
+}
