@@ -136,6 +136,9 @@ pub struct Association {
     pub used_jcbb: bool,
     /// Whether JCBB ran out of its node budget (the best hypothesis found is used).
     pub budget_exhausted: bool,
+    /// Per target, whether some feature's exclusion gate (wider than the association gate)
+    /// contains it: such a target, if left unpaired, is not evidence of a new feature.
+    pub near_feature: Vec<bool>,
 }
 
 /// Associates `targets` with the beam's features.
@@ -143,16 +146,21 @@ pub fn associate(
     ctx: &BeamContext<'_>,
     targets: &[Target],
     gates: &GateTable,
+    exclusion: &GateTable,
     max_nodes: usize,
 ) -> Association {
     let k = ctx.prediction.z.len();
     // Individual compatibility: d2[j][i] if target j is inside feature i's gate.
     let mut compatible: Vec<Vec<(usize, f64)>> = Vec::with_capacity(targets.len());
     let mut per_feature = vec![0usize; k];
-    for j in 0..targets.len() {
+    let mut near_feature = vec![false; targets.len()];
+    for (j, near) in near_feature.iter_mut().enumerate() {
         let mut list = Vec::new();
         for (i, count) in per_feature.iter_mut().enumerate() {
             if let Some((d2, dof)) = ctx.joint_distance(targets, &[(j, i)]) {
+                if d2 <= exclusion.threshold(dof) {
+                    *near = true;
+                }
                 if d2 <= gates.threshold(dof) {
                     list.push((i, d2));
                     *count += 1;
@@ -169,6 +177,7 @@ pub fn associate(
             pairs: nn,
             used_jcbb: false,
             budget_exhausted: false,
+            near_feature,
         };
     }
     let mut search = Jcbb {
@@ -205,6 +214,7 @@ pub fn associate(
         pairs,
         used_jcbb: true,
         budget_exhausted: exhausted,
+        near_feature,
     }
 }
 

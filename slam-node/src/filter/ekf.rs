@@ -11,6 +11,7 @@ use radar_model::geometry::{range_bearing, wrap_angle, Pose2};
 use radar_model::material::Material;
 
 use super::association::{associate, innovation, rows_of, BeamContext, GateTable};
+use super::beam::{candidates_in_beam, predict_candidates, BeamCandidate};
 use super::error::FilterError;
 use super::health::{covariance_health, pose_nees, position_nees, CovarianceHealth};
 use super::lifecycle::{inverse_observation, Sighting, TentativeList};
@@ -54,6 +55,8 @@ pub struct BeamReport {
     pub retired: Vec<FeatureId>,
     /// Targets that started a new tentative.
     pub new_tentatives: usize,
+    /// Unpaired targets inside some feature's exclusion gate (neither used nor tentative).
+    pub excluded_targets: usize,
     /// Whether JCBB ran, and whether it exhausted its budget.
     pub used_jcbb: bool,
     /// JCBB stopped at its node budget.
@@ -77,8 +80,10 @@ pub struct FilterStats {
     pub jcbb_runs: u64,
     /// Odometry samples older than the state (held from the state's time instead).
     pub late_odometry: u64,
-    /// Targets dropped because the tentative list was full.
+    /// Targets dropped because the tentative list (or the state) was full.
     pub dropped_targets: u64,
+    /// Unpaired targets inside some feature's exclusion gate.
+    pub excluded_targets: u64,
 }
 
 /// The augmented-state EKF with its models.
@@ -86,6 +91,7 @@ pub struct FilterStats {
 pub struct Ekf<M, O> {
     settings: FilterSettings,
     gates: GateTable,
+    exclusion: GateTable,
     state: SlamState,
     motion: M,
     observer: O,
@@ -114,6 +120,12 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         )?;
         Ok(Self {
             gates: GateTable::new(settings.gate_probability, 24),
+            exclusion: GateTable::new(
+                settings
+                    .exclusion_probability
+                    .max(settings.gate_probability),
+                3,
+            ),
             settings,
             state,
             motion,
@@ -243,26 +255,9 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         self.state.remove(id)
     }
 
-    /// The features inside a beam at `bearing_rad` seen from the current pose, sorted by range:
-    /// `(slot, range)`.
-    pub fn features_in_beam(&self, bearing_rad: f64) -> Vec<(usize, f64)> {
-        let pose = self.pose();
-        let mut out = Vec::new();
-        for slot in 0..self.state.feature_count() {
-            let Some(p) = self.state.params(slot) else {
-                continue;
-            };
-            let rb = range_bearing(&pose, [p.x_m, p.y_m]);
-            if rb.range_m >= self.settings.min_range_m
-                && rb.range_m <= self.settings.max_range_m
-                && wrap_angle(rb.bearing_rad - bearing_rad).abs()
-                    <= self.settings.beam_half_width_rad
-            {
-                out.push((slot, rb.range_m));
-            }
-        }
-        out.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
-        out
+    /// The candidate features of a beam at `bearing_rad` (see [`candidates_in_beam`]).
+    pub fn features_in_beam(&self, bearing_rad: f64) -> Vec<BeamCandidate> {
+        candidates_in_beam(&self.state, &self.settings, bearing_rad)
     }
 
     /// Processes every target detected down one beam. Non-finite input is rejected before
@@ -273,14 +268,14 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         self.predict_to(beam.timestamp_s)?;
         let mut report = BeamReport::default();
         let in_beam = self.features_in_beam(beam.bearing_rad);
-        let slots: Vec<usize> = in_beam.iter().map(|&(s, _)| s).collect();
+        let slots: Vec<usize> = in_beam.iter().map(|c| c.slot).collect();
         report.candidates = slots
             .iter()
             .filter_map(|&s| self.state.tracks().get(s).map(|t| t.id))
             .collect();
         let mut unclaimed: Vec<usize> = (0..beam.targets.len()).collect();
         if !slots.is_empty() {
-            let claimed = self.update_beam(beam, &slots, &mut report)?;
+            let claimed = self.update_beam(beam, &in_beam, &mut report)?;
             unclaimed.retain(|j| !claimed.contains(j));
         }
         self.handle_unclaimed(beam, &unclaimed, &mut report)?;
@@ -305,18 +300,19 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     fn update_beam(
         &mut self,
         beam: &BeamObservation,
-        slots: &[usize],
+        candidates: &[BeamCandidate],
         report: &mut BeamReport,
     ) -> Result<Vec<usize>, FilterError> {
+        let slots: Vec<usize> = candidates.iter().map(|c| c.slot).collect();
+        let slots = &slots[..];
         let params = self.beam_params(slots);
-        let pred = self
-            .observer
-            .predict_beam(&self.pose(), &params, self.state.loss_db())?;
-        if pred.z.len() != slots.len() || pred.jacobian.nrows() != 3 * slots.len() {
-            return Err(FilterError::Shape(
-                "beam prediction does not match its features",
-            ));
-        }
+        let pred = predict_candidates(
+            &self.observer,
+            &self.pose(),
+            self.state.loss_db(),
+            candidates,
+            &params,
+        )?;
         let use_power: Vec<bool> = pred
             .power_usable
             .iter()
@@ -338,6 +334,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             &ctx,
             &beam.targets,
             &self.gates,
+            &self.exclusion,
             self.settings.jcbb_max_nodes,
         );
         report.used_jcbb = assoc.used_jcbb;
@@ -359,6 +356,13 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             claimed.push(j);
             if let Some(s) = seen.get_mut(i) {
                 *s = true;
+            }
+        }
+        for (j, near) in assoc.near_feature.iter().enumerate() {
+            if *near && !claimed.contains(&j) {
+                claimed.push(j);
+                report.excluded_targets += 1;
+                self.stats.excluded_targets += 1;
             }
         }
         if !rows.is_empty() {
@@ -383,11 +387,12 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         let now = beam.timestamp_s;
         let mut retire = Vec::new();
         for (i, &slot) in slots.iter().enumerate() {
-            let expected = !self.settings.use_power
-                || pred
-                    .z
-                    .get(i)
-                    .map_or(true, |z| z[2] >= self.settings.min_detectable_power_db);
+            let expected = candidates.get(i).is_some_and(|c| c.expected)
+                && (!self.settings.use_power
+                    || pred
+                        .z
+                        .get(i)
+                        .map_or(true, |z| z[2] >= self.settings.min_detectable_power_db));
             let Some(track) = self.state.track_mut(slot) else {
                 continue;
             };
@@ -520,20 +525,33 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         let Some(new_slot) = self.state.slot_of(id) else {
             return Err(FilterError::UnknownFeature(id));
         };
-        let mut slots: Vec<usize> = self
-            .features_in_beam(beam_bearing_rad)
-            .into_iter()
-            .map(|(s, _)| s)
-            .collect();
-        if !slots.contains(&new_slot) {
-            // The target's bearing put it just outside the nominal beam: predict it alone
-            // with the beam's other features.
-            slots.push(new_slot);
+        let mut candidates = self.features_in_beam(beam_bearing_rad);
+        if !candidates.iter().any(|c| c.slot == new_slot) {
+            // The target's noisy bearing put it outside the candidate arc: predict it with
+            // the beam's expected features in front of it.
+            let Some(p) = self.state.params(new_slot) else {
+                return Err(FilterError::UnknownFeature(id));
+            };
+            let rb = range_bearing(&self.pose(), [p.x_m, p.y_m]);
+            candidates.push(BeamCandidate {
+                slot: new_slot,
+                range_m: rb.range_m,
+                offset_rad: wrap_angle(rb.bearing_rad - beam_bearing_rad).abs(),
+                sigma_rad: 0.0,
+                expected: false,
+                ambiguous: false,
+            });
+            candidates.sort_by(|a, b| a.range_m.total_cmp(&b.range_m).then(a.slot.cmp(&b.slot)));
         }
+        let slots: Vec<usize> = candidates.iter().map(|c| c.slot).collect();
         let params = self.beam_params(&slots);
-        let pred = self
-            .observer
-            .predict_beam(&self.pose(), &params, self.state.loss_db())?;
+        let pred = predict_candidates(
+            &self.observer,
+            &self.pose(),
+            self.state.loss_db(),
+            &candidates,
+            &params,
+        )?;
         let Some(local) = slots.iter().position(|&s| s == new_slot) else {
             return Ok(());
         };

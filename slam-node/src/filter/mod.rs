@@ -7,6 +7,7 @@
 //! - [`predict`]: the process model (radar-model's eq. 2 or bicycle) to any time, O(n).
 //! - [`observation`]: beam observations and the observation-model seam.
 //! - [`update`]: the batched, Cholesky-factorised, symmetric O(n^2 m) update.
+//! - [`beam`]: which features a beam concerns, and their joint prediction.
 //! - [`association`]: chi-square gates, nearest neighbour, JCBB.
 //! - [`lifecycle`]: tentative targets and their confirmation.
 //! - [`health`]: NEES and covariance health.
@@ -15,6 +16,7 @@
 //! - [`settings`]: [`FilterSettings`], plain validated values.
 
 pub mod association;
+pub mod beam;
 pub mod ekf;
 pub mod error;
 pub mod health;
@@ -26,6 +28,7 @@ pub mod settings;
 pub mod state;
 pub mod update;
 
+pub use beam::BeamCandidate;
 pub use ekf::{BeamReport, Ekf, FeatureEstimate, FilterStats};
 pub use error::FilterError;
 pub use health::CovarianceHealth;

@@ -37,11 +37,22 @@ pub struct FilterSettings {
     pub max_predict_gap_s: f64,
     /// Probability mass inside the association gate (for example 0.95 or 0.99).
     pub gate_probability: f64,
+    /// Probability mass of the wider exclusion gate: an unpaired target inside some feature's
+    /// exclusion gate is not made a tentative (it is most likely that feature, just outside
+    /// its association gate), so gate misses do not breed duplicate features.
+    pub exclusion_probability: f64,
     /// Node budget of the joint compatibility branch and bound per beam.
     pub jcbb_max_nodes: usize,
     /// Half the beam width (rad): features within this of a beam's azimuth are in that beam
     /// and attenuate each other. The paper's radar: 0.9 degrees.
     pub beam_half_width_rad: f64,
+    /// Extra half-width (rad) when choosing a beam's candidate features: a feature whose
+    /// *estimated* bearing is within `beam_half_width_rad + association_margin_rad` of the
+    /// beam is predicted in it and may be associated (estimates carry bearing error). Such
+    /// features are also treated as in the beam by the power model.
+    pub association_margin_rad: f64,
+    /// Standard deviations of a feature's predicted bearing added to the candidate arc.
+    pub candidate_sigmas: f64,
     /// Features nearer than this are not predicted (m): a feature on top of the radar has no
     /// bearing.
     pub min_range_m: f64,
@@ -88,8 +99,11 @@ impl Default for FilterSettings {
             max_predict_step_s: 0.05,
             max_predict_gap_s: 5.0,
             gate_probability: 0.99,
+            exclusion_probability: 0.9999,
             jcbb_max_nodes: 5_000,
             beam_half_width_rad: 0.9_f64.to_radians(),
+            association_margin_rad: 1.0_f64.to_radians(),
+            candidate_sigmas: 3.0,
             min_range_m: 0.5,
             max_range_m: 200.0,
             min_detectable_power_db: f64::NEG_INFINITY,
@@ -201,8 +215,11 @@ impl FilterSettings {
         positive("max_predict_step_s", self.max_predict_step_s)?;
         positive("max_predict_gap_s", self.max_predict_gap_s)?;
         probability("gate_probability", self.gate_probability)?;
+        probability("exclusion_probability", self.exclusion_probability)?;
         count("jcbb_max_nodes", self.jcbb_max_nodes)?;
         positive("beam_half_width_rad", self.beam_half_width_rad)?;
+        non_negative("association_margin_rad", self.association_margin_rad)?;
+        non_negative("candidate_sigmas", self.candidate_sigmas)?;
         positive("min_range_m", self.min_range_m)?;
         positive("max_range_m", self.max_range_m)?;
         if self.min_detectable_power_db.is_nan() {
