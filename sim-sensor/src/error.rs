@@ -139,6 +139,9 @@ pub enum ClientError {
     /// A fault injection closed the connection on purpose.
     #[error("fault injection: {0}")]
     Fault(&'static str),
+    /// Rendering or re-encoding failed on the server's side.
+    #[error("server-side failure: {0}")]
+    Internal(String),
     /// Replay data failed while serving.
     #[error(transparent)]
     Replay(#[from] ReplayError),

@@ -13,7 +13,7 @@
 //! file, scene and recording files). Parsing, rendering and fault logic are plain functions
 //! testable without IO.
 //!
-//! ```ignore
+//! ```no_run
 //! # async fn demo() -> Result<(), sim_sensor::SimError> {
 //! use sim_sensor::{scene::shipped, SimOptions, SimServer};
 //! let scene = shipped::load("penetration-wood")?;
@@ -26,12 +26,18 @@
 pub mod error;
 pub mod faults;
 pub mod index;
+pub mod odometry;
 pub mod radar;
 pub mod render;
+pub mod replay;
 pub mod scene;
 pub mod schedule;
+pub mod server;
 pub mod settings;
 pub mod trajectory;
+pub mod truth;
 
 pub use error::{ClientError, ReplayError, SceneError, SimError};
+pub use faults::{FaultScope, FaultSettings, Stall};
+pub use server::{SimHandle, SimServer, SimStats, SimStatsSnapshot};
 pub use settings::{OdometryNoise, Pacing, SimOptions, SourceSpec};

@@ -32,7 +32,7 @@ use radar_model::spectrum::{
 use crate::error::SimError;
 use crate::index::GridIndex;
 use crate::radar::{DataWidth, RadarParams};
-use crate::scene::{Scene, Spreading};
+use crate::scene::{Feature, MotionSpec, Scene, Spreading};
 use crate::trajectory::{Trajectory, TrajectoryCursor};
 
 /// Features nearer than this to a rotation's middle pose (plus twice the distance travelled)
@@ -55,6 +55,9 @@ pub fn bin_width(width: DataWidth) -> BinWidth {
 /// Everything about a scene that does not change while it is served (shared by clients).
 #[derive(Debug)]
 pub struct SceneRenderer {
+    name: String,
+    motion: MotionSpec,
+    features: Vec<Feature>,
     radar: RadarParams,
     seed: u64,
     loss_db: f64,
@@ -127,6 +130,9 @@ impl SceneRenderer {
         let ids = scene.features.iter().map(|f| f.id).collect();
         let cell_m = (scene.radar.max_range_m() / 8.0).clamp(2.0, 50.0);
         Ok(SceneRenderer {
+            name: scene.name.clone(),
+            motion: scene.motion,
+            features: scene.features.clone(),
             radar: scene.radar.clone(),
             seed: seed.unwrap_or(scene.seed),
             loss_db: scene.loss_db,
@@ -144,6 +150,26 @@ impl SceneRenderer {
             spectrum,
             trajectory: Trajectory::new(scene, horizon_s)?,
         })
+    }
+
+    /// The scene's name.
+    pub fn scene_name(&self) -> &str {
+        &self.name
+    }
+
+    /// The scene's process model.
+    pub fn motion(&self) -> MotionSpec {
+        self.motion
+    }
+
+    /// The scene's features.
+    pub fn features(&self) -> &[Feature] {
+        &self.features
+    }
+
+    /// The radar loss L, dB.
+    pub fn loss_db(&self) -> f64 {
+        self.loss_db
     }
 
     /// The radar.

@@ -1,0 +1,280 @@
+//! The vehicle's odometry, served on its own TCP port in the format of
+//! `docs/contracts.md`: ASCII, one record a line, a header line
+//! `# odometry v1 timestamp_s speed_mps steer_rad`, then `<timestamp_s> <speed_mps>
+//! <steer_rad>` with the timestamp in Unix seconds (9 decimals, exact from integer
+//! nanoseconds).
+//!
+//! Record `j` is stamped `start + j / rate` and carries the controls in force then, plus
+//! the configured bias and Gaussian noise (drawn from the scene's seed and `j`, so every
+//! client reads identical records). In real time a record leaves when the wall clock reaches
+//! its stamp; as fast as possible, records are released up to [`FAST_LEAD_NS`] ahead of the
+//! radar's frontier, so odometry is always available for the azimuths being served but never
+//! races unboundedly ahead of them. A new client starts at the record in force at the
+//! world's current time.
+
+use std::fmt::Write as _;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Duration;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use tokio::io::AsyncWriteExt;
+use tokio::net::{TcpListener, TcpStream};
+use tokio::task::JoinSet;
+use tokio_util::sync::CancellationToken;
+
+use crate::error::SimError;
+use crate::server::world::World;
+use crate::settings::{OdometryNoise, Pacing};
+
+/// The header line (without its newline).
+pub const HEADER: &str = "# odometry v1 timestamp_s speed_mps steer_rad";
+/// How far odometry may run ahead of the radar when pacing is as fast as possible.
+pub const FAST_LEAD_NS: u64 = 500_000_000;
+/// Most odometry clients served at once.
+pub const MAX_ODOMETRY_CLIENTS: usize = 8;
+/// Random stream reserved for odometry noise.
+const ODOMETRY_STREAM: u64 = 1 << 62;
+/// Polling period while waiting for the radar's frontier to advance.
+const FRONTIER_POLL: Duration = Duration::from_millis(2);
+
+/// One odometry record.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometryRecord {
+    /// Unix time, nanoseconds.
+    pub unix_ns: u64,
+    /// Measured speed, m/s.
+    pub speed_mps: f64,
+    /// Measured steering, rad.
+    pub steer_rad: f64,
+}
+
+impl OdometryRecord {
+    /// Appends the record's line (with its newline) to `out`.
+    pub fn write_line(&self, out: &mut String) {
+        let _ = writeln!(
+            out,
+            "{}.{:09} {:.6} {:.6}",
+            self.unix_ns / 1_000_000_000,
+            self.unix_ns % 1_000_000_000,
+            self.speed_mps,
+            self.steer_rad
+        );
+    }
+}
+
+/// Generates the records of one scene.
+#[derive(Debug, Clone)]
+pub struct OdometryGenerator {
+    noise: OdometryNoise,
+    seed: u64,
+    period_ns: u64,
+    start_unix_ns: u64,
+}
+
+impl OdometryGenerator {
+    /// A generator for a scene starting at `start_unix_ns`.
+    pub fn new(noise: OdometryNoise, seed: u64, start_unix_ns: u64) -> Self {
+        let period_ns = (1e9 / noise.rate_hz).round().max(1.0) as u64;
+        Self {
+            noise,
+            seed,
+            period_ns,
+            start_unix_ns,
+        }
+    }
+
+    /// Time between records, nanoseconds.
+    pub fn period_ns(&self) -> u64 {
+        self.period_ns
+    }
+
+    /// Scene time of record `j`, nanoseconds after the start.
+    pub fn offset_ns(&self, j: u64) -> u64 {
+        j.saturating_mul(self.period_ns)
+    }
+
+    /// Record `j`, given the true controls `(speed, steer)` in force at its time.
+    pub fn record(&self, j: u64, controls: (f64, f64)) -> OdometryRecord {
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed ^ j.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        rng.set_stream(ODOMETRY_STREAM);
+        let n_speed: f64 = StandardNormal.sample(&mut rng);
+        let n_steer: f64 = StandardNormal.sample(&mut rng);
+        OdometryRecord {
+            unix_ns: self.start_unix_ns.saturating_add(self.offset_ns(j)),
+            speed_mps: controls.0
+                + self.noise.bias_speed_mps
+                + n_speed * self.noise.sigma_speed_mps,
+            steer_rad: controls.1
+                + self.noise.bias_steer_rad
+                + n_steer * self.noise.sigma_steer_rad,
+        }
+    }
+}
+
+/// The odometry port.
+#[derive(Debug)]
+pub(crate) struct OdometryServer {
+    listener: TcpListener,
+    world: Arc<World>,
+    generator: OdometryGenerator,
+}
+
+impl OdometryServer {
+    pub(crate) async fn bind(
+        addr: SocketAddr,
+        world: Arc<World>,
+        noise: OdometryNoise,
+    ) -> Result<Self, SimError> {
+        let listener = TcpListener::bind(addr)
+            .await
+            .map_err(|source| SimError::Bind {
+                what: "odometry",
+                addr,
+                source,
+            })?;
+        let seed = world.scene().map_or(0, |s| s.seed());
+        let generator = OdometryGenerator::new(noise, seed, world.start_unix_ns);
+        Ok(Self {
+            listener,
+            world,
+            generator,
+        })
+    }
+
+    pub(crate) fn local_addr(&self) -> SocketAddr {
+        self.listener
+            .local_addr()
+            .unwrap_or_else(|_| SocketAddr::from(([127, 0, 0, 1], 0)))
+    }
+
+    pub(crate) async fn run(self, cancel: CancellationToken) -> Result<(), SimError> {
+        let mut clients = JoinSet::new();
+        loop {
+            tokio::select! {
+                () = cancel.cancelled() => break,
+                Some(_) = clients.join_next(), if !clients.is_empty() => {}
+                accepted = self.listener.accept() => {
+                    let Ok((socket, peer)) = accepted else {
+                        tokio::time::sleep(Duration::from_millis(20)).await;
+                        continue;
+                    };
+                    if clients.len() >= MAX_ODOMETRY_CLIENTS {
+                        tracing::warn!(%peer, "refusing an odometry client: too many connected");
+                        continue;
+                    }
+                    tracing::info!(%peer, "odometry client connected");
+                    let (world, generator, cancel) = (Arc::clone(&self.world), self.generator.clone(), cancel.clone());
+                    clients.spawn(async move {
+                        if let Err(error) = serve_odometry(socket, world, generator, cancel).await {
+                            tracing::info!(%peer, %error, "odometry client gone");
+                        }
+                    });
+                }
+            }
+        }
+        clients.shutdown().await;
+        Ok(())
+    }
+}
+
+async fn serve_odometry(
+    mut socket: TcpStream,
+    world: Arc<World>,
+    generator: OdometryGenerator,
+    cancel: CancellationToken,
+) -> std::io::Result<()> {
+    let Some(scene) = world.scene().cloned() else {
+        return Ok(());
+    };
+    let trajectory = scene.trajectory();
+    let mut line = String::with_capacity(256);
+    line.push_str(HEADER);
+    line.push('\n');
+    socket.write_all(line.as_bytes()).await?;
+    let mut j = world.current_offset_ns() / generator.period_ns();
+    let end_ns = world.stop_after.map(|n| scene.offset_ns(n));
+    loop {
+        let t_ns = generator.offset_ns(j);
+        if end_ns.is_some_and(|end| t_ns > end) {
+            // The scene has ended: hold the connection open until shutdown.
+            cancel.cancelled().await;
+            return Ok(());
+        }
+        // Wait until record j may leave.
+        loop {
+            let release_ns = match world.pacing {
+                Pacing::Realtime => world.current_offset_ns(),
+                Pacing::AsFastAsPossible => world.current_offset_ns().saturating_add(FAST_LEAD_NS),
+            };
+            if t_ns <= release_ns {
+                break;
+            }
+            let wait = match world.pacing {
+                Pacing::Realtime => Duration::from_nanos(t_ns - release_ns),
+                Pacing::AsFastAsPossible => FRONTIER_POLL,
+            };
+            tokio::select! {
+                () = cancel.cancelled() => return Ok(()),
+                () = tokio::time::sleep(wait) => {}
+            }
+        }
+        let record = generator.record(j, trajectory.controls_at(t_ns));
+        line.clear();
+        record.write_line(&mut line);
+        tokio::select! {
+            () = cancel.cancelled() => return Ok(()),
+            written = socket.write_all(line.as_bytes()) => written?,
+        }
+        j += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_record_line_has_nine_exact_decimals_and_single_spaces() {
+        let r = OdometryRecord {
+            unix_ns: 1_704_067_200_050_000_001,
+            speed_mps: 1.5,
+            steer_rad: -0.04,
+        };
+        let mut s = String::new();
+        r.write_line(&mut s);
+        assert_eq!(s, "1704067200.050000001 1.500000 -0.040000\n");
+        assert!(s.len() <= 256);
+    }
+
+    #[test]
+    fn records_are_reproducible_and_carry_the_configured_bias_and_noise() {
+        let noise = OdometryNoise {
+            rate_hz: 50.0,
+            sigma_speed_mps: 0.2,
+            sigma_steer_rad: 0.01,
+            bias_speed_mps: 0.5,
+            bias_steer_rad: -0.02,
+        };
+        let g = OdometryGenerator::new(noise, 9, 0);
+        assert_eq!(g.record(17, (2.0, 0.1)), g.record(17, (2.0, 0.1)));
+        assert_eq!(g.offset_ns(3), 60_000_000);
+        let n = 20_000;
+        let (mut sum_v, mut sum_v2, mut sum_a) = (0.0, 0.0, 0.0);
+        for j in 0..n {
+            let r = g.record(j, (2.0, 0.1));
+            sum_v += r.speed_mps;
+            sum_v2 += r.speed_mps * r.speed_mps;
+            sum_a += r.steer_rad;
+        }
+        let nf = n as f64;
+        let mean_v = sum_v / nf;
+        let sd_v = (sum_v2 / nf - mean_v * mean_v).sqrt();
+        // Mean 2.5 +/- 4 standard errors (0.2 / sqrt(20000) = 0.0014); sd within 3 %.
+        assert!((mean_v - 2.5).abs() < 0.006, "{mean_v}");
+        assert!((sd_v - 0.2).abs() < 0.006, "{sd_v}");
+        assert!((sum_a / nf - 0.08).abs() < 0.0003, "{}", sum_a / nf);
+    }
+}

@@ -1,0 +1,258 @@
+//! One client connection: a reader task that decodes the client's commands (anything
+//! undecodable closes this client, never the server) and a writer loop that owns the socket's
+//! write half: the configuration first, keep-alives, and the azimuth stream, paced and
+//! subject to the connection's faults. Writes are awaited one frame at a time, so a slow
+//! client slows its own stream (TCP back-pressure) and never grows the server's memory.
+
+use std::net::SocketAddr;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::Duration;
+
+use bytes::BytesMut;
+use protocol::{FrameDecoder, Message};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
+use tokio::net::TcpStream;
+use tokio::sync::mpsc;
+use tokio::time::MissedTickBehavior;
+use tokio_util::sync::CancellationToken;
+
+use super::stream::AzimuthStream;
+use super::world::World;
+use super::SimStats;
+use crate::error::ClientError;
+use crate::faults::{After, FaultInjector, Send};
+
+/// Largest amount of undecoded client bytes held; commands are tiny, so more is garbage.
+pub const MAX_CLIENT_BUFFER: usize = 64 * 1024;
+
+/// What the reader tells the writer.
+#[derive(Debug)]
+enum Command {
+    Start,
+    Stop,
+    SendConfiguration,
+    Closed,
+    Garbage(String),
+    Failed(std::io::Error),
+}
+
+/// Serves one connection until it ends; returns why it ended.
+pub(crate) async fn serve(
+    socket: TcpStream,
+    peer: SocketAddr,
+    world: Arc<World>,
+    keepalive_interval: Duration,
+    injector: FaultInjector,
+    stats: Arc<SimStats>,
+    cancel: CancellationToken,
+) -> Result<(), ClientError> {
+    let (read_half, write_half) = socket.into_split();
+    let (tx, rx) = mpsc::channel(16);
+    let reader = tokio::spawn(read_commands(read_half, tx, peer));
+    let result = Writer {
+        out: write_half,
+        world,
+        injector,
+        stats,
+        cancel,
+        frame: BytesMut::with_capacity(8192),
+        keepalive_interval,
+    }
+    .run(rx)
+    .await;
+    reader.abort();
+    result
+}
+
+async fn read_commands(mut socket: OwnedReadHalf, tx: mpsc::Sender<Command>, peer: SocketAddr) {
+    let mut buf = BytesMut::with_capacity(4096);
+    let mut decoder = FrameDecoder::new();
+    loop {
+        loop {
+            let command = match decoder.decode(&mut buf) {
+                Ok(Some(message)) => match message {
+                    Message::StartFftData | Message::StartNonContourFftData => Command::Start,
+                    Message::StopFftData => Command::Stop,
+                    Message::ConfigurationRequest => Command::SendConfiguration,
+                    Message::KeepAlive => continue,
+                    other => {
+                        tracing::debug!(%peer, id = other.id(), "ignoring a command the simulator does not implement");
+                        continue;
+                    }
+                },
+                Ok(None) => break,
+                Err(error) => Command::Garbage(error.to_string()),
+            };
+            let stop = matches!(command, Command::Garbage(_));
+            if tx.send(command).await.is_err() || stop {
+                return;
+            }
+        }
+        if buf.len() >= MAX_CLIENT_BUFFER {
+            let _ = tx
+                .send(Command::Garbage(format!(
+                    "{} undecoded bytes: no client command is that long",
+                    buf.len()
+                )))
+                .await;
+            return;
+        }
+        buf.reserve(4096);
+        let room = MAX_CLIENT_BUFFER - buf.len();
+        match (&mut socket).take(room as u64).read_buf(&mut buf).await {
+            Ok(0) => {
+                let _ = tx.send(Command::Closed).await;
+                return;
+            }
+            Ok(_) => {}
+            Err(error) => {
+                let _ = tx.send(Command::Failed(error)).await;
+                return;
+            }
+        }
+    }
+}
+
+struct Writer {
+    out: OwnedWriteHalf,
+    world: Arc<World>,
+    injector: FaultInjector,
+    stats: Arc<SimStats>,
+    cancel: CancellationToken,
+    frame: BytesMut,
+    keepalive_interval: Duration,
+}
+
+/// Whether the loop goes on after a write.
+enum Flow {
+    Continue,
+    Close(&'static str),
+}
+
+impl Writer {
+    async fn run(mut self, mut commands: mpsc::Receiver<Command>) -> Result<(), ClientError> {
+        if let Flow::Close(why) = self
+            .send_message(&Message::Configuration(Box::new(
+                self.world.configuration.clone(),
+            )))
+            .await?
+        {
+            return Err(ClientError::Fault(why));
+        }
+        let start = tokio::time::Instant::now() + self.keepalive_interval;
+        let mut keepalive = tokio::time::interval_at(start, self.keepalive_interval);
+        keepalive.set_missed_tick_behavior(MissedTickBehavior::Delay);
+        let mut stream: Option<AzimuthStream> = None;
+        let mut pending: Option<Option<tokio::time::Instant>> = None;
+        let mut azimuth = BytesMut::with_capacity(8192);
+        loop {
+            if let (Some(s), None) = (stream.as_mut(), pending) {
+                let skip = self.injector.skip_azimuth();
+                match s.next(&mut azimuth, skip).await? {
+                    None => {
+                        tracing::info!("the stream has ended; keep-alives continue");
+                        stream = None;
+                    }
+                    Some(p) if p.skipped => {
+                        self.stats.azimuths_skipped.fetch_add(1, Ordering::Relaxed);
+                        continue;
+                    }
+                    Some(p) => pending = Some(p.due.map(tokio::time::Instant::from_std)),
+                }
+            }
+            let due = pending.flatten();
+            tokio::select! {
+                biased;
+                () = self.cancel.cancelled() => return Ok(()),
+                command = commands.recv() => match command {
+                    Some(Command::Start) => {
+                        if stream.is_none() {
+                            stream = Some(AzimuthStream::open(&self.world).await?);
+                        }
+                    }
+                    Some(Command::Stop) => {
+                        stream = None;
+                        pending = None;
+                    }
+                    Some(Command::SendConfiguration) => {
+                        let message = Message::Configuration(Box::new(self.world.configuration.clone()));
+                        if let Flow::Close(why) = self.send_message(&message).await? {
+                            return Err(ClientError::Fault(why));
+                        }
+                    }
+                    Some(Command::Closed) | None => return Err(ClientError::Closed),
+                    Some(Command::Garbage(reason)) => return Err(ClientError::Garbage(reason)),
+                    Some(Command::Failed(error)) => return Err(ClientError::Io(error)),
+                },
+                _ = keepalive.tick(), if self.injector.keepalives_enabled() => {
+                    if let Flow::Close(why) = self.send_message(&Message::KeepAlive).await? {
+                        return Err(ClientError::Fault(why));
+                    }
+                }
+                () = sleep_until_opt(due), if pending.is_some() => {
+                    pending = None;
+                    std::mem::swap(&mut self.frame, &mut azimuth);
+                    let flow = self.write_frame().await?;
+                    std::mem::swap(&mut self.frame, &mut azimuth);
+                    self.stats.azimuths_sent.fetch_add(1, Ordering::Relaxed);
+                    match flow {
+                        Flow::Continue => {}
+                        Flow::Close(why) => return Err(ClientError::Fault(why)),
+                    }
+                }
+            }
+        }
+    }
+
+    async fn send_message(&mut self, message: &Message) -> Result<Flow, ClientError> {
+        self.frame.clear();
+        message.encode(&mut self.frame).map_err(|e| {
+            ClientError::Internal(format!("encoding message {}: {e}", message.id()))
+        })?;
+        self.write_frame().await
+    }
+
+    /// Writes `self.frame` through the fault injector.
+    async fn write_frame(&mut self) -> Result<Flow, ClientError> {
+        let send = self.injector.before_send(&mut self.frame[..]);
+        let bytes = match send {
+            Send::Whole => &self.frame[..],
+            Send::CutThenClose(n) => self.frame.get(..n).unwrap_or_default(),
+        };
+        tokio::select! {
+            biased;
+            () = self.cancel.cancelled() => return Ok(Flow::Close("server shutting down")),
+            written = self.out.write_all(bytes) => written?,
+        }
+        self.stats
+            .bytes_sent
+            .fetch_add(bytes.len() as u64, Ordering::Relaxed);
+        if let Send::CutThenClose(_) = send {
+            let _ = self.out.shutdown().await;
+            return Ok(Flow::Close("cut a frame in half"));
+        }
+        match self.injector.after_send() {
+            After::Continue => Ok(Flow::Continue),
+            After::Close => {
+                let _ = self.out.shutdown().await;
+                Ok(Flow::Close("dropping the connection after N messages"))
+            }
+            After::Stall(duration) => {
+                tracing::info!(?duration, "stalling (fault injection)");
+                tokio::select! {
+                    () = self.cancel.cancelled() => return Ok(Flow::Close("server shutting down")),
+                    () = tokio::time::sleep(duration) => {}
+                }
+                Ok(Flow::Continue)
+            }
+        }
+    }
+}
+
+async fn sleep_until_opt(due: Option<tokio::time::Instant>) {
+    if let Some(due) = due {
+        tokio::time::sleep_until(due).await;
+    }
+}
