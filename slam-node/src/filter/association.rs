@@ -104,10 +104,28 @@ impl BeamContext<'_> {
         targets: &[Target],
         pairs: &[(usize, usize)],
     ) -> Option<(f64, usize)> {
+        self.distance_with(targets, pairs, true)
+    }
+
+    /// As [`Self::joint_distance`] on range and bearing only.
+    pub fn geometric_distance(
+        &self,
+        targets: &[Target],
+        pairs: &[(usize, usize)],
+    ) -> Option<(f64, usize)> {
+        self.distance_with(targets, pairs, false)
+    }
+
+    fn distance_with(
+        &self,
+        targets: &[Target],
+        pairs: &[(usize, usize)],
+        allow_power: bool,
+    ) -> Option<(f64, usize)> {
         let mut rows = Vec::new();
         let mut nu = Vec::new();
         for &(t, f) in pairs {
-            let r = rows_of(f, *self.use_power.get(f)?);
+            let r = rows_of(f, allow_power && *self.use_power.get(f)?);
             nu.extend(innovation(self.prediction, f, targets.get(t)?, &r));
             rows.extend(r);
         }
@@ -136,8 +154,10 @@ pub struct Association {
     pub used_jcbb: bool,
     /// Whether JCBB ran out of its node budget (the best hypothesis found is used).
     pub budget_exhausted: bool,
-    /// Per target, whether some feature's exclusion gate (wider than the association gate)
-    /// contains it: such a target, if left unpaired, is not evidence of a new feature.
+    /// Per target, whether some feature's exclusion gate contains its range and bearing (a
+    /// chi-square gate wider than the association gate, on the geometry alone, so that a
+    /// badly predicted power cannot breed a duplicate): such a target, if left unpaired, is
+    /// not evidence of a new feature.
     pub near_feature: Vec<bool>,
 }
 
@@ -157,10 +177,12 @@ pub fn associate(
     for (j, near) in near_feature.iter_mut().enumerate() {
         let mut list = Vec::new();
         for (i, count) in per_feature.iter_mut().enumerate() {
-            if let Some((d2, dof)) = ctx.joint_distance(targets, &[(j, i)]) {
+            if let Some((d2, dof)) = ctx.geometric_distance(targets, &[(j, i)]) {
                 if d2 <= exclusion.threshold(dof) {
                     *near = true;
                 }
+            }
+            if let Some((d2, dof)) = ctx.joint_distance(targets, &[(j, i)]) {
                 if d2 <= gates.threshold(dof) {
                     list.push((i, d2));
                     *count += 1;

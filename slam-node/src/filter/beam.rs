@@ -16,7 +16,8 @@
 //! spreads over the separation to the nearest one in front). So each candidate's power is
 //! predicted with the expected features in front of it as occluders, and its power row is
 //! dropped (range and bearing still used) when any nearer candidate's membership is
-//! ambiguous, just as when two targets are not resolvable.
+//! ambiguous, or when it is not resolvable in range from another candidate (the radar sees
+//! one merged peak there).
 
 use nalgebra::DMatrix;
 use radar_model::geometry::{range_bearing, range_bearing_with_jacobian, wrap_angle, Pose2};
@@ -182,6 +183,15 @@ pub fn predict_candidates<O: BeamObservationModel + ?Sized>(
         z[i] = pred.z[last];
         usable[i] = pred.power_usable[last];
         copy_rows(&pred.jacobian, last, &members, &mut jacobian, i);
+    }
+    // Resolvability is a property of the ranges of every candidate, whichever group
+    // predicted it: one more prediction of the whole set supplies the flags.
+    if k > 1 {
+        let all = observer.predict_beam(pose, params, loss_db)?;
+        check(&all, k)?;
+        for (u, a) in usable.iter_mut().zip(&all.power_usable) {
+            *u &= *a;
+        }
     }
     for i in 0..k {
         if candidates[..i].iter().any(|c| c.ambiguous) {

@@ -477,6 +477,14 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         time_s: f64,
     ) -> Result<FeatureId, FilterError> {
         t.check()?;
+        if t.range_m < self.settings.min_range_m {
+            // At zero range the bearing carries no information: the new feature's position
+            // would be perfectly correlated with the pose across the line of sight.
+            return Err(FilterError::TargetTooClose {
+                range_m: t.range_m,
+                min_range_m: self.settings.min_range_m,
+            });
+        }
         let pose = self.pose();
         let (p, g_pose, g_rb) = inverse_observation(&pose, t);
         let material =
@@ -533,6 +541,9 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 return Err(FilterError::UnknownFeature(id));
             };
             let rb = range_bearing(&self.pose(), [p.x_m, p.y_m]);
+            if rb.range_m < self.settings.min_range_m {
+                return Ok(()); // On top of the radar: no bearing, no power prediction.
+            }
             candidates.push(BeamCandidate {
                 slot: new_slot,
                 range_m: rb.range_m,

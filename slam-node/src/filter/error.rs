@@ -28,6 +28,14 @@ pub enum FilterError {
         /// Its value.
         value: f64,
     },
+    /// A target too close to the radar to place a feature (no bearing information).
+    #[error("target at {range_m} m is nearer than the minimum range {min_range_m} m")]
+    TargetTooClose {
+        /// Its range.
+        range_m: f64,
+        /// The settings' minimum range.
+        min_range_m: f64,
+    },
     /// A range was negative.
     #[error("negative range {0} m")]
     NegativeRange(f64),

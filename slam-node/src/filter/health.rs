@@ -40,8 +40,14 @@ pub struct CovarianceHealth {
     pub max_symmetry_error: f64,
     /// Whether a Cholesky factorisation of P succeeded (P positive definite).
     pub cholesky_ok: bool,
-    /// Smallest eigenvalue (of the symmetrised P); `None` unless asked for (O(n^3)).
+    /// Smallest eigenvalue of P; `None` unless asked for (O(n^3)). Its absolute accuracy is
+    /// about `n eps max_variance`, so with variances spanning many decades it cannot show
+    /// definiteness: see `min_correlation_eigenvalue`.
     pub min_eigenvalue: Option<f64>,
+    /// Smallest eigenvalue of the correlation matrix `D^{-1/2} P D^{-1/2}` (D = diag P):
+    /// scale-free, in (0, 1] for a positive definite P whatever the spread of variances.
+    /// `None` unless asked for, or if a variance is not positive.
+    pub min_correlation_eigenvalue: Option<f64>,
     /// Smallest diagonal element (a variance).
     pub min_variance: f64,
     /// Largest diagonal element.
@@ -63,16 +69,33 @@ pub fn covariance_health(cov: &DMatrix<f64>, with_eigenvalues: bool) -> Covarian
     let diag = cov.diagonal();
     let all_finite = cov.iter().all(|v| v.is_finite());
     let cholesky_ok = all_finite && cov.clone().cholesky().is_some();
-    let min_eigenvalue = if with_eigenvalues && all_finite {
+    let (min_eigenvalue, min_correlation_eigenvalue) = if with_eigenvalues && all_finite {
         let sym = 0.5 * (cov + cov.transpose());
-        sym.symmetric_eigenvalues().iter().copied().reduce(f64::min)
+        let min_eig = sym.symmetric_eigenvalues().iter().copied().reduce(f64::min);
+        let min_corr = if diag.iter().all(|&d| d > 0.0) {
+            let scale: Vec<f64> = diag.iter().map(|d| 1.0 / d.sqrt()).collect();
+            let mut corr = sym;
+            for j in 0..n {
+                for i in 0..n {
+                    corr[(i, j)] *= scale[i] * scale[j];
+                }
+            }
+            corr.symmetric_eigenvalues()
+                .iter()
+                .copied()
+                .reduce(f64::min)
+        } else {
+            None
+        };
+        (min_eig, min_corr)
     } else {
-        None
+        (None, None)
     };
     CovarianceHealth {
         max_symmetry_error: max_sym,
         cholesky_ok,
         min_eigenvalue,
+        min_correlation_eigenvalue,
         min_variance: diag.iter().copied().fold(f64::INFINITY, f64::min),
         max_variance: diag.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         all_finite,

@@ -1,0 +1,487 @@
+//! The named hard cases every change must pass (docs/radar-model.md, section 6).
+
+use std::f64::consts::PI;
+
+use nalgebra::Matrix3;
+use radar_model::geometry::{range_bearing, wrap_angle, Pose2};
+use radar_model::material::Material;
+use radar_model::motion::{ControlInput, MotionModel};
+use radar_model::noise::NoiseModel;
+use radar_model::observation::{observe_beam, BeamFeature};
+use radar_model::power::PowerModel;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use slam_node::filter::{
+    BeamObservation, Ekf, FilterError, FilterSettings, OdometrySample, RadarBeamModel, Target,
+};
+
+type Filter = Ekf<MotionModel, RadarBeamModel>;
+
+const T0: f64 = 1_700_000_000.0;
+
+fn settings() -> FilterSettings {
+    let var = NoiseModel::default().observation_variances();
+    FilterSettings {
+        range_std_m: var[0].sqrt(),
+        bearing_std_rad: var[1].sqrt(),
+        power_std_db: var[2].sqrt(),
+        ..FilterSettings::default()
+    }
+}
+
+fn filter(s: FilterSettings, pose: Pose2, pose_var: [f64; 3]) -> Filter {
+    let p0 = Matrix3::from_diagonal(&nalgebra::Vector3::new(
+        pose_var[0],
+        pose_var[1],
+        pose_var[2],
+    ));
+    let mut f = Ekf::new(
+        s,
+        pose,
+        p0,
+        T0,
+        MotionModel::Bicycle { wheelbase_m: 2.5 },
+        RadarBeamModel::default(),
+    )
+    .unwrap();
+    f.apply_odometry(OdometrySample {
+        timestamp_s: T0,
+        speed_mps: 0.0,
+        steer_rad: 0.0,
+    })
+    .unwrap();
+    f
+}
+
+/// Noise-free targets of `features` as seen from `truth` down the beam at `beam_rad`.
+fn targets(truth: &Pose2, features: &[BeamFeature], loss_db: f64) -> Vec<Target> {
+    let obs = observe_beam(truth, features, loss_db, &PowerModel::default()).unwrap();
+    obs.z
+        .iter()
+        .map(|z| Target {
+            range_m: z.range_m,
+            bearing_rad: z.bearing_rad,
+            power_db: z.power_db,
+        })
+        .collect()
+}
+
+fn noisy(
+    truth: &Pose2,
+    features: &[BeamFeature],
+    loss_db: f64,
+    rng: &mut ChaCha8Rng,
+) -> Vec<Target> {
+    let noise = NoiseModel::default();
+    targets(truth, features, loss_db)
+        .iter()
+        .map(|t| {
+            let z = noise.perturb_observation([t.range_m, t.bearing_rad, t.power_db], rng);
+            Target {
+                range_m: z[0],
+                bearing_rad: z[1],
+                power_db: z[2],
+            }
+        })
+        .collect()
+}
+
+fn assert_healthy(f: &Filter) {
+    let h = f.covariance_health(true);
+    assert!(h.all_finite, "non-finite covariance");
+    assert_eq!(
+        h.max_symmetry_error, 0.0,
+        "covariance not exactly symmetric"
+    );
+    assert!(h.cholesky_ok, "covariance not positive definite: {h:?}");
+    // Scale-free definiteness (the plain eigenvalue's accuracy is ~eps * max variance).
+    assert!(
+        h.min_correlation_eigenvalue.is_some_and(|e| e > 0.0),
+        "{h:?}"
+    );
+    let theta = f.pose().theta;
+    assert!(theta > -PI && theta <= PI, "heading {theta} not wrapped");
+    for feat in f.features() {
+        assert!((0.0..=1.0).contains(&feat.rho) && (0.0..=1.0).contains(&feat.alpha));
+        assert!(feat.rho + feat.alpha <= 1.0 + 1e-12);
+    }
+}
+
+fn feature(x: f64, y: f64, rho: f64, alpha: f64) -> BeamFeature {
+    BeamFeature {
+        xy: [x, y],
+        material: Material::from_rho_alpha(rho, alpha).unwrap(),
+    }
+}
+
+#[test]
+fn two_targets_at_equal_range_down_one_beam_are_both_used_without_their_power() {
+    let truth = Pose2::new(0.0, 0.0, 0.0);
+    let mut f = filter(settings(), truth, [1e-4, 1e-4, 1e-6]);
+    // Two features 20 m ahead, 0.1 m apart across the beam: equal range, both inside it.
+    let pair = [
+        feature(20.0, 0.05, 0.3, 0.1),
+        feature(20.0, -0.05, 0.3, 0.1),
+    ];
+    let z = targets(&truth, &pair, 0.0);
+    assert!((z[0].range_m - z[1].range_m).abs() < 1e-9);
+    let a = f.initialise_feature(&z[0], 0.0, T0).unwrap();
+    let b = f.initialise_feature(&z[1], 0.0, T0).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    for k in 1..=50 {
+        let report = f
+            .process_beam(&BeamObservation {
+                timestamp_s: T0 + 0.25 * k as f64,
+                bearing_rad: 0.0,
+                targets: noisy(&truth, &pair, 0.0, &mut rng),
+            })
+            .unwrap();
+        assert_eq!(report.candidates.len(), 2);
+        // Unresolvable: only range and bearing of each (2 + 2 rows) when both are used.
+        if let Some(u) = report.update {
+            assert!(u.dof % 2 == 0 && u.dof <= 4, "dof {}", u.dof);
+            assert!(u.nis.is_finite());
+        }
+        assert!(
+            report.initialised.is_empty(),
+            "no duplicate from an equal-range pair"
+        );
+    }
+    assert_healthy(&f);
+    assert_eq!(f.feature_count(), 2);
+    assert!(f.feature(a).is_some() && f.feature(b).is_some());
+}
+
+#[test]
+fn rho_plus_alpha_near_one_keeps_shares_in_range_and_the_covariance_sound() {
+    let truth = Pose2::new(0.0, 0.0, 0.0);
+    let mut f = filter(settings(), truth, [1e-4, 1e-4, 1e-6]);
+    // A nearly opaque feature (tau = 1e-6) in front of a bright one, both in the beam.
+    let scene = [
+        feature(10.0, 0.0, 0.7, 0.299_999),
+        feature(25.0, 0.0, 0.8, 0.1),
+    ];
+    let z = targets(&truth, &scene, 0.0);
+    // The one behind is 120 dB down (20 log10 tau twice over): still handled in dB.
+    assert!(z[1].power_db < z[0].power_db - 100.0, "{z:?}");
+    f.initialise_feature(&z[0], 0.0, T0).unwrap();
+    f.initialise_feature(&z[1], 0.0, T0).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    for k in 1..=400 {
+        f.process_beam(&BeamObservation {
+            timestamp_s: T0 + 0.25 * k as f64,
+            bearing_rad: 0.0,
+            targets: noisy(&truth, &scene, 0.0, &mut rng),
+        })
+        .unwrap();
+    }
+    assert_healthy(&f);
+    // rho, alpha and L are not separately observable from two powers (10 log rho - L trades
+    // off, and tau_1 only shows through rho_2 tau_1^2): what must hold is that the shares stay
+    // valid, the covariance sound, and the predictions fit what is measured.
+    let mut est = f.features();
+    est.sort_by(|a, b| a.x_m.total_cmp(&b.x_m));
+    assert_eq!(est.len(), 2);
+    println!(
+        "front: rho {:.3e} alpha {:.6}, tau {:.3e} (true 0.7, 0.299999, 1e-6); behind: rho {:.3e} \
+         alpha {:.3} (true 0.8, 0.1); L {:.2} dB (true 0); ids {:?} {:?}",
+        est[0].rho,
+        est[0].alpha,
+        1.0 - est[0].rho - est[0].alpha,
+        est[1].rho,
+        est[1].alpha,
+        f.state().loss_db(),
+        est[0].id,
+        est[1].id
+    );
+    let report = f
+        .process_beam(&BeamObservation {
+            timestamp_s: T0 + 0.25 * 401.0,
+            bearing_rad: 0.0,
+            targets: targets(&truth, &scene, 0.0),
+        })
+        .unwrap();
+    let u = report.update.unwrap();
+    assert_eq!(u.dof, 6, "both powers used");
+    assert!(
+        u.nis < 16.81,
+        "noise-free observation NIS {} beyond the 99% gate of 6 dof",
+        u.nis
+    );
+}
+
+#[test]
+fn a_feature_at_the_vehicles_position_neither_panics_nor_poisons_the_state() {
+    // The vehicle drives straight through a mapped feature while the radar sweeps.
+    let s = FilterSettings {
+        max_predict_step_s: 0.01,
+        ..settings()
+    };
+    let mut truth = Pose2::new(0.0, 0.0, 0.0);
+    let mut f = filter(s.clone(), truth, [1e-4, 1e-4, 1e-6]);
+    let scene = [feature(5.0, 0.0, 0.4, 0.1), feature(12.0, -20.0, 0.4, 0.1)];
+    for lm in &scene {
+        let rb = range_bearing(&truth, lm.xy);
+        let z = targets(&truth, std::slice::from_ref(lm), 0.0);
+        f.initialise_feature(&z[0], rb.bearing_rad, T0).unwrap();
+    }
+    let input = ControlInput::new(1.0, 0.0);
+    f.apply_odometry(OdometrySample {
+        timestamp_s: T0,
+        speed_mps: 1.0,
+        steer_rad: 0.0,
+    })
+    .unwrap();
+    let motion = MotionModel::Bicycle { wheelbase_m: 2.5 };
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let dt = 0.25 / 200.0;
+    let mut min_range = f64::INFINITY;
+    for k in 1..=8000usize {
+        truth = motion.predict(&truth, &input, dt).unwrap();
+        let beam = wrap_angle((k % 200) as f64 * 2.0 * PI / 200.0);
+        let seen: Vec<BeamFeature> = scene
+            .iter()
+            .filter(|lm| {
+                let rb = range_bearing(&truth, lm.xy);
+                rb.range_m > 0.5 && wrap_angle(rb.bearing_rad - beam).abs() <= 0.9_f64.to_radians()
+            })
+            .copied()
+            .collect();
+        min_range = min_range.min(range_bearing(&truth, scene[0].xy).range_m);
+        let tg = if seen.is_empty() {
+            Vec::new()
+        } else {
+            noisy(&truth, &seen, 0.0, &mut rng)
+        };
+        f.process_beam(&BeamObservation {
+            timestamp_s: T0 + dt * k as f64,
+            bearing_rad: beam,
+            targets: tg,
+        })
+        .unwrap();
+        assert!(f.state().mean().iter().all(|v| v.is_finite()), "step {k}");
+    }
+    println!(
+        "closest approach {min_range} m; features {}",
+        f.feature_count()
+    );
+    assert!(min_range < 0.01, "the vehicle must pass over the feature");
+    assert_eq!(
+        f.feature_count(),
+        2,
+        "the feature survives being driven over"
+    );
+    assert_healthy(&f);
+    // Placing a feature on top of the radar is refused with a typed error.
+    let at_vehicle = Target {
+        range_m: 0.0,
+        bearing_rad: 0.0,
+        power_db: -10.0,
+    };
+    assert!(matches!(
+        f.initialise_feature(&at_vehicle, 0.0, T0 + 10.0),
+        Err(FilterError::TargetTooClose { .. })
+    ));
+}
+
+#[test]
+fn heading_across_plus_minus_pi_stays_wrapped_and_tracks_the_truth() {
+    let s = FilterSettings {
+        max_predict_step_s: 0.01,
+        ..settings()
+    };
+    let mut truth = Pose2::new(0.0, 0.0, PI - 0.05);
+    let mut f = filter(s, truth, [1e-4, 1e-4, 1e-6]);
+    let motion = MotionModel::Bicycle { wheelbase_m: 2.5 };
+    // Turning left at 0.1 rad/s: heading goes from pi - 0.05 through pi to about -pi + 0.15.
+    let input = ControlInput::new(1.0, (0.1_f64 * 2.5).atan());
+    f.apply_odometry(OdometrySample {
+        timestamp_s: T0,
+        speed_mps: input.speed_mps,
+        steer_rad: input.steer_rad,
+    })
+    .unwrap();
+    // One feature behind the vehicle (bearing near +/- pi) and one ahead-left.
+    let scene = [feature(30.0, 1.0, 0.4, 0.1), feature(-30.0, 8.0, 0.4, 0.1)];
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let dt = 0.05;
+    let mut crossed = false;
+    for k in 1..=80 {
+        truth = motion.predict(&truth, &input, dt).unwrap();
+        let t = T0 + dt * k as f64;
+        for lm in &scene {
+            let rb = range_bearing(&truth, lm.xy);
+            f.process_beam(&BeamObservation {
+                timestamp_s: t,
+                bearing_rad: rb.bearing_rad,
+                targets: noisy(&truth, std::slice::from_ref(lm), 0.0, &mut rng),
+            })
+            .unwrap();
+        }
+        let est = f.pose().theta;
+        assert!(est > -PI && est <= PI);
+        let err = wrap_angle(est - truth.theta);
+        assert!(err.abs() < 0.02, "heading error {err} at step {k}");
+        crossed |= truth.theta < 0.0;
+    }
+    assert!(crossed, "the run must cross +/- pi");
+    assert_eq!(f.feature_count(), 2, "no duplicates from a wrapped bearing");
+    assert_healthy(&f);
+}
+
+#[test]
+fn a_stationary_vehicle_re_observing_one_feature_100000_times_keeps_its_heading_variance() {
+    let truth = Pose2::new(0.0, 0.0, 0.3);
+    let s = FilterSettings {
+        material_variance_per_s: 1e-6,
+        ..settings()
+    };
+    let p_theta0 = 1e-4;
+    let mut f = filter(s, truth, [1e-3, 1e-3, p_theta0]);
+    let lm = [feature(12.0, 7.0, 0.5, 0.2)];
+    let rb = range_bearing(&truth, lm[0].xy);
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    for k in 1..=100_000u32 {
+        f.process_beam(&BeamObservation {
+            timestamp_s: T0 + 0.00125 * f64::from(k),
+            bearing_rad: rb.bearing_rad,
+            targets: noisy(&truth, &lm, 0.0, &mut rng),
+        })
+        .unwrap();
+    }
+    // Relative observations carry no information on the absolute heading; a stationary
+    // vehicle gets no heading process noise. A consistent filter keeps P_theta at its prior.
+    let p_theta = f.pose_covariance()[(2, 2)];
+    println!(
+        "heading variance after 1e5 updates: {p_theta:e} (prior {p_theta0:e}), ratio {}",
+        p_theta / p_theta0
+    );
+    assert!(
+        p_theta > 0.5 * p_theta0,
+        "heading variance collapsed to {p_theta:e}"
+    );
+    assert_eq!(f.feature_count(), 1);
+    assert_healthy(&f);
+}
+
+#[test]
+fn variances_from_1e_minus_12_to_1e6_in_one_covariance_stay_positive_definite() {
+    let s = FilterSettings {
+        initial_loss_std_db: 1e3,
+        initial_material_std: 1e3,
+        ..settings()
+    };
+    let truth = Pose2::new(0.0, 0.0, 0.0);
+    let mut f = filter(s, truth, [1e-12, 1e-12, 1e-12]);
+    let scene = [feature(15.0, 5.0, 0.4, 0.2), feature(-10.0, 20.0, 0.4, 0.2)];
+    for lm in &scene {
+        let rb = range_bearing(&truth, lm.xy);
+        let z = targets(&truth, std::slice::from_ref(lm), 0.0);
+        f.initialise_feature(&z[0], rb.bearing_rad, T0).unwrap();
+    }
+    let d = f.state().covariance().diagonal();
+    let (lo, hi) = (d.min(), d.max());
+    println!("variances span {lo:e} .. {hi:e}");
+    assert!(
+        lo <= 1e-11 && hi >= 1e5,
+        "the case must span the range: {lo:e} .. {hi:e}"
+    );
+    assert_healthy(&f);
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    for k in 1..=100 {
+        for lm in &scene {
+            let rb = range_bearing(&truth, lm.xy);
+            f.process_beam(&BeamObservation {
+                timestamp_s: T0 + 0.25 * k as f64,
+                bearing_rad: rb.bearing_rad,
+                targets: noisy(&truth, std::slice::from_ref(lm), 0.0, &mut rng),
+            })
+            .unwrap();
+        }
+    }
+    assert_healthy(&f);
+}
+
+#[test]
+fn nan_and_infinite_observations_are_rejected_before_touching_the_state() {
+    let truth = Pose2::new(1.0, 2.0, 0.5);
+    let mut f = filter(settings(), truth, [1e-2, 1e-2, 1e-3]);
+    let lm = [feature(20.0, 10.0, 0.4, 0.2)];
+    let rb = range_bearing(&truth, lm[0].xy);
+    let good = targets(&truth, &lm, 0.0)[0];
+    f.initialise_feature(&good, rb.bearing_rad, T0).unwrap();
+    let mean = f.state().mean().clone();
+    let cov = f.state().covariance().clone();
+    let time = f.state().time_s();
+    let bad_targets = [
+        Target {
+            range_m: f64::NAN,
+            ..good
+        },
+        Target {
+            bearing_rad: f64::INFINITY,
+            ..good
+        },
+        Target {
+            power_db: f64::NEG_INFINITY,
+            ..good
+        },
+        Target {
+            power_db: f64::NAN,
+            ..good
+        },
+    ];
+    for bad in bad_targets {
+        let beam = BeamObservation {
+            timestamp_s: T0 + 1.0,
+            bearing_rad: rb.bearing_rad,
+            targets: vec![good, bad],
+        };
+        assert!(matches!(
+            f.process_beam(&beam),
+            Err(FilterError::NonFiniteObservation { .. })
+        ));
+        assert!(matches!(
+            f.initialise_feature(&bad, rb.bearing_rad, T0),
+            Err(FilterError::NonFiniteObservation { .. })
+        ));
+    }
+    for (ts, bearing) in [(f64::NAN, 0.0), (f64::INFINITY, 0.0), (T0 + 1.0, f64::NAN)] {
+        let beam = BeamObservation {
+            timestamp_s: ts,
+            bearing_rad: bearing,
+            targets: vec![good],
+        };
+        assert!(matches!(
+            f.process_beam(&beam),
+            Err(FilterError::NonFiniteObservation { .. })
+        ));
+    }
+    assert!(matches!(
+        f.apply_odometry(OdometrySample {
+            timestamp_s: T0 + 1.0,
+            speed_mps: f64::NAN,
+            steer_rad: 0.0
+        }),
+        Err(FilterError::NonFiniteOdometry { .. })
+    ));
+    // Bit for bit unchanged.
+    assert_eq!(f.state().mean(), &mean);
+    assert_eq!(f.state().covariance(), &cov);
+    assert_eq!(f.state().time_s(), time);
+    assert_eq!(f.stats().updates, 0);
+}
+
+#[test]
+fn predicting_backwards_or_across_a_huge_gap_is_a_typed_error() {
+    let mut f = filter(settings(), Pose2::default(), [1e-2, 1e-2, 1e-3]);
+    f.predict_to(T0 + 1.0).unwrap();
+    assert!(matches!(
+        f.predict_to(T0 + 0.5),
+        Err(FilterError::TimeWentBackwards { .. })
+    ));
+    assert!(matches!(
+        f.predict_to(T0 + 1e6),
+        Err(FilterError::GapTooLong { .. })
+    ));
+}
