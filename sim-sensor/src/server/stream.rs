@@ -29,7 +29,7 @@ pub(crate) struct Produced {
 pub(crate) enum AzimuthStream {
     Scene(SceneStream),
     Png(PngStream),
-    Raw(RawStream),
+    Raw(Box<RawStream>),
 }
 
 impl std::fmt::Debug for AzimuthStream {
@@ -129,13 +129,13 @@ impl AzimuthStream {
                 sweep: 0,
                 pacer: ReplayPacer::default(),
             }),
-            Source::Raw(recording) => AzimuthStream::Raw(RawStream {
+            Source::Raw(recording) => AzimuthStream::Raw(Box::new(RawStream {
                 world: Arc::clone(world),
                 recording: Arc::clone(recording),
                 reader: RawReader::open(&recording.path).await?,
                 produced: 0,
                 pacer: ReplayPacer::default(),
-            }),
+            })),
         })
     }
 

@@ -1,0 +1,171 @@
+//! The odometry port (format of docs/contracts.md) and the ground-truth file, over loopback.
+
+mod common;
+
+use std::time::Duration;
+
+use common::{TestClient, STEP};
+use protocol::Message;
+use sim_sensor::scene::shipped;
+use sim_sensor::truth::{GroundTruth, TruthRecord};
+use sim_sensor::{OdometryNoise, SimOptions, SimServer};
+use tokio::io::{AsyncBufReadExt, BufReader};
+use tokio::net::TcpStream;
+
+const START_NS: u64 = 1_704_067_200_000_000_000;
+
+async fn read_line(reader: &mut BufReader<TcpStream>) -> String {
+    let mut line = String::new();
+    let n = tokio::time::timeout(STEP, reader.read_line(&mut line))
+        .await
+        .expect("a line in time")
+        .expect("read");
+    assert!(n > 0, "odometry stream ended");
+    line
+}
+
+#[tokio::test]
+async fn odometry_lines_follow_the_contract_and_carry_the_true_controls_without_noise() {
+    let scene = shipped::load("outdoor-field").expect("scene");
+    let mut options = SimOptions::for_tests(scene);
+    options.odometry = OdometryNoise {
+        rate_hz: 20.0,
+        sigma_speed_mps: 0.0,
+        sigma_steer_rad: 0.0,
+        bias_speed_mps: 0.0,
+        bias_steer_rad: 0.0,
+    };
+    let handle = SimServer::spawn(options).await.expect("spawn");
+    let odometry = TcpStream::connect(handle.odometry_addr().expect("odometry port"))
+        .await
+        .expect("connect");
+    let mut reader = BufReader::new(odometry);
+    assert_eq!(
+        read_line(&mut reader).await,
+        "# odometry v1 timestamp_s speed_mps steer_rad\n"
+    );
+
+    // Drive the radar so the world moves (as fast as possible, odometry follows it).
+    let mut radar = TestClient::connect(handle.local_addr()).await;
+    radar.configuration().await;
+    radar.send(Message::StartFftData).await;
+    let reader_task = tokio::spawn(async move {
+        // 12 s of scene time at 500 azimuths a second.
+        for _ in 0..6000 {
+            radar.next_fft().await;
+        }
+        radar
+    });
+    let mut records = Vec::new();
+    while records.len() < 220 {
+        let line = read_line(&mut reader).await;
+        assert!(line.len() <= 256 && line.ends_with('\n'));
+        let fields: Vec<&str> = line.trim_end().split(' ').collect();
+        assert_eq!(fields.len(), 3, "{line:?}");
+        let (secs, nanos) = fields[0].split_once('.').expect("decimal timestamp");
+        assert_eq!(nanos.len(), 9);
+        let t_ns = secs.parse::<u64>().expect("secs") * 1_000_000_000
+            + nanos.parse::<u64>().expect("nanos");
+        let v: f64 = fields[1].parse().expect("speed");
+        let a: f64 = fields[2].parse().expect("steer");
+        records.push((t_ns, v, a));
+    }
+    let _radar = reader_task.await.expect("radar reader");
+    for (j, (t_ns, v, a)) in records.iter().enumerate() {
+        assert_eq!(
+            *t_ns,
+            START_NS + 50_000_000 * j as u64,
+            "record {j} every 50 ms from the start"
+        );
+        let t_s = j as f64 * 0.05;
+        // outdoor-field: 1 m/s straight, steer 0.04 from 10 s.
+        let (ev, ea) = if t_s < 10.0 { (1.0, 0.0) } else { (1.0, 0.04) };
+        assert_eq!((*v, *a), (ev, ea), "record {j} at {t_s} s");
+    }
+    handle.shutdown().await.expect("shutdown");
+}
+
+#[tokio::test]
+async fn the_ground_truth_file_holds_the_scene_and_a_pose_for_every_served_azimuth() {
+    let scene = shipped::load("outdoor-field").expect("scene");
+    let n_features = scene.features.len();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("truth.jsonl");
+    let mut options = SimOptions::for_tests(scene.clone());
+    options.ground_truth_path = Some(path.clone());
+    let handle = SimServer::spawn(options).await.expect("spawn");
+    let mut radar = TestClient::connect(handle.local_addr()).await;
+    radar.configuration().await;
+    radar.send(Message::StartFftData).await;
+    for _ in 0..1000 {
+        radar.next_fft().await;
+    }
+    radar.send(Message::StopFftData).await;
+    while radar
+        .next_within(Duration::from_millis(200))
+        .await
+        .is_some()
+    {}
+    let served = handle.stats().azimuths_sent;
+    handle.shutdown().await.expect("shutdown");
+
+    let truth = GroundTruth::read(&path).expect("reads back");
+    match &truth.header {
+        TruthRecord::Header {
+            scene: name,
+            radar,
+            start_time_s,
+            ..
+        } => {
+            assert_eq!(name, "outdoor-field");
+            assert_eq!(radar.azimuths, 200);
+            assert!((start_time_s - 1_704_067_200.0).abs() < 1e-6);
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(truth.features.len(), n_features);
+    assert!(
+        truth.poses.len() as u64 >= served,
+        "{} poses for {served} azimuths",
+        truth.poses.len()
+    );
+    let trajectory = sim_sensor::trajectory::Trajectory::new(&scene, 60.0).expect("trajectory");
+    for (k, record) in truth.poses.iter().enumerate() {
+        let TruthRecord::Pose {
+            azimuth_index,
+            encoder,
+            x_m,
+            y_m,
+            theta_rad,
+            timestamp_s,
+            ..
+        } = record
+        else {
+            panic!("not a pose");
+        };
+        assert_eq!(*azimuth_index, k as u64);
+        assert_eq!(*encoder, (k % 200) as u16 * 28);
+        let pose = trajectory.pose_at(2_000_000 * k as u64).expect("pose");
+        assert_eq!(
+            (*x_m, *y_m, *theta_rad),
+            (pose.x, pose.y, pose.theta),
+            "azimuth {k}"
+        );
+        assert!((timestamp_s - (1_704_067_200.0 + 0.002 * k as f64)).abs() < 1e-6);
+    }
+    // The vehicle moved: 1000 azimuths at 500/s is 2 s at 1 m/s.
+    let TruthRecord::Pose { x_m, .. } = &truth.poses[1000] else {
+        panic!()
+    };
+    assert!((x_m - 2.0).abs() < 1e-6, "{x_m}");
+}
+
+#[tokio::test]
+async fn a_ground_truth_file_that_is_not_one_is_a_typed_error() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("x.jsonl");
+    std::fs::write(&path, "{\"type\":\"pose\"}\n").expect("write");
+    assert!(GroundTruth::read(&path).is_err());
+    std::fs::write(&path, vec![b'a'; 10_000]).expect("write");
+    assert!(GroundTruth::read(&path).is_err());
+}
