@@ -14,11 +14,21 @@
 //! | `BadSignature` | the garbage before the next (possible) signature |
 //! | `BadVersion`, `Oversized` | the 16 signature bytes; the rest is skipped as garbage on the next call |
 //! | `Payload` | the whole frame (its size was valid, so its extent is known) |
+//! | `Payload` with `PayloadError::CutShort` | the stub before the signature found inside it |
+//!
+//! Cut-short frames: when a sender stops mid-frame and starts a new frame, a decoder that
+//! trusts the header would swallow the start of the next frame as payload (and, for FFT
+//! data, hand out a corrupted azimuth). So, by default, the bytes of the frame at the
+//! front of the buffer are searched for the signature as they arrive (each byte once,
+//! with `memmem`); a signature inside a frame's declared extent marks it cut short, the
+//! stub is dropped, and decoding resumes at the signature, without waiting for the rest
+//! of the declared length. The signature is 16 fixed bytes, so a false alarm in real data
+//! is a 2^-128 event per position. [`FrameDecoder::set_cut_short_detection`] turns it off.
 
 use bytes::{Buf, BytesMut};
 use memchr::memmem;
 
-use crate::error::DecodeError;
+use crate::error::{DecodeError, PayloadError};
 use crate::frame::{FrameHeader, HEADER_LEN, SIGNATURE};
 use crate::message::Message;
 
@@ -41,8 +51,11 @@ pub struct DecoderStats {
     pub frames_oversized: u64,
     /// Whole frames rejected for a malformed payload.
     pub frames_bad_payload: u64,
-    /// Bytes of whole frames rejected for a malformed payload.
+    /// Bytes of whole frames rejected for a malformed payload, and of cut-short stubs.
     pub bytes_bad_payload: u64,
+    /// Frames cut short by the next frame's signature (also counted in
+    /// `frames_bad_payload`).
+    pub frames_cut_short: u64,
 }
 
 impl DecoderStats {
@@ -63,6 +76,14 @@ impl DecoderStats {
 pub struct FrameDecoder {
     finder: memmem::Finder<'static>,
     stats: DecoderStats,
+    /// Search frames in progress for a signature (cut-short detection).
+    detect_cut_short: bool,
+    /// Bytes at the front of the buffer already searched for a signature; reset whenever
+    /// bytes are consumed.
+    scanned: usize,
+    /// Address of the buffer's first byte when `scanned` was recorded: if the caller moved
+    /// the front (or the buffer was reallocated), the search starts again.
+    scanned_front: usize,
 }
 
 impl Default for FrameDecoder {
@@ -77,7 +98,17 @@ impl FrameDecoder {
         Self {
             finder: memmem::Finder::new(&SIGNATURE),
             stats: DecoderStats::default(),
+            detect_cut_short: true,
+            scanned: 0,
+            scanned_front: 0,
         }
+    }
+
+    /// Turns cut-short detection (see the module docs) on or off; on by default. Off, a
+    /// frame is trusted to its declared length.
+    pub fn set_cut_short_detection(&mut self, enabled: bool) {
+        self.detect_cut_short = enabled;
+        self.scanned = 0;
     }
 
     /// What the decoder has seen so far.
@@ -93,9 +124,25 @@ impl FrameDecoder {
     ///   rest of a frame whose header has been validated.
     /// - `Err(e)`: the bytes at fault were consumed; call again.
     pub fn decode(&mut self, buf: &mut BytesMut) -> Result<Option<Message>, DecodeError> {
+        self.decode_inner(buf, false)
+    }
+
+    /// As [`FrameDecoder::decode`], for when no more bytes will come (end of a file or of
+    /// a connection): a whole frame is never held back waiting to see whether a signature
+    /// straddles its end.
+    pub fn decode_eof(&mut self, buf: &mut BytesMut) -> Result<Option<Message>, DecodeError> {
+        self.decode_inner(buf, true)
+    }
+
+    fn decode_inner(
+        &mut self,
+        buf: &mut BytesMut,
+        at_eof: bool,
+    ) -> Result<Option<Message>, DecodeError> {
         let skip = self.garbage_len(buf);
         if skip > 0 {
             buf.advance(skip);
+            self.scanned = 0;
             self.stats.bytes_skipped += skip as u64;
             self.stats.bad_signature_runs += 1;
             return Err(DecodeError::BadSignature {
@@ -114,6 +161,7 @@ impl FrameDecoder {
                 // (a truncated header followed by a good frame), and the next call
                 // resynchronises from there.
                 buf.advance(SIGNATURE.len());
+                self.scanned = 0;
                 self.stats.bytes_skipped += SIGNATURE.len() as u64;
                 match e {
                     DecodeError::BadVersion { .. } => self.stats.frames_bad_version += 1,
@@ -124,11 +172,32 @@ impl FrameDecoder {
             }
         };
         let frame_len = header.frame_len();
+        if self.detect_cut_short {
+            if let Some(stub_len) = self.find_cut(buf, frame_len) {
+                buf.advance(stub_len);
+                self.scanned = 0;
+                self.stats.frames_bad_payload += 1;
+                self.stats.frames_cut_short += 1;
+                self.stats.bytes_bad_payload += stub_len as u64;
+                return Err(DecodeError::Payload {
+                    message_id: header.message_id,
+                    source: PayloadError::CutShort {
+                        declared: header.payload_size,
+                        received: stub_len.saturating_sub(HEADER_LEN),
+                    },
+                });
+            }
+        }
         if buf.len() < frame_len {
             // The size is validated (< 1e6), so reserving it is bounded.
             buf.reserve(frame_len - buf.len());
             return Ok(None);
         }
+        if self.detect_cut_short && !at_eof && self.signature_may_straddle_end(buf, frame_len) {
+            // Wait for at most 15 more bytes to tell a cut frame from a whole one.
+            return Ok(None);
+        }
+        self.scanned = 0;
         let frame = buf.split_to(frame_len).freeze();
         let payload = frame.slice(HEADER_LEN..);
         match Message::decode_payload(header.message_id, payload) {
@@ -149,6 +218,53 @@ impl FrameDecoder {
                 })
             }
         }
+    }
+
+    /// For a frame with a valid header at the front of `buf`, the position of a signature
+    /// that starts inside the frame's extent, if any. A new signature can start no earlier
+    /// than byte 17 (byte 16 is the version, 1, and the signature starts with 0). Bytes
+    /// already searched are not searched again, except the 15 that a signature could
+    /// straddle.
+    fn find_cut(&mut self, buf: &[u8], frame_len: usize) -> Option<usize> {
+        const EARLIEST: usize = SIGNATURE.len() + 1;
+        let front = buf.as_ptr() as usize;
+        if front != self.scanned_front {
+            self.scanned = 0;
+            self.scanned_front = front;
+        }
+        let end = buf.len().min(frame_len + SIGNATURE.len() - 1);
+        let from = self
+            .scanned
+            .saturating_sub(SIGNATURE.len() - 1)
+            .max(EARLIEST);
+        let found = buf
+            .get(from..end)
+            .and_then(|window| self.finder.find(window))
+            .map(|pos| from + pos)
+            .filter(|&pos| pos < frame_len);
+        self.scanned = self.scanned.max(end);
+        found
+    }
+
+    /// Whether a whole frame at the front of `buf` ends in what may be the first bytes of
+    /// a signature that the bytes received so far can neither confirm nor rule out: at
+    /// least two bytes of a signature prefix ("00 01") starting inside the frame and
+    /// running to the end of the buffer. A one-byte match (a lone 0x00 at the very end) is
+    /// not held back, or every frame ending in a zero byte would wait for the next one;
+    /// the cost is that a frame cut exactly one byte short also loses the next frame.
+    fn signature_may_straddle_end(&self, buf: &[u8], frame_len: usize) -> bool {
+        let confirm_end = frame_len + SIGNATURE.len() - 1;
+        if buf.len() >= confirm_end {
+            return false; // `find_cut` has seen every signature that could straddle.
+        }
+        let from = frame_len
+            .saturating_sub(SIGNATURE.len() - 1)
+            .max(SIGNATURE.len() + 1);
+        (from..frame_len).any(|p| {
+            buf.get(p..).is_some_and(|tail| {
+                tail.len() >= 2 && tail.len() < SIGNATURE.len() && SIGNATURE.starts_with(tail)
+            })
+        })
     }
 
     /// How many leading bytes of `buf` cannot be the start of a frame: up to the first
@@ -358,5 +474,119 @@ mod tests {
             }))
         );
         assert_eq!(decoder.stats().frames_unknown_id, 1);
+    }
+
+    #[test]
+    fn a_frame_cut_short_by_the_next_frame_costs_only_the_stub() {
+        let (msg, whole) = fft_frame();
+        let mut buf = BytesMut::from(&whole[..HEADER_LEN + 3]);
+        buf.extend_from_slice(&whole);
+        let mut decoder = FrameDecoder::new();
+        assert_eq!(
+            decoder.decode(&mut buf),
+            Err(DecodeError::Payload {
+                message_id: 30,
+                source: PayloadError::CutShort {
+                    declared: 19,
+                    received: 3
+                }
+            })
+        );
+        assert_eq!(decoder.decode(&mut buf), Ok(Some(msg)));
+        assert!(buf.is_empty());
+        assert_eq!(decoder.stats().frames_cut_short, 1);
+    }
+
+    #[test]
+    fn a_cut_short_frame_is_detected_before_its_declared_length_arrives() {
+        // A header declaring 3000 bytes, 10 bytes of it, then a keep-alive: the keep-alive
+        // must come out now, not after 3000 more bytes.
+        let mut buf = BytesMut::new();
+        crate::frame::encode_header(&mut buf, 30, 3000).unwrap();
+        buf.put_slice(&[7; 10]);
+        Message::KeepAlive.encode(&mut buf).unwrap();
+        let mut decoder = FrameDecoder::new();
+        assert!(matches!(
+            decoder.decode(&mut buf),
+            Err(DecodeError::Payload {
+                source: PayloadError::CutShort { .. },
+                ..
+            })
+        ));
+        assert_eq!(decoder.decode(&mut buf), Ok(Some(Message::KeepAlive)));
+    }
+
+    #[test]
+    fn a_signature_arriving_a_byte_at_a_time_inside_a_frame_is_still_found() {
+        let mut stream = BytesMut::new();
+        crate::frame::encode_header(&mut stream, 30, 500).unwrap();
+        stream.put_slice(&[9; 40]);
+        Message::KeepAlive.encode(&mut stream).unwrap();
+        let mut decoder = FrameDecoder::new();
+        let mut buf = BytesMut::new();
+        let mut out = Vec::new();
+        for &b in stream.iter() {
+            buf.put_u8(b);
+            while let Some(r) = match decoder.decode(&mut buf) {
+                Ok(None) => None,
+                other => Some(other),
+            } {
+                out.push(r);
+            }
+        }
+        assert_eq!(out.len(), 2, "{out:?}");
+        assert_eq!(out[1], Ok(Some(Message::KeepAlive)));
+        assert_eq!(decoder.stats().bytes_consumed(), stream.len() as u64);
+    }
+
+    #[test]
+    fn with_cut_short_detection_off_a_frame_is_trusted_to_its_length() {
+        let (_, whole) = fft_frame();
+        let mut buf = BytesMut::from(&whole[..HEADER_LEN + 3]);
+        buf.extend_from_slice(&whole);
+        let mut decoder = FrameDecoder::new();
+        decoder.set_cut_short_detection(false);
+        // The stub swallows the start of the next frame, which is then lost as garbage.
+        let first = decoder.decode(&mut buf);
+        assert!(
+            !matches!(
+                first,
+                Err(DecodeError::Payload {
+                    source: PayloadError::CutShort { .. },
+                    ..
+                })
+            ),
+            "{first:?}"
+        );
+        assert!(matches!(
+            decoder.decode(&mut buf),
+            Err(DecodeError::BadSignature { .. })
+        ));
+        assert_eq!(decoder.stats().frames_cut_short, 0);
+    }
+
+    #[test]
+    fn a_frame_ending_in_a_possible_signature_start_waits_for_15_more_bytes_or_eof() {
+        let msg = Message::Health(Bytes::from_static(&[9, 9, 0x00, 0x01, 0x03]));
+        let mut whole = BytesMut::new();
+        msg.encode(&mut whole).unwrap();
+        let mut decoder = FrameDecoder::new();
+        let mut buf = whole.clone();
+        assert_eq!(decoder.decode(&mut buf), Ok(None));
+        // Bytes that rule the signature out release it.
+        buf.put_slice(&[0xAA]);
+        assert_eq!(decoder.decode(&mut buf), Ok(Some(msg.clone())));
+        // At the end of the input, it is released at once.
+        let mut buf = whole.clone();
+        assert_eq!(decoder.decode_eof(&mut buf), Ok(Some(msg)));
+    }
+
+    #[test]
+    fn a_frame_cut_one_byte_short_is_not_held_back() {
+        // A lone trailing zero is too common in real bins to wait on.
+        let msg = Message::Health(Bytes::from_static(&[9, 9, 0x00]));
+        let mut buf = BytesMut::new();
+        msg.encode(&mut buf).unwrap();
+        assert_eq!(FrameDecoder::new().decode(&mut buf), Ok(Some(msg)));
     }
 }

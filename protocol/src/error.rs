@@ -36,6 +36,11 @@ pub enum PayloadError {
     /// A contour update that is neither empty nor 360 x u16.
     #[error("contour update has {len} bytes; expected 0 (reset) or 720")]
     BadContourLength { len: usize },
+    /// The next frame's signature appeared inside this frame's declared payload: the frame
+    /// was cut short (its sender stopped mid-frame and started a new one). Only the stub,
+    /// up to that signature, was consumed.
+    #[error("frame cut short: the next signature starts {received} payload bytes into a declared {declared}")]
+    CutShort { declared: u32, received: usize },
     /// Navigation data whose target list is not a whole number of 6-byte targets.
     #[error("navigation data has {len} target bytes, not a multiple of 6")]
     BadNavigationTargets { len: usize },

@@ -28,7 +28,7 @@ fn decode_and_reencode(bytes: &[u8]) -> Message {
     let mut buf = BytesMut::from(bytes);
     let mut decoder = FrameDecoder::new();
     let msg = decoder
-        .decode(&mut buf)
+        .decode_eof(&mut buf)
         .expect("frame decodes")
         .expect("frame is whole");
     assert!(buf.is_empty(), "the frame was consumed exactly");

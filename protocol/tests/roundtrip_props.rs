@@ -18,7 +18,7 @@ proptest! {
         prop_assert_eq!(buf.len(), msg.encoded_len());
         let wire = buf.clone().freeze();
         let mut decoder = FrameDecoder::new();
-        let decoded = decoder.decode(&mut buf).unwrap().unwrap();
+        let decoded = decoder.decode_eof(&mut buf).unwrap().unwrap();
         prop_assert!(buf.is_empty());
         prop_assert_eq!(&decoded, &msg);
         // And the decoded message re-encodes to the same bytes.

@@ -87,3 +87,37 @@ proptest! {
         prop_assert!(no_frame_rejected, "errors: {:?}", out.errors);
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(400))]
+
+    #[test]
+    fn a_frame_cut_short_by_the_next_costs_only_itself(
+        parts in proptest::collection::vec(
+            (proptest::option::of((message(300), any::<prop::sample::Index>())), message(300)),
+            1..12,
+        ),
+        chunk_sizes in proptest::collection::vec(1usize..400, 1..20),
+    ) {
+        let mut stream = Vec::new();
+        let mut complete = Vec::new();
+        let mut complete_len = 0u64;
+        for (stub, m) in &parts {
+            if let Some((cut, at)) = stub {
+                let bytes = encode_all(std::slice::from_ref(cut));
+                // Cut anywhere after the first byte and at least two bytes before the end
+                // (a frame cut one byte short is documented to cost the next frame too).
+                let keep = 1 + at.index(bytes.len() - 2);
+                stream.extend_from_slice(&bytes[..keep]);
+            }
+            let bytes = encode_all(std::slice::from_ref(m));
+            complete_len += bytes.len() as u64;
+            stream.extend_from_slice(&bytes);
+            complete.push(m.clone());
+        }
+        let (out, decoder) = feed(&stream, &chunk_sizes);
+        prop_assert_eq!(&out.messages, &complete);
+        prop_assert_eq!(decoder.stats().bytes_decoded, complete_len);
+        prop_assert_eq!(out.left_over, 0);
+    }
+}

@@ -245,6 +245,7 @@ pub fn feed(stream: &[u8], chunk_sizes: &[usize]) -> (Outcome, FrameDecoder) {
         pos += n;
         drain(&mut decoder, &mut buf, &mut out);
     }
+    drain_eof(&mut decoder, &mut buf, &mut out);
     out.left_over = buf.len();
     (out, decoder)
 }
@@ -254,6 +255,22 @@ pub fn drain(decoder: &mut FrameDecoder, buf: &mut BytesMut, out: &mut Outcome) 
     loop {
         let before = buf.len();
         match decoder.decode(buf) {
+            Ok(Some(m)) => out.messages.push(m),
+            Ok(None) => {
+                assert_eq!(buf.len(), before, "Ok(None) consumes nothing");
+                return;
+            }
+            Err(e) => out.errors.push(e),
+        }
+        assert!(buf.len() < before, "every Some or Err consumes bytes");
+    }
+}
+
+/// At the end of the stream: decodes what is left with `decode_eof`.
+pub fn drain_eof(decoder: &mut FrameDecoder, buf: &mut BytesMut, out: &mut Outcome) {
+    loop {
+        let before = buf.len();
+        match decoder.decode_eof(buf) {
             Ok(Some(m)) => out.messages.push(m),
             Ok(None) => {
                 assert_eq!(buf.len(), before, "Ok(None) consumes nothing");
