@@ -8,9 +8,20 @@
 //! addresses, [`std::time::Duration`]s and enums; every invalid field is reported with its
 //! full dotted path (`filter.initial_sigma_loss_db must be > 0, got -1`).
 //!
-//! IO: [`Config::load`] reads one file (at most [`MAX_CONFIG_BYTES`]); nothing else here does
-//! IO. The shipped example files are compiled in ([`examples`]), so binaries can run on shipped
-//! defaults with no file on disk.
+//! A binary calls [`Config::resolve`]: a file (or, without one, a shipped [`Preset`]), then
+//! command-line [`Override`]s (`radar.address=10.0.0.2:6317`) applied to the raw settings and
+//! so checked exactly like keys in a file, then validation.
+//!
+//! IO: [`Config::load`] and [`Config::resolve`] read one file (at most [`MAX_CONFIG_BYTES`]);
+//! nothing else here does IO. The shipped example files are compiled in ([`examples`]), so
+//! binaries run on shipped settings with no file on disk. `examples/sim.toml` writes out
+//! every key with its default and is the reference for what each one means.
+//!
+//! Section by section: [`radar`] (the driver's link), [`odometry`], [`sim`] and
+//! [`faults`] (the simulator), [`model`] (radar model constants), [`detector`], [`filter`]
+//! (the EKF), [`output`]. Each module holds its `Raw*` struct (as written, documented
+//! defaults) and its validated `*Settings`, and can be validated alone
+//! (`RawRadar::validate`).
 //!
 //! ```
 //! let config = config::Config::from_toml_str("[radar]\naddress = \"192.168.0.1:6317\"\n")?;

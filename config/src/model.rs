@@ -9,6 +9,8 @@ use crate::values::{FiniteF64, PositiveF64, ValueError};
 
 /// Most points a compensation gain table may hold.
 pub const MAX_GAIN_POINTS: usize = 4096;
+/// Highest roll-off filter order accepted.
+pub const MAX_ROLLOFF_ORDER: u64 = 16;
 
 /// How power spreads with range for targets behind other targets (see `radar-model.md` §3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, Serialize)]
@@ -110,7 +112,12 @@ pub struct RawModel {
     pub range_resolution_m: f64,
     /// Bearing noise, degrees > 0. Default 1.0 (book chapter).
     pub sigma_bearing_deg: f64,
-    /// Range noise, m > 0. Default 0.25 (one range bin).
+    /// Low-pass roll-off corner (3 dB point), m > 0. Default 200 (the paper's unit).
+    pub rolloff_corner_m: f64,
+    /// Low-pass roll-off order, `[0, 16]`; 0 means no roll-off. Default 4.
+    pub rolloff_order: i64,
+    /// Range noise (phase noise of a peak's centre), m > 0. Default 0.1, as `radar-model`'s
+    /// `RangeSpread` (the paper gives no figure).
     pub sigma_range_m: f64,
     /// Target-present power noise, dB > 0. Default 2.02 (variance 4.07 dB^2, book chapter).
     pub sigma_power_db: f64,
@@ -118,6 +125,8 @@ pub struct RawModel {
     pub noise_floor_near_mean_db: f64,
     /// Target-absent noise close in: variance, dB^2 > 0. Default 0.35.
     pub noise_floor_near_variance_db2: f64,
+    /// Range of the close-in target-absent fit, m > 0. Default 10 (book chapter).
+    pub noise_floor_near_range_m: f64,
     /// Range beyond which target-absent noise is Weibull, m > 0. Default 45.
     pub noise_floor_transition_m: f64,
     /// Target-absent Weibull scale, > 0. Default 26.706 (book chapter, 100 m).
@@ -135,10 +144,13 @@ impl Default for RawModel {
             beam_width_deg: 1.8,
             range_resolution_m: 0.25,
             sigma_bearing_deg: 1.0,
-            sigma_range_m: 0.25,
+            rolloff_corner_m: 200.0,
+            rolloff_order: 4,
+            sigma_range_m: 0.1,
             sigma_power_db: 4.07_f64.sqrt(),
             noise_floor_near_mean_db: -14.8,
             noise_floor_near_variance_db2: 0.35,
+            noise_floor_near_range_m: 10.0,
             noise_floor_transition_m: 45.0,
             noise_floor_weibull_scale: 26.706,
             noise_floor_weibull_shape: 5.333,
@@ -153,12 +165,23 @@ pub struct NoiseFloor {
     pub near_mean_db: FiniteF64,
     /// Variance close in, dB^2.
     pub near_variance_db2: PositiveF64,
+    /// Range of the close-in fit, m.
+    pub near_range_m: PositiveF64,
     /// Range beyond which the Weibull applies, m.
     pub transition_m: PositiveF64,
     /// Weibull scale.
     pub weibull_scale: PositiveF64,
     /// Weibull shape.
     pub weibull_shape: PositiveF64,
+}
+
+/// Low-pass roll-off: `-10 log10(1 + (R / corner_m)^(2 order))` dB.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RollOff {
+    /// Corner (3 dB) range, m.
+    pub corner_m: PositiveF64,
+    /// Filter order.
+    pub order: std::num::NonZeroU8,
 }
 
 /// `[model]`, validated.
@@ -168,6 +191,8 @@ pub struct ModelSettings {
     pub spreading: Spreading,
     /// Receiver compensation.
     pub compensation: Compensation,
+    /// Low-pass roll-off near the end of range; `None` for none.
+    pub rolloff: Option<RollOff>,
     /// Beam width, degrees.
     pub beam_width_deg: PositiveF64,
     /// Range resolution, m.
@@ -281,9 +306,22 @@ impl RawModel {
         } else {
             beam
         };
+        let corner_m = c.check(
+            "model.rolloff_corner_m",
+            PositiveF64::new(self.rolloff_corner_m),
+        );
+        let order = c.check(
+            "model.rolloff_order",
+            crate::values::count(self.rolloff_order, MAX_ROLLOFF_ORDER),
+        );
+        let rolloff = u8::try_from(order)
+            .ok()
+            .and_then(std::num::NonZeroU8::new)
+            .map(|order| RollOff { corner_m, order });
         ModelSettings {
             spreading: self.spreading,
             compensation,
+            rolloff,
             beam_width_deg,
             range_resolution_m: c.check(
                 "model.range_resolution_m",
@@ -306,6 +344,10 @@ impl RawModel {
                 near_variance_db2: c.check(
                     "model.noise_floor_near_variance_db2",
                     PositiveF64::new(self.noise_floor_near_variance_db2),
+                ),
+                near_range_m: c.check(
+                    "model.noise_floor_near_range_m",
+                    PositiveF64::new(self.noise_floor_near_range_m),
                 ),
                 transition_m: c.check(
                     "model.noise_floor_transition_m",

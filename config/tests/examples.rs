@@ -92,6 +92,9 @@ fn the_defaults_are_the_documented_values() {
     assert!(!c.sim.faults.any());
     assert_eq!(c.model.beam_width_deg.get(), 1.8);
     assert_eq!(c.model.range_resolution_m.get(), 0.25);
+    assert_eq!(c.model.sigma_range_m.get(), 0.1);
+    let rolloff = c.model.rolloff.unwrap();
+    assert_eq!((rolloff.corner_m.get(), rolloff.order.get()), (200.0, 4));
     assert!((c.model.sigma_power_db.get().powi(2) - 4.07).abs() < 1e-12);
     assert_eq!(c.detector.reference_cells.get(), 70);
     assert_eq!(c.detector.os_rank.get(), 53, "3/4 of 70 rounded up");
@@ -257,6 +260,12 @@ fn a_heading_outside_minus_pi_to_pi_is_wrapped() {
     );
     let c = Config::from_toml_str("[filter]\ninitial_theta_rad = -3.141592653589793\n").unwrap();
     assert_eq!(c.filter.initial_pose.theta_rad.get(), std::f64::consts::PI);
+}
+
+#[test]
+fn a_roll_off_of_order_zero_is_none() {
+    let c = Config::from_toml_str("[model]\nrolloff_order = 0\n").unwrap();
+    assert_eq!(c.model.rolloff, None);
 }
 
 #[test]
