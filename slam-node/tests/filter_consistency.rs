@@ -82,6 +82,8 @@ struct RunResult {
     nees: Vec<f64>,
     features: usize,
     mean_nis_per_dof: f64,
+    /// Position NEES of every feature at the end, against its nearest landmark.
+    feature_nees: Vec<f64>,
 }
 
 fn run(seed: u64, seconds: f64, use_power: bool) -> RunResult {
@@ -165,10 +167,23 @@ fn run(seed: u64, seconds: f64, use_power: bool) -> RunResult {
         truth = motion.predict(&truth, &true_input, dt).unwrap();
     }
     let st = ekf.stats();
+    let feature_nees = ekf
+        .features()
+        .iter()
+        .filter_map(|f| {
+            let nearest = landmarks.iter().min_by(|a, b| {
+                let da = (a.xy[0] - f.x_m).hypot(a.xy[1] - f.y_m);
+                let db = (b.xy[0] - f.x_m).hypot(b.xy[1] - f.y_m);
+                da.total_cmp(&db)
+            })?;
+            ekf.feature_nees(f.id, nearest.xy).ok()
+        })
+        .collect();
     RunResult {
         nees,
         features: ekf.feature_count(),
         mean_nis_per_dof: st.nis_sum / st.nis_dof_sum.max(1) as f64,
+        feature_nees,
     }
 }
 
@@ -202,6 +217,16 @@ fn summarise(runs: usize, seconds: f64, use_power: bool) -> (f64, f64, (f64, f64
     let frac = inside as f64 / len as f64;
     let nis = results.iter().map(|r| r.mean_nis_per_dof).sum::<f64>() / runs as f64;
     let feats = results.iter().map(|r| r.features).sum::<usize>() as f64 / runs as f64;
+    // Feature NEES: per landmark slot, averaged over runs (2 dof); reported as the mean over
+    // features of the run-average, with the 2-dof band for this many runs.
+    let all: Vec<f64> = results.iter().flat_map(|r| r.feature_nees.iter().copied()).collect();
+    let feature_mean = all.iter().sum::<f64>() / all.len().max(1) as f64;
+    let (flo, fhi) = band(runs, 2);
+    println!(
+        "feature position NEES (2 dof), mean over {} features x runs: {feature_mean:.3}; \
+         {runs}-run band [{flo:.2}, {fhi:.2}]",
+        all.len()
+    );
     println!(
         "{runs} runs x {seconds} s (power {use_power}): time-averaged pose NEES {mean:.3}, \
          band [{lo:.2}, {hi:.2}], {:.1}% of rotations inside, mean NIS/dof {nis:.3}, features {feats:.1}",

@@ -129,6 +129,47 @@ impl SlamState {
         })
     }
 
+    /// A state from a whole mean and covariance (layout in the module docs), for restoring a
+    /// saved estimate or building test and benchmark states. The covariance's lower triangle
+    /// is used (mirrored); features get fresh ids in slot order. Checks shape and finiteness,
+    /// not definiteness (O(n^3)): see [`super::health::covariance_health`].
+    pub fn from_parts(
+        mean: DVector<f64>,
+        mut cov: DMatrix<f64>,
+        time_s: f64,
+    ) -> Result<Self, FilterError> {
+        let n = mean.len();
+        if n < FEATURE_BASE || (n - FEATURE_BASE) % FEATURE_DIM != 0 {
+            return Err(FilterError::Shape("state length must be 4 + 4 N"));
+        }
+        if cov.nrows() != n || cov.ncols() != n {
+            return Err(FilterError::Shape("covariance must be n x n"));
+        }
+        check_finite(mean.as_slice(), "state mean")?;
+        check_finite(cov.as_slice(), "state covariance")?;
+        check_finite(&[time_s], "state time")?;
+        super::update::mirror_lower(&mut cov);
+        let features = (n - FEATURE_BASE) / FEATURE_DIM;
+        let tracks = (0..features)
+            .map(|k| FeatureTrack {
+                id: FeatureId(k as u64),
+                consecutive_misses: 0,
+                hits: 0,
+                created_s: time_s,
+                last_seen_s: time_s,
+            })
+            .collect();
+        let mut mean = mean;
+        mean[2] = wrap_angle(mean[2]);
+        Ok(Self {
+            mean,
+            cov,
+            tracks,
+            next_id: features as u64,
+            time_s,
+        })
+    }
+
     /// State dimension n = 4 + 4 N.
     pub fn dim(&self) -> usize {
         self.mean.len()

@@ -3,11 +3,12 @@
 //!
 //! With `H` nonzero only in the columns `c` (pose, the beam's features, L):
 //!
-//! - `PHt = P[:, c] H^T` (n x m), O(n |c| m)
+//! - `PHt = P[:, c] H^T` (n x m), O(n |c| m): only the columns H touches are read
 //! - `S = H P[c, c] H^T + R`, factorised `S = L_S L_S^T` (never inverted)
 //! - `W = PHt L_S^{-T}` (n x m), so that `K S K^T = W W^T` and `K nu = W (L_S^{-1} nu)`
 //! - `x += W e` with `e = L_S^{-1} nu`, `NIS = e^T e = nu^T S^{-1} nu`
-//! - `P -= W W^T`, lower triangle only, then mirrored: O(n^2 m / 2)
+//! - `P -= W W^T`, lower triangle only (blocked matrix products), then mirrored:
+//!   O(n^2 m / 2)
 //!
 //! `P - K S K^T` is the Joseph form `(I - KH) P (I - KH)^T + K R K^T` for the optimal gain,
 //! written so that it is symmetric by construction and never forms the n x n `I - KH`.
@@ -70,21 +71,10 @@ impl LinearisedObservation {
     }
 }
 
-/// `P[:, c] H^T`: n x m, reading only the columns of P that H touches.
+/// `P[:, c] H^T`: n x m, reading only the columns of P that H touches (gathered, then one
+/// matrix product).
 pub(crate) fn p_ht(cov: &DMatrix<f64>, columns: &[usize], h: &DMatrix<f64>) -> DMatrix<f64> {
-    let n = cov.nrows();
-    let m = h.nrows();
-    let mut out = DMatrix::zeros(n, m);
-    for (local, &state_col) in columns.iter().enumerate() {
-        let p_col = cov.column(state_col);
-        for k in 0..m {
-            let hk = h[(k, local)];
-            if hk != 0.0 {
-                out.column_mut(k).axpy(hk, &p_col, 1.0);
-            }
-        }
-    }
-    out
+    cov.select_columns(columns.iter()) * h.transpose()
 }
 
 /// `S = H P[c, c] H^T + R` from `PHt`, symmetrised.
@@ -154,12 +144,28 @@ pub fn batched_update(
     Ok(UpdateOutcome { nis, dof: m })
 }
 
-/// `P -= W W^T` on the lower triangle (column slices, contiguous), then mirrored.
+/// Width of the column blocks of the covariance update.
+const BLOCK: usize = 64;
+
+/// `P -= W W^T` on the lower triangle, then mirrored. For m > 5 rows each block of columns
+/// `[j0, j0 + B)` is one matrix product on rows `j0..n` (nalgebra hands it to the
+/// cache-blocked `matrixmultiply`); for fewer rows, column-slice axpys. Either way only the
+/// lower trapezoid is computed: about n^2 m / 2 multiply-adds.
 pub(crate) fn subtract_wwt_lower_and_mirror(cov: &mut DMatrix<f64>, w: &DMatrix<f64>) {
     let n = cov.nrows();
     let m = w.ncols();
-    let w_data = w.as_slice();
-    {
+    if m > 5 {
+        let w_t = w.transpose();
+        for j0 in (0..n).step_by(BLOCK) {
+            let jb = BLOCK.min(n - j0);
+            let rows = n - j0;
+            let a = w.rows(j0, rows);
+            let b = w_t.columns(j0, jb);
+            let mut c = cov.view_mut((j0, j0), (rows, jb));
+            c.gemm(-1.0, &a, &b, 1.0);
+        }
+    } else {
+        let w_data = w.as_slice();
         let p_data = cov.as_mut_slice();
         for j in 0..n {
             let p_col = &mut p_data[j * n + j..(j + 1) * n];
@@ -178,12 +184,22 @@ pub(crate) fn subtract_wwt_lower_and_mirror(cov: &mut DMatrix<f64>, w: &DMatrix<
     mirror_lower(cov);
 }
 
-/// Copies the lower triangle onto the upper one.
+/// Copies the lower triangle onto the upper one, in square tiles so that the strided
+/// writes stay in cache.
 pub(crate) fn mirror_lower(cov: &mut DMatrix<f64>) {
+    const TILE: usize = 32;
     let n = cov.nrows();
-    for j in 0..n {
-        for i in (j + 1)..n {
-            cov[(j, i)] = cov[(i, j)];
+    let data = cov.as_mut_slice();
+    for jb in (0..n).step_by(TILE) {
+        let j_end = (jb + TILE).min(n);
+        for ib in (jb..n).step_by(TILE) {
+            let i_end = (ib + TILE).min(n);
+            for j in jb..j_end {
+                for i in ib.max(j + 1)..i_end {
+                    // (i, j) is at j * n + i (column-major); (j, i) at i * n + j.
+                    data[i * n + j] = data[j * n + i];
+                }
+            }
         }
     }
 }

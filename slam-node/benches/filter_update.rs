@@ -1,0 +1,73 @@
+//! One batched EKF update against the number of features in the state (20, 100, 500, 1000)
+//! and in the batch (1, 10, 50 features, 3 rows each: range, bearing, power).
+//!
+//! `cargo bench -p slam-node --bench filter_update`. The state is cloned outside the timed
+//! region (criterion's `iter_batched`). Expected growth: O(n^2 m) for the covariance
+//! update, n the state dimension (4 + 4 N) and m the rows.
+
+use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
+use nalgebra::{DMatrix, DVector};
+use slam_node::filter::observation::state_columns;
+use slam_node::filter::state::SlamState;
+use slam_node::filter::{batched_update, LinearisedObservation};
+
+/// A dense, well-conditioned covariance: `D + 0.5 u u^T / n` with a smooth u.
+fn state(features: usize) -> SlamState {
+    let n = 4 + 4 * features;
+    let u = DVector::from_fn(n, |i, _| ((i as f64) * 0.37).sin());
+    let mut cov = &u * u.transpose() * (0.5 / n as f64);
+    for i in 0..n {
+        cov[(i, i)] += 1.0 + 0.1 * ((i % 7) as f64);
+    }
+    let mean = DVector::from_fn(n, |i, _| 0.01 * i as f64);
+    SlamState::from_parts(mean, cov, 0.0).expect("valid benchmark state")
+}
+
+/// A batch observing `observed` features spread through the state, 3 rows each, with a
+/// Jacobian shaped like the radar's: dense over the pose, the beam's features and L.
+fn batch(features: usize, observed: usize) -> LinearisedObservation {
+    let step = (features / observed).max(1);
+    let slots: Vec<usize> = (0..observed)
+        .map(|k| (k * step).min(features - 1))
+        .collect();
+    let columns = state_columns(&slots);
+    let m = 3 * observed;
+    let jacobian = DMatrix::from_fn(m, columns.len(), |i, j| {
+        (((i * 31 + j * 17) % 13) as f64 - 6.0) * 0.05
+    });
+    LinearisedObservation {
+        columns,
+        jacobian,
+        innovation: DVector::from_fn(m, |i, _| 0.01 * ((i % 5) as f64 - 2.0)),
+        noise: DMatrix::from_diagonal(&DVector::from_element(m, 1.0)),
+    }
+}
+
+fn bench_update(c: &mut Criterion) {
+    let mut group = c.benchmark_group("batched_update");
+    group.sample_size(10);
+    for &features in &[20usize, 100, 500, 1000] {
+        let base = state(features);
+        for &observed in &[1usize, 10, 50] {
+            if observed > features {
+                continue;
+            }
+            let obs = batch(features, observed);
+            group.bench_with_input(
+                BenchmarkId::new(format!("N{features}"), format!("batch{observed}")),
+                &obs,
+                |b, obs| {
+                    b.iter_batched(
+                        || base.clone(),
+                        |mut s| batched_update(&mut s, obs).expect("update succeeds"),
+                        BatchSize::LargeInput,
+                    )
+                },
+            );
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_update);
+criterion_main!(benches);
