@@ -219,3 +219,26 @@ impl RawDetector {
         }
     }
 }
+
+impl From<&DetectorSettings> for RawDetector {
+    /// The settings written back out.
+    fn from(s: &DetectorSettings) -> Self {
+        let (pfa, threshold_db) = match s.threshold {
+            Threshold::Pfa(p) => (Some(p.get()), None),
+            Threshold::Db(db) => (None, Some(db.get())),
+        };
+        Self {
+            kind: s.kind,
+            reference_cells: crate::values::as_i64(s.reference_cells.get()),
+            guard_cells: crate::values::as_i64(s.guard_cells),
+            pfa,
+            threshold_db,
+            os_rank: Some(crate::values::as_i64(s.os_rank.get())),
+            tpp_alpha: s.tpp_alpha.get(),
+            tpp_detect: s.tpp_detect.get(),
+            max_targets_per_beam: crate::values::as_i64(s.max_targets_per_beam.get()),
+            min_range_m: s.range.min_m(),
+            max_range_m: s.range.max_m(),
+        }
+    }
+}

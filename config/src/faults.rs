@@ -151,3 +151,20 @@ impl RawFaults {
         }
     }
 }
+
+impl From<&FaultSettings> for RawFaults {
+    /// The settings written back out.
+    fn from(s: &FaultSettings) -> Self {
+        let n = |v: Option<NonZeroU64>| v.map(|v| values::as_i64(v.get()));
+        Self {
+            drop_after_messages: n(s.drop_after_messages),
+            cut_frame_at_message: n(s.cut_frame_at_message),
+            corrupt_every_n: n(s.corrupt_every_n),
+            skip_azimuth_every_n: n(s.skip_azimuth_every_n),
+            stall_after_messages: n(s.stall.map(|st| st.after_messages)),
+            stall_ms: s.stall.map(|st| values::whole_ms(st.duration)),
+            no_keepalive: s.no_keepalive,
+            oversized_at_message: n(s.oversized_at_message),
+        }
+    }
+}

@@ -239,3 +239,33 @@ impl RawFilter {
         }
     }
 }
+
+impl From<&FilterSettings> for RawFilter {
+    /// The settings written back out.
+    fn from(s: &FilterSettings) -> Self {
+        let (gate_probability, gate_chi2) = match s.gate {
+            Gate::Probability(p) => (Some(p.get()), None),
+            Gate::Chi2(x) => (None, Some(x.get())),
+        };
+        let p = &s.initial_pose;
+        Self {
+            initial_x_m: p.x_m.get(),
+            initial_y_m: p.y_m.get(),
+            initial_theta_rad: p.theta_rad.get(),
+            initial_sigma_x_m: p.sigma_x_m.get(),
+            initial_sigma_y_m: p.sigma_y_m.get(),
+            initial_sigma_theta_rad: p.sigma_theta_rad.get(),
+            sigma_u: s.sigma_u.get(),
+            sigma_v: s.sigma_v.get(),
+            initial_loss_db: s.initial_loss_db.get(),
+            initial_sigma_loss_db: s.initial_sigma_loss_db.get(),
+            gate_probability,
+            gate_chi2,
+            association: s.association,
+            confirm_after: crate::values::as_i64(s.confirm_after.get()),
+            retire_after_misses: crate::values::as_i64(s.retire_after_misses.get()),
+            max_features: crate::values::as_i64(s.max_features.get()),
+            use_power_in_observation: s.use_power_in_observation,
+        }
+    }
+}

@@ -152,6 +152,23 @@ impl RawConfig {
     }
 }
 
+impl From<&Config> for RawConfig {
+    /// The settings written back out: validating the result gives the same settings (see
+    /// the section conversions for the few values TOML rounds: durations to whole
+    /// milliseconds, seeds above `i64::MAX`).
+    fn from(c: &Config) -> Self {
+        Self {
+            radar: RawRadar::from(&c.radar),
+            odometry: RawOdometry::from(&c.odometry),
+            sim: RawSim::from(&c.sim),
+            model: RawModel::from(&c.model),
+            detector: RawDetector::from(&c.detector),
+            filter: RawFilter::from(&c.filter),
+            output: RawOutput::from(&c.output),
+        }
+    }
+}
+
 impl Default for Config {
     /// Every section's documented defaults: the simulator on loopback, real-time pacing.
     fn default() -> Self {
@@ -205,6 +222,12 @@ impl Config {
         raw.apply_overrides(overrides)?;
         raw.validate()
             .map_err(|errors| ConfigError::Invalid { origin, errors })
+    }
+
+    /// The settings as a TOML file that loads back to the same settings: what a run writes
+    /// next to its outputs so that it can be repeated.
+    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
+        RawConfig::from(self).to_toml_string()
     }
 
     /// The settings of a shipped example file, compiled in.

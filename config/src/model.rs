@@ -68,14 +68,15 @@ impl GainTable {
                 points.len()
             )));
         }
-        if let Some(w) = points
-            .windows(2)
-            .find(|w| w[1].range_m.get() <= w[0].range_m.get())
-        {
-            return Err(ValueError::Rule(format!(
-                "ranges must increase strictly, got {} m then {} m",
-                w[0].range_m, w[1].range_m
-            )));
+        for pair in points.windows(2) {
+            if let [before, after] = pair {
+                if after.range_m.get() <= before.range_m.get() {
+                    return Err(ValueError::Rule(format!(
+                        "ranges must increase strictly, got {} m then {} m",
+                        before.range_m, after.range_m
+                    )));
+                }
+            }
         }
         Ok(Self(points))
     }
@@ -362,6 +363,50 @@ impl RawModel {
                     PositiveF64::new(self.noise_floor_weibull_shape),
                 ),
             },
+        }
+    }
+}
+
+impl From<&ModelSettings> for RawModel {
+    /// The settings written back out.
+    fn from(s: &ModelSettings) -> Self {
+        let (compensation, compensation_table) = match &s.compensation {
+            Compensation::Slope40DbPerDecade => (CompensationKind::Slope40, None),
+            Compensation::Slope60DbPerDecade => (CompensationKind::Slope60, None),
+            Compensation::Table(table) => (
+                CompensationKind::Table,
+                Some(
+                    table
+                        .points()
+                        .iter()
+                        .map(|p| RawGainPoint {
+                            range_m: p.range_m.get(),
+                            gain_db: p.gain_db.get(),
+                        })
+                        .collect(),
+                ),
+            ),
+        };
+        let defaults = RawModel::default();
+        Self {
+            spreading: s.spreading,
+            compensation,
+            compensation_table,
+            rolloff_corner_m: s
+                .rolloff
+                .map_or(defaults.rolloff_corner_m, |r| r.corner_m.get()),
+            rolloff_order: s.rolloff.map_or(0, |r| i64::from(r.order.get())),
+            beam_width_deg: s.beam_width_deg.get(),
+            range_resolution_m: s.range_resolution_m.get(),
+            sigma_bearing_deg: s.sigma_bearing_deg.get(),
+            sigma_range_m: s.sigma_range_m.get(),
+            sigma_power_db: s.sigma_power_db.get(),
+            noise_floor_near_mean_db: s.noise_floor.near_mean_db.get(),
+            noise_floor_near_variance_db2: s.noise_floor.near_variance_db2.get(),
+            noise_floor_near_range_m: s.noise_floor.near_range_m.get(),
+            noise_floor_transition_m: s.noise_floor.transition_m.get(),
+            noise_floor_weibull_scale: s.noise_floor.weibull_scale.get(),
+            noise_floor_weibull_shape: s.noise_floor.weibull_shape.get(),
         }
     }
 }

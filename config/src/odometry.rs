@@ -225,3 +225,33 @@ impl RawOdometry {
         }
     }
 }
+
+impl From<&OdometrySettings> for RawOdometry {
+    /// The settings written back out.
+    fn from(s: &OdometrySettings) -> Self {
+        let (source, address, path) = match &s.source {
+            OdometrySource::Tcp { address } => {
+                (OdometrySourceKind::Tcp, Some(address.to_string()), None)
+            }
+            OdometrySource::File { path } => (OdometrySourceKind::File, None, Some(path.clone())),
+            OdometrySource::None => (OdometrySourceKind::None, None, None),
+        };
+        let (motion_model, step_s, wheelbase_m) = match s.motion_model {
+            MotionModel::Paper { step_s } => (MotionModelKind::Paper, Some(step_s.get()), None),
+            MotionModel::Bicycle { wheelbase_m } => {
+                (MotionModelKind::Bicycle, None, Some(wheelbase_m.get()))
+            }
+        };
+        Self {
+            source,
+            address,
+            path,
+            motion_model,
+            step_s,
+            wheelbase_m,
+            sigma_speed_mps: s.sigma_speed_mps.get(),
+            sigma_steer_rad: s.sigma_steer_rad.get(),
+            stale_after_ms: values::whole_ms(s.stale_after),
+        }
+    }
+}

@@ -122,3 +122,17 @@ impl RawOutput {
         }
     }
 }
+
+impl From<&OutputSettings> for RawOutput {
+    /// The settings written back out.
+    fn from(s: &OutputSettings) -> Self {
+        Self {
+            directory: s.directory.clone(),
+            trajectory: s.trajectory.clone(),
+            map: s.map.clone(),
+            diagnostics: s.diagnostics.clone(),
+            pictures: s.pictures,
+            progress: s.progress,
+        }
+    }
+}

@@ -125,7 +125,10 @@ fn set(table: &mut toml::Table, o: &Override) -> Result<(), ConfigError> {
             _ => {
                 return Err(bad(
                     &o.text,
-                    format!("`{}` is a value, not a table", o.path[..=depth].join(".")),
+                    format!(
+                        "`{}` is a value, not a table",
+                        parents.get(..=depth).unwrap_or(parents).join(".")
+                    ),
                 ))
             }
         };

@@ -272,3 +272,29 @@ impl RawRadar {
         }
     }
 }
+
+impl From<&RadarSettings> for RawRadar {
+    /// The settings written back out (durations in whole milliseconds, rounded up).
+    fn from(s: &RadarSettings) -> Self {
+        Self {
+            address: s.address.to_string(),
+            connect_timeout_ms: values::whole_ms(s.connect_timeout),
+            tcp_nodelay: s.tcp_nodelay,
+            tcp_keepalive_s: s.tcp_keepalive.map(|d| d.as_secs_f64()),
+            recv_buffer_bytes: values::as_i64(s.recv_buffer_bytes.get()),
+            watchdog_timeout_ms: values::whole_ms(s.watchdog_timeout),
+            reconnect_initial_backoff_ms: values::whole_ms(s.reconnect_backoff.initial),
+            reconnect_max_backoff_ms: values::whole_ms(s.reconnect_backoff.max),
+            reconnect_jitter: s.reconnect_backoff.jitter.get(),
+            reconnect_max_attempts: match s.reconnect_max_attempts {
+                ReconnectAttempts::Forever => 0,
+                ReconnectAttempts::AtMost(n) => i64::from(n.get()),
+            },
+            non_contoured: s.non_contoured,
+            azimuth_channel_capacity: values::as_i64(s.azimuth_channel_capacity.get()),
+            rotation_channel_capacity: values::as_i64(s.rotation_channel_capacity.get()),
+            drop_policy: s.drop_policy,
+            record_path: s.record_path.clone(),
+        }
+    }
+}

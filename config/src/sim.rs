@@ -280,3 +280,45 @@ impl RawSim {
         }
     }
 }
+
+impl SceneRef {
+    /// The text that parses back to this scene: a file path that looks like a bare name is
+    /// written `./name`. A path that is not UTF-8 is written lossily.
+    pub fn to_text(&self) -> String {
+        match self {
+            SceneRef::Shipped(name) => name.clone(),
+            SceneRef::File(path) => {
+                let text = path.display().to_string();
+                match SceneRef::parse(&text) {
+                    Ok(SceneRef::File(_)) => text,
+                    _ => format!("./{text}"),
+                }
+            }
+        }
+    }
+}
+
+impl From<&SimSettings> for RawSim {
+    /// The settings written back out (a seed above `i64::MAX`, which TOML cannot hold, is
+    /// written as `i64::MAX`).
+    fn from(s: &SimSettings) -> Self {
+        Self {
+            bind: s.bind.to_string(),
+            odometry_bind: s.odometry_bind.to_string(),
+            max_clients: values::as_i64(s.max_clients.get()),
+            pacing: s.pacing,
+            keepalive_interval_ms: values::whole_ms(s.keepalive_interval),
+            scene: s.scene.to_text(),
+            radar_preset: s.radar_preset,
+            data_width: i64::from(s.data_width.bits()),
+            seed: values::as_i64(s.seed),
+            odometry_rate_hz: s.odometry_rate_hz.get(),
+            sigma_speed_mps: s.sigma_speed_mps.get(),
+            sigma_steer_rad: s.sigma_steer_rad.get(),
+            bias_speed_mps: s.bias_speed_mps.get(),
+            bias_steer_rad: s.bias_steer_rad.get(),
+            ground_truth_path: s.ground_truth_path.clone(),
+            faults: RawFaults::from(&s.faults),
+        }
+    }
+}

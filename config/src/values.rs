@@ -287,3 +287,15 @@ impl fmt::Display for OpenProbability {
         f.write_str(&number(self.0))
     }
 }
+
+/// Whole milliseconds of a duration, rounded up so that a positive duration stays positive,
+/// saturating at `i64::MAX` (for writing settings back out).
+pub fn whole_ms(d: Duration) -> i64 {
+    let ms = d.as_nanos().div_ceil(1_000_000);
+    i64::try_from(ms).unwrap_or(i64::MAX)
+}
+
+/// A count as TOML's `i64`, saturating at `i64::MAX` (for writing settings back out).
+pub fn as_i64<T: TryInto<i64>>(n: T) -> i64 {
+    n.try_into().unwrap_or(i64::MAX)
+}
