@@ -269,3 +269,28 @@ impl From<&FilterSettings> for RawFilter {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::wrap_angle;
+    use std::f64::consts::PI;
+
+    #[test]
+    fn angles_wrap_into_minus_pi_exclusive_to_pi_inclusive() {
+        for (angle, wrapped) in [
+            (0.0, 0.0),
+            (PI, PI),
+            (-PI, PI),
+            (3.0 * PI, PI),
+            (2.0 * PI, 0.0),
+            (-0.5, -0.5),
+            (7.0, 7.0 - 2.0 * PI),
+        ] {
+            assert!(
+                (wrap_angle(angle) - wrapped).abs() < 1e-12,
+                "{angle} -> {}",
+                wrap_angle(angle)
+            );
+        }
+    }
+}

@@ -107,3 +107,53 @@ fn header_name(line: &str) -> Option<String> {
     let name = inner.split(']').next()?.trim();
     (!name.is_empty()).then(|| name.chars().filter(|c| *c != '"').collect())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn columns_count_characters_not_bytes() {
+        let text = "# héllo\n  größe = 1\n";
+        let offset = text.find("= 1").unwrap();
+        assert_eq!(location_of(text, offset), Location { line: 2, column: 9 });
+    }
+
+    #[test]
+    fn an_offset_past_the_end_or_inside_a_character_is_clamped() {
+        assert_eq!(location_of("ab\ncd", 99), Location { line: 2, column: 3 });
+        let text = "é";
+        assert_eq!(location_of(text, 1), Location { line: 1, column: 1 });
+    }
+
+    #[test]
+    fn a_key_is_named_under_its_nearest_header() {
+        let text = "[radar]\na = 1\n[sim.faults] # faults\nstall_ms = 3\n";
+        let start = text.find("stall_ms").unwrap();
+        assert_eq!(
+            key_path_at(text, &(start..start + 8)).as_deref(),
+            Some("sim.faults.stall_ms")
+        );
+        let header = text.find("sim.faults").unwrap();
+        assert_eq!(
+            key_path_at(text, &(header..header + 3)).as_deref(),
+            Some("sim.faults")
+        );
+    }
+
+    #[test]
+    fn quoted_keys_and_array_table_headers_are_unquoted() {
+        let text = "[[\"model\".points]]\n\"gain_db\" = x\n";
+        let start = text.find("x").unwrap();
+        assert_eq!(
+            key_path_at(text, &(start..start + 1)).as_deref(),
+            Some("model.points.gain_db")
+        );
+    }
+
+    #[test]
+    fn a_line_without_a_key_names_nothing() {
+        let text = "[radar]\n\n";
+        assert_eq!(key_path_at(text, &(8..8)), None);
+    }
+}
