@@ -182,7 +182,10 @@ impl RawDetector {
             (Some(cells), Some(rank)) => {
                 c.check("detector.os_rank", Capacity::new(rank, cells.get()))
             }
-            (None, _) => Capacity::ONE,
+            (None, Some(rank)) => {
+                c.check("detector.os_rank", Capacity::new(rank, MAX_REFERENCE_CELLS))
+            }
+            (None, None) => Capacity::ONE,
         };
         let min = c.check_ok(
             "detector.min_range_m",
