@@ -286,6 +286,18 @@ mod tests {
     }
 
     #[test]
+    fn a_first_rotation_starting_at_slot_zero_is_complete() {
+        let g = geometry(4, 40);
+        let mut a = RotationAssembler::new();
+        for s in 0..4 {
+            a.push(az(&g, s, s));
+        }
+        let rot = a.push(az(&g, 0, 4)).finished.unwrap();
+        assert!(rot.complete);
+        assert_eq!(rot.azimuths.len(), 4);
+    }
+
+    #[test]
     fn a_repeated_encoder_value_is_a_duplicate_not_a_new_rotation() {
         let g = geometry(8, 80);
         let mut a = RotationAssembler::new();

@@ -15,6 +15,9 @@ use crate::settings::DriverSettings;
 use crate::shutdown::{shutdown_pair, Shutdown, ShutdownTrigger};
 use crate::socket::connect;
 
+/// The radar's last configuration, `None` before the first.
+pub type ConfigurationWatch = tokio::sync::watch::Receiver<Option<Arc<protocol::Configuration>>>;
+
 /// How the driver ended after a shutdown.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DriverExit {
@@ -49,6 +52,7 @@ impl Driver {
                 recorder: None,
                 assembler: RotationAssembler::new(),
                 geometry: None,
+                configuration_tx: tokio::sync::watch::channel(None).0,
             },
         }
     }
@@ -64,14 +68,22 @@ impl Driver {
         Arc::clone(&self.state.metrics)
     }
 
+    /// The radar's configuration as last received (`None` until the first one): a watch
+    /// that changes whenever the radar sends it again.
+    pub fn configuration(&self) -> ConfigurationWatch {
+        self.state.configuration_tx.subscribe()
+    }
+
     /// Runs on the current tokio runtime; returns a handle to stop it and read its metrics.
     pub fn spawn(self) -> DriverHandle {
         let (trigger, shutdown) = shutdown_pair();
         let metrics = self.metrics();
+        let configuration = self.configuration();
         let task = tokio::spawn(self.run(shutdown));
         DriverHandle {
             trigger,
             metrics,
+            configuration,
             task,
         }
     }
@@ -173,6 +185,7 @@ impl Driver {
 pub struct DriverHandle {
     trigger: ShutdownTrigger,
     metrics: Arc<Metrics>,
+    configuration: ConfigurationWatch,
     task: tokio::task::JoinHandle<Result<DriverExit, DriverError>>,
 }
 
@@ -185,6 +198,11 @@ impl DriverHandle {
     /// The live counters.
     pub fn metrics_handle(&self) -> Arc<Metrics> {
         Arc::clone(&self.metrics)
+    }
+
+    /// The radar's configuration as last received.
+    pub fn configuration(&self) -> ConfigurationWatch {
+        self.configuration.clone()
     }
 
     /// A listener on this driver's shutdown, for tasks that should stop with it.

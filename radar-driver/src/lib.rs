@@ -55,7 +55,7 @@ pub mod socket;
 pub use assembly::RotationAssembler;
 pub use azimuth::{Azimuth, Rotation};
 pub use clock::{Clock, SystemClock};
-pub use driver::{Driver, DriverExit, DriverHandle};
+pub use driver::{ConfigurationWatch, Driver, DriverExit, DriverHandle};
 pub use error::{DriverError, SessionError};
 pub use handoff::{ChannelSink, Delivery, DropPolicy, HandoffSettings, Receivers, Sink};
 pub use metrics::{DecodeErrorCounts, DecodeErrorKind, LatencySummary, Metrics, MetricsSnapshot};

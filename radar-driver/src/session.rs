@@ -13,7 +13,9 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use bytes::{Buf, BytesMut};
-use protocol::{DecodeError, FftData, FrameDecoder, Geometry, Message, PayloadError};
+use protocol::{
+    Configuration, DecodeError, FftData, FrameDecoder, Geometry, Message, PayloadError,
+};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
@@ -75,6 +77,9 @@ pub struct SessionState {
     pub(crate) recorder: Option<Recorder>,
     pub(crate) assembler: RotationAssembler,
     pub(crate) geometry: Option<Arc<Geometry>>,
+    /// The last configuration received, published for anyone interested (the CLI prints
+    /// it; a daemon may log it).
+    pub(crate) configuration_tx: tokio::sync::watch::Sender<Option<Arc<Configuration>>>,
 }
 
 /// What handling one message asks of the connection.
@@ -241,6 +246,8 @@ impl SessionState {
                             self.deliver_rotation(partial);
                         }
                         self.geometry = Some(geometry);
+                        self.configuration_tx
+                            .send_replace(Some(Arc::new(*configuration)));
                         *configured = true;
                         Reply::StartData
                     }

@@ -25,6 +25,16 @@ async fn the_driver_waits_for_the_configuration_then_requests_fft_data_and_stops
             "the client must not send anything before the configuration"
         );
         assert_eq!(conn.handshake(&small_configuration()).await, 21);
+        let mut watch = handle.configuration();
+        tokio::time::timeout(STEP, watch.wait_for(Option::is_some))
+            .await
+            .expect("the configuration is published")
+            .unwrap();
+        assert_eq!(
+            watch.borrow().as_deref(),
+            Some(&small_configuration()),
+            "the configuration is published as received"
+        );
         handle.shutdown();
         assert_eq!(
             conn.recv().await.map(|m| m.id()),

@@ -1,0 +1,124 @@
+//! The odometry client over loopback and from a file.
+
+use std::io::Write;
+use std::time::Duration;
+
+use radar_driver::odometry::{LineError, ODOMETRY_HEADER};
+use radar_driver::{
+    shutdown_pair, FileOdometry, OdometryError, OdometryPoll, OdometryRecord, OdometrySource,
+    TcpOdometry, TcpOdometrySettings,
+};
+use tokio::io::AsyncWriteExt;
+use tokio::net::TcpListener;
+
+const BOUND: Duration = Duration::from_secs(30);
+const STEP: Duration = Duration::from_secs(5);
+
+fn rec(t: f64, v: f64, s: f64) -> OdometryRecord {
+    OdometryRecord {
+        timestamp_s: t,
+        speed_mps: v,
+        steer_rad: s,
+    }
+}
+
+/// The next record or error within `STEP` (blocking this worker, not the runtime).
+async fn next(src: &mut TcpOdometry) -> Result<OdometryPoll, OdometryError> {
+    tokio::task::block_in_place(|| match src.poll_next(STEP) {
+        Ok(OdometryPoll::Pending) => panic!("nothing within {STEP:?}"),
+        other => other,
+    })
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn tcp_odometry_delivers_records_skips_bad_lines_and_survives_a_reconnect() {
+    tokio::time::timeout(BOUND, async {
+        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let mut settings = TcpOdometrySettings::new(listener.local_addr().unwrap());
+        settings.backoff.initial = Duration::from_millis(10);
+        settings.backoff.max = Duration::from_millis(50);
+        let (trigger, shutdown) = shutdown_pair();
+        let mut src = TcpOdometry::spawn(&tokio::runtime::Handle::current(), settings, shutdown);
+
+        let (mut conn, _) = listener.accept().await.unwrap();
+        let text = format!(
+            "{ODOMETRY_HEADER}\n100.000000001 1.5 0.01\n100.05 1.6 -0.02\nbad line here\n{}\n100.1 1.7",
+            "7".repeat(400)
+        );
+        conn.write_all(text.as_bytes()).await.unwrap();
+        // The last record is split across two writes.
+        conn.write_all(b" 0.03\n").await.unwrap();
+        assert_eq!(next(&mut src).await.unwrap(), OdometryPoll::Record(rec(100.000000001, 1.5, 0.01)));
+        assert_eq!(next(&mut src).await.unwrap(), OdometryPoll::Record(rec(100.05, 1.6, -0.02)));
+        assert!(matches!(next(&mut src).await, Err(OdometryError::Line { line: 4, source: LineError::BadNumber { .. } })));
+        assert!(matches!(next(&mut src).await, Err(OdometryError::Line { line: 5, source: LineError::TooLong { len: 400 } })));
+        assert_eq!(next(&mut src).await.unwrap(), OdometryPoll::Record(rec(100.1, 1.7, 0.03)));
+        drop(conn);
+
+        // A new connection starts again with the header.
+        let (mut conn, _) = tokio::time::timeout(STEP, listener.accept()).await.unwrap().unwrap();
+        conn.write_all(format!("{ODOMETRY_HEADER}\n100.15 1.8 0\n").as_bytes()).await.unwrap();
+        assert_eq!(next(&mut src).await.unwrap(), OdometryPoll::Record(rec(100.15, 1.8, 0.0)));
+        let stats = src.stats();
+        assert_eq!((stats.records, stats.line_errors, stats.connections), (4, 2, 2));
+
+        trigger.trigger();
+        // After the shutdown the source ends.
+        let end = tokio::task::block_in_place(|| src.poll_next(STEP));
+        assert_eq!(end.unwrap(), OdometryPoll::Ended);
+    })
+    .await
+    .expect("bounded");
+}
+
+#[test]
+fn file_odometry_reads_a_file_written_in_the_stream_format() {
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    writeln!(f, "{ODOMETRY_HEADER}").unwrap();
+    for k in 0..1000 {
+        writeln!(
+            f,
+            "{}",
+            rec(1000.0 + f64::from(k) * 0.05, 2.0, 0.001 * f64::from(k)).to_line()
+        )
+        .unwrap();
+    }
+    f.flush().unwrap();
+    let mut src = FileOdometry::open(f.path()).unwrap();
+    let mut n = 0;
+    while let OdometryPoll::Record(r) = src.poll_next(Duration::ZERO).unwrap() {
+        assert!((r.timestamp_s - (1000.0 + f64::from(n) * 0.05)).abs() < 1e-9);
+        n += 1;
+    }
+    assert_eq!(n, 1000);
+}
+
+/// The seam is object safe: a daemon holds any source as a box.
+#[test]
+fn any_odometry_source_can_stand_behind_the_trait() {
+    mockall::mock! {
+        Source {}
+        impl OdometrySource for Source {
+            fn poll_next(&mut self, timeout: Duration) -> Result<OdometryPoll, OdometryError>;
+        }
+    }
+    let mut mock = MockSource::new();
+    let mut seq = mockall::Sequence::new();
+    mock.expect_poll_next()
+        .times(1)
+        .in_sequence(&mut seq)
+        .returning(|_| Ok(OdometryPoll::Record(rec(1.0, 2.0, 3.0))));
+    mock.expect_poll_next()
+        .times(1)
+        .in_sequence(&mut seq)
+        .returning(|_| Ok(OdometryPoll::Ended));
+    let mut boxed: Box<dyn OdometrySource> = Box::new(mock);
+    assert_eq!(
+        boxed.poll_next(Duration::ZERO).unwrap(),
+        OdometryPoll::Record(rec(1.0, 2.0, 3.0))
+    );
+    assert_eq!(
+        boxed.poll_next(Duration::ZERO).unwrap(),
+        OdometryPoll::Ended
+    );
+}
