@@ -207,3 +207,41 @@ impl Compensation {
         high_pass + self.rolloff.map_or(0.0, |r| r.gain_db(range_m))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_gain_table_interpolates_in_log_range_and_holds_its_ends() {
+        let t = GainTable::new(&[(1.0, 0.0), (10.0, 40.0), (100.0, 100.0)]).unwrap();
+        assert!((t.gain_db(10f64.sqrt()) - 20.0).abs() < 1e-12);
+        assert!((t.gain_db(10.0) - 40.0).abs() < 1e-12);
+        assert!((t.gain_db(31.622_776_601_683_8) - 70.0).abs() < 1e-9);
+        assert_eq!(t.gain_db(0.1), 0.0);
+        assert_eq!(t.gain_db(0.0), 0.0);
+        assert_eq!(t.gain_db(1e6), 100.0);
+    }
+
+    #[test]
+    fn bad_gain_tables_are_refused() {
+        assert!(GainTable::new(&[(1.0, 0.0)]).is_err());
+        assert!(GainTable::new(&[(1.0, 0.0), (1.0, 3.0)]).is_err());
+        assert!(GainTable::new(&[(2.0, 0.0), (1.0, 3.0)]).is_err());
+        assert!(GainTable::new(&[(0.0, 0.0), (1.0, 3.0)]).is_err());
+        assert!(GainTable::new(&[(1.0, f64::NAN), (2.0, 3.0)]).is_err());
+    }
+
+    #[test]
+    fn a_table_compensation_adds_the_roll_off() {
+        let c = Compensation {
+            curve: GainCurve::Table(GainTable::new(&[(1.0, 10.0), (1000.0, 130.0)]).unwrap()),
+            rolloff: Some(RollOff {
+                corner_m: 200.0,
+                order: 4,
+            }),
+        };
+        assert!(c.check().is_ok());
+        assert!((c.gain_db(200.0) - (10.0 + 120.0 * 200f64.log10() / 3.0 - 3.0103)).abs() < 1e-3);
+    }
+}

@@ -203,3 +203,54 @@ where
     }
     out.sort_by(|a, b| a.range_m.total_cmp(&b.range_m).then(a.index.cmp(&b.index)));
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrap_angle_maps_into_the_half_open_interval() {
+        assert_eq!(wrap_angle(PI), PI);
+        assert_eq!(wrap_angle(-PI), PI);
+        assert!((wrap_angle(3.0 * PI) - PI).abs() < 1e-12);
+        assert!((wrap_angle(-3.5 * PI) - 0.5 * PI).abs() < 1e-12);
+        assert_eq!(wrap_angle(0.0), 0.0);
+        for k in -1000..1000 {
+            let a = wrap_angle(f64::from(k) * 0.37);
+            assert!(a > -PI && a <= PI);
+        }
+        assert!(wrap_angle(f64::NAN).is_nan());
+    }
+
+    #[test]
+    fn bearing_is_clockwise_from_the_forward_axis() {
+        // Facing north (+y), a feature to the east is 90 degrees clockwise.
+        let pose = Pose2::new(0.0, 0.0, 0.5 * PI);
+        let rb = range_bearing(&pose, [3.0, 0.0]);
+        assert!((rb.range_m - 3.0).abs() < 1e-12);
+        assert!((rb.bearing_rad - 0.5 * PI).abs() < 1e-12);
+        // point_at inverts it.
+        let p = pose.point_at(rb.range_m, rb.bearing_rad);
+        assert!((p[0] - 3.0).abs() < 1e-12 && p[1].abs() < 1e-12);
+    }
+
+    #[test]
+    fn features_in_beam_keeps_only_the_beam_sorted_by_range() {
+        let pose = Pose2::new(0.0, 0.0, 0.0);
+        let beam = Beam::new(0.0, 0.5, 100.0);
+        let half = 0.5 * DEFAULT_BEAM_WIDTH_RAD;
+        let features = [
+            pose.point_at(30.0, 0.0),
+            pose.point_at(10.0, 0.5 * half),
+            pose.point_at(20.0, 1.1 * half),  // outside the width
+            pose.point_at(150.0, 0.0),        // beyond max range
+            pose.point_at(0.2, 0.0),          // inside min range
+            [f64::NAN, 0.0],                  // skipped
+            pose.point_at(10.0, -0.5 * half), // tie at 10 m: index order
+        ];
+        let mut out = Vec::new();
+        features_in_beam(&pose, &beam, features, &mut out);
+        let idx: Vec<usize> = out.iter().map(|h| h.index).collect();
+        assert_eq!(idx, vec![1, 6, 0]);
+    }
+}

@@ -228,6 +228,67 @@ impl TargetAbsentNoise {
     }
 }
 
+/// Cells in [`WeibullQuantiles`]' table.
+const QUANTILE_CELLS: usize = 4096;
+/// Draws within this many cells of either end of the table are computed exactly.
+const EXACT_TAIL_CELLS: usize = 16;
+
+/// Fast sampling of a standard Weibull (scale 1) by its quantile function
+/// `x(p) = (-ln(1 - p))^(1/k)`, tabulated at `p = i / 4096` and interpolated linearly;
+/// the 16 cells at each end, where `x(p)` is steep, are computed exactly (0.8 % of draws).
+/// Interpolation error is below 1e-4 of the scale (0.003 dB at the chapter's 26.7 dB
+/// scale); a draw costs one uniform variate and a lookup instead of a logarithm and a power.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WeibullQuantiles {
+    inv_shape: f64,
+    table: Vec<f64>,
+}
+
+impl WeibullQuantiles {
+    /// The table for shape `k` (must be finite and positive; checked by the caller's
+    /// settings validation, and a non-positive shape yields a table of NaN-free zeros).
+    pub fn new(shape: f64) -> Self {
+        let inv_shape = if shape.is_finite() && shape > 0.0 {
+            1.0 / shape
+        } else {
+            1.0
+        };
+        let table = (0..=QUANTILE_CELLS)
+            .map(|i| Self::exact(i as f64 / QUANTILE_CELLS as f64, inv_shape))
+            .collect();
+        Self { inv_shape, table }
+    }
+
+    #[inline]
+    fn exact(p: f64, inv_shape: f64) -> f64 {
+        (-(-p).ln_1p()).powf(inv_shape)
+    }
+
+    /// The quantile at probability `p` in [0, 1) (values outside are clamped into it).
+    #[inline]
+    pub fn quantile(&self, p: f64) -> f64 {
+        let scaled = p.clamp(0.0, 1.0 - f64::EPSILON) * QUANTILE_CELLS as f64;
+        let lo = EXACT_TAIL_CELLS as f64;
+        let hi = (QUANTILE_CELLS - EXACT_TAIL_CELLS) as f64;
+        if !(lo..hi).contains(&scaled) {
+            return Self::exact(p.clamp(0.0, 1.0 - f64::EPSILON), self.inv_shape);
+        }
+        // `scaled` lies in [16, 4080), so the index is exact and in bounds.
+        let i = scaled as usize;
+        let frac = scaled - i as f64;
+        match (self.table.get(i), self.table.get(i + 1)) {
+            (Some(a), Some(b)) => a + (b - a) * frac,
+            _ => Self::exact(p, self.inv_shape),
+        }
+    }
+
+    /// One draw of the standard Weibull.
+    #[inline]
+    pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> f64 {
+        self.quantile(rng.gen::<f64>())
+    }
+}
+
 /// Target-present power fluctuation: Gaussian in dB.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TargetPresentNoise {
@@ -332,5 +393,40 @@ impl NoiseModel {
             crate::geometry::wrap_angle(z[1] + nb * self.bearing_sigma_rad),
             z[2] + self.present.sample(rng),
         ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_weibull_quantile_table_matches_the_exact_quantile_everywhere() {
+        let q = WeibullQuantiles::new(5.333);
+        let mut worst: f64 = 0.0;
+        for i in 0..=200_000 {
+            let p = i as f64 / 200_001.0;
+            let exact = (-(-p).ln_1p()).powf(1.0 / 5.333);
+            worst = worst.max((q.quantile(p) - exact).abs());
+        }
+        // In dB at the chapter's 26.706 dB scale: below 0.003 dB.
+        assert!(worst * 26.706 < 3e-3, "worst {worst}");
+        assert!(q.quantile(1.0).is_finite() && q.quantile(-1.0) == 0.0);
+    }
+
+    #[test]
+    fn observation_noise_perturbs_with_the_documented_spreads() {
+        let noise = NoiseModel::default();
+        let mut rng = seeded_rng(5);
+        let n = 50_000;
+        let (mut sb, mut sp) = (0.0, 0.0);
+        for _ in 0..n {
+            let z = noise.perturb_observation([50.0, 0.0, -20.0], &mut rng);
+            sb += z[1] * z[1];
+            sp += (z[2] + 20.0).powi(2);
+        }
+        let sd_bearing_deg = (sb / n as f64).sqrt().to_degrees();
+        assert!((sd_bearing_deg - 1.0).abs() < 0.02, "{sd_bearing_deg}");
+        assert!((sp / n as f64 - 4.07).abs() < 0.1);
     }
 }

@@ -95,3 +95,26 @@ pub fn compare_spectra(
         bound_db,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn comparison_reports_bias_fraction_inside_and_skipped_bins() {
+        let predicted = [10.0, 10.0, 10.0, 10.0, f64::NAN];
+        let measured = [12.0, 8.0, 30.0, 10.0, 1.0];
+        let c = compare_spectra(&predicted, &measured, 16.35).unwrap();
+        assert_eq!(c.bins, 4);
+        assert_eq!(c.skipped, 1);
+        assert!((c.mean_bias_db - -5.0).abs() < 1e-12);
+        assert!((c.fraction_inside - 0.75).abs() < 1e-12);
+        assert!((c.rms_db - (408.0f64 / 4.0).sqrt()).abs() < 1e-12);
+        let mut d = [0.0; 5];
+        difference_into(&predicted, &measured, &mut d).unwrap();
+        assert_eq!(d[2], -20.0);
+        assert!(d[4].is_nan());
+        assert!(compare_spectra(&predicted, &measured[..2], 16.35).is_err());
+        assert!(compare_spectra(&predicted, &measured, 0.0).is_err());
+    }
+}

@@ -30,7 +30,7 @@ pub use quantize::{
 
 use crate::compensation::Compensation;
 use crate::error::{finite, ModelError};
-use crate::noise::{FloorDistribution, NoiseModel};
+use crate::noise::{FloorDistribution, NoiseModel, WeibullQuantiles};
 use crate::power::{for_each_power_db, PowerModel, PowerTarget, DB_PER_NEPER_POWER};
 use rand::Rng;
 use rand_distr::{Distribution, Exp1, StandardNormal};
@@ -162,6 +162,7 @@ pub struct SpectrumModel {
     gain_db: Vec<f64>,
     floor_mean_db: Vec<f64>,
     floor: Vec<FloorDistribution>,
+    weibull: WeibullQuantiles,
 }
 
 impl SpectrumModel {
@@ -199,6 +200,7 @@ impl SpectrumModel {
             gain_db,
             floor_mean_db,
             floor,
+            weibull: WeibullQuantiles::new(noise.absent.weibull_shape),
         })
     }
 
@@ -306,8 +308,17 @@ impl SpectrumModel {
         self.check_buffer(out)?;
         Self::check_targets(targets)?;
         for (value, floor) in out.iter_mut().zip(&self.floor) {
-            let e: f64 = Exp1.sample(rng);
-            *value = floor.from_exp1(e);
+            *value = match *floor {
+                FloorDistribution::Weibull {
+                    offset_db,
+                    scale_db,
+                    ..
+                } => offset_db + scale_db * self.weibull.sample(rng),
+                FloorDistribution::ShiftedExponential { loc_db, scale_db } => {
+                    let e: f64 = Exp1.sample(rng);
+                    loc_db + scale_db * e
+                }
+            };
         }
         let sigma = self.noise.range.look_sigma_m();
         let present_sd = self.noise.present.variance_db2.sqrt();

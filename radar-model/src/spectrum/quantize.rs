@@ -66,3 +66,31 @@ pub fn quantize_spectrum_16bit(power_db: &[f64], out: &mut [u16]) -> Result<(), 
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eight_bit_values_are_twice_the_db_rounded_and_clamped() {
+        assert_eq!(quantize_8bit(0.0), 0);
+        assert_eq!(quantize_8bit(0.26), 1);
+        assert_eq!(quantize_8bit(63.7), 127);
+        assert_eq!(quantize_8bit(127.5), 255);
+        assert_eq!(quantize_8bit(500.0), 255);
+        assert_eq!(quantize_8bit(-3.0), 0);
+        assert_eq!(quantize_8bit(f64::NAN), 0);
+    }
+
+    #[test]
+    fn sixteen_bit_values_round_trip_within_half_a_count() {
+        for db in [0.0, 0.1, 12.34, 50.0, 96.5] {
+            let raw = quantize_16bit(db);
+            assert!((wire_16bit_to_db(raw) - db).abs() <= 0.5 * DB_PER_16BIT_COUNT + 1e-12);
+        }
+        assert_eq!(quantize_16bit(1e9), u16::MAX);
+        assert_eq!(quantize_16bit(-1.0), 0);
+        let mut out = [0u8; 2];
+        assert!(quantize_spectrum_8bit(&[1.0], &mut out).is_err());
+    }
+}
