@@ -112,10 +112,17 @@ pub struct RollOff {
 }
 
 impl RollOff {
-    /// Attenuation (dB, <= 0) at `range_m`: `-10 log10(1 + (R / R_c)^(2n))`.
+    /// Attenuation (dB, <= 0) at `range_m`: `-10 log10(1 + (R / R_c)^(2n))`, evaluated
+    /// through `l = 2n ln(R / R_c)` so that no order or range overflows.
     pub fn gain_db(&self, range_m: f64) -> f64 {
-        let x = (range_m.max(0.0) / self.corner_m).powi(2 * i32::from(self.order));
-        -10.0 * x.ln_1p() / std::f64::consts::LN_10
+        let l = 2.0 * f64::from(self.order) * (range_m.max(0.0) / self.corner_m).ln();
+        let db = 10.0 / std::f64::consts::LN_10;
+        if l > 40.0 {
+            // ln(1 + e^l) = l + ln(1 + e^-l), and e^-40 is below f64 resolution of l.
+            -db * l
+        } else {
+            -db * l.exp().ln_1p()
+        }
     }
 }
 
@@ -221,6 +228,23 @@ mod tests {
         assert_eq!(t.gain_db(0.1), 0.0);
         assert_eq!(t.gain_db(0.0), 0.0);
         assert_eq!(t.gain_db(1e6), 100.0);
+    }
+
+    #[test]
+    fn the_roll_off_is_finite_for_any_order_and_range() {
+        let r = RollOff {
+            corner_m: 200.0,
+            order: 255,
+        };
+        assert_eq!(r.gain_db(0.0), 0.0);
+        assert!((r.gain_db(200.0) + 3.0103).abs() < 1e-4);
+        assert!(r.gain_db(1e6).is_finite() && r.gain_db(1e6) < -1e4);
+        let four = RollOff {
+            corner_m: 200.0,
+            order: 4,
+        };
+        // Eighth-order slope: -80 dB/decade past the corner.
+        assert!((four.gain_db(20_000.0) - four.gain_db(2_000.0) + 80.0).abs() < 1e-6);
     }
 
     #[test]

@@ -191,9 +191,16 @@ impl SpectrumModel {
             });
         }
         let ranges = (0..geometry.bins).map(|b| geometry.bin_range_m(b));
-        let gain_db = ranges.clone().map(|r| compensation.gain_db(r)).collect();
-        let floor_mean_db = ranges.clone().map(|r| noise.absent.mean_db(r)).collect();
+        let gain_db: Vec<f64> = ranges.clone().map(|r| compensation.gain_db(r)).collect();
+        let floor_mean_db: Vec<f64> = ranges.clone().map(|r| noise.absent.mean_db(r)).collect();
         let floor = ranges.map(|r| noise.absent.distribution_at(r)).collect();
+        let tables_finite = |v: &Vec<f64>| v.iter().all(|x: &f64| x.is_finite());
+        if !tables_finite(&gain_db) || !tables_finite(&floor_mean_db) {
+            return Err(ModelError::InvalidSetting {
+                what: "compensation or noise",
+                reason: "gives a non-finite gain or floor inside the spectrum's range",
+            });
+        }
         Ok(Self {
             geometry,
             noise,
