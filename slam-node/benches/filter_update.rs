@@ -69,5 +69,49 @@ fn bench_update(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_update);
+/// Baselines measured in the same run (this machine is shared and noisy): one in-place
+/// read-and-write pass over an n x n matrix (the memory traffic floor of any update), and
+/// the textbook dense update `(I - KH) P (I - KH)^T + K R K^T` with an explicit inverse.
+fn bench_baselines(c: &mut Criterion) {
+    let mut group = c.benchmark_group("baseline");
+    group.sample_size(10);
+    for &features in &[20usize, 100, 500, 1000] {
+        let n = 4 + 4 * features;
+        let mut p = DMatrix::from_fn(n, n, |i, j| ((i * 7 + j * 3) % 11) as f64);
+        group.bench_function(
+            BenchmarkId::new("pass_over_P", format!("N{features}")),
+            |b| {
+                b.iter(|| {
+                    p.iter_mut().for_each(|v| *v *= 1.000_000_1);
+                    std::hint::black_box(&p);
+                })
+            },
+        );
+    }
+    for &features in &[20usize, 100] {
+        let base = state(features);
+        let n = base.dim();
+        let obs = batch(features, 10);
+        let mut h = DMatrix::zeros(obs.jacobian.nrows(), n);
+        for (local, &col) in obs.columns.iter().enumerate() {
+            h.column_mut(col).copy_from(&obs.jacobian.column(local));
+        }
+        let cov = base.covariance().clone();
+        group.bench_function(
+            BenchmarkId::new("dense_joseph", format!("N{features}/batch10")),
+            |b| {
+                b.iter(|| {
+                    let s = &h * &cov * h.transpose() + &obs.noise;
+                    let k = &cov * h.transpose() * s.try_inverse().expect("invertible");
+                    let ikh = DMatrix::identity(n, n) - &k * &h;
+                    let p = &ikh * &cov * ikh.transpose() + &k * &obs.noise * k.transpose();
+                    std::hint::black_box(p)
+                })
+            },
+        );
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_update, bench_baselines);
 criterion_main!(benches);

@@ -315,3 +315,116 @@ impl Jcbb<'_, '_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::filter::observation::{BeamObservationModel, RangeBearingModel};
+    use crate::filter::state::FeatureParams;
+    use radar_model::geometry::Pose2;
+
+    fn target(range_m: f64) -> Target {
+        Target {
+            range_m,
+            bearing_rad: 0.0,
+            power_db: 0.0,
+        }
+    }
+
+    #[test]
+    fn jcbb_pairs_both_targets_where_greedy_nearest_neighbour_pairs_one() {
+        // Two features 10 m and 11 m ahead on one line; range sigma 0.5 m.
+        let feats = [
+            FeatureParams {
+                x_m: 10.0,
+                y_m: 0.0,
+                u: 0.0,
+                v: 0.0,
+            },
+            FeatureParams {
+                x_m: 11.0,
+                y_m: 0.0,
+                u: 0.0,
+                v: 0.0,
+            },
+        ];
+        let pred = RangeBearingModel
+            .predict_beam(&Pose2::default(), &feats, 0.0)
+            .unwrap();
+        let p_cc = DMatrix::identity(12, 12) * 1e-6;
+        let ctx = BeamContext {
+            prediction: &pred,
+            p_cc: &p_cc,
+            use_power: &[false, false],
+            noise_var: [0.25, 1e-4, 1.0],
+        };
+        // T0 at 10.55 m: 1.1 sigma from F0, 0.9 sigma from F1. T1 at 11.6 m: 1.2 sigma from F1,
+        // 3.2 sigma from F0 (outside the 99% 2-dof gate of 9.21).
+        let targets = [target(10.55), target(11.6)];
+        let gates = GateTable::new(0.99, 8);
+        let compatible: Vec<Vec<(usize, f64)>> = (0..2)
+            .map(|j| {
+                (0..2)
+                    .filter_map(|i| {
+                        let (d2, dof) = ctx.joint_distance(&targets, &[(j, i)])?;
+                        (d2 <= gates.threshold(dof)).then_some((i, d2))
+                    })
+                    .collect()
+            })
+            .collect();
+        assert_eq!(greedy_nearest(&compatible, 2), vec![Some(1), None]);
+        let assoc = associate(&ctx, &targets, &gates, &gates, 1000);
+        assert!(assoc.used_jcbb && !assoc.budget_exhausted);
+        assert_eq!(assoc.pairs, vec![Some(0), Some(1)]);
+    }
+
+    #[test]
+    fn a_node_budget_of_one_still_returns_a_consistent_answer() {
+        let feats = [
+            FeatureParams {
+                x_m: 10.0,
+                y_m: 0.0,
+                u: 0.0,
+                v: 0.0,
+            },
+            FeatureParams {
+                x_m: 11.0,
+                y_m: 0.0,
+                u: 0.0,
+                v: 0.0,
+            },
+        ];
+        let pred = RangeBearingModel
+            .predict_beam(&Pose2::default(), &feats, 0.0)
+            .unwrap();
+        let p_cc = DMatrix::identity(12, 12) * 1e-6;
+        let ctx = BeamContext {
+            prediction: &pred,
+            p_cc: &p_cc,
+            use_power: &[false, false],
+            noise_var: [0.25, 1e-4, 1.0],
+        };
+        let targets = [target(10.55), target(11.6)];
+        let gates = GateTable::new(0.99, 8);
+        let assoc = associate(&ctx, &targets, &gates, &gates, 1);
+        assert!(assoc.budget_exhausted);
+        // Whatever was found is jointly compatible and uses each feature once.
+        let pairs: Vec<(usize, usize)> = assoc
+            .pairs
+            .iter()
+            .enumerate()
+            .filter_map(|(j, f)| f.map(|i| (j, i)))
+            .collect();
+        let (d2, dof) = ctx.joint_distance(&targets, &pairs).unwrap();
+        assert!(d2 <= gates.threshold(dof));
+    }
+
+    #[test]
+    fn the_gate_table_matches_published_chi_square_quantiles() {
+        let g = GateTable::new(0.95, 3);
+        assert!((g.threshold(3) - 7.8147).abs() < 1e-3);
+        assert!((g.threshold(2) - 5.9915).abs() < 1e-3);
+        assert!((GateTable::new(0.99, 3).threshold(3) - 11.3449).abs() < 1e-3);
+        assert!((g.threshold(30) - 43.773).abs() < 1e-2, "past the table");
+    }
+}

@@ -147,41 +147,57 @@ pub fn batched_update(
 /// Width of the column blocks of the covariance update.
 const BLOCK: usize = 64;
 
-/// `P -= W W^T` on the lower triangle, then mirrored. For m > 5 rows each block of columns
-/// `[j0, j0 + B)` is one matrix product on rows `j0..n` (nalgebra hands it to the
-/// cache-blocked `matrixmultiply`); for fewer rows, column-slice axpys. Either way only the
-/// lower trapezoid is computed: about n^2 m / 2 multiply-adds.
+/// `P -= W W^T` on the lower triangle, mirrored block by block. Columns are taken in
+/// blocks of [`BLOCK`]: for m > 5 rows a block's lower trapezoid (rows `j0..n`) is one
+/// matrix product (nalgebra hands it to the cache-blocked `matrixmultiply`), for fewer rows
+/// column-slice axpys; each block is mirrored into the upper triangle while it is still in
+/// cache. About n^2 m / 2 multiply-adds and one pass over P's memory.
 pub(crate) fn subtract_wwt_lower_and_mirror(cov: &mut DMatrix<f64>, w: &DMatrix<f64>) {
     let n = cov.nrows();
     let m = w.ncols();
-    if m > 5 {
-        let w_t = w.transpose();
-        for j0 in (0..n).step_by(BLOCK) {
-            let jb = BLOCK.min(n - j0);
-            let rows = n - j0;
-            let a = w.rows(j0, rows);
-            let b = w_t.columns(j0, jb);
-            let mut c = cov.view_mut((j0, j0), (rows, jb));
-            c.gemm(-1.0, &a, &b, 1.0);
-        }
-    } else {
-        let w_data = w.as_slice();
-        let p_data = cov.as_mut_slice();
-        for j in 0..n {
-            let p_col = &mut p_data[j * n + j..(j + 1) * n];
-            for k in 0..m {
-                let w_col = &w_data[k * n + j..(k + 1) * n];
-                let wjk = w_col[0];
-                if wjk == 0.0 {
-                    continue;
-                }
-                for (p, wi) in p_col.iter_mut().zip(w_col) {
-                    *p -= wjk * wi;
+    let w_t = if m > 5 { Some(w.transpose()) } else { None };
+    for j0 in (0..n).step_by(BLOCK) {
+        let jb = BLOCK.min(n - j0);
+        match &w_t {
+            Some(w_t) => {
+                let a = w.rows(j0, n - j0);
+                let b = w_t.columns(j0, jb);
+                let mut c = cov.view_mut((j0, j0), (n - j0, jb));
+                c.gemm(-1.0, &a, &b, 1.0);
+            }
+            None => {
+                let w_data = w.as_slice();
+                let p_data = cov.as_mut_slice();
+                for j in j0..j0 + jb {
+                    let p_col = &mut p_data[j * n + j..(j + 1) * n];
+                    for k in 0..m {
+                        let w_col = &w_data[k * n + j..(k + 1) * n];
+                        let wjk = w_col[0];
+                        if wjk == 0.0 {
+                            continue;
+                        }
+                        for (p, wi) in p_col.iter_mut().zip(w_col) {
+                            *p -= wjk * wi;
+                        }
+                    }
                 }
             }
         }
+        mirror_block(cov, j0, jb);
     }
-    mirror_lower(cov);
+}
+
+/// Copies the lower-triangle part of columns `j0..j0 + jb` onto the upper triangle:
+/// `P[r, c] = P[c, r]` for `r` in the block and `c > r`.
+fn mirror_block(cov: &mut DMatrix<f64>, j0: usize, jb: usize) {
+    let n = cov.nrows();
+    let data = cov.as_mut_slice();
+    for c in j0..n {
+        for r in j0..(j0 + jb).min(c) {
+            // (r, c) is at c * n + r (column-major); (c, r) at r * n + c.
+            data[c * n + r] = data[r * n + c];
+        }
+    }
 }
 
 /// Copies the lower triangle onto the upper one, in square tiles so that the strided

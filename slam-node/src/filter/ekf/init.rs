@@ -1,0 +1,177 @@
+//! Turning unclaimed targets into features: the tentative list, then initialisation with
+//! full cross-covariances and a power-only update.
+
+use nalgebra::{DMatrix, DVector, Matrix2, Matrix4};
+use radar_model::geometry::{range_bearing, wrap_angle};
+use radar_model::material::Material;
+
+use super::super::beam::{predict_candidates, BeamCandidate};
+use super::super::error::FilterError;
+use super::super::lifecycle::{inverse_observation, Sighting};
+use super::super::observation::{state_columns, BeamObservation, BeamObservationModel, Target};
+use super::super::predict::ProcessModel;
+use super::super::state::{FeatureId, FEATURE_DIM};
+use super::super::update::{batched_update, LinearisedObservation};
+use super::{BeamReport, Ekf};
+
+impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
+    pub(super) fn handle_unclaimed(
+        &mut self,
+        beam: &BeamObservation,
+        unclaimed: &[usize],
+        report: &mut BeamReport,
+    ) -> Result<(), FilterError> {
+        let gate2 = self.gates.threshold(2);
+        for &j in unclaimed {
+            let Some(t) = beam.targets.get(j) else {
+                continue;
+            };
+            if t.range_m < self.settings.min_range_m || t.range_m > self.settings.max_range_m {
+                continue;
+            }
+            let sighting = self.tentatives.offer(
+                &self.pose(),
+                &self.pose_covariance(),
+                [
+                    self.settings.range_std_m.powi(2),
+                    self.settings.bearing_std_rad.powi(2),
+                ],
+                t,
+                beam.timestamp_s,
+                gate2,
+                self.settings.confirm_min_separation_s,
+                self.settings.max_tentatives,
+            );
+            match sighting {
+                Sighting::New => report.new_tentatives += 1,
+                Sighting::Refreshed => {}
+                Sighting::Dropped => self.stats.dropped_targets += 1,
+                Sighting::Confirmed => {
+                    if self.state.feature_count() >= self.settings.max_features {
+                        self.stats.dropped_targets += 1;
+                        continue;
+                    }
+                    let id = self.initialise_feature(t, beam.bearing_rad, beam.timestamp_s)?;
+                    report.initialised.push(id);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds a feature from target `t` (eq. 3, 4 inverted, with full cross-covariances); u, v
+    /// start from the prior shares with no correlation; then, if power is used, the target's
+    /// power alone updates the state (range and bearing were spent on the position).
+    pub fn initialise_feature(
+        &mut self,
+        t: &Target,
+        beam_bearing_rad: f64,
+        time_s: f64,
+    ) -> Result<FeatureId, FilterError> {
+        t.check()?;
+        if t.range_m < self.settings.min_range_m {
+            // At zero range the bearing carries no information: the new feature's position
+            // would be perfectly correlated with the pose across the line of sight.
+            return Err(FilterError::TargetTooClose {
+                range_m: t.range_m,
+                min_range_m: self.settings.min_range_m,
+            });
+        }
+        let pose = self.pose();
+        let (p, g_pose, g_rb) = inverse_observation(&pose, t);
+        let material =
+            Material::from_rho_alpha(self.settings.initial_rho, self.settings.initial_alpha)
+                .map_err(|e| FilterError::Model(e.to_string()))?;
+        let n = self.state.dim();
+        let cov = self.state.covariance();
+        let mut cross = DMatrix::zeros(FEATURE_DIM, n);
+        let pose_rows = cov.rows(0, 3);
+        let gx = g_pose * pose_rows; // 2 x n
+        cross.rows_mut(0, 2).copy_from(&gx);
+        let rz = Matrix2::new(
+            self.settings.range_std_m.powi(2),
+            0.0,
+            0.0,
+            self.settings.bearing_std_rad.powi(2),
+        );
+        let p_vv = self.state.pose_covariance();
+        let p_ff = g_pose * p_vv * g_pose.transpose() + g_rb * rz * g_rb.transpose();
+        let mut block = Matrix4::zeros();
+        block.fixed_view_mut::<2, 2>(0, 0).copy_from(&p_ff);
+        let m_var = self.settings.initial_material_std.powi(2);
+        block[(2, 2)] = m_var;
+        block[(3, 3)] = m_var;
+        let id = self.state.augment(
+            [p.x, p.y, material.u, material.v],
+            &cross,
+            &block,
+            time_s,
+            self.settings.max_features,
+        )?;
+        self.stats.initialised += 1;
+        if self.settings.use_power {
+            self.power_update_new(id, t, beam_bearing_rad)?;
+        }
+        Ok(id)
+    }
+
+    /// The power-only update of a feature just initialised, within its beam.
+    fn power_update_new(
+        &mut self,
+        id: FeatureId,
+        t: &Target,
+        beam_bearing_rad: f64,
+    ) -> Result<(), FilterError> {
+        let Some(new_slot) = self.state.slot_of(id) else {
+            return Err(FilterError::UnknownFeature(id));
+        };
+        let mut candidates = self.features_in_beam(beam_bearing_rad);
+        if !candidates.iter().any(|c| c.slot == new_slot) {
+            // The target's noisy bearing put it outside the candidate arc: predict it with
+            // the beam's expected features in front of it.
+            let Some(p) = self.state.params(new_slot) else {
+                return Err(FilterError::UnknownFeature(id));
+            };
+            let rb = range_bearing(&self.pose(), [p.x_m, p.y_m]);
+            if rb.range_m < self.settings.min_range_m {
+                return Ok(()); // On top of the radar: no bearing, no power prediction.
+            }
+            candidates.push(BeamCandidate {
+                slot: new_slot,
+                range_m: rb.range_m,
+                offset_rad: wrap_angle(rb.bearing_rad - beam_bearing_rad).abs(),
+                sigma_rad: 0.0,
+                expected: false,
+                ambiguous: false,
+            });
+            candidates.sort_by(|a, b| a.range_m.total_cmp(&b.range_m).then(a.slot.cmp(&b.slot)));
+        }
+        let slots: Vec<usize> = candidates.iter().map(|c| c.slot).collect();
+        let params = self.beam_params(&slots);
+        let pred = predict_candidates(
+            &self.observer,
+            &self.pose(),
+            self.state.loss_db(),
+            &candidates,
+            &params,
+        )?;
+        let Some(local) = slots.iter().position(|&s| s == new_slot) else {
+            return Ok(());
+        };
+        if !pred.power_usable.get(local).copied().unwrap_or(false) {
+            return Ok(());
+        }
+        let Some(zhat) = pred.z.get(local) else {
+            return Ok(());
+        };
+        let row = 3 * local + 2;
+        let obs = LinearisedObservation {
+            columns: state_columns(&slots),
+            jacobian: pred.jacobian.select_rows([row].iter()),
+            innovation: DVector::from_element(1, t.power_db - zhat[2]),
+            noise: DMatrix::from_element(1, 1, self.settings.power_std_db.powi(2)),
+        };
+        batched_update(&mut self.state, &obs)?;
+        Ok(())
+    }
+}
