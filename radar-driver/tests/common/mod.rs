@@ -180,10 +180,11 @@ impl FakeRadar {
     }
 }
 
-/// Driver settings for tests: fast reconnects, a short watchdog.
+/// Driver settings for tests: fast reconnects, a 1 s watchdog (short, but long enough that
+/// a loaded machine does not trip it by accident).
 pub fn test_settings(addr: SocketAddr) -> DriverSettings {
     let mut s = DriverSettings::new(addr);
-    s.watchdog_timeout = Duration::from_millis(400);
+    s.watchdog_timeout = Duration::from_millis(1000);
     s.backoff.initial = Duration::from_millis(10);
     s.backoff.max = Duration::from_millis(50);
     s.socket.connect_timeout = Duration::from_secs(2);
