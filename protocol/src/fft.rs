@@ -183,9 +183,18 @@ impl FftData {
     }
 
     /// Replaces the contents of `out` with the bins' powers in dB (reusing its capacity).
+    /// Same values as [`FftData::bins_db`], rounded to f32; a loop per width so it
+    /// vectorises.
     pub fn bins_db_into(&self, out: &mut Vec<f32>) {
         out.clear();
-        out.extend(self.bins_db().map(|db| db as f32));
+        match self.width {
+            // v / 2 is exact in f32 for every u8.
+            BinWidth::Eight => out.extend(self.bins.iter().map(|&v| f32::from(v) * 0.5)),
+            BinWidth::Sixteen => out.extend(self.bins.chunks_exact(2).map(|pair| match pair {
+                [lo, hi] => units::bin16_to_db(u16::from_le_bytes([*lo, *hi])) as f32,
+                _ => 0.0,
+            })),
+        }
     }
 
     /// Payload length when encoded.
@@ -305,6 +314,10 @@ where
         azimuth,
         timestamp,
     );
+    // Quantise into a small stack buffer and copy it out in blocks: one capacity check per
+    // block instead of per bin.
+    let mut block = [0u8; 512];
+    let mut filled = 0;
     for (index, db) in powers.enumerate() {
         if !db.is_finite() {
             dst.truncate(start);
@@ -313,11 +326,20 @@ where
                 power_db: db,
             });
         }
-        match width {
-            BinWidth::Eight => dst.put_u8(units::db_to_bin8(db)),
-            BinWidth::Sixteen => dst.put_u16_le(units::db_to_bin16(db)),
+        let (bytes, n) = match width {
+            BinWidth::Eight => ([units::db_to_bin8(db), 0], 1),
+            BinWidth::Sixteen => (units::db_to_bin16(db).to_le_bytes(), 2),
+        };
+        if let Some(slot) = block.get_mut(filled..filled + n) {
+            slot.copy_from_slice(&bytes[..n]);
+            filled += n;
+        }
+        if filled + 2 > block.len() {
+            dst.put_slice(&block[..filled]);
+            filled = 0;
         }
     }
+    dst.put_slice(&block[..filled]);
     // An ExactSizeIterator that lied about its length would leave a bad frame: undo it.
     if dst.len() - start != HEADER_LEN + payload_len {
         let written = dst.len() - start;

@@ -35,16 +35,19 @@ pub fn bin16_to_db(raw: u16) -> f64 {
     f64::from(raw) / 256.0 * BIN16_DB_SCALE
 }
 
-/// dB to the nearest 8-bit bin, saturating at 0 and 127.5 dB. NaN maps to 0.
+/// dB to the nearest 8-bit bin (ties up), saturating at 0 and 127.5 dB. NaN maps to 0.
 pub fn db_to_bin8(power_db: f64) -> u8 {
-    // `as` from f64 saturates and maps NaN to 0: exactly the quantiser we want.
-    (power_db * 2.0).round() as u8
+    // Adding 0.5 and truncating rounds to nearest for the non-negative values that can
+    // survive the cast; `as` from f64 saturates (negatives to 0) and maps NaN to 0. This
+    // avoids `f64::round`, a libm call on baseline x86-64, in the simulator's hot loop.
+    (power_db * 2.0 + 0.5) as u8
 }
 
-/// dB to the nearest 16-bit bin, saturating at 0 and about 174.3 dB. NaN maps to 0.
+/// dB to the nearest 16-bit bin (ties up), saturating at 0 and about 174.3 dB. NaN maps
+/// to 0.
 pub fn db_to_bin16(power_db: f64) -> u16 {
-    // Saturating float-to-int cast, as above.
-    (power_db / BIN16_DB_SCALE * 256.0).round() as u16
+    // Round-by-truncation and saturating cast, as above.
+    (power_db * (256.0 / BIN16_DB_SCALE) + 0.5) as u16
 }
 
 /// Range of bin `bin` in metres from the fixed configuration (section 5):

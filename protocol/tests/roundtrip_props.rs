@@ -73,3 +73,35 @@ fn the_strategy_reaches_every_variant() {
     }
     assert!(seen.contains(&0), "Unknown never generated");
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(500))]
+
+    #[test]
+    fn powers_encoded_from_db_decode_to_within_half_a_quantisation_step(
+        sixteen in any::<bool>(),
+        powers in proptest::collection::vec(0.0f64..120.0, 0..600),
+        sweep in any::<u16>(),
+        azimuth in any::<u16>(),
+    ) {
+        let width = if sixteen { protocol::BinWidth::Sixteen } else { protocol::BinWidth::Eight };
+        let step_db = if sixteen { protocol::units::BIN16_DB_SCALE / 256.0 } else { 0.5 };
+        let ts = protocol::Timestamp::new(1_700_000_000, 1).unwrap();
+        let mut buf = BytesMut::new();
+        protocol::encode_fft_frame_from_db(&mut buf, width, sweep, azimuth, ts, powers.iter().copied())
+            .unwrap();
+        let Some(Message::FftData(fft)) = FrameDecoder::new().decode_eof(&mut buf).unwrap() else {
+            panic!("not FFT data");
+        };
+        prop_assert_eq!((fft.sweep_counter, fft.azimuth, fft.timestamp), (sweep, azimuth, ts));
+        prop_assert_eq!(fft.bin_count(), powers.len());
+        for (got, want) in fft.bins_db().zip(&powers) {
+            prop_assert!((got - want).abs() <= step_db / 2.0 + 1e-9, "{} vs {}", got, want);
+        }
+        // The f32 fast path gives the same values, rounded to f32.
+        let mut db32 = Vec::new();
+        fft.bins_db_into(&mut db32);
+        let expected: Vec<f32> = fft.bins_db().map(|d| d as f32).collect();
+        prop_assert_eq!(db32, expected);
+    }
+}
