@@ -1,6 +1,6 @@
 //! `sim-sensor`: a simulated Navtech radar on the Colossus protocol, with odometry, replay
 //! and fault injection. Thin: parses arguments, builds [`SimOptions`], runs the library until
-//! Ctrl-C, maps errors to an exit code.
+//! Ctrl-C or SIGTERM, maps errors to an exit code.
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -193,6 +193,22 @@ fn measure_render(options: &SimOptions, n: u64) -> Result<()> {
     Ok(())
 }
 
+/// Ctrl-C, or SIGTERM on Unix.
+async fn shutdown_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{signal, SignalKind};
+        if let Ok(mut term) = signal(SignalKind::terminate()) {
+            tokio::select! {
+                _ = tokio::signal::ctrl_c() => {}
+                _ = term.recv() => {}
+            }
+            return;
+        }
+    }
+    let _ = tokio::signal::ctrl_c().await;
+}
+
 #[tokio::main]
 async fn main() -> Result<()> {
     tracing_subscriber::fmt()
@@ -218,12 +234,11 @@ async fn main() -> Result<()> {
         return measure_render(&options, n);
     }
     let handle = SimServer::spawn(options).await?;
-    tracing::info!(radar = %handle.local_addr(), odometry = ?handle.odometry_addr(), "sim-sensor running; Ctrl-C stops it");
+    tracing::info!(radar = %handle.local_addr(), odometry = ?handle.odometry_addr(), "sim-sensor running; Ctrl-C or SIGTERM stops it");
     let token = handle.shutdown_token();
     tokio::spawn(async move {
-        if tokio::signal::ctrl_c().await.is_ok() {
-            tracing::info!("Ctrl-C: shutting down");
-        }
+        shutdown_signal().await;
+        tracing::info!("signal received: shutting down");
         token.cancel();
     });
     handle.wait().await?;
