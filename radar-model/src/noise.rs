@@ -35,8 +35,10 @@
 //! # Range
 //! A peak has the shape of a Gaussian of full width at half maximum equal to the range
 //! resolution; phase noise moves its centre each look by a Gaussian of
-//! [`RangeSpread::phase_noise_sigma_m`], which broadens the expected peak to the
-//! convolution of both.
+//! [`RangeSpread::phase_noise_sigma_m`] (0.1 m by default: an assumption, the chapter
+//! gives no figure). Averaged in dB, as the spectrum comparison averages, a bin at
+//! offset `d` from the target then reads `-c (d^2 + sigma_J^2)` below the target's power
+//! ([`RangeSpread::expected_peak_shape_db`]).
 //!
 //! # Bearing
 //! Standard deviation 1 degree (pencil beam).
@@ -336,9 +338,26 @@ impl RangeSpread {
         self.resolution_fwhm_m / FWHM_PER_SIGMA
     }
 
-    /// Standard deviation (m) of the expected (many-look) peak shape.
+    /// Standard deviation (m) of the many-look average of the peak in linear power (the
+    /// look's shape convolved with the jitter).
     pub fn expected_sigma_m(&self) -> f64 {
         self.look_sigma_m().hypot(self.phase_noise_sigma_m)
+    }
+
+    /// Curvature `c` (dB/m^2) of one look's peak in dB: `k(d) = -c d^2`,
+    /// `c = (10 / ln 10) / (2 sigma_look^2)`.
+    pub fn look_curvature_db_per_m2(&self) -> f64 {
+        let s = self.look_sigma_m();
+        crate::power::DB_PER_NEPER_POWER / (2.0 * s * s)
+    }
+
+    /// Mean (dB) of one look's peak shape at offset `d`, over the phase-noise jitter `J`:
+    /// `E[-c (d - J)^2] = -c (d^2 + sigma_J^2)`. The look's width is kept and the level
+    /// drops by `c sigma_J^2` (1.93 dB with the defaults) in every bin; a single look's
+    /// own peak still reaches the full power at its jittered centre.
+    pub fn expected_peak_shape_db(&self, offset_m: f64) -> f64 {
+        -self.look_curvature_db_per_m2()
+            * (offset_m * offset_m + self.phase_noise_sigma_m * self.phase_noise_sigma_m)
     }
 
     /// Draws one centre offset (m).

@@ -4,11 +4,15 @@
 //! A [`SpectrumModel`] precomputes, once per geometry and settings, every bin's range, its
 //! compensation gain and its target-absent floor distribution. After that:
 //!
-//! - [`SpectrumModel::predict_into`] writes the expected measured power of every bin: the
-//!   floor's mean power-summed with each target's peak, `P_i + gain(R_b) + k(R_b - R_i)`,
-//!   where `k` is the expected peak shape in dB (a Gaussian of the expected sigma of
-//!   [`RangeSpread`](crate::noise::RangeSpread), 0 dB at its centre, so the peak bin reads
-//!   `P_i` plus compensation).
+//! - [`SpectrumModel::predict_into`] writes the predicted spectrum as figure 8 draws it:
+//!   the floor's mean power-summed with each target's peak, `P_i + gain(R_b) + k(R_b -
+//!   R_i)`, `k(d) = -c d^2` one look's Gaussian shape in dB (0 dB at its centre, so the
+//!   peak bin reads `P_i` plus compensation). It is also the noiseless rendering.
+//! - [`SpectrumModel::expected_into`] writes the mean in dB over looks: the same with
+//!   `k` averaged over the phase-noise jitter,
+//!   [`RangeSpread::expected_peak_shape_db`](crate::noise::RangeSpread::expected_peak_shape_db).
+//!   The expectation is taken in dB because figure 10's comparison is in dB; power-summing
+//!   it with the floor approximates that expectation where the two are within a few dB.
 //! - [`SpectrumModel::synthesize_into`] writes one noisy look: a floor draw in every bin,
 //!   and for each target a peak of one look's shape, its centre moved by phase noise and its
 //!   power by the target-present noise, power-summed in.
@@ -256,9 +260,17 @@ impl SpectrumModel {
         Some((lo as usize, hi as usize))
     }
 
-    /// Power-sums one Gaussian peak (centre `range_m`, level `level_db` before
-    /// compensation, shape sigma `sigma_m`) into `out`.
-    fn add_peak(&self, range_m: f64, level_db: f64, sigma_m: f64, out: &mut [f64]) {
+    /// Power-sums one peak into `out`: at bin range `R_b`, `level_db + gain(R_b) -
+    /// c ((R_b - range_m)^2 + jitter_var_m2)`, over the bins where the look's Gaussian
+    /// (sigma `sigma_m`) is within [`KERNEL_SPAN_SIGMAS`] sigma.
+    fn add_peak(
+        &self,
+        range_m: f64,
+        level_db: f64,
+        sigma_m: f64,
+        jitter_var_m2: f64,
+        out: &mut [f64],
+    ) {
         let Some((lo, hi)) = self.window(range_m, sigma_m) else {
             return;
         };
@@ -269,7 +281,7 @@ impl SpectrumModel {
             .zip(&self.gain_db[lo..hi])
         {
             let d = self.geometry.bin_range_m(lo + b) - range_m;
-            *value = db_power_sum(*value, level_db + gain + coef * d * d);
+            *value = db_power_sum(*value, level_db + gain + coef * (d * d + jitter_var_m2));
         }
     }
 
@@ -281,8 +293,10 @@ impl SpectrumModel {
         Ok(())
     }
 
-    /// Expected measured spectrum (dB per bin) for the targets in one beam (figure 8).
-    /// `out` must have exactly `bins` elements.
+    /// Predicted measured spectrum (dB per bin) for the targets in one beam, as the paper's
+    /// figure 8 draws it: the mean floor, and each target's peak of one look's shape
+    /// centred on its predicted range, reaching `P_i` plus compensation there (no noise,
+    /// no jitter). This is also the noiseless rendering. `out` must have `bins` elements.
     ///
     /// # Errors
     /// Wrong buffer length or non-finite targets.
@@ -291,12 +305,38 @@ impl SpectrumModel {
         targets: &[SpectrumTarget],
         out: &mut [f64],
     ) -> Result<(), ModelError> {
+        self.peaks_on_floor(targets, 0.0, out)
+    }
+
+    /// Expected measured spectrum (dB per bin, the mean in dB over looks): as
+    /// [`predict_into`](Self::predict_into) but with each peak's shape averaged in dB over
+    /// the phase-noise jitter, which lowers every peak bin by `c sigma_J^2` (1.93 dB with
+    /// the defaults; see [`RangeSpread`](crate::noise::RangeSpread)). Bin-by-bin
+    /// comparisons (figure 10) against it are unbiased where the synthesis model holds.
+    ///
+    /// # Errors
+    /// Wrong buffer length or non-finite targets.
+    pub fn expected_into(
+        &self,
+        targets: &[SpectrumTarget],
+        out: &mut [f64],
+    ) -> Result<(), ModelError> {
+        let s = self.noise.range.phase_noise_sigma_m;
+        self.peaks_on_floor(targets, s * s, out)
+    }
+
+    fn peaks_on_floor(
+        &self,
+        targets: &[SpectrumTarget],
+        jitter_var_m2: f64,
+        out: &mut [f64],
+    ) -> Result<(), ModelError> {
         self.check_buffer(out)?;
         Self::check_targets(targets)?;
         out.copy_from_slice(&self.floor_mean_db);
-        let sigma = self.noise.range.expected_sigma_m();
+        let sigma = self.noise.range.look_sigma_m();
         for t in targets {
-            self.add_peak(t.range_m, t.power_db, sigma, out);
+            self.add_peak(t.range_m, t.power_db, sigma, jitter_var_m2, out);
         }
         Ok(())
     }
@@ -332,7 +372,13 @@ impl SpectrumModel {
         for t in targets {
             let jitter = self.noise.range.sample_offset_m(rng);
             let n: f64 = StandardNormal.sample(rng);
-            self.add_peak(t.range_m + jitter, t.power_db + n * present_sd, sigma, out);
+            self.add_peak(
+                t.range_m + jitter,
+                t.power_db + n * present_sd,
+                sigma,
+                0.0,
+                out,
+            );
         }
         Ok(())
     }
