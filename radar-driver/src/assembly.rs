@@ -307,4 +307,36 @@ mod tests {
         assert_eq!(rot.duplicate_azimuths, 1);
         assert_eq!(rot.azimuths.len(), 2);
     }
+
+    proptest::proptest! {
+        #[test]
+        fn rotations_hold_every_azimuth_once_in_encoder_order(
+            steps in proptest::collection::vec((0u16..16, 0u16..3), 1..300)
+        ) {
+            let g = geometry(16, 160);
+            let mut a = RotationAssembler::new();
+            let mut pushed = 0usize;
+            let mut out = Vec::new();
+            let mut slot = 0u16;
+            let mut sweep = 0u16;
+            for (jump, sweep_step) in steps {
+                // Mostly forward, sometimes back (a wrap), with skips.
+                slot = (slot + jump) % 16;
+                sweep = sweep.wrapping_add(sweep_step);
+                out.extend(a.push(az(&g, slot, sweep)).finished);
+                pushed += 1;
+            }
+            out.extend(a.flush());
+            let total: usize = out.iter().map(|r| r.azimuths.len()).sum();
+            proptest::prop_assert_eq!(total, pushed);
+            for (i, r) in out.iter().enumerate() {
+                proptest::prop_assert_eq!(r.sequence, i as u64);
+                proptest::prop_assert!(r.azimuths.windows(2).all(|w| w[1].encoder >= w[0].encoder));
+                if r.complete {
+                    let distinct = r.azimuths.len() as u32 - r.duplicate_azimuths;
+                    proptest::prop_assert_eq!(distinct + r.skipped_azimuths, 16);
+                }
+            }
+        }
+    }
 }

@@ -106,10 +106,11 @@ impl Driver {
         if let Some(partial) = self.state.assembler.flush() {
             self.state.deliver_rotation(partial);
         }
-        let recording = self.state.recorder.take().map(|r| {
-            // Joining the writer thread blocks; keep it off the runtime's worker.
-            tokio::task::block_in_place(|| r.finish())
-        });
+        let recording = match self.state.recorder.take() {
+            // Joining the writer thread blocks: do it on the blocking pool.
+            Some(r) => Some(tokio::task::spawn_blocking(move || r.finish()).await?),
+            None => None,
+        };
         result.map(|()| DriverExit {
             metrics: self.state.metrics.snapshot(),
             recording,

@@ -187,7 +187,7 @@ impl SessionState {
                                 let start = self.settings.start_message();
                                 send(stream, &start, watchdog).await?;
                                 if !*streaming {
-                                    tracing::info!(message = start.id(), "requested FFT data");
+                                    tracing::info!(id = start.id(), "requested FFT data");
                                 }
                                 *streaming = true;
                             }
@@ -335,5 +335,66 @@ async fn send(
             message_id: id,
             source: std::io::Error::new(std::io::ErrorKind::TimedOut, "write timed out"),
         }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_decode_error_maps_to_its_kind() {
+        let payload = |source| DecodeError::Payload {
+            message_id: 30,
+            source,
+        };
+        let cases = [
+            (
+                DecodeError::BadSignature { skipped_bytes: 3 },
+                DecodeErrorKind::Signature,
+            ),
+            (
+                DecodeError::BadVersion { version: 2 },
+                DecodeErrorKind::Version,
+            ),
+            (
+                DecodeError::Oversized {
+                    message_id: 30,
+                    payload_size: 2_000_000,
+                },
+                DecodeErrorKind::Oversized,
+            ),
+            (
+                payload(PayloadError::Truncated { needed: 14, got: 3 }),
+                DecodeErrorKind::Truncated,
+            ),
+            (
+                payload(PayloadError::FftDataOffsetBeyondPayload {
+                    offset: 99,
+                    payload_len: 20,
+                }),
+                DecodeErrorKind::FftLayout,
+            ),
+            (
+                payload(PayloadError::OddBinPayload { len: 3 }),
+                DecodeErrorKind::FftLayout,
+            ),
+            (
+                payload(PayloadError::BadNanos {
+                    nanos: 1_000_000_000,
+                }),
+                DecodeErrorKind::Timestamp,
+            ),
+            (
+                payload(PayloadError::BadSectorCount {
+                    count: 2,
+                    payload_len: 1,
+                }),
+                DecodeErrorKind::Other,
+            ),
+        ];
+        for (error, kind) in cases {
+            assert_eq!(DecodeErrorKind::from(&error), kind, "{error}");
+        }
     }
 }

@@ -122,3 +122,29 @@ fn any_odometry_source_can_stand_behind_the_trait() {
         OdometryPoll::Ended
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_configured_source_is_opened_from_the_odometry_section() {
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    writeln!(f, "{ODOMETRY_HEADER}\n5.0 1.0 0.0").unwrap();
+    let text = format!(
+        "[odometry]\nsource = \"file\"\npath = {:?}\n",
+        f.path().display().to_string()
+    );
+    let config = config::Config::from_toml_str(&text).unwrap();
+    let (_trigger, shutdown) = shutdown_pair();
+    let rt = tokio::runtime::Handle::current();
+    let mut src = radar_driver::odometry::open_configured(&config.odometry, &rt, shutdown.clone())
+        .unwrap()
+        .expect("a file source");
+    assert_eq!(
+        src.poll_next(Duration::ZERO).unwrap(),
+        OdometryPoll::Record(rec(5.0, 1.0, 0.0))
+    );
+    let none = config::Config::from_toml_str("[odometry]\nsource = \"none\"\n").unwrap();
+    assert!(
+        radar_driver::odometry::open_configured(&none.odometry, &rt, shutdown)
+            .unwrap()
+            .is_none()
+    );
+}

@@ -68,3 +68,23 @@ pub trait OdometrySource: Send {
     /// A recoverable error costs one line: call again for the next.
     fn poll_next(&mut self, timeout: Duration) -> Result<OdometryPoll, OdometryError>;
 }
+
+/// Opens the source the `[odometry]` section names: a [`TcpOdometry`] (spawned on
+/// `runtime`, stopped by `shutdown`), a [`FileOdometry`], or `None` for `source = "none"`.
+pub fn open_configured(
+    settings: &config::OdometrySettings,
+    runtime: &tokio::runtime::Handle,
+    shutdown: crate::shutdown::Shutdown,
+) -> Result<Option<Box<dyn OdometrySource>>, OdometryError> {
+    Ok(match &settings.source {
+        config::odometry::OdometrySource::Tcp { address } => Some(Box::new(TcpOdometry::spawn(
+            runtime,
+            TcpOdometrySettings::new(*address),
+            shutdown,
+        ))),
+        config::odometry::OdometrySource::File { path } => {
+            Some(Box::new(FileOdometry::open(path)?))
+        }
+        config::odometry::OdometrySource::None => None,
+    })
+}
