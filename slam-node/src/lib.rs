@@ -1,3 +1,7 @@
 //! Detection, association, the augmented-state EKF, map management and outputs; the daemon.
 
+pub mod angles;
+pub mod detect;
 pub mod filter;
+pub mod output;
+pub mod synth;

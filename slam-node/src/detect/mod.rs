@@ -44,11 +44,22 @@ pub enum DetectorKind {
     Tpp,
 }
 
+/// Which spectrum the per-bin detector looks at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DetectionDomain {
+    /// As the radar sent it (range compensation applied).
+    Measured,
+    /// With the receiver's range compensation removed bin by bin.
+    Uncompensated,
+}
+
 /// Everything that shapes detection in one beam.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectorSettings {
     /// The per-bin detector.
     pub kind: DetectorKind,
+    /// The spectrum it runs on.
+    pub domain: DetectionDomain,
     /// CFAR window (both CFAR variants).
     pub window: CfarWindow,
     /// CA-CFAR threshold above the reference mean, dB.
@@ -70,15 +81,16 @@ pub struct DetectorSettings {
 impl Default for DetectorSettings {
     fn default() -> Self {
         Self {
-            kind: DetectorKind::OsCfar,
+            kind: DetectorKind::Tpp,
+            domain: DetectionDomain::Uncompensated,
             window: CfarWindow {
                 reference_cells: 24,
                 guard_cells: 4,
                 min_reference_cells: 16,
             },
-            ca_scale_db: 12.0,
+            ca_scale_db: 24.0,
             os_rank_fraction: 0.75,
-            os_scale_db: 12.0,
+            os_scale_db: 24.0,
             tpp: TppSettings::paper(),
             peaks: PeakSettings {
                 merge_gap_bins: 1,
@@ -129,6 +141,7 @@ pub struct BeamDetector {
     flags: Vec<bool>,
     snr_db: Vec<f64>,
     peaks: Vec<Peak>,
+    work_db: Vec<f64>,
 }
 
 impl BeamDetector {
@@ -146,6 +159,7 @@ impl BeamDetector {
             flags: Vec::new(),
             snr_db: Vec::new(),
             peaks: Vec::new(),
+            work_db: Vec::new(),
         }
     }
 
@@ -159,46 +173,47 @@ impl BeamDetector {
         &self.flags
     }
 
-    /// Detects the targets in one uncompensated spectrum (dB) of azimuth slot `slot`;
-    /// appends them to `out` in range order.
+    /// Detects the targets in one measured spectrum (dB, as the radar sent it) of azimuth
+    /// slot `slot`, with `gain_db` the receiver's compensation gain per bin (same length);
+    /// appends them to `out` in range order with their uncompensated powers.
     pub fn detect(
         &mut self,
         slot: usize,
-        uncompensated_db: &[f64],
+        measured_db: &[f64],
+        gain_db: &[f64],
         axis: &RangeAxis,
         out: &mut Vec<Detection>,
     ) {
-        let s = &self.settings;
+        let s = self.settings;
+        let n = measured_db.len().min(gain_db.len());
+        self.work_db.clear();
+        match s.domain {
+            DetectionDomain::Measured => self.work_db.extend(measured_db.iter().take(n)),
+            DetectionDomain::Uncompensated => self
+                .work_db
+                .extend(measured_db.iter().zip(gain_db).map(|(m, g)| m - g)),
+        }
+        let work = &self.work_db;
         match s.kind {
-            DetectorKind::CaCfar | DetectorKind::OsCfar => {
-                if s.kind == DetectorKind::CaCfar {
-                    cfar::ca_cfar_thresholds(
-                        uncompensated_db,
-                        &s.window,
-                        s.ca_scale_db,
-                        &mut self.thresholds_db,
-                    );
-                } else {
-                    cfar::os_cfar_thresholds(
-                        uncompensated_db,
-                        &s.window,
-                        s.os_rank_fraction,
-                        s.os_scale_db,
-                        &mut self.thresholds_db,
-                    );
-                }
-                self.flags.clear();
-                self.flags.extend(
-                    uncompensated_db
-                        .iter()
-                        .zip(&self.thresholds_db)
-                        .map(|(p, t)| p > t),
-                );
+            DetectorKind::CaCfar => {
+                cfar::ca_cfar_thresholds(work, &s.window, s.ca_scale_db, &mut self.thresholds_db)
             }
+            DetectorKind::OsCfar => cfar::os_cfar_thresholds(
+                work,
+                &s.window,
+                s.os_rank_fraction,
+                s.os_scale_db,
+                &mut self.thresholds_db,
+            ),
             DetectorKind::Tpp => {
                 self.tpp
-                    .process(slot, uncompensated_db, &mut self.flags, &mut self.snr_db);
+                    .process(slot, work, &mut self.flags, &mut self.snr_db);
             }
+        }
+        if s.kind != DetectorKind::Tpp {
+            self.flags.clear();
+            self.flags
+                .extend(work.iter().zip(&self.thresholds_db).map(|(p, t)| p > t));
         }
         // Blank the bins outside the usable range interval.
         for (b, f) in self.flags.iter_mut().enumerate() {
@@ -208,11 +223,30 @@ impl BeamDetector {
             }
         }
         self.peaks.clear();
-        peaks::extract_peaks(uncompensated_db, &self.flags, &s.peaks, &mut self.peaks);
-        out.extend(self.peaks.iter().map(|p| Detection {
-            range_m: axis.range_m(p.bin),
-            power_db: p.power_db,
-            bin: p.bin,
+        peaks::extract_peaks(work, &self.flags, &s.peaks, &mut self.peaks);
+        out.extend(self.peaks.iter().map(|p| {
+            let power_db = match s.domain {
+                DetectionDomain::Uncompensated => p.power_db,
+                DetectionDomain::Measured => p.power_db - interpolate(gain_db, p.bin),
+            };
+            Detection {
+                range_m: axis.range_m(p.bin),
+                power_db,
+                bin: p.bin,
+            }
         }));
+    }
+}
+
+/// Linear interpolation of a per-bin table at a fractional bin (clamped to the table).
+fn interpolate(table: &[f64], bin: f64) -> f64 {
+    let last = table.len().saturating_sub(1);
+    let b = bin.clamp(0.0, last as f64);
+    let lo = b.floor() as usize;
+    let hi = (lo + 1).min(last);
+    let f = b - lo as f64;
+    match (table.get(lo), table.get(hi)) {
+        (Some(a), Some(c)) => a + f * (c - a),
+        _ => 0.0,
     }
 }

@@ -44,14 +44,15 @@ pub struct TppSettings {
 }
 
 impl TppSettings {
-    /// The paper's alpha 0.1 and threshold 0.8, with smoothing and window sizes chosen here.
+    /// The paper's alpha 0.1 and threshold 0.8, with the smoothing, window sizes and SNR
+    /// threshold chosen by measurement (see `slam-node/README.md`, "Detection").
     pub fn paper() -> Self {
         Self {
             smooth_half_width_bins: 1,
-            time_smoothing: 0.0,
+            time_smoothing: 0.3,
             min_window_scans: 8,
-            noise_neighbourhood_bins: 12,
-            snr_threshold_db: 9.0,
+            noise_neighbourhood_bins: 4,
+            snr_threshold_db: 20.0,
             alpha: 0.1,
             detect_probability: 0.8,
             warmup_scans: 2,
@@ -223,8 +224,8 @@ mod tests {
         for scan in 0..20 {
             let mut p = noisy_floor(scan, 200);
             if scan >= 10 {
-                p[100] = 30.0;
-                p[101] = 25.0;
+                p[100] = 40.0;
+                p[101] = 35.0;
             }
             tpp.process(0, &p, &mut d, &mut snr);
             if scan >= 10 {
@@ -247,7 +248,7 @@ mod tests {
         let (mut d, mut snr) = (Vec::new(), Vec::new());
         for scan in 0..50 {
             let mut p = noisy_floor(scan, 200);
-            p[60] = 30.0;
+            p[60] = 40.0;
             tpp.process(0, &p, &mut d, &mut snr);
         }
         assert!(d[60]);
