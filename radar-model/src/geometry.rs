@@ -38,6 +38,25 @@ impl Pose2 {
         [self.x + range_m * a.cos(), self.y + range_m * a.sin()]
     }
 
+    /// [`point_at`](Self::point_at) and its Jacobian, for initialising a feature from an
+    /// observation: rows `[x_f, y_f]`, columns `[x, y, theta, R, beta]`. With
+    /// `a = theta - beta`: `d/dtheta = (-R sin a, R cos a)`, `d/dR = (cos a, sin a)`,
+    /// `d/dbeta = (R sin a, -R cos a)`.
+    pub fn point_at_with_jacobian(
+        &self,
+        range_m: f64,
+        bearing_rad: f64,
+    ) -> ([f64; 2], [[f64; 5]; 2]) {
+        let a = self.theta - bearing_rad;
+        let (sin_a, cos_a) = a.sin_cos();
+        let xy = [self.x + range_m * cos_a, self.y + range_m * sin_a];
+        let jac = [
+            [1.0, 0.0, -range_m * sin_a, cos_a, range_m * sin_a],
+            [0.0, 1.0, range_m * cos_a, sin_a, -range_m * cos_a],
+        ];
+        (xy, jac)
+    }
+
     fn check(&self) -> Result<(), ModelError> {
         finite(self.x, "pose x")?;
         finite(self.y, "pose y")?;

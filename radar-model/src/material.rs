@@ -98,6 +98,17 @@ impl Material {
         }
     }
 
+    /// Jacobian of `(rho, alpha)` with respect to `(u, v)`, for reporting a covariance of
+    /// the shares (`J P_uv J^T`): `[[rho (1 - rho), -rho alpha], [-alpha rho,
+    /// alpha (1 - alpha)]]`. Every entry lies in [-1/4, 1/4].
+    pub fn shares_jacobian(&self) -> [[f64; 2]; 2] {
+        let s = self.shares();
+        [
+            [s.rho * (1.0 - s.rho), -s.rho * s.alpha],
+            [-s.alpha * s.rho, s.alpha * (1.0 - s.alpha)],
+        ]
+    }
+
     /// Converts user-supplied shares into `(u, v)`. Values must be finite, `rho, alpha >= 0`
     /// and `rho + alpha <= 1`; each of `rho`, `alpha`, `tau` is then raised to at least
     /// [`MIN_SHARE`] (the only clamping in the crate) and `u = ln(rho/tau)`,

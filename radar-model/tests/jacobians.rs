@@ -191,6 +191,28 @@ proptest! {
     }
 
     #[test]
+    fn share_and_feature_initialisation_jacobians_match_finite_differences(
+        u in -30.0f64..30.0, v in -30.0f64..30.0,
+        x in -100.0f64..100.0, y in -100.0f64..100.0, theta in -3.2f64..3.2,
+        range in 0.0f64..300.0, bearing in -3.2f64..3.2,
+    ) {
+        let js = Material::new(u, v).shares_jacobian();
+        let analytic = DMatrix::from_row_slice(2, 2, &[js[0][0], js[0][1], js[1][0], js[1][1]]);
+        let numeric = numeric_jacobian(|p| {
+            let s = Material::new(p[0], p[1]).shares();
+            vec![s.rho, s.alpha]
+        }, &[u, v], H, &[]);
+        assert_jacobians_agree(&analytic, &numeric, REL, ABS).map_err(TestCaseError::fail)?;
+
+        let (_, jp) = Pose2::new(x, y, theta).point_at_with_jacobian(range, bearing);
+        let analytic = DMatrix::from_row_slice(2, 5, &[jp[0], jp[1]].concat());
+        let numeric = numeric_jacobian(|p| {
+            Pose2::new(p[0], p[1], p[2]).point_at(p[3], p[4]).to_vec()
+        }, &[x, y, theta, range, bearing], H, &[]);
+        assert_jacobians_agree(&analytic, &numeric, REL, ABS).map_err(TestCaseError::fail)?;
+    }
+
+    #[test]
     fn material_round_trips_through_user_shares(rho in 0.0f64..1.0, frac in 0.0f64..1.0) {
         let alpha = (1.0 - rho) * frac;
         let m = Material::from_rho_alpha(rho, alpha).unwrap();

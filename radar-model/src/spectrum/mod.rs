@@ -119,7 +119,7 @@ pub struct SpectrumTarget {
 /// allocates only if it must grow). `targets` must be sorted by range.
 ///
 /// # Errors
-/// As [`for_each_power_db`](crate::power::for_each_power_db).
+/// As [`for_each_power_db`].
 pub fn beam_spectrum_targets(
     model: &PowerModel,
     targets: &[PowerTarget],
