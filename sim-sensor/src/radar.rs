@@ -225,7 +225,9 @@ impl RadarParams {
 
     /// The encoder value of azimuth `index` within a rotation (`index < azimuths`).
     pub fn encoder_of(&self, index: u16) -> u16 {
-        let value = u32::from(index) * u32::from(self.encoder_size) / u32::from(self.azimuths);
+        let value = (u32::from(index) * u32::from(self.encoder_size))
+            .checked_div(u32::from(self.azimuths))
+            .unwrap_or(0);
         u16::try_from(value).unwrap_or(u16::MAX)
     }
 

@@ -114,6 +114,7 @@ impl SceneRenderer {
         seed: Option<u64>,
         horizon_s: f64,
     ) -> Result<SceneRenderer, SimError> {
+        scene.radar.validate()?;
         let (power, compensation, noise, geometry) = physics(scene);
         power.check().map_err(|e| SimError::Model(e.to_string()))?;
         let spectrum = SpectrumModel::new(geometry, &compensation, noise)

@@ -219,27 +219,34 @@ async fn real_time_pacing_never_sends_an_azimuth_before_its_time() {
     let scene = shipped::load("penetration-wood").expect("scene");
     let mut options = SimOptions::for_tests(scene);
     options.pacing = Pacing::Realtime;
+    options.start_time_ns = None; // azimuth 0 is "now" on the system clock
     let handle = SimServer::spawn(options).await.expect("spawn");
     let mut client = TestClient::connect(handle.local_addr()).await;
     client.configuration().await;
     client.send(Message::StartFftData).await;
+    let unix_ns =
+        |t: protocol::Timestamp| u64::from(t.seconds()) * 1_000_000_000 + u64::from(t.nanos());
+    let now_ns = || {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos() as u64)
+            .expect("clock")
+    };
     let first = client.next_fft().await;
-    let start = Instant::now();
+    let mut last = first.clone();
     for _ in 0..100 {
-        client.next_fft().await;
+        last = client.next_fft().await;
+        // Received no earlier than the moment it describes (1 ms for clock granularity).
+        assert!(
+            now_ns() + 1_000_000 >= unix_ns(last.timestamp),
+            "azimuth arrived early"
+        );
     }
-    // 100 azimuths at 500 a second take 200 ms; none may come early.
-    assert!(
-        start.elapsed() >= Duration::from_millis(190),
-        "{:?}",
-        start.elapsed()
+    // 500 azimuths a second: consecutive timestamps 2 ms apart.
+    assert_eq!(
+        unix_ns(last.timestamp) - unix_ns(first.timestamp),
+        100 * 2_000_000
     );
-    let last = client.next_fft().await;
-    let span_ns = (u64::from(last.timestamp.seconds()) * 1_000_000_000
-        + u64::from(last.timestamp.nanos()))
-        - (u64::from(first.timestamp.seconds()) * 1_000_000_000
-            + u64::from(first.timestamp.nanos()));
-    assert_eq!(span_ns, 101 * 2_000_000);
     handle.shutdown().await.expect("shutdown");
 }
 
@@ -336,5 +343,61 @@ async fn a_client_that_stops_reading_stalls_its_stream_instead_of_growing_memory
     for _ in 0..10 {
         client.next_fft().await;
     }
+    handle.shutdown().await.expect("shutdown");
+}
+
+#[tokio::test]
+async fn each_azimuth_is_rendered_from_the_pose_at_its_own_timestamp() {
+    // Driving at 10 m/s along +x between two reflectors 50 m ahead and 50 m behind. On the
+    // paper's unit (2.5 Hz) the rear-facing azimuth 100 is measured 0.2 s after azimuth 0,
+    // 2 m further on: the rear reflector must read 52 m from the start of the first
+    // rotation (bin 208), not 50 m (bin 200) as from a pose frozen at the rotation's start.
+    let text = r#"
+        name = "two-reflectors"
+        [noise]
+        enabled = false
+        [motion]
+        model = "bicycle"
+        wheelbase_m = 2.7
+        [[control]]
+        t_s = 0.0
+        speed_mps = 10.0
+        steer_rad = 0.0
+        [[features]]
+        kind = "reflector"
+        x_m = 50.0
+        y_m = 0.0
+        [[features]]
+        kind = "reflector"
+        x_m = -50.0
+        y_m = 0.0
+    "#;
+    let scene = sim_sensor::scene::Scene::from_toml_str("two-reflectors", text).expect("scene");
+    let handle = SimServer::spawn(SimOptions::for_tests(scene))
+        .await
+        .expect("spawn");
+    let mut client = TestClient::connect(handle.local_addr()).await;
+    client.configuration().await;
+    client.send(Message::StartFftData).await;
+    let mut rotation = Vec::new();
+    while rotation.len() < 400 {
+        rotation.push(client.next_fft().await);
+    }
+    let peak_bin = |k: usize| {
+        (0..800)
+            .max_by(|&a, &b| {
+                rotation[k]
+                    .power_db(a)
+                    .expect("bin")
+                    .total_cmp(&rotation[k].power_db(b).expect("bin"))
+            })
+            .expect("bins")
+    };
+    // Ahead at azimuth 0 (t = 0): 50 m. Behind at azimuth 100 (t = 0.2 s): 52 m.
+    assert_eq!(peak_bin(0), 200);
+    assert_eq!(peak_bin(100), 208);
+    // One rotation later (t = 0.4 s and 0.6 s): 46 m ahead, 56 m behind.
+    assert_eq!(peak_bin(200), 184);
+    assert_eq!(peak_bin(300), 224);
     handle.shutdown().await.expect("shutdown");
 }

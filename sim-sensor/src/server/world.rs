@@ -9,7 +9,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 use protocol::{Configuration, ConfigurationData};
 
@@ -63,20 +63,26 @@ pub fn configuration_of(radar: &RadarParams) -> Configuration {
 }
 
 impl World {
+    /// A world whose azimuth 0 is now on the wall clock; `start_unix_ns` is its Unix time
+    /// (`None`: the system clock's now, taken at the same moment).
     pub fn new(
         source: Source,
         configuration: Configuration,
         pacing: Pacing,
-        start_unix_ns: u64,
+        start_unix_ns: Option<u64>,
         stop_after: Option<u64>,
         replay_loop: bool,
     ) -> World {
+        let wall_start = Instant::now();
+        let now_unix_ns = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(0));
         World {
             source,
             configuration,
             pacing,
-            wall_start: Instant::now(),
-            start_unix_ns,
+            wall_start,
+            start_unix_ns: start_unix_ns.unwrap_or(now_unix_ns),
             frontier: AtomicU64::new(0),
             stop_after,
             replay_loop,
