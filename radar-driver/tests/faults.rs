@@ -279,3 +279,46 @@ async fn the_driver_reconnects_forever_by_default_until_shut_down() {
     .await
     .expect("bounded");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn random_garbage_and_random_write_splits_lose_no_frame() {
+    use rand::{Rng, SeedableRng};
+    tokio::time::timeout(BOUND, async {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(20_240_101);
+        let radar = FakeRadar::bind().await;
+        let (handle, rx) = start(&radar).await;
+        let config = small_configuration();
+        let mut conn = radar.accept().await;
+        conn.handshake(&config).await;
+        let mut wire = Vec::new();
+        let mut runs = 0;
+        for s in 0..500 {
+            if rng.gen_bool(0.3) {
+                let len = rng.gen_range(1..300);
+                wire.extend((0..len).map(|_| rng.gen::<u8>()));
+                runs += 1;
+            }
+            wire.extend_from_slice(&fft_frame(&config, s));
+        }
+        // Written in random pieces, so frames and garbage straddle reads.
+        let mut rest = &wire[..];
+        while !rest.is_empty() {
+            let n = rng.gen_range(1..2000).min(rest.len());
+            conn.send(&rest[..n]).await.unwrap();
+            rest = &rest[n..];
+        }
+        let az = take_async(rx.azimuths.as_ref().unwrap(), 500).await;
+        assert_eq!(sweeps(&az), (0..500).collect::<Vec<u16>>());
+        let m = handle.stop().await.unwrap().metrics;
+        assert!(runs > 100);
+        assert!(
+            m.decode_errors.signature >= runs,
+            "{} runs, {:?}",
+            runs,
+            m.decode_errors
+        );
+        assert_eq!(m.reconnects, 0);
+    })
+    .await
+    .expect("bounded");
+}
