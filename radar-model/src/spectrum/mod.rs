@@ -165,7 +165,11 @@ pub struct SpectrumModel {
     noise: NoiseModel,
     gain_db: Vec<f64>,
     floor_mean_db: Vec<f64>,
-    floor: Vec<FloorDistribution>,
+    /// Per bin `(location, scale)` of the floor draw: `loc + scale E` (`E ~ Exp(1)`)
+    /// before `weibull_from_bin`, `offset + scale W` (`W` standard Weibull) from it on.
+    floor_draw: Vec<(f64, f64)>,
+    /// First bin of the Weibull region (bins increase in range, so it is a suffix).
+    weibull_from_bin: usize,
     weibull: WeibullQuantiles,
 }
 
@@ -197,7 +201,23 @@ impl SpectrumModel {
         let ranges = (0..geometry.bins).map(|b| geometry.bin_range_m(b));
         let gain_db: Vec<f64> = ranges.clone().map(|r| compensation.gain_db(r)).collect();
         let floor_mean_db: Vec<f64> = ranges.clone().map(|r| noise.absent.mean_db(r)).collect();
-        let floor = ranges.map(|r| noise.absent.distribution_at(r)).collect();
+        let floor: Vec<FloorDistribution> =
+            ranges.map(|r| noise.absent.distribution_at(r)).collect();
+        let weibull_from_bin = floor
+            .iter()
+            .position(|f| matches!(f, FloorDistribution::Weibull { .. }))
+            .unwrap_or(floor.len());
+        let floor_draw = floor
+            .iter()
+            .map(|f| match *f {
+                FloorDistribution::ShiftedExponential { loc_db, scale_db } => (loc_db, scale_db),
+                FloorDistribution::Weibull {
+                    offset_db,
+                    scale_db,
+                    ..
+                } => (offset_db, scale_db),
+            })
+            .collect();
         let tables_finite = |v: &Vec<f64>| v.iter().all(|x: &f64| x.is_finite());
         if !tables_finite(&gain_db) || !tables_finite(&floor_mean_db) {
             return Err(ModelError::InvalidSetting {
@@ -210,7 +230,8 @@ impl SpectrumModel {
             noise,
             gain_db,
             floor_mean_db,
-            floor,
+            floor_draw,
+            weibull_from_bin,
             weibull: WeibullQuantiles::new(noise.absent.weibull_shape),
         })
     }
@@ -354,18 +375,15 @@ impl SpectrumModel {
     ) -> Result<(), ModelError> {
         self.check_buffer(out)?;
         Self::check_targets(targets)?;
-        for (value, floor) in out.iter_mut().zip(&self.floor) {
-            *value = match *floor {
-                FloorDistribution::Weibull {
-                    offset_db,
-                    scale_db,
-                    ..
-                } => offset_db + scale_db * self.weibull.sample(rng),
-                FloorDistribution::ShiftedExponential { loc_db, scale_db } => {
-                    let e: f64 = Exp1.sample(rng);
-                    loc_db + scale_db * e
-                }
-            };
+        let split = self.weibull_from_bin.min(out.len());
+        let (near_out, far_out) = out.split_at_mut(split);
+        let (near_draw, far_draw) = self.floor_draw.split_at(split);
+        for (value, &(loc, scale)) in near_out.iter_mut().zip(near_draw) {
+            let e: f64 = Exp1.sample(rng);
+            *value = loc + scale * e;
+        }
+        for (value, &(offset, scale)) in far_out.iter_mut().zip(far_draw) {
+            *value = offset + scale * self.weibull.sample(rng);
         }
         let sigma = self.noise.range.look_sigma_m();
         let present_sd = self.noise.present.variance_db2.sqrt();
