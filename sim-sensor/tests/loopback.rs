@@ -401,3 +401,39 @@ async fn each_azimuth_is_rendered_from_the_pose_at_its_own_timestamp() {
     assert_eq!(peak_bin(300), 224);
     handle.shutdown().await.expect("shutdown");
 }
+
+#[tokio::test]
+async fn any_bytes_from_clients_never_take_the_server_down() {
+    use rand::{Rng, SeedableRng};
+    let scene = shipped::load("penetration-wood").expect("scene");
+    let mut options = SimOptions::for_tests(scene);
+    options.max_clients = 3;
+    let handle = SimServer::spawn(options).await.expect("spawn");
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    for round in 0..30 {
+        let mut client = TestClient::connect(handle.local_addr()).await;
+        client.configuration().await;
+        // Random bytes, sometimes behind a valid signature with a random header (so the
+        // decoder sees bad versions, huge lengths, unknown ids and truncated payloads).
+        let mut bytes: Vec<u8> = Vec::new();
+        if round % 2 == 0 {
+            bytes.extend_from_slice(&protocol::SIGNATURE);
+        }
+        let n = rng.gen_range(1..2000);
+        bytes.extend((0..n).map(|_| rng.gen::<u8>()));
+        let _ = client.stream.write_all(&bytes).await;
+        let _ = client.stream.shutdown().await;
+        // Whatever happened to that client, the server ends its session and serves others.
+        let _ = client.read_to_end().await;
+    }
+    let mut client = TestClient::connect(handle.local_addr()).await;
+    client.configuration().await;
+    client.send(Message::StartFftData).await;
+    client.next_fft().await;
+    assert_eq!(
+        handle.stats().connections_refused,
+        0,
+        "every session was released"
+    );
+    handle.shutdown().await.expect("shutdown");
+}

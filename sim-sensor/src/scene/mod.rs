@@ -638,3 +638,37 @@ mod tests {
         );
     }
 }
+
+#[cfg(test)]
+mod fuzz {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn arbitrary_text_never_panics_the_scene_parser(text in "\\PC{0,400}") {
+            let _ = Scene::from_toml_str("fuzz", &text);
+        }
+
+        #[test]
+        fn arbitrary_numbers_in_a_well_formed_scene_are_accepted_or_named_errors(
+            x in proptest::num::f64::ANY,
+            rho in proptest::num::f64::ANY,
+            spacing in proptest::num::f64::ANY,
+            bins in proptest::num::i64::ANY,
+        ) {
+            let text = format!(
+                "[radar]\npreset = \"paper-200\"\nrange_bins = {bins}\n\
+                 [[features]]\nkind = \"tree\"\nx_m = {x:?}\ny_m = 0.0\nrho = {rho:?}\n\
+                 [[lines]]\nkind = \"wall\"\nfrom = [0.0, 0.0]\nto = [10.0, 0.0]\nspacing_m = {spacing:?}\n"
+            );
+            match Scene::from_toml_str("fuzz", &text) {
+                Ok(scene) => {
+                    prop_assert!(scene.features.iter().all(|f| f.x_m.is_finite() && f.rho > 0.0 && f.rho < 1.0));
+                    prop_assert!(scene.features.len() <= MAX_FEATURES);
+                }
+                Err(e) => prop_assert!(!e.to_string().is_empty()),
+            }
+        }
+    }
+}

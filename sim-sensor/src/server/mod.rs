@@ -2,12 +2,8 @@
 //! more are closed at once with a log line), serves each as [`client`] describes, and runs
 //! the odometry port and the ground-truth writer beside it.
 //!
-//! ```ignore
-//! let handle = SimServer::spawn(SimOptions::for_tests(scene)).await?;
-//! let radar = handle.local_addr();          // 127.0.0.1:<port>
-//! let odometry = handle.odometry_addr();    // Some(127.0.0.1:<port>)
-//! handle.shutdown().await?;
-//! ```
+//! Start one with [`SimServer::spawn`]; the returned [`SimHandle`] gives the bound addresses,
+//! the counters, and the way to stop it.
 
 mod client;
 mod stream;
@@ -97,6 +93,7 @@ pub struct SimHandle {
     local_addr: SocketAddr,
     odometry_addr: Option<SocketAddr>,
     configuration: Configuration,
+    start_unix_ns: u64,
     stats: Arc<SimStats>,
     cancel: CancellationToken,
     tasks: JoinSet<Result<(), SimError>>,
@@ -180,6 +177,7 @@ impl SimServer {
                     .map_err(|e| SimError::Task(e.to_string()))?
             });
         }
+        let start_unix_ns = world.start_unix_ns;
         tracing::info!(%local_addr, ?odometry_addr, "simulated radar listening");
         tasks.spawn(accept_loop(
             listener,
@@ -192,6 +190,7 @@ impl SimServer {
             local_addr,
             odometry_addr,
             configuration,
+            start_unix_ns,
             stats,
             cancel,
             tasks,
@@ -213,6 +212,12 @@ impl SimHandle {
     /// The configuration message every client receives first.
     pub fn configuration(&self) -> &Configuration {
         &self.configuration
+    }
+
+    /// Unix time of the scene's azimuth 0, nanoseconds (for replays: when the server started).
+    /// Ground truth and odometry timestamps count from it.
+    pub fn start_unix_ns(&self) -> u64 {
+        self.start_unix_ns
     }
 
     /// The server's counters now.
