@@ -295,3 +295,26 @@ async fn a_fault_scope_of_one_connection_leaves_the_reconnection_clean() {
     }
     handle.shutdown().await.expect("shutdown");
 }
+
+#[tokio::test]
+async fn skipping_every_azimuth_starves_nobody_on_a_single_threaded_runtime() {
+    let handle = server(FaultSettings {
+        skip_azimuth_every_n: nz(1),
+        ..FaultSettings::default()
+    })
+    .await;
+    let (mut client, _) = started(&handle).await;
+    // No azimuth ever arrives, yet the same runtime keeps serving other connections.
+    assert!(client
+        .next_within(Duration::from_millis(200))
+        .await
+        .is_none());
+    let mut other = TestClient::connect(handle.local_addr()).await;
+    other.configuration().await;
+    assert!(handle.stats().azimuths_skipped > 0);
+    assert_eq!(handle.stats().azimuths_sent, 0);
+    tokio::time::timeout(Duration::from_secs(10), handle.shutdown())
+        .await
+        .expect("shutdown in time")
+        .expect("shutdown");
+}

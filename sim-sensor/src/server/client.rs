@@ -145,9 +145,14 @@ impl Writer {
         let mut keepalive = tokio::time::interval_at(start, self.keepalive_interval);
         keepalive.set_missed_tick_behavior(MissedTickBehavior::Delay);
         let mut stream: Option<AzimuthStream> = None;
-        let mut pending: Option<Option<tokio::time::Instant>> = None;
+        // The next azimuth, prepared: when it is due, and whether it is to be left out
+        // (the skip fault) instead of written.
+        let mut pending: Option<(Option<tokio::time::Instant>, bool)> = None;
         let mut azimuth = BytesMut::with_capacity(8192);
         loop {
+            // Skipped azimuths and fast clients may never make the socket wait: spend the
+            // task's cooperative budget so other connections are not starved.
+            tokio::task::consume_budget().await;
             if let (Some(s), None) = (stream.as_mut(), pending) {
                 let skip = self.injector.skip_azimuth();
                 match s.next(&mut azimuth, skip).await? {
@@ -155,14 +160,12 @@ impl Writer {
                         tracing::info!("the stream has ended; keep-alives continue");
                         stream = None;
                     }
-                    Some(p) if p.skipped => {
-                        self.stats.azimuths_skipped.fetch_add(1, Ordering::Relaxed);
-                        continue;
+                    Some(p) => {
+                        pending = Some((p.due.map(tokio::time::Instant::from_std), p.skipped))
                     }
-                    Some(p) => pending = Some(p.due.map(tokio::time::Instant::from_std)),
                 }
             }
-            let due = pending.flatten();
+            let due = pending.and_then(|(due, _)| due);
             tokio::select! {
                 biased;
                 () = self.cancel.cancelled() => return Ok(()),
@@ -192,7 +195,12 @@ impl Writer {
                     }
                 }
                 () = sleep_until_opt(due), if pending.is_some() => {
+                    let skipped = pending.is_some_and(|(_, skipped)| skipped);
                     pending = None;
+                    if skipped {
+                        self.stats.azimuths_skipped.fetch_add(1, Ordering::Relaxed);
+                        continue;
+                    }
                     std::mem::swap(&mut self.frame, &mut azimuth);
                     let flow = self.write_frame().await?;
                     std::mem::swap(&mut self.frame, &mut azimuth);

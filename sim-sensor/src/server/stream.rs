@@ -46,8 +46,6 @@ pub(crate) struct SceneStream {
     world: Arc<World>,
     cursor: RenderCursor,
     next: u64,
-    /// Azimuths jumped over because the client fell behind real time.
-    pub behind_skips: u64,
 }
 
 pub(crate) struct PngStream {
@@ -117,7 +115,6 @@ impl AzimuthStream {
                 world: Arc::clone(world),
                 cursor: renderer.cursor(),
                 next: world.current_index(),
-                behind_skips: 0,
             }),
             Source::Png(recording) => AzimuthStream::Png(PngStream {
                 world: Arc::clone(world),
@@ -169,7 +166,6 @@ impl SceneStream {
             let rotation = u64::from(radar.azimuths);
             if now > self.next.saturating_add(rotation) {
                 let jumped = now - self.next;
-                self.behind_skips += jumped;
                 tracing::warn!(
                     jumped,
                     "client fell more than a rotation behind real time; skipping ahead"
