@@ -84,7 +84,7 @@ impl Driver {
             trigger,
             metrics,
             configuration,
-            task,
+            task: Some(task),
         }
     }
 
@@ -181,13 +181,21 @@ impl Driver {
     }
 }
 
-/// Controls a spawned driver.
+/// Controls a spawned driver. Dropping the handle stops the driver (as
+/// [`DriverHandle::shutdown`] does) without waiting for it.
 #[derive(Debug)]
 pub struct DriverHandle {
     trigger: ShutdownTrigger,
     metrics: Arc<Metrics>,
     configuration: ConfigurationWatch,
-    task: tokio::task::JoinHandle<Result<DriverExit, DriverError>>,
+    /// Taken by `join`.
+    task: Option<tokio::task::JoinHandle<Result<DriverExit, DriverError>>>,
+}
+
+impl Drop for DriverHandle {
+    fn drop(&mut self) {
+        self.trigger.trigger();
+    }
 }
 
 impl DriverHandle {
@@ -216,9 +224,14 @@ impl DriverHandle {
         self.trigger.trigger();
     }
 
-    /// Waits for the driver to end.
-    pub async fn join(self) -> Result<DriverExit, DriverError> {
-        self.task.await?
+    /// Waits for the driver to end (it ends by itself only when it gives up).
+    pub async fn join(mut self) -> Result<DriverExit, DriverError> {
+        match self.task.take() {
+            Some(task) => task.await?,
+            None => Err(DriverError::Settings(
+                "the driver was already joined".into(),
+            )),
+        }
     }
 
     /// Stops the driver and waits for it.

@@ -188,3 +188,25 @@ async fn a_re_sent_configuration_replaces_the_geometry_and_restarts_the_data() {
     .await
     .expect("bounded");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn dropping_the_handle_stops_the_driver_cleanly() {
+    tokio::time::timeout(BOUND, async {
+        let radar = FakeRadar::bind().await;
+        let (driver, rx) = Driver::new(test_settings(radar.addr));
+        let handle = driver.spawn();
+        let mut conn = radar.accept().await;
+        conn.handshake(&small_configuration()).await;
+        drop(handle);
+        assert_eq!(conn.recv().await.map(|m| m.id()), Some(22));
+        assert!(conn.closed_by_client().await);
+        // The driver is gone: its channels disconnect.
+        let az = rx.azimuths.unwrap();
+        let gone = tokio::task::spawn_blocking(move || az.recv_timeout(STEP))
+            .await
+            .unwrap();
+        assert_eq!(gone, Err(crossbeam_channel::RecvTimeoutError::Disconnected));
+    })
+    .await
+    .expect("bounded");
+}
