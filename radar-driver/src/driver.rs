@@ -168,7 +168,7 @@ impl Driver {
             tracing::warn!(
                 address = %settings.address,
                 failures_in_a_row,
-                delay_ms = delay.as_millis() as u64,
+                delay_ms = u64::try_from(delay.as_millis()).unwrap_or(u64::MAX),
                 error = %error,
                 "radar link lost; reconnecting"
             );

@@ -160,8 +160,12 @@ impl LineSplitter {
         while !bytes.is_empty() {
             let newline = bytes.iter().position(|&b| b == b'\n');
             let (chunk, rest, complete) = match newline {
-                Some(i) => (&bytes[..i], &bytes[i + 1..], true),
-                None => (bytes, &bytes[bytes.len()..], false),
+                Some(i) => {
+                    let (line, rest) = bytes.split_at(i);
+                    // `rest` starts with the newline.
+                    (line, rest.get(1..).unwrap_or_default(), true)
+                }
+                None => (bytes, &[][..], false),
             };
             bytes = rest;
             if let Some(seen) = self.discarding.as_mut() {
