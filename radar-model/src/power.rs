@@ -33,7 +33,7 @@
 //! `dr` the range resolution (and in the textbook form `s'_i = sqrt(R_i^2 + dr^2)`): the
 //! radar cannot tell distances shorter than `dr` apart, so the model should not either. The
 //! change, `20 log10(1 + (dr/dR)^2)`, is 1.9 dB at `dR = 2 dr`, below 0.1 dB beyond
-//! `10 dr` (2.5 m) and 0.014 dB for a lone target at 10 m; `d ln s / dR` is bounded by
+//! `10 dr` (2.5 m) and 0.005 dB for a lone target at 10 m; `d ln s / dR` is bounded by
 //! `1 / (2 dr)`, and a target at the sensor stays finite. Two neighbours closer than `dr`
 //! are flagged [`unresolvable`](BeamPowers::unresolvable): their order may flip between
 //! looks, so a filter should drop or inflate their power observation.
