@@ -29,7 +29,11 @@
 //! ```
 //!
 //! After an `Err`, the offending bytes have already been consumed: call `decode` again.
-//! A bad frame costs that frame, never the stream.
+//! A bad frame costs that frame, never the stream: garbage is skipped up to the next
+//! signature, a bad header loses its signature, a malformed payload its frame, and a
+//! frame cut short by the next frame's signature only its stub (see [`FrameDecoder`]).
+//! When no more bytes will come (end of a file), drain with
+//! [`FrameDecoder::decode_eof`], which never holds back a whole frame.
 //!
 //! Decoded FFT bins, health payloads and unknown payloads are [`bytes::Bytes`] slices of
 //! the input buffer: no bin is copied.
