@@ -2,12 +2,8 @@
 //! at that azimuth's timestamp, their powers by the paper's eq. 13, and a noisy spectrum by
 //! radar-model's synthesis, quantised into an FFT frame.
 //!
-//! Cost per azimuth does not grow with the scene: once per rotation the features within
-//! range of the rotation's middle pose are gathered from a grid ([`GridIndex`]) and sorted
-//! by bearing; each azimuth then tests only the features whose bearing lies within the beam
-//! plus a margin that bounds how far the vehicle's motion during the rotation can move a
-//! bearing (features closer than [`NEAR_RANGE_M`]-ish, whose bearing can swing widely,
-//! are tested on every azimuth).
+//! Cost per azimuth does not grow with the scene: [`beams`] picks the features a beam sees
+//! from per-rotation candidates gathered with a grid ([`GridIndex`]).
 //!
 //! Every random draw is a pure function of the scene's seed and the azimuth's (or
 //! rotation's) index, so all clients see identical spectra and a run is reproducible.
@@ -18,10 +14,9 @@ use bytes::BytesMut;
 use protocol::{encode_fft_frame_from_db, BinWidth, Timestamp};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, StandardNormal};
 
 use radar_model::compensation::Compensation;
-use radar_model::geometry::{range_bearing, wrap_angle, Beam, Pose2};
+use radar_model::geometry::Pose2;
 use radar_model::material::Material;
 use radar_model::noise::{NoiseModel, RangeSpread, TargetAbsentNoise, TargetPresentNoise};
 use radar_model::power::{PowerModel, PowerTarget, RadarConstants, SpreadingForm};
@@ -35,14 +30,9 @@ use crate::radar::{DataWidth, RadarParams};
 use crate::scene::{Feature, MotionSpec, Scene, Spreading};
 use crate::trajectory::{Trajectory, TrajectoryCursor};
 
-/// Features nearer than this to a rotation's middle pose (plus twice the distance travelled)
-/// are tested on every azimuth of that rotation.
-pub const NEAR_RANGE_M: f64 = 5.0;
-/// Random stream reserved for the per-rotation bearing errors (azimuth streams use the
-/// azimuth index, which never reaches it).
-const BEARING_STREAM_BASE: u64 = 1 << 63;
-/// Poses sampled per rotation to bound the vehicle's motion during it.
-const MOTION_SAMPLES: u64 = 8;
+pub mod beams;
+
+use beams::BeamSelector;
 
 /// Converts the wire width.
 pub fn bin_width(width: DataWidth) -> BinWidth {
@@ -198,11 +188,7 @@ impl SceneRenderer {
         RenderCursor {
             renderer: Arc::clone(self),
             trajectory: self.trajectory.cursor(),
-            rotation: None,
-            candidates: Vec::new(),
-            near: Vec::new(),
-            margin_rad: 0.0,
-            hits: Vec::new(),
+            beams: BeamSelector::default(),
             targets: Vec::new(),
             spectrum_targets: Vec::new(),
             power_db: vec![0.0; usize::from(self.radar.range_bins)],
@@ -220,13 +206,6 @@ pub fn offset_ns(radar: &RadarParams, index: u64) -> u64 {
     u64::try_from(ns).unwrap_or(u64::MAX)
 }
 
-#[derive(Debug, Clone, Copy)]
-struct Candidate {
-    bearing_mid: f64,
-    index: usize,
-    apparent: [f64; 2],
-}
-
 /// What [`RenderCursor::render`] produced.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Rendered {
@@ -242,11 +221,7 @@ pub struct Rendered {
 pub struct RenderCursor {
     renderer: Arc<SceneRenderer>,
     trajectory: TrajectoryCursor,
-    rotation: Option<u64>,
-    candidates: Vec<Candidate>,
-    near: Vec<Candidate>,
-    margin_rad: f64,
-    hits: Vec<(f64, usize)>,
+    beams: BeamSelector,
     targets: Vec<PowerTarget>,
     spectrum_targets: Vec<SpectrumTarget>,
     power_db: Vec<f64>,
@@ -263,8 +238,10 @@ impl RenderCursor {
     /// Features inside the beam of azimuth `index`, sorted by range, as `(range_m, feature
     /// id)`; the apparent (bearing-perturbed) positions are used, as for rendering.
     pub fn features_in_beam(&mut self, index: u64) -> Result<Vec<(f64, u32)>, SimError> {
-        self.collect_hits(index)?;
+        self.beams
+            .select(&self.renderer, &mut self.trajectory, index)?;
         Ok(self
+            .beams
             .hits
             .iter()
             .map(|&(r, i)| (r, self.renderer.ids.get(i).copied().unwrap_or(u32::MAX)))
@@ -280,10 +257,12 @@ impl RenderCursor {
         timestamp: Timestamp,
         dst: &mut BytesMut,
     ) -> Result<Rendered, SimError> {
-        let pose = self.collect_hits(index)?;
+        let pose = self
+            .beams
+            .select(&self.renderer, &mut self.trajectory, index)?;
         let r = &*self.renderer;
         self.targets.clear();
-        for &(range_m, i) in &self.hits {
+        for &(range_m, i) in &self.beams.hits {
             if let Some(material) = r.materials.get(i) {
                 self.targets.push(PowerTarget {
                     range_m,
@@ -320,119 +299,13 @@ impl RenderCursor {
         .map_err(|e| SimError::Model(format!("encoding azimuth {index}: {e}")))?;
         Ok(Rendered {
             pose,
-            targets: self.hits.len(),
+            targets: self.beams.hits.len(),
         })
     }
 
     /// The last rendered spectrum in dB (before quantisation).
     pub fn last_power_db(&self) -> &[f64] {
         &self.power_db
-    }
-
-    fn collect_hits(&mut self, index: u64) -> Result<Pose2, SimError> {
-        let n = u64::from(self.renderer.radar.azimuths);
-        let rotation = index / n;
-        if self.rotation != Some(rotation) {
-            self.prepare_rotation(rotation)?;
-        }
-        let r = &*self.renderer;
-        let pose = r
-            .trajectory
-            .pose_with(&mut self.trajectory, r.offset_ns(index))?;
-        let bearing = r
-            .radar
-            .angle_of_encoder(r.radar.encoder_of(azimuth_in_rotation(&r.radar, index)));
-        let beam = Beam {
-            bearing_rad: wrap_angle(bearing),
-            width_rad: r.radar.beam_width_rad,
-            min_range_m: 0.0,
-            max_range_m: r.radar.max_range_m(),
-        };
-        self.hits.clear();
-        let half = 0.5 * beam.width_rad + self.margin_rad;
-        let test = |c: &Candidate, hits: &mut Vec<(f64, usize)>| {
-            let rb = range_bearing(&pose, c.apparent);
-            if beam.contains(&rb) {
-                hits.push((rb.range_m, c.index));
-            }
-        };
-        for c in &self.near {
-            test(c, &mut self.hits);
-        }
-        for_each_in_window(&self.candidates, beam.bearing_rad, half, |c| {
-            test(c, &mut self.hits)
-        });
-        self.hits
-            .sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        Ok(pose)
-    }
-
-    fn prepare_rotation(&mut self, rotation: u64) -> Result<(), SimError> {
-        let r = &*self.renderer;
-        let n = u64::from(r.radar.azimuths);
-        let first = rotation.saturating_mul(n);
-        let mid_offset = r.offset_ns(first + n / 2);
-        let mid = r.trajectory.pose_with(&mut self.trajectory, mid_offset)?;
-        // Bound the motion during the rotation from a few sampled poses.
-        let mut travel_m: f64 = 0.0;
-        let mut turn_rad: f64 = 0.0;
-        for s in 0..=MOTION_SAMPLES {
-            let k = first + (n.saturating_sub(1)) * s / MOTION_SAMPLES;
-            let p = r
-                .trajectory
-                .pose_with(&mut self.trajectory, r.offset_ns(k))?;
-            travel_m = travel_m.max((p.x - mid.x).hypot(p.y - mid.y));
-            turn_rad = turn_rad.max(wrap_angle(p.theta - mid.theta).abs());
-        }
-        // Samples can miss the extremes between them: pad generously.
-        travel_m = travel_m * 1.25 + 0.05;
-        turn_rad = turn_rad * 1.25 + 1e-3;
-        let near_m = NEAR_RANGE_M + 2.0 * travel_m;
-        let bearing_pad = 4.0 * r.bearing_sigma_rad;
-        self.margin_rad = turn_rad + (travel_m / near_m).min(1.0).asin() + 1e-6;
-
-        let mut rng = ChaCha8Rng::seed_from_u64(r.seed);
-        rng.set_stream(BEARING_STREAM_BASE | rotation);
-        self.candidates.clear();
-        self.near.clear();
-        let reach = r.radar.max_range_m() + travel_m;
-        let mut found: Vec<usize> = Vec::new();
-        r.grid
-            .for_each_near([mid.x, mid.y], reach, |i| found.push(i));
-        found.sort_unstable();
-        for i in found {
-            let Some(&p) = r.positions.get(i) else {
-                continue;
-            };
-            let range_mid = (p[0] - mid.x).hypot(p[1] - mid.y);
-            if range_mid > reach {
-                continue;
-            }
-            let apparent = if r.bearing_sigma_rad > 0.0 {
-                let n: f64 = StandardNormal.sample(&mut rng);
-                let delta = (n * r.bearing_sigma_rad).clamp(-bearing_pad, bearing_pad);
-                rotate_about([mid.x, mid.y], p, delta)
-            } else {
-                p
-            };
-            let c = Candidate {
-                bearing_mid: range_bearing(&mid, apparent).bearing_rad,
-                index: i,
-                apparent,
-            };
-            if range_mid < near_m {
-                self.near.push(c);
-            } else {
-                self.candidates.push(c);
-            }
-        }
-        self.candidates.sort_by(|a, b| {
-            a.bearing_mid
-                .total_cmp(&b.bearing_mid)
-                .then(a.index.cmp(&b.index))
-        });
-        self.rotation = Some(rotation);
-        Ok(())
     }
 }
 
@@ -441,74 +314,11 @@ pub fn azimuth_in_rotation(radar: &RadarParams, index: u64) -> u16 {
     u16::try_from(index % u64::from(radar.azimuths.max(1))).unwrap_or(0)
 }
 
-/// Rotates `p` about `centre` by `-delta` radians (counter-clockwise negative), which adds
-/// `delta` to its bearing as eq. 4 measures it (clockwise).
-fn rotate_about(centre: [f64; 2], p: [f64; 2], delta: f64) -> [f64; 2] {
-    let (s, c) = (-delta).sin_cos();
-    let dx = p[0] - centre[0];
-    let dy = p[1] - centre[1];
-    [centre[0] + c * dx - s * dy, centre[1] + s * dx + c * dy]
-}
-
-/// Visits the candidates (sorted by `bearing_mid` in (-pi, pi]) whose bearing lies within
-/// `half` of `bearing`, across the +/-pi seam.
-fn for_each_in_window(
-    candidates: &[Candidate],
-    bearing: f64,
-    half: f64,
-    mut visit: impl FnMut(&Candidate),
-) {
-    if half >= std::f64::consts::PI {
-        candidates.iter().for_each(visit);
-        return;
-    }
-    let lo = bearing - half;
-    let hi = bearing + half;
-    let range = |a: f64, b: f64, visit: &mut dyn FnMut(&Candidate)| {
-        let start = candidates.partition_point(|c| c.bearing_mid < a);
-        let end = candidates.partition_point(|c| c.bearing_mid <= b);
-        if let Some(slice) = candidates.get(start..end.max(start)) {
-            slice.iter().for_each(&mut *visit);
-        }
-    };
-    let pi = std::f64::consts::PI;
-    range(lo.max(-pi), hi.min(pi), &mut visit);
-    if lo < -pi {
-        range(lo + 2.0 * pi, pi, &mut visit);
-    }
-    if hi > pi {
-        range(-pi, hi - 2.0 * pi, &mut visit);
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::scene::shipped;
-
-    #[test]
-    fn the_window_finds_candidates_across_the_pi_seam() {
-        let mk = |b: f64, i: usize| Candidate {
-            bearing_mid: b,
-            index: i,
-            apparent: [0.0, 0.0],
-        };
-        let cands = vec![mk(-3.1, 0), mk(-1.0, 1), mk(0.0, 2), mk(3.1, 3)];
-        let mut seen = Vec::new();
-        for_each_in_window(&cands, 3.13, 0.1, |c| seen.push(c.index));
-        seen.sort_unstable();
-        assert_eq!(seen, vec![0, 3]);
-    }
-
-    #[test]
-    fn rotating_a_point_adds_to_its_clockwise_bearing() {
-        let pose = Pose2::new(1.0, 2.0, 0.3);
-        let p = [11.0, 4.0];
-        let before = range_bearing(&pose, p);
-        let after = range_bearing(&pose, rotate_about([1.0, 2.0], p, 0.05));
-        assert!((after.bearing_rad - before.bearing_rad - 0.05).abs() < 1e-12);
-        assert!((after.range_m - before.range_m).abs() < 1e-12);
-    }
+    use radar_model::geometry::{range_bearing, wrap_angle, Beam};
 
     #[test]
     fn the_windowed_search_finds_exactly_what_a_full_scan_finds_on_a_moving_vehicle() {
