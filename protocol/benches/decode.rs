@@ -198,6 +198,13 @@ fn print_ratios() {
         || BytesMut::from(&stream[..]),
         |mut buf| decode_all(&mut decoder, &mut buf),
     );
+    let mut trusting = FrameDecoder::new();
+    trusting.set_cut_short_detection(false);
+    let decode_trusting = median_time(
+        reps,
+        || BytesMut::from(&stream[..]),
+        |mut buf| decode_all(&mut trusting, &mut buf),
+    );
     let mut db = Vec::with_capacity(BINS);
     let to_db = median_time(
         reps,
@@ -214,6 +221,7 @@ fn print_ratios() {
     for (name, t) in [
         ("memcpy", memcpy),
         ("decode (zero-copy)", decode),
+        ("decode, no cut-short scan", decode_trusting),
         ("decode + bins to dB", to_db),
         ("64 KiB reads + decode", read),
     ] {
