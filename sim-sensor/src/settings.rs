@@ -221,3 +221,66 @@ impl SimOptions {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_config_sim_section_maps_onto_the_options() {
+        let text = r#"
+            [sim]
+            bind = "127.0.0.1:0"
+            odometry_bind = "127.0.0.1:0"
+            max_clients = 2
+            pacing = "as-fast-as-possible"
+            keepalive_interval_ms = 250
+            scene = "long-loop"
+            data_width = 16
+            seed = 42
+            odometry_rate_hz = 50.0
+            sigma_speed_mps = 0.2
+            bias_steer_rad = 0.01
+            [sim.faults]
+            drop_after_messages = 100
+            no_keepalive = true
+        "#;
+        let config = config::Config::from_toml_str(text).expect("valid config");
+        let options = SimOptions::from_config(&config.sim).expect("options");
+        options.validate().expect("valid options");
+        assert_eq!(options.max_clients, 2);
+        assert_eq!(options.pacing, Pacing::AsFastAsPossible);
+        assert_eq!(options.keepalive_interval, Duration::from_millis(250));
+        assert_eq!(options.seed, Some(42));
+        assert_eq!(options.odometry.rate_hz, 50.0);
+        assert_eq!(options.odometry.sigma_speed_mps, 0.2);
+        assert_eq!(options.odometry.bias_steer_rad, 0.01);
+        assert_eq!(
+            options.faults.drop_after_messages.map(|n| n.get()),
+            Some(100)
+        );
+        assert!(options.faults.no_keepalive);
+        let SourceSpec::Scene(scene) = &options.source else {
+            panic!("a scene source");
+        };
+        assert_eq!(scene.name, "long-loop");
+        // The scene's own CTS350-X radar is kept (config's preset is the default), and the
+        // config's 16-bit width applies.
+        assert_eq!(scene.preset, RadarPreset::Cts350x400);
+        assert_eq!(scene.radar.data_width, DataWidth::Bits16);
+    }
+
+    #[test]
+    fn hand_made_options_with_impossible_values_are_rejected() {
+        let scene = shipped::load("penetration-wood").expect("scene");
+        let mut options = SimOptions::for_tests(scene);
+        options.max_clients = 0;
+        assert!(options.validate().is_err());
+        options.max_clients = 3;
+        options.odometry.rate_hz = f64::NAN;
+        assert!(options.validate().is_err());
+        options.odometry.rate_hz = 20.0;
+        options.keepalive_interval = Duration::ZERO;
+        assert!(options.validate().is_err());
+    }
+}
