@@ -16,7 +16,8 @@ pub enum DecodeErrorKind {
     Version,
     /// A payload size of 1,000,000 bytes or more.
     Oversized,
-    /// A payload shorter than its message type needs.
+    /// A payload shorter than its message type needs, or a frame cut short by the next
+    /// frame's signature (see [`crate::resync`]).
     Truncated,
     /// An FFT payload whose layout is impossible (data offset beyond the payload, odd 16-bit bins).
     FftLayout,
