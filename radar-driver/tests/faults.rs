@@ -322,3 +322,42 @@ async fn random_garbage_and_random_write_splits_lose_no_frame() {
     .await
     .expect("bounded");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_link_that_carries_only_garbage_is_abandoned_politely_and_reconnected() {
+    tokio::time::timeout(BOUND, async {
+        let radar = FakeRadar::bind().await;
+        let mut settings = test_settings(radar.addr);
+        settings.max_consecutive_decode_errors = 8;
+        let (driver, rx) = Driver::new(settings);
+        let handle = driver.spawn();
+        let config = small_configuration();
+        let mut conn = radar.accept().await;
+        conn.handshake(&config).await;
+        // Bytes keep flowing (so the watchdog stays quiet) but none of them is a frame.
+        // (Keep sending until the driver has given the link up; the writes may coalesce.)
+        for _ in 0..200 {
+            if handle.metrics().connect_attempts >= 2 || conn.send(&[0x5A; 100]).await.is_err() {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        assert_eq!(
+            conn.recv().await.map(|m| m.id()),
+            Some(22),
+            "stop before giving the link up"
+        );
+        assert!(conn.closed_by_client().await);
+        let mut conn2 = radar.accept().await;
+        conn2.handshake(&config).await;
+        send_ffts(&mut conn2, &config, 0..5).await;
+        let az = take_async(rx.azimuths.as_ref().unwrap(), 5).await;
+        assert_eq!(sweeps(&az), (0..5).collect::<Vec<u16>>());
+        let m = handle.stop().await.unwrap().metrics;
+        assert_eq!(m.reconnects, 1);
+        assert_eq!(m.watchdog_timeouts, 0);
+        assert!(m.decode_errors.signature >= 8);
+    })
+    .await
+    .expect("bounded");
+}
