@@ -314,3 +314,44 @@ async fn a_recording_made_by_the_driver_is_replayed_by_the_simulator_azimuth_for
     .await
     .expect("bounded");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_simulators_odometry_stream_parses_without_a_bad_line() {
+    use radar_driver::{
+        shutdown_pair, OdometryPoll, OdometrySource, TcpOdometry, TcpOdometrySettings,
+    };
+    tokio::time::timeout(BOUND, async {
+        let scene = shipped::load("penetration-wood").expect("a shipped scene");
+        let mut options = SimOptions::for_tests(scene);
+        options.pacing = sim_sensor::Pacing::Realtime;
+        let sim = SimServer::spawn(options).await.unwrap();
+        let addr = sim.odometry_addr().expect("an odometry port");
+        let (trigger, shutdown) = shutdown_pair();
+        let mut src = TcpOdometry::spawn(
+            &tokio::runtime::Handle::current(),
+            TcpOdometrySettings::new(addr),
+            shutdown,
+        );
+        let records = tokio::task::block_in_place(|| {
+            let mut out = Vec::new();
+            while out.len() < 10 {
+                match src.poll_next(STEP) {
+                    Ok(OdometryPoll::Record(r)) => out.push(r),
+                    other => panic!("expected a record, got {other:?}"),
+                }
+            }
+            out
+        });
+        assert!(records
+            .windows(2)
+            .all(|w| w[1].timestamp_s > w[0].timestamp_s));
+        assert!(records
+            .iter()
+            .all(|r| r.speed_mps.is_finite() && r.steer_rad.is_finite()));
+        assert_eq!(src.stats().line_errors, 0);
+        trigger.trigger();
+        sim.shutdown().await.unwrap();
+    })
+    .await
+    .expect("bounded");
+}
