@@ -194,7 +194,7 @@ pub fn associate(
     }
     let overlap = compatible.iter().any(|l| l.len() > 1) || per_feature.iter().any(|&c| c > 1);
     let nn = greedy_nearest(&compatible, k);
-    if !overlap {
+    if !overlap || max_nodes == 0 {
         return Association {
             pairs: nn,
             used_jcbb: false,
@@ -376,6 +376,10 @@ mod tests {
         let assoc = associate(&ctx, &targets, &gates, &gates, 1000);
         assert!(assoc.used_jcbb && !assoc.budget_exhausted);
         assert_eq!(assoc.pairs, vec![Some(0), Some(1)]);
+        // A budget of 0 turns JCBB off: nearest neighbour only.
+        let nn = associate(&ctx, &targets, &gates, &gates, 0);
+        assert!(!nn.used_jcbb);
+        assert_eq!(nn.pairs, vec![Some(1), None]);
     }
 
     #[test]

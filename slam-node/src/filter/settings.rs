@@ -41,7 +41,8 @@ pub struct FilterSettings {
     /// exclusion gate is not made a tentative (it is most likely that feature, just outside
     /// its association gate), so gate misses do not breed duplicate features.
     pub exclusion_probability: f64,
-    /// Node budget of the joint compatibility branch and bound per beam.
+    /// Node budget of the joint compatibility branch and bound per beam; 0 turns JCBB off
+    /// (greedy nearest neighbour even where gates overlap).
     pub jcbb_max_nodes: usize,
     /// Half the beam width (rad): features within this of a beam's azimuth are in that beam
     /// and attenuate each other. The paper's radar: 0.9 degrees.
@@ -216,7 +217,6 @@ impl FilterSettings {
         positive("max_predict_gap_s", self.max_predict_gap_s)?;
         probability("gate_probability", self.gate_probability)?;
         probability("exclusion_probability", self.exclusion_probability)?;
-        count("jcbb_max_nodes", self.jcbb_max_nodes)?;
         positive("beam_half_width_rad", self.beam_half_width_rad)?;
         non_negative("association_margin_rad", self.association_margin_rad)?;
         non_negative("candidate_sigmas", self.candidate_sigmas)?;
