@@ -2,7 +2,7 @@
 //! full cross-covariances and a power-only update.
 
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix4};
-use radar_model::geometry::{range_bearing, wrap_angle};
+use radar_model::geometry::{range_bearing, wrap_angle, Pose2};
 use radar_model::material::Material;
 
 use super::super::beam::{predict_candidates, BeamCandidate};
@@ -10,9 +10,31 @@ use super::super::error::FilterError;
 use super::super::lifecycle::{inverse_observation, Sighting};
 use super::super::observation::{state_columns, BeamObservation, BeamObservationModel, Target};
 use super::super::predict::ProcessModel;
-use super::super::state::{FeatureId, FEATURE_DIM};
+use super::super::state::{FeatureId, FeatureParams, FEATURE_DIM};
 use super::super::update::{batched_update, LinearisedObservation};
 use super::{BeamReport, Ekf};
+
+/// Gauss-Newton iterations of a new feature's power update.
+const INIT_POWER_ITERATIONS: usize = 10;
+
+/// Pose, feature parameters and L from values in beam-column order
+/// `[x, y, theta, (x, y, u, v) per feature, L]`.
+fn unpack_beam_columns(x: &[f64], features: usize) -> (Pose2, Vec<FeatureParams>, f64) {
+    let get = |i: usize| x.get(i).copied().unwrap_or(0.0);
+    let pose = Pose2::new(get(0), get(1), get(2));
+    let params = (0..features)
+        .map(|k| {
+            let b = 3 + 4 * k;
+            FeatureParams {
+                x_m: get(b),
+                y_m: get(b + 1),
+                u: get(b + 2),
+                v: get(b + 3),
+            }
+        })
+        .collect();
+    (pose, params, get(3 + 4 * features))
+}
 
 impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     pub(super) fn handle_unclaimed(
@@ -147,29 +169,59 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             candidates.sort_by(|a, b| a.range_m.total_cmp(&b.range_m).then(a.slot.cmp(&b.slot)));
         }
         let slots: Vec<usize> = candidates.iter().map(|c| c.slot).collect();
-        let params = self.beam_params(&slots);
-        let pred = predict_candidates(
-            &self.observer,
-            &self.pose(),
-            self.state.loss_db(),
-            &candidates,
-            &params,
-        )?;
         let Some(local) = slots.iter().position(|&s| s == new_slot) else {
             return Ok(());
         };
-        if !pred.power_usable.get(local).copied().unwrap_or(false) {
-            return Ok(());
+        let row = 3 * local + 2;
+        let columns = state_columns(&slots);
+        let x0: Vec<f64> = columns.iter().map(|&c| self.state.mean()[c]).collect();
+        let p_cc = self
+            .state
+            .covariance()
+            .select_rows(columns.iter())
+            .select_columns(columns.iter());
+        let r = self.settings.power_std_db.powi(2);
+        // Iterated EKF (Gauss-Newton on the beam's columns): a new feature's material starts
+        // from a prior that may be tens of dB from what it shows, and one linearisation there
+        // overshoots. Iterate the mean on the beam's columns, then apply one ordinary update
+        // with the last linearisation: mean x0 + K nu, covariance P - K S K^T.
+        let mut x = x0.clone();
+        let mut last: Option<(DMatrix<f64>, f64)> = None;
+        for _ in 0..INIT_POWER_ITERATIONS {
+            let (pose, params, loss_db) = unpack_beam_columns(&x, slots.len());
+            let pred = predict_candidates(&self.observer, &pose, loss_db, &candidates, &params)?;
+            let usable = pred.power_usable.get(local).copied().unwrap_or(false);
+            let Some(zhat) = pred.z.get(local).filter(|_| usable) else {
+                break;
+            };
+            let h = pred.jacobian.select_rows([row].iter());
+            let mut dx = DVector::from_iterator(x.len(), x0.iter().zip(&x).map(|(a, b)| a - b));
+            dx[2] = wrap_angle(dx[2]);
+            let nu = t.power_db - zhat[2] - (&h * &dx)[0];
+            let pht = &p_cc * h.transpose();
+            let s_val = (&h * &pht)[0] + r;
+            if !(s_val.is_finite() && s_val > 0.0 && nu.is_finite()) {
+                break;
+            }
+            let mut step: f64 = 0.0;
+            for (k, xk) in x.iter_mut().enumerate() {
+                let next = x0[k] + pht[k] * nu / s_val;
+                step = step.max((next - *xk).abs());
+                *xk = next;
+            }
+            last = Some((h, nu));
+            if step < 1e-9 {
+                break;
+            }
         }
-        let Some(zhat) = pred.z.get(local) else {
+        let Some((h, nu)) = last else {
             return Ok(());
         };
-        let row = 3 * local + 2;
         let obs = LinearisedObservation {
-            columns: state_columns(&slots),
-            jacobian: pred.jacobian.select_rows([row].iter()),
-            innovation: DVector::from_element(1, t.power_db - zhat[2]),
-            noise: DMatrix::from_element(1, 1, self.settings.power_std_db.powi(2)),
+            columns,
+            jacobian: h,
+            innovation: DVector::from_element(1, nu),
+            noise: DMatrix::from_element(1, 1, r),
         };
         batched_update(&mut self.state, &obs)?;
         Ok(())
