@@ -238,7 +238,7 @@ const EXACT_TAIL_CELLS: usize = 16;
 /// Fast sampling of a standard Weibull (scale 1) by its quantile function
 /// `x(p) = (-ln(1 - p))^(1/k)`, tabulated at `p = i / 4096` and interpolated linearly;
 /// the 16 cells at each end, where `x(p)` is steep, are computed exactly (0.8 % of draws).
-/// Interpolation error is below 1e-4 of the scale (0.003 dB at the chapter's 26.7 dB
+/// Interpolation error is below 3e-5 of the scale (0.0007 dB at the chapter's 26.7 dB
 /// scale); a draw costs one uniform variate and a lookup instead of a logarithm and a power.
 #[derive(Debug, Clone, PartialEq)]
 pub struct WeibullQuantiles {
@@ -247,15 +247,16 @@ pub struct WeibullQuantiles {
 }
 
 impl WeibullQuantiles {
-    /// The table for shape `k` (must be finite and positive; checked by the caller's
-    /// settings validation, and a non-positive shape yields a table of NaN-free zeros).
+    /// The table for shape `k`. A shape that is not finite and positive (refused by
+    /// [`TargetAbsentNoise::check`]) falls back to `k = 1`, the exponential.
     pub fn new(shape: f64) -> Self {
         let inv_shape = if shape.is_finite() && shape > 0.0 {
             1.0 / shape
         } else {
             1.0
         };
-        let table = (0..=QUANTILE_CELLS)
+        // Only the cells interpolation reaches: up to the start of the exact upper tail.
+        let table = (0..=QUANTILE_CELLS - EXACT_TAIL_CELLS)
             .map(|i| Self::exact(i as f64 / QUANTILE_CELLS as f64, inv_shape))
             .collect();
         Self { inv_shape, table }
@@ -428,8 +429,9 @@ mod tests {
             let exact = (-(-p).ln_1p()).powf(1.0 / 5.333);
             worst = worst.max((q.quantile(p) - exact).abs());
         }
-        // In dB at the chapter's 26.706 dB scale: below 0.003 dB.
-        assert!(worst * 26.706 < 3e-3, "worst {worst}");
+        // In dB at the chapter's 26.706 dB scale: measured 0.0007 dB, asserted below 0.001.
+        println!("worst interpolation error {worst:e} of the scale");
+        assert!(worst * 26.706 < 1e-3, "worst {worst}");
         assert!(q.quantile(1.0).is_finite() && q.quantile(-1.0) == 0.0);
     }
 
