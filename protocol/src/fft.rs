@@ -294,9 +294,9 @@ where
     I::IntoIter: ExactSizeIterator,
 {
     let powers = power_db.into_iter();
+    let declared_bins = powers.len();
     let bin_bytes =
-        powers
-            .len()
+        declared_bins
             .checked_mul(width.bytes_per_bin())
             .ok_or(EncodeError::PayloadTooLarge {
                 message_id: width.message_id(),
@@ -318,7 +318,8 @@ where
     // block instead of per bin.
     let mut block = [0u8; 512];
     let mut filled = 0;
-    for (index, db) in powers.enumerate() {
+    // `take` bounds the output even if the iterator yields more than it declared.
+    for (index, db) in powers.take(declared_bins).enumerate() {
         if !db.is_finite() {
             dst.truncate(start);
             return Err(EncodeError::NonFinitePower {
