@@ -437,3 +437,38 @@ async fn any_bytes_from_clients_never_take_the_server_down() {
     );
     handle.shutdown().await.expect("shutdown");
 }
+
+#[tokio::test]
+async fn in_real_time_a_client_left_more_than_a_rotation_behind_is_moved_to_now() {
+    // A CTS350-X with 16-bit bins sends about 12 MB a second, so a client that stops reading
+    // fills the socket buffers quickly and falls behind the wall clock.
+    let scene = shipped::load("long-loop")
+        .expect("scene")
+        .with_data_width(DataWidth::Bits16);
+    let mut options = SimOptions::for_tests(scene);
+    options.pacing = Pacing::Realtime;
+    let handle = SimServer::spawn(options).await.expect("spawn");
+    let mut client = TestClient::connect(handle.local_addr()).await;
+    client.configuration().await;
+    client.send(Message::StartFftData).await;
+    let first = client.next_fft().await;
+    tokio::time::sleep(Duration::from_millis(2500)).await;
+    // Read the backlog: somewhere the sweep counter jumps by more than a rotation (400),
+    // and nothing else is out of order.
+    let mut last = first.sweep_counter;
+    let mut jump = None;
+    for _ in 0..20_000 {
+        let fft = client.next_fft().await;
+        let step = fft.sweep_counter.wrapping_sub(last);
+        assert!(step >= 1, "sweep counter went backwards");
+        if step > 400 {
+            jump = Some(step);
+            break;
+        }
+        assert_eq!(step, 1, "gaps other than the catch-up jump");
+        last = fft.sweep_counter;
+    }
+    let jump = jump.expect("the server skipped ahead to the wall clock");
+    assert!(jump > 400, "{jump}");
+    handle.shutdown().await.expect("shutdown");
+}
