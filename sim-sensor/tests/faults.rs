@@ -229,7 +229,7 @@ async fn no_keepalive_silences_keep_alives_that_otherwise_arrive() {
         }
         n
     }
-    assert!(count_keepalives(&control).await >= 4);
+    assert!(count_keepalives(&control).await >= 2);
     assert_eq!(count_keepalives(&silent).await, 0);
     control.shutdown().await.expect("shutdown");
     silent.shutdown().await.expect("shutdown");

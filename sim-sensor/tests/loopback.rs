@@ -207,8 +207,9 @@ async fn keep_alives_arrive_at_the_configured_interval() {
             keepalives += 1;
         }
     }
+    // Ten are due (the loop may run to 1.25 s); a loaded machine may delay timer ticks.
     assert!(
-        (6..=12).contains(&keepalives),
+        (4..=12).contains(&keepalives),
         "{keepalives} keep-alives in about 1 s at 100 ms"
     );
     handle.shutdown().await.expect("shutdown");
