@@ -1,6 +1,6 @@
 //! The Colossus server: accepts up to `max_clients` connections (a real radar serves 3;
-//! more are closed at once with a log line), serves each connection with a reader task and a paced writer, and runs
-//! the odometry port and the ground-truth writer beside it.
+//! more are closed at once with a log line), serves each with a reader task and a paced
+//! writer, and runs the odometry port and the ground-truth writer beside it.
 //!
 //! Start one with [`SimServer::spawn`]; the returned [`SimHandle`] gives the bound addresses,
 //! the counters, and the way to stop it.
