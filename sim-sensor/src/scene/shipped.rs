@@ -66,6 +66,40 @@ mod tests {
         );
     }
 
+    /// Azimuths of the first rotation whose beam holds at least two features, and the most
+    /// features any one beam holds (noise off, so exact geometry).
+    fn multi_target_beams(name: &str) -> (usize, usize) {
+        let mut scene = load(name).expect("valid");
+        scene.noise.enabled = false;
+        let renderer = std::sync::Arc::new(
+            crate::render::SceneRenderer::new(&scene, None, 10.0).expect("renderer"),
+        );
+        let mut cursor = renderer.cursor();
+        let counts: Vec<usize> = (0..u64::from(scene.radar.azimuths))
+            .map(|k| cursor.features_in_beam(k).expect("beam").len())
+            .collect();
+        (
+            counts.iter().filter(|&&n| n >= 2).count(),
+            counts.into_iter().max().unwrap_or(0),
+        )
+    }
+
+    #[test]
+    fn the_outdoor_field_has_several_targets_down_some_beams() {
+        let (beams, most) = multi_target_beams("outdoor-field");
+        println!("outdoor-field: {beams} of 200 beams hold 2+ features, at most {most}");
+        assert!(beams >= 10, "{beams} beams with two or more targets");
+        assert!(most >= 3, "at most {most} targets in one beam");
+    }
+
+    #[test]
+    fn the_dense_clutter_has_more_multi_target_beams_than_the_field() {
+        let (dense, _) = multi_target_beams("dense-clutter");
+        let (field, _) = multi_target_beams("outdoor-field");
+        println!("dense-clutter: {dense} of 200 beams hold 2+ features (field: {field})");
+        assert!(dense > field, "dense {dense} vs field {field}");
+    }
+
     #[test]
     fn an_unknown_shipped_name_lists_the_shipped_ones() {
         let err = load("nowhere").expect_err("unknown");
