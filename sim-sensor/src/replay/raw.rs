@@ -93,7 +93,14 @@ impl RawReader {
     /// The next decodable message, `None` at the end of the file.
     pub async fn next_message(&mut self) -> Result<Option<Message>, ReplayError> {
         loop {
-            match self.decoder.decode(&mut self.buf) {
+            // At the end of the file the decoder must give up any frame it holds back while
+            // waiting to see whether a signature follows it.
+            let decoded = if self.eof {
+                self.decoder.decode_eof(&mut self.buf)
+            } else {
+                self.decoder.decode(&mut self.buf)
+            };
+            match decoded {
                 Ok(Some(message)) => return Ok(Some(message)),
                 Ok(None) if self.eof => return Ok(None),
                 Ok(None) => self.fill().await?,
