@@ -124,6 +124,8 @@ proptest! {
         let input = OdometrySample { timestamp_s: 0.0, speed_mps: speed, steer_rad: steer };
         let step = model.step(&state.pose(), speed, steer, dt).unwrap();
         predict_to(&mut state, &model, &input, dt, &settings).unwrap();
+        // The material random walk is added lazily; settle it to compare with the dense form.
+        state.settle_all_material(settings.material_variance_per_s);
         let mut f_full = DMatrix::identity(n, n);
         f_full.view_mut((0, 0), (3, 3)).copy_from(&step.wrt_pose);
         let q_in = nalgebra::Matrix2::new(

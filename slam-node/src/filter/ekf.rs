@@ -89,7 +89,7 @@ pub struct FilterStats {
 }
 
 /// The augmented-state EKF with its models.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct Ekf<M, O> {
     settings: FilterSettings,
     gates: GateTable,
@@ -143,7 +143,8 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         &self.settings
     }
 
-    /// The whole state (mean, covariance, tracks).
+    /// The whole state (mean, covariance, tracks). The u, v variances of features not seen
+    /// lately lag their random walk until [`Self::settle_material_noise`].
     pub fn state(&self) -> &SlamState {
         &self.state
     }
@@ -252,6 +253,14 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         predict_to(&mut self.state, &self.motion, &held, time_s, &self.settings)
     }
 
+    /// Brings every feature's u, v variance up to date (the material random walk is added
+    /// lazily, when a feature is next in a beam). Call before reading the covariance for
+    /// output; O(N).
+    pub fn settle_material_noise(&mut self) {
+        self.state
+            .settle_all_material(self.settings.material_variance_per_s);
+    }
+
     /// Removes a feature (map management); its id is never reused.
     pub fn remove_feature(&mut self, id: FeatureId) -> Result<(), FilterError> {
         self.state.remove(id)
@@ -307,6 +316,10 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     ) -> Result<Vec<usize>, FilterError> {
         let slots: Vec<usize> = candidates.iter().map(|c| c.slot).collect();
         let slots = &slots[..];
+        for &slot in slots {
+            self.state
+                .settle_material(slot, self.settings.material_variance_per_s);
+        }
         let params = self.beam_params(slots);
         let pred = predict_candidates(
             &self.observer,

@@ -2,8 +2,11 @@
 //! from the state's time to any requested time with the odometry held since its timestamp.
 //!
 //! Only the pose rows and columns change: `P_vv <- F P_vv F^T + G Q G^T`, `P_vm <- F P_vm`
-//! (mirrored into `P_mv`), plus a small variance growth on every u and v. Features'
-//! positions and L get no process noise. The cost is O(n) per step.
+//! (mirrored into `P_mv`). Features' positions and L get no process noise. The cost is O(n)
+//! per step. The small random-walk variance growth of every u and v is applied lazily, per
+//! feature, when the feature is next used ([`SlamState::settle_material`]): independent
+//! additive noise on a state commutes with every update that does not observe that state,
+//! so deferring it is exact and keeps an empty beam from touching every feature.
 //!
 //! Input noise is modelled as white with spectral density `std^2 * correlation_s` (see
 //! [`FilterSettings::input_noise_correlation_s`]): over a step of `dt` the inputs'
@@ -15,7 +18,7 @@ use radar_model::geometry::{wrap_angle, Pose2};
 
 use super::error::FilterError;
 use super::settings::FilterSettings;
-use super::state::{feature_index, SlamState, POSE_DIM};
+use super::state::{SlamState, POSE_DIM};
 
 /// One odometry sample: what the vehicle reports at `timestamp_s`, held until the next.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -101,22 +104,14 @@ pub fn predict_step<M: ProcessModel + ?Sized>(
     let mut new_vv = f * p_vv * f.transpose() + g * q * g.transpose();
     new_vv = 0.5 * (new_vv + new_vv.transpose());
     cov.fixed_view_mut::<3, 3>(0, 0).copy_from(&new_vv);
-    // Pose-map cross blocks: columns 3..n of the pose rows, mirrored.
+    // Pose-map cross blocks, read from the pose columns (contiguous in j) and written to both
+    // the pose columns and the pose rows (one cache line per column).
     for j in POSE_DIM..n {
-        let c = Vector3::new(cov[(0, j)], cov[(1, j)], cov[(2, j)]);
+        let c = Vector3::new(cov[(j, 0)], cov[(j, 1)], cov[(j, 2)]);
         let fc = f * c;
         for r in 0..POSE_DIM {
-            cov[(r, j)] = fc[r];
             cov[(j, r)] = fc[r];
-        }
-    }
-    // Material drift on u and v.
-    let q_uv = settings.material_variance_per_s * dt_s;
-    if q_uv > 0.0 {
-        for slot in 0..state.feature_count() {
-            let i = feature_index(slot);
-            state.cov[(i + 2, i + 2)] += q_uv;
-            state.cov[(i + 3, i + 3)] += q_uv;
+            cov[(r, j)] = fc[r];
         }
     }
     state.mean[0] = step.pose.x;

@@ -48,6 +48,8 @@ pub struct FeatureTrack {
     pub created_s: f64,
     /// Time it was last associated (s).
     pub last_seen_s: f64,
+    /// Time up to which the material random walk has been added to its u, v variances.
+    pub material_settled_s: f64,
 }
 
 /// A feature's estimated state elements.
@@ -157,6 +159,7 @@ impl SlamState {
                 hits: 0,
                 created_s: time_s,
                 last_seen_s: time_s,
+                material_settled_s: time_s,
             })
             .collect();
         let mut mean = mean;
@@ -226,6 +229,30 @@ impl SlamState {
     /// The slot of a feature id (linear in N; N is bounded by the settings).
     pub fn slot_of(&self, id: FeatureId) -> Option<usize> {
         self.tracks.iter().position(|t| t.id == id)
+    }
+
+    /// Adds the material random walk `rate_per_s * (now - settled)` to slot `slot`'s u and v
+    /// variances (see `predict`'s module docs: deferring it is exact).
+    pub fn settle_material(&mut self, slot: usize, rate_per_s: f64) {
+        let now = self.time_s;
+        let Some(track) = self.tracks.get_mut(slot) else {
+            return;
+        };
+        let dt = now - track.material_settled_s;
+        track.material_settled_s = now;
+        let q = rate_per_s * dt;
+        if q > 0.0 && q.is_finite() {
+            let i = feature_index(slot);
+            self.cov[(i + 2, i + 2)] += q;
+            self.cov[(i + 3, i + 3)] += q;
+        }
+    }
+
+    /// [`Self::settle_material`] for every feature: O(N).
+    pub fn settle_all_material(&mut self, rate_per_s: f64) {
+        for slot in 0..self.tracks.len() {
+            self.settle_material(slot, rate_per_s);
+        }
     }
 
     /// A feature's parameters by slot.
@@ -299,6 +326,7 @@ impl SlamState {
             hits: 1,
             created_s: time_s,
             last_seen_s: time_s,
+            material_settled_s: time_s,
         });
         Ok(id)
     }

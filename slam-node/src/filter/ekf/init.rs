@@ -169,6 +169,10 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             candidates.sort_by(|a, b| a.range_m.total_cmp(&b.range_m).then(a.slot.cmp(&b.slot)));
         }
         let slots: Vec<usize> = candidates.iter().map(|c| c.slot).collect();
+        for &slot in &slots {
+            self.state
+                .settle_material(slot, self.settings.material_variance_per_s);
+        }
         let Some(local) = slots.iter().position(|&s| s == new_slot) else {
             return Ok(());
         };
