@@ -465,6 +465,16 @@ fn nan_and_infinite_observations_are_rejected_before_touching_the_state() {
         }),
         Err(FilterError::NonFiniteOdometry { .. })
     ));
+    // A flood of targets is refused too.
+    let flood = BeamObservation {
+        timestamp_s: T0 + 1.0,
+        bearing_rad: rb.bearing_rad,
+        targets: vec![good; 10_000],
+    };
+    assert!(matches!(
+        f.process_beam(&flood),
+        Err(FilterError::TooManyTargets { .. })
+    ));
     // Bit for bit unchanged.
     assert_eq!(f.state().mean(), &mean);
     assert_eq!(f.state().covariance(), &cov);

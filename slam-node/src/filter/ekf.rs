@@ -276,6 +276,12 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// beam's time but not updated.
     pub fn process_beam(&mut self, beam: &BeamObservation) -> Result<BeamReport, FilterError> {
         beam.check()?;
+        if beam.targets.len() > self.settings.max_targets_per_beam {
+            return Err(FilterError::TooManyTargets {
+                count: beam.targets.len(),
+                limit: self.settings.max_targets_per_beam,
+            });
+        }
         self.predict_to(beam.timestamp_s)?;
         let mut report = BeamReport::default();
         let in_beam = self.features_in_beam(beam.bearing_rad);

@@ -36,6 +36,14 @@ pub enum FilterError {
         /// The settings' minimum range.
         min_range_m: f64,
     },
+    /// A beam carried more targets than the settings allow; nothing was applied.
+    #[error("beam has {count} targets, more than the limit {limit}")]
+    TooManyTargets {
+        /// Targets in the beam.
+        count: usize,
+        /// The settings' limit.
+        limit: usize,
+    },
     /// A range was negative.
     #[error("negative range {0} m")]
     NegativeRange(f64),

@@ -42,7 +42,8 @@ pub struct FilterSettings {
     /// its association gate), so gate misses do not breed duplicate features.
     pub exclusion_probability: f64,
     /// Node budget of the joint compatibility branch and bound per beam; 0 turns JCBB off
-    /// (greedy nearest neighbour even where gates overlap).
+    /// (greedy nearest neighbour even where gates overlap). At most
+    /// [`MAX_JCBB_NODES`] (the search recurses once per node).
     pub jcbb_max_nodes: usize,
     /// Half the beam width (rad): features within this of a beam's azimuth are in that beam
     /// and attenuate each other. The paper's radar: 0.9 degrees.
@@ -67,6 +68,9 @@ pub struct FilterSettings {
     pub confirm_min_separation_s: f64,
     /// A tentative target not seen again within this time is forgotten (s).
     pub tentative_timeout_s: f64,
+    /// A beam with more targets than this is refused (typed error, state untouched): a
+    /// detector gives a handful per beam, so thousands mean bad input.
+    pub max_targets_per_beam: usize,
     /// Upper bound on the number of tentative targets held (bounded memory).
     pub max_tentatives: usize,
     /// Upper bound on the number of features in the state (bounded memory).
@@ -110,6 +114,7 @@ impl Default for FilterSettings {
             min_detectable_power_db: f64::NEG_INFINITY,
             confirm_min_separation_s: 0.1,
             tentative_timeout_s: 2.0,
+            max_targets_per_beam: 64,
             max_tentatives: 4_096,
             max_features: 2_000,
             retire_after_misses: 8,
@@ -121,6 +126,9 @@ impl Default for FilterSettings {
         }
     }
 }
+
+/// Largest JCBB node budget accepted.
+pub const MAX_JCBB_NODES: usize = 100_000;
 
 /// A setting that makes no sense.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -162,6 +170,14 @@ pub enum SettingsError {
     ZeroCount {
         /// Field name.
         name: &'static str,
+    },
+    /// A count above its limit.
+    #[error("{name} must be at most {max}")]
+    TooLarge {
+        /// Field name.
+        name: &'static str,
+        /// The limit.
+        max: usize,
     },
     /// The value must not be NaN (infinities are allowed where documented).
     #[error("{name} must not be NaN")]
@@ -229,7 +245,14 @@ impl FilterSettings {
         }
         non_negative("confirm_min_separation_s", self.confirm_min_separation_s)?;
         positive("tentative_timeout_s", self.tentative_timeout_s)?;
+        count("max_targets_per_beam", self.max_targets_per_beam)?;
         count("max_tentatives", self.max_tentatives)?;
+        if self.jcbb_max_nodes > MAX_JCBB_NODES {
+            return Err(SettingsError::TooLarge {
+                name: "jcbb_max_nodes",
+                max: MAX_JCBB_NODES,
+            });
+        }
         count("max_features", self.max_features)?;
         count("retire_after_misses", self.retire_after_misses as usize)?;
         probability("initial_rho", self.initial_rho)?;
