@@ -1,0 +1,160 @@
+//! The end-of-run summary and the progress line, as text for a terminal.
+
+use std::fmt::Write as _;
+
+use crate::pipeline::{DaemonEkf, PipelineSummary};
+
+use super::DaemonReport;
+
+/// One progress line after a rotation.
+pub fn progress_line(s: &PipelineSummary, ekf: &DaemonEkf) -> String {
+    let pose = ekf.pose();
+    let cov = ekf.pose_covariance();
+    let mut line = format!(
+        "t={:6.1} s  rotation {:4}  map {:3}  pose ({:7.2}, {:7.2}, {:6.1} deg) +-{:.2} m  {:.2} ms/rotation",
+        s.stream_s(),
+        s.rotations,
+        ekf.feature_count(),
+        pose.x,
+        pose.y,
+        pose.theta.to_degrees(),
+        (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt(),
+        s.mean_rotation_ms()
+    );
+    let refused = s.refused.no_odometry + s.refused.stale_odometry;
+    if refused > 0 {
+        let _ = write!(line, "  refused beams (no/stale odometry) {refused}");
+    }
+    line
+}
+
+/// The summary printed when a run ends.
+pub fn summary_text(r: &DaemonReport) -> String {
+    let s = &r.run.summary;
+    let mut t = String::new();
+    let scene = r.scene.as_deref().unwrap_or("live radar");
+    let _ = writeln!(
+        t,
+        "slam-node summary ({scene}): {:.1} s of stream in {:.1} s wall",
+        s.stream_s(),
+        r.run.wall_s
+    );
+    let _ = writeln!(
+        t,
+        "  rotations {}, azimuths {} ({} malformed), detections {} ({:.1}/rotation), observations {}, beams to the filter {}",
+        s.rotations,
+        s.azimuths,
+        s.bad_azimuths,
+        s.detections,
+        s.detections as f64 / s.rotations.max(1) as f64,
+        s.observations,
+        s.beams
+    );
+    if let Some(d) = &r.driver {
+        let _ = writeln!(
+            t,
+            "  driver: {} azimuths sent, {} dropped, {} reconnects, {} decode errors",
+            d.azimuths_sent,
+            d.azimuth_drops,
+            d.reconnects,
+            d.decode_errors.total()
+        );
+    }
+    if let Some(p) = &s.pose {
+        let _ = writeln!(
+            t,
+            "  pose error vs truth: RMS {:.3} m, max {:.3} m, final {:.3} m / {:.2} deg; inside own 3-sigma in {:.1}% of {} rotations; mean NEES {:.2} (3 dof)",
+            p.rms_position_m(),
+            p.max_position_m,
+            p.final_position_m,
+            p.final_heading_rad.to_degrees(),
+            100.0 * p.inside_fraction(),
+            p.samples,
+            p.nees_sum / p.samples.max(1) as f64
+        );
+    }
+    if let Some(m) = &s.map {
+        let _ = writeln!(
+            t,
+            "  map: {} features mapped; scene has {} ({} came within range); {} mapped features match {} distinct scene features (mean error {:.2} m); {} unmatched",
+            m.mapped,
+            m.scene_features,
+            m.scene_features_in_range,
+            m.matched,
+            m.distinct_scene_features_matched,
+            m.mean_match_error_m,
+            m.mapped.saturating_sub(m.matched)
+        );
+        let _ = writeln!(
+            t,
+            "  materials: mean |rho - true| {:.3} (initial guess {:.3}), mean |alpha - true| {:.3} (initial {:.3})",
+            m.mean_rho_error, m.initial_rho_error, m.mean_alpha_error, m.initial_alpha_error
+        );
+        let _ = writeln!(
+            t,
+            "  associations {}: {} to the wrong scene feature ({:.2}%), {} of clutter",
+            s.associations,
+            s.association_errors,
+            100.0 * s.association_errors as f64 / s.associations.max(1) as f64,
+            s.clutter_associations
+        );
+    } else {
+        let _ = writeln!(t, "  associations {}", s.associations);
+    }
+    match (s.spectrum.in_bound_fraction(), s.spectrum.bias_db()) {
+        (Some(f), Some(b)) => {
+            let _ = writeln!(
+                t,
+                "  spectrum prediction: {:.1}% of {} bins inside +-16.35 dB over {} beams with mapped features; bias (predicted - measured) {:+.2} dB",
+                100.0 * f,
+                s.spectrum.bins,
+                s.spectrum.beams,
+                b
+            );
+        }
+        _ => {
+            let _ = writeln!(
+                t,
+                "  spectrum prediction: no beam with a mapped feature compared"
+            );
+        }
+    }
+    let n = s.rotations.max(1) as f64;
+    let _ = writeln!(
+        t,
+        "  time per rotation: mean {:.2} ms (detection {:.2}, filter {:.2}, spectrum {:.2}), p50 {:.2}, p99 {:.2}, max {:.2} ms; real-time factor {:.1}x on one thread",
+        s.mean_rotation_ms(),
+        s.detect_ms / n,
+        s.filter_ms / n,
+        s.spectrum_ms / n,
+        s.rotation_ms_percentile(50.0),
+        s.rotation_ms_percentile(99.0),
+        s.max_rotation_ms,
+        s.real_time_factor()
+    );
+    let _ = writeln!(
+        t,
+        "  refused beams: {} without odometry, {} with stale odometry, {} late; filter errors {}; radar stalls {}; odometry errors {}; output events dropped {}",
+        s.refused.no_odometry,
+        s.refused.stale_odometry,
+        s.refused.late_beams,
+        s.filter_errors,
+        r.run.stalls,
+        r.run.odometry_errors,
+        r.run.output_drops
+    );
+    let _ = writeln!(
+        t,
+        "  outputs in {}: trajectory.tum, map.json, diagnostics.jsonl, spectra.jsonl{}",
+        r.out_dir.display(),
+        if r.writer.figures.is_empty() {
+            String::new()
+        } else {
+            format!(
+                ", {} figures (map.svg, spectrum_*.svg)",
+                r.writer.figures.len()
+            )
+        }
+    );
+    t
+}

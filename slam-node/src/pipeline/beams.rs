@@ -1,0 +1,99 @@
+//! From grouped observations (one per target, in time order) to the filter's beams: targets
+//! whose bearings lie within half a beam width of each other, seen within a few azimuths,
+//! go to the filter together, so that eq. 13's attenuation by the targets in front applies.
+//!
+//! A beam's timestamp is its earliest target's, so beams leave in non-decreasing time (the
+//! filter refuses to predict backwards); each target keeps its own bearing.
+
+use crate::angles::wrap_angle;
+use crate::detect::Observation;
+use crate::filter::{BeamObservation, Target};
+
+/// Gathers observations into beams.
+#[derive(Debug)]
+pub struct BeamAssembler {
+    half_width_rad: f64,
+    max_dt_s: f64,
+    pending: Vec<Observation>,
+}
+
+impl BeamAssembler {
+    /// Targets within `half_width_rad` of the beam's first target and `max_dt_s` of its time
+    /// share a beam.
+    pub fn new(half_width_rad: f64, max_dt_s: f64) -> Self {
+        Self {
+            half_width_rad,
+            max_dt_s,
+            pending: Vec::new(),
+        }
+    }
+
+    /// Adds one observation; completed beams go to `out`.
+    pub fn push(&mut self, obs: Observation, out: &mut Vec<BeamObservation>) {
+        if let Some(first) = self.pending.first() {
+            let same_beam = wrap_angle(obs.bearing_rad - first.bearing_rad).abs()
+                <= self.half_width_rad
+                && obs.timestamp_s - first.timestamp_s <= self.max_dt_s;
+            if !same_beam {
+                self.flush(out);
+            }
+        }
+        self.pending.push(obs);
+    }
+
+    /// Emits the pending beam, if any.
+    pub fn flush(&mut self, out: &mut Vec<BeamObservation>) {
+        let Some(first) = self.pending.first().copied() else {
+            return;
+        };
+        let strongest = self
+            .pending
+            .iter()
+            .max_by(|a, b| a.power_db.total_cmp(&b.power_db))
+            .copied()
+            .unwrap_or(first);
+        out.push(BeamObservation {
+            timestamp_s: first.timestamp_s,
+            bearing_rad: strongest.bearing_rad,
+            targets: self
+                .pending
+                .drain(..)
+                .map(|o| Target {
+                    range_m: o.range_m,
+                    bearing_rad: o.bearing_rad,
+                    power_db: o.power_db,
+                })
+                .collect(),
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn obs(range_m: f64, bearing_deg: f64, t: f64) -> Observation {
+        Observation {
+            range_m,
+            bearing_rad: bearing_deg.to_radians(),
+            power_db: 0.0,
+            timestamp_s: t,
+            azimuths: 1,
+            peak_range_m: range_m,
+        }
+    }
+
+    #[test]
+    fn targets_down_one_beam_are_delivered_together_and_others_apart() {
+        let mut a = BeamAssembler::new(0.9f64.to_radians(), 0.05);
+        let mut out = Vec::new();
+        a.push(obs(8.5, 0.0, 1.000), &mut out);
+        a.push(obs(14.0, 0.3, 1.002), &mut out);
+        a.push(obs(20.0, 10.0, 1.010), &mut out);
+        a.flush(&mut out);
+        assert_eq!(out.len(), 2);
+        assert_eq!(out[0].targets.len(), 2);
+        assert_eq!(out[1].targets.len(), 1);
+        assert!(out[0].timestamp_s <= out[1].timestamp_s);
+    }
+}

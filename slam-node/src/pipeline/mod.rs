@@ -1,0 +1,20 @@
+//! The daemon's pipeline: per azimuth, range compensation removed and every target
+//! detected, grouped across azimuths, handed to the EKF at its own timestamp with the
+//! odometry up to that time; whole-spectrum prediction compared with the measurement;
+//! diagnostics and outputs per rotation. The processing ([`core`]) does no IO; [`run`] is the
+//! thread that feeds it from the driver's channel and odometry and ships its outputs.
+
+pub mod beams;
+pub mod core;
+pub mod odometry;
+pub mod run;
+pub mod settings;
+pub mod spectrum;
+pub mod summary;
+pub mod truth;
+
+pub use self::core::{DaemonEkf, Pipeline, PipelineError};
+pub use run::{run_pipeline, PipelineInputs, RunControl, RunReport};
+pub use settings::PipelineSettings;
+pub use summary::PipelineSummary;
+pub use truth::{SceneTruth, TrueFeature, TruthOracle};

@@ -1,0 +1,223 @@
+//! The pipeline's thread: azimuths from the driver's lock-free channel, odometry from its
+//! source, events to the writer. It waits (bounded) for odometry to reach each azimuth's
+//! time, says so when the radar stalls and keeps its state until the stream returns, and
+//! stops on request, at the end of the stream, or after a set stream duration.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{Receiver, RecvTimeoutError};
+use radar_driver::{Azimuth, OdometryPoll, OdometrySource};
+use tracing::{error, info, warn};
+
+use super::core::{DaemonEkf, Pipeline};
+use super::summary::PipelineSummary;
+use crate::filter::OdometrySample;
+use crate::output::OutputHandle;
+
+/// What the pipeline thread reads.
+pub struct PipelineInputs {
+    /// Azimuths from the driver.
+    pub azimuths: Receiver<Azimuth>,
+    /// Odometry, or `None` when there is none (the filter then refuses to run).
+    pub odometry: Option<Box<dyn OdometrySource>>,
+}
+
+impl std::fmt::Debug for PipelineInputs {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PipelineInputs")
+            .field("odometry", &self.odometry.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+/// Progress callback: called after every rotation with the running totals and the filter.
+pub type ProgressFn = Box<dyn FnMut(&PipelineSummary, &DaemonEkf) + Send>;
+
+/// How the thread is stopped and watched.
+pub struct RunControl {
+    /// Set to stop at the next azimuth.
+    pub stop: Arc<AtomicBool>,
+    /// Stop after this much stream time from the first azimuth.
+    pub max_stream_s: Option<f64>,
+    /// Called after every rotation.
+    pub progress: Option<ProgressFn>,
+}
+
+impl std::fmt::Debug for RunControl {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RunControl")
+            .field("max_stream_s", &self.max_stream_s)
+            .finish_non_exhaustive()
+    }
+}
+
+/// What the thread did besides the pipeline's own summary.
+#[derive(Debug, Clone, Default)]
+pub struct RunReport {
+    /// The pipeline's summary.
+    pub summary: PipelineSummary,
+    /// Radar stalls declared.
+    pub stalls: u64,
+    /// Odometry lines the source rejected.
+    pub odometry_errors: u64,
+    /// Output events dropped because the writer was behind.
+    pub output_drops: u64,
+    /// Wall time of the whole loop.
+    pub wall_s: f64,
+}
+
+fn to_sample(r: radar_driver::OdometryRecord) -> OdometrySample {
+    OdometrySample {
+        timestamp_s: r.timestamp_s,
+        speed_mps: r.speed_mps,
+        steer_rad: r.steer_rad,
+    }
+}
+
+/// Polls the source once; false when it has ended.
+fn poll_odometry(
+    pipeline: &mut Pipeline,
+    source: &mut dyn OdometrySource,
+    timeout: Duration,
+    errors: &mut u64,
+) -> bool {
+    match source.poll_next(timeout) {
+        Ok(OdometryPoll::Record(r)) => {
+            pipeline.push_odometry(to_sample(r));
+            true
+        }
+        Ok(OdometryPoll::Pending) => true,
+        Ok(OdometryPoll::Ended) => false,
+        Err(e) => {
+            *errors += 1;
+            if *errors <= 10 || errors.is_power_of_two() {
+                warn!(error = %e, count = *errors, "odometry error");
+            }
+            e.is_recoverable()
+        }
+    }
+}
+
+/// Runs the pipeline until the azimuth channel closes, `stop` is set, or the stream
+/// duration is reached; then flushes it and returns its summary.
+pub fn run_pipeline(
+    mut pipeline: Pipeline,
+    mut inputs: PipelineInputs,
+    output: &OutputHandle,
+    mut control: RunControl,
+) -> RunReport {
+    let started = Instant::now();
+    let mut report = RunReport::default();
+    let mut events = Vec::new();
+    let stall_after = pipeline.settings().radar_stall;
+    let odometry_wait = pipeline.settings().odometry_wait;
+    let mut last_azimuth = Instant::now();
+    let mut stalled_since: Option<Instant> = None;
+    let mut first_time_s: Option<f64> = None;
+    if inputs.odometry.is_none() {
+        error!("no odometry source: the filter will not run (no motion is fabricated); detection and diagnostics only");
+    }
+    loop {
+        if control.stop.load(Ordering::Relaxed) {
+            info!("stop requested");
+            break;
+        }
+        // Take whatever odometry has arrived, without waiting.
+        if let Some(src) = inputs.odometry.as_mut() {
+            for _ in 0..1024 {
+                let before = pipeline.summary().odometry_samples;
+                if !poll_odometry(
+                    &mut pipeline,
+                    src.as_mut(),
+                    Duration::ZERO,
+                    &mut report.odometry_errors,
+                ) {
+                    info!("odometry source ended");
+                    inputs.odometry = None;
+                    break;
+                }
+                if pipeline.summary().odometry_samples == before {
+                    break;
+                }
+            }
+        }
+        let az = match inputs.azimuths.recv_timeout(Duration::from_millis(100)) {
+            Ok(az) => az,
+            Err(RecvTimeoutError::Timeout) => {
+                if stalled_since.is_none() && last_azimuth.elapsed() >= stall_after {
+                    warn!(
+                        silent_s = last_azimuth.elapsed().as_secs_f64(),
+                        "radar stalled: no azimuth received; keeping the map and pose, waiting for the stream"
+                    );
+                    stalled_since = Some(Instant::now());
+                    report.stalls += 1;
+                }
+                continue;
+            }
+            Err(RecvTimeoutError::Disconnected) => {
+                info!("the radar driver closed its channel");
+                break;
+            }
+        };
+        if let Some(since) = stalled_since.take() {
+            info!(
+                stalled_s = since.elapsed().as_secs_f64() + stall_after.as_secs_f64(),
+                "radar stream resumed"
+            );
+        }
+        last_azimuth = Instant::now();
+        // Wait, bounded, for odometry to reach this azimuth's time.
+        if let Some(src) = inputs.odometry.as_mut() {
+            let deadline = Instant::now() + odometry_wait;
+            while pipeline
+                .odometry_latest_s()
+                .map_or(true, |t| t < az.timestamp_s)
+            {
+                let now = Instant::now();
+                if now >= deadline {
+                    break;
+                }
+                let wait = (deadline - now).min(Duration::from_millis(20));
+                if !poll_odometry(
+                    &mut pipeline,
+                    src.as_mut(),
+                    wait,
+                    &mut report.odometry_errors,
+                ) {
+                    info!("odometry source ended");
+                    inputs.odometry = None;
+                    break;
+                }
+            }
+        }
+        let rotations = pipeline.summary().rotations;
+        if let Err(e) = pipeline.process_azimuth(&az, &mut events) {
+            error!(error = %e, "azimuth not processed");
+        }
+        for ev in events.drain(..) {
+            output.send(ev);
+        }
+        if pipeline.summary().rotations > rotations {
+            if let Some(p) = control.progress.as_mut() {
+                p(pipeline.summary(), pipeline.ekf());
+            }
+        }
+        let first = *first_time_s.get_or_insert(az.timestamp_s);
+        if control
+            .max_stream_s
+            .is_some_and(|limit| az.timestamp_s - first >= limit)
+        {
+            info!(stream_s = az.timestamp_s - first, "stream duration reached");
+            break;
+        }
+    }
+    report.summary = pipeline.finish(&mut events);
+    for ev in events.drain(..) {
+        output.send_blocking(ev);
+    }
+    report.output_drops = output.dropped();
+    report.wall_s = started.elapsed().as_secs_f64();
+    report
+}

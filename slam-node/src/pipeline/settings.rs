@@ -1,0 +1,336 @@
+//! The daemon's settings, built once from the validated `config::Config`: the filter's,
+//! the detector's, the radar model's, and the pipeline's own (odometry staleness, radar
+//! stall, spectrum diagnostics).
+
+use std::time::Duration;
+
+use config::detector::{DetectorKind as ConfigKind, Threshold};
+use config::filter::Gate;
+use config::model::{Compensation as ConfigCompensation, Spreading};
+use config::odometry::MotionModel as ConfigMotion;
+use radar_model::compensation::{Compensation, GainCurve, GainTable};
+use radar_model::motion::MotionModel;
+use radar_model::noise::{FloorDistribution, NoiseModel, PAPER_BOUND_99_DB};
+use radar_model::power::{PowerModel, RadarConstants, SpreadingForm};
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+use crate::detect::{DetectorKind, DetectorSettings, GroupingSettings};
+use crate::filter::FilterSettings;
+
+/// A setting that could not be turned into the daemon's form.
+#[derive(Debug, thiserror::Error)]
+pub enum SettingsError {
+    /// The configured compensation table was rejected by radar-model.
+    #[error("model.compensation_table: {0}")]
+    CompensationTable(String),
+    /// A derived value is out of range.
+    #[error("{0}")]
+    Derived(String),
+}
+
+/// Everything the pipeline needs besides the radar's own geometry.
+#[derive(Debug, Clone)]
+pub struct PipelineSettings {
+    /// The EKF's settings.
+    pub filter: FilterSettings,
+    /// Initial pose and its standard deviations `[x, y, theta]`.
+    pub initial_pose: [f64; 3],
+    /// Initial pose standard deviations.
+    pub initial_pose_std: [f64; 3],
+    /// The process model for odometry.
+    pub motion: MotionModel,
+    /// Detection.
+    pub detector: DetectorSettings,
+    /// Grouping across azimuths (its angular step is set from the radar's geometry).
+    pub grouping_range_gate_m: f64,
+    /// Widest group, in beam widths.
+    pub grouping_max_width_beams: f64,
+    /// Beam width, radians.
+    pub beam_width_rad: f64,
+    /// Receiver compensation (to remove from measured spectra).
+    pub compensation: Compensation,
+    /// Noise model (for predicted spectra).
+    pub noise: NoiseModel,
+    /// Power model (eq. 13 form and constants).
+    pub power: PowerModel,
+    /// Bound on predicted minus measured, dB (the paper's 16.35).
+    pub spectrum_bound_db: f64,
+    /// Compare predicted and measured spectra on every k-th azimuth (0 = never).
+    pub spectrum_every_azimuths: usize,
+    /// Emit one spectrum comparison for figures every this many rotations (0 = never).
+    pub spectrum_sample_every_rotations: u64,
+    /// Odometry older than this (in stream time) behind a beam is stale: no update.
+    pub odometry_stale_s: f64,
+    /// Wall time to wait for odometry to reach a beam's time before declaring it stale.
+    pub odometry_wait: Duration,
+    /// Wall time without an azimuth after which the radar is declared stalled.
+    pub radar_stall: Duration,
+    /// Write a map snapshot every this many rotations (0 = only at the end).
+    pub map_every_rotations: u64,
+}
+
+/// The chi-square probability mass inside a fixed 3-dof threshold.
+fn gate_probability(gate: Gate) -> f64 {
+    match gate {
+        Gate::Probability(p) => p.get(),
+        Gate::Chi2(t) => ChiSquared::new(3.0)
+            .map(|d| d.cdf(t.get()))
+            .unwrap_or(0.99)
+            .clamp(1e-6, 1.0 - 1e-12),
+    }
+}
+
+/// CA-CFAR scale for a false-alarm probability with `n` reference cells, for exponential
+/// (square-law) noise: `alpha = n (pfa^(-1/n) - 1)`, in dB.
+pub fn ca_scale_db_for_pfa(pfa: f64, n: usize) -> f64 {
+    let n = n.max(1) as f64;
+    10.0 * (n * (pfa.powf(-1.0 / n) - 1.0)).log10()
+}
+
+/// OS-CFAR scale for a false-alarm probability, rank `k` of `n` cells, exponential noise:
+/// solves `pfa = prod_{i=0}^{k-1} (n - i) / (n - i + T)` for `T` by bisection; in dB.
+pub fn os_scale_db_for_pfa(pfa: f64, k: usize, n: usize) -> f64 {
+    let pfa_of = |t: f64| -> f64 {
+        (0..k.min(n))
+            .map(|i| {
+                let m = (n - i) as f64;
+                m / (m + t)
+            })
+            .product()
+    };
+    let (mut lo, mut hi) = (0.0f64, 1.0e6f64);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if pfa_of(mid) > pfa {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    10.0 * (0.5 * (lo + hi)).log10()
+}
+
+impl PipelineSettings {
+    /// Builds the daemon's settings from a validated configuration.
+    pub fn from_config(c: &config::Config) -> Result<Self, SettingsError> {
+        let constants = RadarConstants::default();
+        let compensation = match &c.model.compensation {
+            ConfigCompensation::Slope40DbPerDecade => Compensation::calibrated(40.0, &constants),
+            ConfigCompensation::Slope60DbPerDecade => Compensation::paper_sixty(&constants),
+            ConfigCompensation::Table(t) => {
+                let points: Vec<(f64, f64)> = t
+                    .points()
+                    .iter()
+                    .map(|p| (p.range_m.get(), p.gain_db.get()))
+                    .collect();
+                let table = GainTable::new(&points)
+                    .map_err(|e| SettingsError::CompensationTable(e.to_string()))?;
+                Compensation {
+                    curve: GainCurve::Table(table),
+                    rolloff: None,
+                }
+            }
+        };
+        let mut noise = NoiseModel::default();
+        let nf = &c.model.noise_floor;
+        noise.absent.near_mean_db = nf.near_mean_db.get();
+        noise.absent.near_variance_db2 = nf.near_variance_db2.get();
+        noise.absent.weibull_from_m = nf.transition_m.get();
+        noise.absent.weibull_scale_db = nf.weibull_scale.get();
+        noise.absent.weibull_shape = nf.weibull_shape.get();
+        noise.present.variance_db2 = c.model.sigma_power_db.get().powi(2);
+        noise.range.resolution_fwhm_m = c.model.range_resolution_m.get();
+        noise.bearing_sigma_rad = c.model.sigma_bearing_rad();
+        let power = PowerModel {
+            form: match c.model.spreading {
+                Spreading::Paper => SpreadingForm::Paper,
+                Spreading::Textbook => SpreadingForm::Textbook,
+            },
+            constants,
+            range_resolution_m: c.model.range_resolution_m.get(),
+        };
+        let motion = match c.odometry.motion_model {
+            ConfigMotion::Paper { step_s } => MotionModel::Paper {
+                step_s: step_s.get(),
+            },
+            ConfigMotion::Bicycle { wheelbase_m } => MotionModel::Bicycle {
+                wheelbase_m: wheelbase_m.get(),
+            },
+        };
+        let beam_width_rad = c.model.beam_width_rad();
+        let f = &c.filter;
+        let filter = FilterSettings {
+            use_power: f.use_power_in_observation,
+            range_std_m: c.model.sigma_range_m.get(),
+            bearing_std_rad: c.model.sigma_bearing_rad(),
+            power_std_db: c.model.sigma_power_db.get(),
+            speed_std_mps: c.odometry.sigma_speed_mps.get().max(1e-3),
+            steer_std_rad: c.odometry.sigma_steer_rad.get().max(1e-5),
+            material_variance_per_s: f.sigma_u.get().max(f.sigma_v.get()).powi(2),
+            gate_probability: gate_probability(f.gate),
+            jcbb_max_nodes: match f.association {
+                // A budget of one node is nearest neighbour: the first compatible pairing.
+                config::filter::Association::NearestNeighbour => 1,
+                config::filter::Association::Jcbb => FilterSettings::default().jcbb_max_nodes,
+            },
+            beam_half_width_rad: 0.5 * beam_width_rad,
+            min_range_m: c.detector.range.min_m().max(0.5),
+            max_range_m: c.detector.range.max_m(),
+            max_features: f.max_features.get(),
+            retire_after_misses: u32::try_from(f.retire_after_misses.get()).unwrap_or(u32::MAX),
+            initial_loss_db: f.initial_loss_db.get(),
+            initial_loss_std_db: f.initial_sigma_loss_db.get(),
+            ..FilterSettings::default()
+        };
+        let far_floor = noise.absent.distribution_at(noise.absent.weibull_from_m);
+        let detector = detector_from_config(&c.detector, &far_floor);
+        Ok(Self {
+            filter,
+            initial_pose: [
+                f.initial_pose.x_m.get(),
+                f.initial_pose.y_m.get(),
+                f.initial_pose.theta_rad.get(),
+            ],
+            initial_pose_std: [
+                f.initial_pose.sigma_x_m.get(),
+                f.initial_pose.sigma_y_m.get(),
+                f.initial_pose.sigma_theta_rad.get(),
+            ],
+            motion,
+            detector,
+            grouping_range_gate_m: (2.0 * c.model.range_resolution_m.get()).max(0.5),
+            grouping_max_width_beams: 3.0,
+            beam_width_rad,
+            compensation,
+            noise,
+            power,
+            spectrum_bound_db: PAPER_BOUND_99_DB,
+            spectrum_every_azimuths: 1,
+            spectrum_sample_every_rotations: 25,
+            odometry_stale_s: c.odometry.stale_after.as_secs_f64(),
+            odometry_wait: c.odometry.stale_after,
+            radar_stall: Duration::from_secs(2),
+            map_every_rotations: 20,
+        })
+    }
+
+    /// Grouping settings for a radar with `azimuths` spectra per rotation.
+    pub fn grouping(&self, azimuths: u16) -> GroupingSettings {
+        let step = std::f64::consts::TAU / f64::from(azimuths.max(1));
+        GroupingSettings {
+            range_gate_m: self.grouping_range_gate_m,
+            max_step_rad: 1.5 * step,
+            max_width_rad: (self.grouping_max_width_beams * self.beam_width_rad).max(step),
+        }
+    }
+}
+
+/// CFAR margins (CA, OS) over each detector's noise estimate for a per-bin false-alarm
+/// probability `pfa`, from the radar's target-absent floor distribution (in dB, as the
+/// book chapter measured it) rather than from the textbook's square-law noise: the
+/// measured floor is far more spread (standard deviation about 5 dB far out) than
+/// exponential power, and the textbook scale gives hundreds of false alarms a rotation.
+///
+/// CA: the reference mean of 2N cells is close to the floor's linear mean, so the margin is
+/// `Q(1 - pfa) - 10 log10 E[10^(X/10)]`. OS: the k-th of 2N cells is close to the floor's
+/// `k/2N` quantile, so the margin is `Q(1 - pfa) - Q(k/2N)`. `Q` comes from the
+/// distribution's inverse via an Exp(1) variate, `Q(p) = F^-1(-ln(1 - p))`.
+pub fn cfar_scales_for_floor(
+    floor: &FloorDistribution,
+    pfa: f64,
+    os_rank_fraction: f64,
+) -> (f64, f64) {
+    let q = |p: f64| floor.from_exp1(-(1.0 - p.clamp(1e-12, 1.0 - 1e-12)).ln());
+    let high = q(1.0 - pfa);
+    const STEPS: usize = 20_000;
+    let mean_linear = (0..STEPS)
+        .map(|i| 10f64.powf(q((i as f64 + 0.5) / STEPS as f64) / 10.0))
+        .sum::<f64>()
+        / STEPS as f64;
+    (
+        high - 10.0 * mean_linear.log10(),
+        high - q(os_rank_fraction),
+    )
+}
+
+/// The detector settings a `[detector]` section asks for. A false-alarm probability is
+/// turned into CFAR margins by [`cfar_scales_for_floor`] on the radar's far noise floor;
+/// TPP's SNR threshold is taken from `threshold_db` when set and otherwise keeps the
+/// measured default (a Pfa does not map onto TPP's minimum-tracking statistic).
+pub fn detector_from_config(
+    d: &config::detector::DetectorSettings,
+    far_floor: &FloorDistribution,
+) -> DetectorSettings {
+    let mut s = DetectorSettings::default();
+    let per_side = (d.reference_cells.get() / 2).max(1);
+    s.window.reference_cells = per_side;
+    s.window.guard_cells = d.guard_cells;
+    s.window.min_reference_cells = per_side;
+    s.os_rank_fraction = d.os_rank.get() as f64 / d.reference_cells.get().max(1) as f64;
+    s.kind = match d.kind {
+        ConfigKind::CaCfar => DetectorKind::CaCfar,
+        ConfigKind::OsCfar => DetectorKind::OsCfar,
+        ConfigKind::Tpp => DetectorKind::Tpp,
+    };
+    match d.threshold {
+        Threshold::Db(db) => {
+            s.ca_scale_db = db.get();
+            s.os_scale_db = db.get();
+            s.tpp.snr_threshold_db = db.get();
+        }
+        Threshold::Pfa(p) => {
+            let (ca, os) = cfar_scales_for_floor(far_floor, p.get(), s.os_rank_fraction);
+            s.ca_scale_db = ca;
+            s.os_scale_db = os;
+        }
+    }
+    s.tpp.alpha = d.tpp_alpha.get();
+    s.tpp.detect_probability = d.tpp_detect.get();
+    s.peaks.max_peaks = d.max_targets_per_beam.get();
+    s.min_range_m = d.range.min_m();
+    s.max_range_m = d.range.max_m();
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_ca_cfar_scale_for_pfa_matches_the_closed_form() {
+        // n = 70, pfa = 1e-4: alpha = 70 (1e-4^(-1/70) - 1) = 9.85 -> 9.93 dB.
+        let db = ca_scale_db_for_pfa(1e-4, 70);
+        assert!((db - 10.0 * (70.0 * (1e-4f64.powf(-1.0 / 70.0) - 1.0)).log10()).abs() < 1e-12);
+        assert!((db - 9.93).abs() < 0.01, "{db}");
+    }
+
+    #[test]
+    fn the_os_cfar_scale_reproduces_its_false_alarm_probability() {
+        let (k, n) = (53, 70);
+        let t = 10f64.powf(os_scale_db_for_pfa(1e-4, k, n) / 10.0);
+        let pfa: f64 = (0..k)
+            .map(|i| (n - i) as f64 / ((n - i) as f64 + t))
+            .product();
+        assert!((pfa - 1e-4).abs() < 1e-9, "{pfa}");
+    }
+
+    #[test]
+    fn floor_calibrated_margins_exceed_the_textbook_ones_for_the_spread_far_floor() {
+        let floor = NoiseModel::default().absent.distribution_at(100.0);
+        let (ca, os) = cfar_scales_for_floor(&floor, 1e-4, 0.75);
+        println!(
+            "CA {ca:.2} dB (textbook {:.2}), OS {os:.2} dB",
+            ca_scale_db_for_pfa(1e-4, 70)
+        );
+        assert!(ca > ca_scale_db_for_pfa(1e-4, 70));
+        assert!(os > 0.0 && ca.is_finite());
+    }
+
+    #[test]
+    fn the_shipped_configuration_converts() {
+        let c = config::Config::default();
+        let s = PipelineSettings::from_config(&c).unwrap();
+        assert!(s.filter.validate().is_ok());
+        assert!((s.beam_width_rad - 1.8f64.to_radians()).abs() < 1e-12);
+    }
+}

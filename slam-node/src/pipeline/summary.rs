@@ -1,0 +1,209 @@
+//! Running totals of a run and the end-of-run summary; map snapshots from the filter.
+
+use std::collections::VecDeque;
+
+use serde::Serialize;
+
+use super::core::DaemonEkf;
+use super::spectrum::SpectrumTally;
+use super::truth::{MapScore, PoseErrorStats};
+use crate::filter::state::feature_index;
+use crate::output::{MapFeature, MapSnapshot, RotationDiagnostics};
+
+/// Rotation times kept for percentiles (the most recent ones).
+const TIMES_KEPT: usize = 10_000;
+
+/// Beams the filter did not take, by reason.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct RefusalCounts {
+    /// No odometry had been received yet.
+    pub no_odometry: u64,
+    /// The odometry was older than the stale limit.
+    pub stale_odometry: u64,
+    /// The beam was older than the filter's state.
+    pub late_beams: u64,
+}
+
+/// Totals over a run.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct PipelineSummary {
+    /// Rotations completed.
+    pub rotations: u64,
+    /// Azimuths processed.
+    pub azimuths: u64,
+    /// Azimuths dropped as malformed (non-finite or backwards time).
+    pub bad_azimuths: u64,
+    /// Targets detected.
+    pub detections: u64,
+    /// Observations after grouping.
+    pub observations: u64,
+    /// Beams the filter processed.
+    pub beams: u64,
+    /// Beams refused, by reason.
+    pub refused: RefusalCounts,
+    /// Filter errors (logged).
+    pub filter_errors: u64,
+    /// Observation-feature associations.
+    pub associations: u64,
+    /// Associations whose observation came from another scene feature than the one the
+    /// mapped feature stands for (truth known only).
+    pub association_errors: u64,
+    /// Associations of observations near no scene feature (clutter), truth known only.
+    pub clutter_associations: u64,
+    /// Odometry samples received.
+    pub odometry_samples: u64,
+    /// Odometry samples dropped (out of order or not finite).
+    pub odometry_out_of_order: u64,
+    /// Features in the final map.
+    pub map_size: usize,
+    /// Stream time of the first and last azimuth.
+    pub first_time_s: Option<f64>,
+    /// Last azimuth's time.
+    pub last_time_s: Option<f64>,
+    /// Processing time summed over rotations, ms.
+    pub processing_ms: f64,
+    /// Detection time summed, ms.
+    pub detect_ms: f64,
+    /// Filter time summed, ms.
+    pub filter_ms: f64,
+    /// Spectrum comparison time summed, ms.
+    pub spectrum_ms: f64,
+    /// Slowest rotation, ms.
+    pub max_rotation_ms: f64,
+    /// Spectrum comparison over the run.
+    #[serde(skip)]
+    pub spectrum: SpectrumTally,
+    /// Pose error against truth.
+    pub pose: Option<PoseErrorStats>,
+    /// Map against the scene.
+    pub map: Option<MapScore>,
+    #[serde(skip)]
+    recent_ms: VecDeque<f64>,
+}
+
+impl PipelineSummary {
+    /// Adds one rotation's diagnostics.
+    pub fn add_rotation(&mut self, d: &RotationDiagnostics) {
+        self.rotations += 1;
+        self.azimuths += u64::from(d.azimuths);
+        self.detections += u64::from(d.detections);
+        self.observations += u64::from(d.observations);
+        self.processing_ms += d.total_ms;
+        self.detect_ms += d.detect_ms;
+        self.filter_ms += d.filter_ms;
+        self.spectrum_ms += d.spectrum_ms;
+        self.max_rotation_ms = self.max_rotation_ms.max(d.total_ms);
+        if self.recent_ms.len() == TIMES_KEPT {
+            self.recent_ms.pop_front();
+        }
+        self.recent_ms.push_back(d.total_ms);
+    }
+
+    /// Stream time covered, seconds.
+    pub fn stream_s(&self) -> f64 {
+        match (self.first_time_s, self.last_time_s) {
+            (Some(a), Some(b)) => (b - a).max(0.0),
+            _ => 0.0,
+        }
+    }
+
+    /// Stream seconds processed per second of processing time (one thread).
+    pub fn real_time_factor(&self) -> f64 {
+        if self.processing_ms > 0.0 {
+            self.stream_s() / (self.processing_ms * 1e-3)
+        } else {
+            0.0
+        }
+    }
+
+    /// Mean processing time per rotation, ms.
+    pub fn mean_rotation_ms(&self) -> f64 {
+        if self.rotations == 0 {
+            0.0
+        } else {
+            self.processing_ms / self.rotations as f64
+        }
+    }
+
+    /// A percentile (0-100) of the recent rotation times, ms.
+    pub fn rotation_ms_percentile(&self, p: f64) -> f64 {
+        let mut v: Vec<f64> = self.recent_ms.iter().copied().collect();
+        if v.is_empty() {
+            return 0.0;
+        }
+        v.sort_by(f64::total_cmp);
+        let k = ((p / 100.0) * (v.len() - 1) as f64).round();
+        let k = if k.is_finite() && k >= 0.0 {
+            k as usize
+        } else {
+            0
+        };
+        v.get(k.min(v.len() - 1)).copied().unwrap_or(0.0)
+    }
+}
+
+/// The filter's map as a [`MapSnapshot`]: positions, rho and alpha with their covariance
+/// (the (u, v) block mapped through the softmax's Jacobian), and L.
+pub fn snapshot(ekf: &DaemonEkf) -> MapSnapshot {
+    let state = ekf.state();
+    let p = state.covariance();
+    let mut features = Vec::with_capacity(state.feature_count());
+    for slot in 0..state.feature_count() {
+        let (Some(params), Some(track)) = (state.params(slot), state.tracks().get(slot)) else {
+            continue;
+        };
+        let material = radar_model::material::Material::new(params.u, params.v);
+        let shares = material.shares();
+        let j = material.shares_jacobian();
+        let base = feature_index(slot);
+        // Covariance of (x, y, u, v) from the state.
+        let c = |r: usize, k: usize| p.get((base + r, base + k)).copied().unwrap_or(0.0);
+        // Transform T = diag(I2, J): cov' = T C T^T.
+        let t = |r: usize, k: usize| -> f64 {
+            match (r, k) {
+                (0, 0) | (1, 1) => 1.0,
+                (2, 2) => j[0][0],
+                (2, 3) => j[0][1],
+                (3, 2) => j[1][0],
+                (3, 3) => j[1][1],
+                _ => 0.0,
+            }
+        };
+        let mut cov = [[0.0; 4]; 4];
+        for (r, row) in cov.iter_mut().enumerate() {
+            for (k, out) in row.iter_mut().enumerate() {
+                let mut acc = 0.0;
+                for a in 0..4 {
+                    for b in 0..4 {
+                        acc += t(r, a) * c(a, b) * t(k, b);
+                    }
+                }
+                *out = acc;
+            }
+        }
+        features.push(MapFeature {
+            id: track.id.0,
+            x_m: params.x_m,
+            y_m: params.y_m,
+            rho: shares.rho,
+            alpha: shares.alpha,
+            tau: shares.tau,
+            covariance: cov,
+            observations: track.hits,
+        });
+    }
+    let loss_var = p
+        .get((
+            crate::filter::state::LOSS_INDEX,
+            crate::filter::state::LOSS_INDEX,
+        ))
+        .copied()
+        .unwrap_or(0.0);
+    MapSnapshot {
+        format: MapSnapshot::FORMAT.into(),
+        timestamp_s: state.time_s(),
+        loss_db: state.loss_db(),
+        loss_var_db2: loss_var,
+        features,
+    }
+}
