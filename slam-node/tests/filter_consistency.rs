@@ -171,6 +171,8 @@ fn run(seed: u64, seconds: f64, use_power: bool) -> RunResult {
         })
         .unwrap();
         if (k + 1) % AZIMUTHS == 0 {
+            // Empty beams do not advance the state (defer_empty_beams): bring it to now.
+            ekf.predict_to(t).unwrap();
             nees.push(ekf.pose_nees(&truth).unwrap());
         }
         truth = motion.predict(&truth, &true_input, dt).unwrap();

@@ -44,14 +44,15 @@ pub struct BeamCandidate {
     pub ambiguous: bool,
 }
 
-/// The candidates of a beam at `bearing_rad` seen from the state's pose, sorted by range.
-/// O(N) in the number of features, O(1) each.
+/// The candidates of a beam at `bearing_rad` seen from `pose` (the state's, or a mean-only
+/// extrapolation of it), sorted by range. O(N) in the number of features, O(1) each.
 pub fn candidates_in_beam(
     state: &SlamState,
     settings: &FilterSettings,
+    pose: &Pose2,
     bearing_rad: f64,
 ) -> Vec<BeamCandidate> {
-    let pose = state.pose();
+    let pose = *pose;
     let cov = state.covariance();
     let half = settings.beam_half_width_rad;
     let base = half + settings.association_margin_rad;

@@ -268,7 +268,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
 
     /// The candidate features of a beam at `bearing_rad` (see [`candidates_in_beam`]).
     pub fn features_in_beam(&self, bearing_rad: f64) -> Vec<BeamCandidate> {
-        candidates_in_beam(&self.state, &self.settings, bearing_rad)
+        candidates_in_beam(&self.state, &self.settings, &self.pose(), bearing_rad)
     }
 
     /// Processes every target detected down one beam. Non-finite input is rejected before
@@ -281,6 +281,9 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 count: beam.targets.len(),
                 limit: self.settings.max_targets_per_beam,
             });
+        }
+        if beam.targets.is_empty() && self.settings.defer_empty_beams {
+            return self.empty_beam(beam);
         }
         self.predict_to(beam.timestamp_s)?;
         let mut report = BeamReport::default();
@@ -405,30 +408,49 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             report.update = Some(outcome);
         }
         // Book-keeping: hits, misses, retirement.
-        let now = beam.timestamp_s;
-        let mut retire = Vec::new();
-        for (i, &slot) in slots.iter().enumerate() {
-            let expected = candidates.get(i).is_some_and(|c| c.expected)
-                && (!self.settings.use_power
+        let visible: Vec<bool> = (0..slots.len())
+            .map(|i| {
+                !self.settings.use_power
                     || pred
                         .z
                         .get(i)
-                        .map_or(true, |z| z[2] >= self.settings.min_detectable_power_db));
-            let Some(track) = self.state.track_mut(slot) else {
+                        .map_or(true, |z| z[2] >= self.settings.min_detectable_power_db)
+            })
+            .collect();
+        self.book_keep(candidates, &visible, &assoc.pairs, beam.timestamp_s, report)?;
+        Ok(claimed)
+    }
+
+    /// Hits for the candidates a target was paired with; a miss for each candidate expected
+    /// in the beam and `visible` (predicted above the detection threshold) but not paired;
+    /// retirement after too many consecutive misses.
+    fn book_keep(
+        &mut self,
+        candidates: &[BeamCandidate],
+        visible: &[bool],
+        pairs: &[Option<usize>],
+        now: f64,
+        report: &mut BeamReport,
+    ) -> Result<(), FilterError> {
+        let mut retire = Vec::new();
+        for (i, c) in candidates.iter().enumerate() {
+            let expected = c.expected && visible.get(i).copied().unwrap_or(true);
+            let Some(track) = self.state.track_mut(c.slot) else {
                 continue;
             };
-            if seen.get(i).copied().unwrap_or(false) {
+            let paired: Vec<usize> = pairs
+                .iter()
+                .enumerate()
+                .filter(|(_, f)| **f == Some(i))
+                .map(|(j, _)| j)
+                .collect();
+            if !paired.is_empty() {
                 track.hits += 1;
                 track.consecutive_misses = 0;
                 track.last_seen_s = now;
-                report.associated.extend(
-                    assoc
-                        .pairs
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, f)| **f == Some(i))
-                        .map(|(j, _)| (j, track.id)),
-                );
+                report
+                    .associated
+                    .extend(paired.iter().map(|&j| (j, track.id)));
             } else if expected {
                 track.consecutive_misses += 1;
                 if track.consecutive_misses >= self.settings.retire_after_misses {
@@ -441,6 +463,72 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             self.stats.retired += 1;
             report.retired.push(id);
         }
-        Ok(claimed)
+        Ok(())
+    }
+
+    /// A beam with no targets, when `defer_empty_beams` is set: the state is not predicted
+    /// (nothing is updated, so nothing needs it); its candidates are found from a mean-only
+    /// extrapolation of the pose to the beam's time, and their misses counted. The next
+    /// beam with targets, or odometry, predicts the state across the gap in one go.
+    fn empty_beam(&mut self, beam: &BeamObservation) -> Result<BeamReport, FilterError> {
+        let held = self.odometry.ok_or(FilterError::NoOdometry)?;
+        let from_s = self.state.time_s();
+        let gap_s = beam.timestamp_s - from_s;
+        if gap_s < 0.0 {
+            return Err(FilterError::TimeWentBackwards {
+                state_s: from_s,
+                requested_s: beam.timestamp_s,
+            });
+        }
+        if gap_s > self.settings.max_predict_gap_s {
+            return Err(FilterError::GapTooLong {
+                gap_s,
+                limit_s: self.settings.max_predict_gap_s,
+            });
+        }
+        let mut pose = self.pose();
+        if gap_s > 0.0 {
+            let steps = (gap_s / self.settings.max_predict_step_s).ceil().max(1.0);
+            let dt = gap_s / steps;
+            let mut done = 0.0;
+            while done < steps {
+                pose = self
+                    .motion
+                    .step(&pose, held.speed_mps, held.steer_rad, dt)?
+                    .pose;
+                done += 1.0;
+            }
+        }
+        let candidates = candidates_in_beam(&self.state, &self.settings, &pose, beam.bearing_rad);
+        let mut report = BeamReport {
+            candidates: candidates
+                .iter()
+                .filter_map(|c| self.state.tracks().get(c.slot).map(|t| t.id))
+                .collect(),
+            ..BeamReport::default()
+        };
+        if candidates.iter().any(|c| c.expected) {
+            let visible: Vec<bool> = if self.settings.use_power {
+                let slots: Vec<usize> = candidates.iter().map(|c| c.slot).collect();
+                let params = self.beam_params(&slots);
+                let pred = predict_candidates(
+                    &self.observer,
+                    &pose,
+                    self.state.loss_db(),
+                    &candidates,
+                    &params,
+                )?;
+                pred.z
+                    .iter()
+                    .map(|z| z[2] >= self.settings.min_detectable_power_db)
+                    .collect()
+            } else {
+                vec![true; candidates.len()]
+            };
+            self.book_keep(&candidates, &visible, &[], beam.timestamp_s, &mut report)?;
+        }
+        self.tentatives
+            .expire(beam.timestamp_s, self.settings.tentative_timeout_s);
+        Ok(report)
     }
 }

@@ -30,6 +30,12 @@ pub struct FilterSettings {
     /// Growth rate of the variance of each feature's u and v (1/s): the paper's Gaussian
     /// change of reflectivity and absorption with viewing angle.
     pub material_variance_per_s: f64,
+    /// A beam with no targets does not predict the state (nothing is updated, so nothing
+    /// needs it): its candidates come from a mean-only extrapolation of the pose, and the
+    /// next beam with targets (or odometry) predicts across the gap in one go. Saves an O(n)
+    /// covariance prediction per empty azimuth; the state's time then lags to the last beam
+    /// with targets or odometry sample.
+    pub defer_empty_beams: bool,
     /// Longest single integration step of the process model (s); longer predictions are split.
     pub max_predict_step_s: f64,
     /// Longest gap the filter will predict across in one call (s); a longer one is an error
@@ -101,6 +107,7 @@ impl Default for FilterSettings {
             steer_std_rad: 0.5_f64.to_radians(),
             input_noise_correlation_s: 0.05,
             material_variance_per_s: 1e-4,
+            defer_empty_beams: true,
             max_predict_step_s: 0.05,
             max_predict_gap_s: 5.0,
             gate_probability: 0.99,
