@@ -271,9 +271,12 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         candidates_in_beam(&self.state, &self.settings, &self.pose(), bearing_rad)
     }
 
-    /// Processes every target detected down one beam. Non-finite input is rejected before
-    /// the state is touched. On a model or update error the state has been predicted to the
-    /// beam's time but not updated.
+    /// Processes every target detected down one beam. Non-finite input, too many targets,
+    /// a time before the state's or a gap past the limit are rejected before the state is
+    /// touched. If the batched update fails (S not positive definite, or a variance would
+    /// go non-positive) the state has been predicted to the beam's time but not updated. If
+    /// initialising a confirmed target fails, the updates before it stand and the remaining
+    /// unclaimed targets of the beam are not processed.
     pub fn process_beam(&mut self, beam: &BeamObservation) -> Result<BeamReport, FilterError> {
         beam.check()?;
         if beam.targets.len() > self.settings.max_targets_per_beam {
