@@ -1,1 +1,82 @@
-//! End-to-end tests across crates over loopback live in `tests/`.
+//! End-to-end tests across crates over loopback live in `tests/`; this library holds their
+//! shared helpers: running the whole daemon against the simulator started in-process.
+//!
+//! Does IO: sockets on 127.0.0.1:0 and output files in a temporary folder.
+
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Duration;
+
+use sim_sensor::{FaultScope, FaultSettings, Pacing, SimOptions};
+use slam_node::daemon::{run_daemon, DaemonError, DaemonOptions, DaemonReport, EmbeddedSim};
+use slam_node::detect::DetectorSettings;
+
+/// How one end-to-end run is set up.
+#[derive(Debug, Clone)]
+pub struct Run {
+    /// Shipped scene name.
+    pub scene: &'static str,
+    /// Stream seconds to run.
+    pub duration_s: f64,
+    /// Use the received power in the observation (the paper's filter).
+    pub use_power: bool,
+    /// Faults for the simulator.
+    pub faults: FaultSettings,
+    /// Connections the faults apply to.
+    pub fault_scope: FaultScope,
+    /// Serve odometry.
+    pub odometry: bool,
+}
+
+impl Run {
+    /// The shipped defaults on `scene` for `duration_s`.
+    pub fn new(scene: &'static str, duration_s: f64) -> Self {
+        Self {
+            scene,
+            duration_s,
+            use_power: true,
+            faults: FaultSettings::default(),
+            fault_scope: FaultScope::EveryConnection,
+            odometry: true,
+        }
+    }
+}
+
+/// Runs the daemon against the embedded simulator (as fast as possible, 127.0.0.1:0),
+/// outputs in `out`, within `limit` of wall time.
+pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport, DaemonError> {
+    let mut config = config::Config::default();
+    config.filter.use_power_in_observation = run.use_power;
+    let scene = sim_sensor::scene::shipped::load(run.scene).map_err(sim_sensor::SimError::from)?;
+    let mut options = SimOptions::for_tests(scene);
+    options.pacing = Pacing::AsFastAsPossible;
+    options.faults = run.faults.clone();
+    options.fault_scope = run.fault_scope;
+    if !run.odometry {
+        options.odometry_bind = None;
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    let opts = DaemonOptions {
+        config,
+        embedded: Some(EmbeddedSim { options }),
+        max_stream_s: Some(run.duration_s),
+        out_dir: out.to_path_buf(),
+        figures: false,
+        progress_every_rotations: 0,
+        stop: Arc::clone(&stop),
+        detector: Some(DetectorSettings::default()),
+    };
+    match tokio::time::timeout(limit, run_daemon(opts, None)).await {
+        Ok(r) => r,
+        Err(_) => {
+            stop.store(true, std::sync::atomic::Ordering::Relaxed);
+            panic!("the daemon did not finish within {limit:?}");
+        }
+    }
+}
+
+/// Prints the summary (visible with `--nocapture`).
+pub fn print(report: &DaemonReport) {
+    println!("{}", slam_node::daemon::report::summary_text(report));
+}

@@ -87,8 +87,14 @@ pub fn summary_text(r: &DaemonReport) -> String {
         );
         let _ = writeln!(
             t,
-            "  materials: mean |rho - true| {:.3} (initial guess {:.3}), mean |alpha - true| {:.3} (initial {:.3})",
-            m.mean_rho_error, m.initial_rho_error, m.mean_alpha_error, m.initial_alpha_error
+            "  materials: mean |rho - true| {:.3} (initial guess {:.3}), mean |alpha - true| {:.3} (initial {:.3}); L {:.2} dB (true {}); rho with the rho/L offset removed: mean error {}",
+            m.mean_rho_error,
+            m.initial_rho_error,
+            m.mean_alpha_error,
+            m.initial_alpha_error,
+            m.loss_db,
+            m.true_loss_db.map_or("unknown".into(), |l| format!("{l:.2} dB")),
+            m.mean_rho_error_gauge_fixed.map_or("n/a".into(), |e| format!("{e:.3}"))
         );
         let _ = writeln!(
             t,

@@ -79,6 +79,7 @@ pub struct Pipeline {
     pose_errors: PoseErrorStats,
     in_range: Vec<bool>,
     last_no_odometry_warning_s: f64,
+    filter_started: bool,
 }
 
 impl Pipeline {
@@ -122,6 +123,7 @@ impl Pipeline {
             pose_errors: PoseErrorStats::default(),
             in_range,
             last_no_odometry_warning_s: f64::NEG_INFINITY,
+            filter_started: false,
             settings,
         })
     }
@@ -151,8 +153,52 @@ impl Pipeline {
         &self.summary
     }
 
+    /// With ground truth, the map frame is defined as the true pose at the first odometry
+    /// sample: the filter is (re)started there, before any feature exists. Without truth the
+    /// configured initial pose at the first sample defines it.
+    fn start_at_first_odometry(&mut self, sample: &OdometrySample) {
+        if self.filter_started || self.held.is_some() || self.ekf.feature_count() > 0 {
+            return;
+        }
+        self.filter_started = true;
+        let Some(pose) = self
+            .truth
+            .as_ref()
+            .and_then(|t| t.pose_at(sample.timestamp_s))
+        else {
+            return;
+        };
+        let [sx, sy, st] = self.settings.initial_pose_std;
+        let cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(sx * sx, sy * sy, st * st));
+        match Ekf::new(
+            self.settings.filter.clone(),
+            pose,
+            cov,
+            sample.timestamp_s,
+            self.settings.motion,
+            RadarBeamModel {
+                power: self.settings.power,
+            },
+        ) {
+            Ok(ekf) => {
+                info!(
+                    time_s = sample.timestamp_s,
+                    x_m = pose.x,
+                    y_m = pose.y,
+                    theta_rad = pose.theta,
+                    "map frame: the true pose at the first odometry sample"
+                );
+                self.ekf = ekf;
+            }
+            Err(e) => {
+                warn!(error = %e, "could not restart the filter at the first odometry sample")
+            }
+        }
+    }
+
     /// Takes one odometry sample (queued until the radar reaches its time).
     pub fn push_odometry(&mut self, sample: OdometrySample) {
+        self.start_at_first_odometry(&sample);
         self.summary.odometry_samples += 1;
         if let Some(forced) = self.odometry.push(sample) {
             self.apply_odometry(forced);
@@ -527,14 +573,25 @@ impl Pipeline {
         if let Some(tr) = self.truth.as_ref() {
             s.pose = Some(self.pose_errors.clone());
             let in_range = self.in_range.iter().filter(|&&b| b).count();
-            s.map = Some(super::truth::score_map(
+            let mut score = super::truth::score_map(
                 &self.ekf.features(),
                 tr.features(),
                 in_range,
                 2.0,
                 self.settings.filter.initial_rho,
                 self.settings.filter.initial_alpha,
-            ));
+            );
+            score.loss_db = self.ekf.state().loss_db();
+            if let Some(true_loss) = tr.loss_db() {
+                score.true_loss_db = Some(true_loss);
+                score.mean_rho_error_gauge_fixed = Some(super::truth::gauge_fixed_rho_error(
+                    &self.ekf.features(),
+                    tr.features(),
+                    2.0,
+                    score.loss_db - true_loss,
+                ));
+            }
+            s.map = Some(score);
         }
         s
     }

@@ -29,6 +29,10 @@ pub trait TruthOracle: Send + std::fmt::Debug {
     fn pose_at(&self, t_s: f64) -> Option<Pose2>;
     /// Every true feature.
     fn features(&self) -> &[TrueFeature];
+    /// The true radar loss L, dB, if known.
+    fn loss_db(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// Truth from a simulator scene: its trajectory, integrated exactly as the simulator does,
@@ -38,6 +42,7 @@ pub struct SceneTruth {
     trajectory: sim_sensor::trajectory::Trajectory,
     start_s: f64,
     features: Vec<TrueFeature>,
+    loss_db: f64,
 }
 
 impl SceneTruth {
@@ -50,6 +55,7 @@ impl SceneTruth {
         Ok(Self {
             trajectory: sim_sensor::trajectory::Trajectory::new(scene, horizon_s)?,
             start_s,
+            loss_db: scene.loss_db,
             features: scene
                 .features
                 .iter()
@@ -67,16 +73,23 @@ impl SceneTruth {
 
 impl TruthOracle for SceneTruth {
     fn pose_at(&self, t_s: f64) -> Option<Pose2> {
+        // Unix seconds in f64 carry about 0.2 us of rounding: a time a hair before the
+        // start is the start.
         let dt = t_s - self.start_s;
-        if !(dt.is_finite() && dt >= 0.0 && dt < 1.0e7) {
+        if !(dt.is_finite() && dt >= -1e-3 && dt < 1.0e7) {
             return None;
         }
+        let dt = dt.max(0.0);
         // dt is finite, non-negative and below 1e7 s: the nanosecond count fits a u64.
         self.trajectory.pose_at((dt * 1e9).round() as u64).ok()
     }
 
     fn features(&self) -> &[TrueFeature] {
         &self.features
+    }
+
+    fn loss_db(&self) -> Option<f64> {
+        Some(self.loss_db)
     }
 }
 
@@ -183,6 +196,36 @@ pub struct MapScore {
     pub initial_rho_error: f64,
     /// Initial alpha error.
     pub initial_alpha_error: f64,
+    /// The estimated radar loss L, dB.
+    pub loss_db: f64,
+    /// The true L, dB, when known.
+    pub true_loss_db: Option<f64>,
+    /// Mean |rho 10^(-(L - L_true)/10) - true rho|: received power fixes only
+    /// `10 log10 rho - L`, so rho and L share one unobservable offset; this removes it.
+    pub mean_rho_error_gauge_fixed: Option<f64>,
+}
+
+/// Mean rho error after removing the common rho/L offset `loss_offset_db` (estimated L
+/// minus true L): every feature's power depends on `10 log10 rho - L` only.
+pub fn gauge_fixed_rho_error(
+    map: &[FeatureEstimate],
+    truth: &[TrueFeature],
+    gate_m: f64,
+    loss_offset_db: f64,
+) -> f64 {
+    let scale = 10f64.powf(-loss_offset_db / 10.0);
+    let errors: Vec<f64> = map
+        .iter()
+        .filter_map(|f| {
+            let (i, _) = nearest_feature(truth, [f.x_m, f.y_m], gate_m)?;
+            truth.get(i).map(|t| (f.rho * scale - t.rho).abs())
+        })
+        .collect();
+    if errors.is_empty() {
+        0.0
+    } else {
+        errors.iter().sum::<f64>() / errors.len() as f64
+    }
 }
 
 /// Scores the final map against the scene.
