@@ -93,6 +93,8 @@ struct RunResult {
     mean_nis_per_dof: f64,
     /// Position NEES of every feature at the end, against its nearest landmark.
     feature_nees: Vec<f64>,
+    /// Heading standard deviation and heading error at the end (rad).
+    final_heading: (f64, f64),
 }
 
 fn run(seed: u64, seconds: f64, use_power: bool) -> RunResult {
@@ -192,7 +194,12 @@ fn run(seed: u64, seconds: f64, use_power: bool) -> RunResult {
             ekf.feature_nees(f.id, nearest.xy).ok()
         })
         .collect();
+    let final_heading = (
+        ekf.pose_covariance()[(2, 2)].sqrt(),
+        wrap_angle(ekf.pose().theta - truth.theta),
+    );
     RunResult {
+        final_heading,
         nees,
         features: ekf.feature_count(),
         mean_nis_per_dof: st.nis_sum / st.nis_dof_sum.max(1) as f64,
@@ -237,6 +244,18 @@ fn summarise(runs: usize, seconds: f64, use_power: bool) -> (f64, f64, (f64, f64
         .flat_map(|r| r.feature_nees.iter().copied())
         .collect();
     let feature_mean = all.iter().sum::<f64>() / all.len().max(1) as f64;
+    let sigma = results.iter().map(|r| r.final_heading.0).sum::<f64>() / runs as f64;
+    let rms = (results
+        .iter()
+        .map(|r| r.final_heading.1.powi(2))
+        .sum::<f64>()
+        / runs as f64)
+        .sqrt();
+    println!(
+        "final heading: filter sigma {:.3} deg (mean), actual RMS error {:.3} deg",
+        sigma.to_degrees(),
+        rms.to_degrees()
+    );
     let (flo, fhi) = band(runs, 2);
     println!(
         "feature position NEES (2 dof), mean over {} features x runs: {feature_mean:.3}; \
