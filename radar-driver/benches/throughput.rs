@@ -279,29 +279,7 @@ fn report() {
     );
 }
 
-/// The cost of the cut-frame check (`resync::TruncationGuard`) on one whole 3.8 kB frame,
-/// against copying the same bytes, in the same run.
-fn guard(c: &mut Criterion) {
-    let frame = stream(1);
-    let mut g = c.benchmark_group("per_frame");
-    g.throughput(Throughput::Bytes(frame.len() as u64));
-    g.bench_function("truncation_guard_check", |b| {
-        b.iter(|| {
-            let mut guard = radar_driver::resync::TruncationGuard::new();
-            std::hint::black_box(guard.check(std::hint::black_box(&frame)))
-        })
-    });
-    g.bench_function("memcpy_same_frame", |b| {
-        let mut dst = vec![0u8; frame.len()];
-        b.iter(|| {
-            dst.copy_from_slice(std::hint::black_box(&frame));
-            std::hint::black_box(&dst);
-        })
-    });
-    g.finish();
-}
-
-criterion_group!(benches, bench, guard);
+criterion_group!(benches, bench);
 
 fn main() {
     benches();

@@ -46,7 +46,6 @@ pub mod handoff;
 pub mod metrics;
 pub mod odometry;
 pub mod record;
-pub mod resync;
 pub mod session;
 pub mod settings;
 pub mod shutdown;

@@ -12,7 +12,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use bytes::{Buf, BytesMut};
+use bytes::BytesMut;
 use protocol::{
     Configuration, DecodeError, FftData, FrameDecoder, Geometry, Message, PayloadError,
 };
@@ -26,7 +26,6 @@ use crate::error::SessionError;
 use crate::handoff::Sink;
 use crate::metrics::{DecodeErrorKind, Metrics};
 use crate::record::Recorder;
-use crate::resync::TruncationGuard;
 use crate::settings::DriverSettings;
 use crate::shutdown::Shutdown;
 
@@ -37,9 +36,9 @@ impl From<&DecodeError> for DecodeErrorKind {
             DecodeError::BadVersion { .. } => DecodeErrorKind::Version,
             DecodeError::Oversized { .. } => DecodeErrorKind::Oversized,
             DecodeError::Payload { source, .. } => match source {
-                PayloadError::Truncated { .. } | PayloadError::WrongLength { .. } => {
-                    DecodeErrorKind::Truncated
-                }
+                PayloadError::Truncated { .. }
+                | PayloadError::WrongLength { .. }
+                | PayloadError::CutShort { .. } => DecodeErrorKind::Truncated,
                 PayloadError::FftDataOffsetTooSmall { .. }
                 | PayloadError::FftDataOffsetBeyondPayload { .. }
                 | PayloadError::OddBinPayload { .. } => DecodeErrorKind::FftLayout,
@@ -139,7 +138,6 @@ impl SessionState {
         let mut buf = BytesMut::with_capacity(chunk * 2);
         let mut record_pending = BytesMut::new();
         let mut decoder = FrameDecoder::new();
-        let mut guard = TruncationGuard::new();
         let mut errors_in_a_row = 0u32;
         loop {
             buf.reserve(chunk);
@@ -164,21 +162,9 @@ impl SessionState {
                 record_pending.extend_from_slice(buf.get(before..).unwrap_or_default());
             }
             loop {
-                if let Some(cut) = guard.check(&buf) {
-                    // A frame cut short by the next frame's signature: drop the stub.
-                    buf.advance(cut);
-                    self.metrics.add_decode_error(DecodeErrorKind::Truncated);
-                    tracing::debug!(
-                        bytes = cut,
-                        "frame cut short; resynchronised on the next signature"
-                    );
-                    errors_in_a_row += 1;
-                    continue;
-                }
                 match decoder.decode(&mut buf) {
                     Ok(None) => break,
                     Ok(Some(message)) => {
-                        guard.reset();
                         errors_in_a_row = 0;
                         self.metrics.add_frames(1);
                         match self.on_message(message, read_ns, configured) {
@@ -194,7 +180,6 @@ impl SessionState {
                         }
                     }
                     Err(e) => {
-                        guard.reset();
                         self.metrics.add_decode_error(DecodeErrorKind::from(&e));
                         tracing::debug!(error = %e, "decode error; frame skipped");
                         errors_in_a_row += 1;

@@ -17,7 +17,7 @@ pub enum DecodeErrorKind {
     /// A payload size of 1,000,000 bytes or more.
     Oversized,
     /// A payload shorter than its message type needs, or a frame cut short by the next
-    /// frame's signature (see [`crate::resync`]).
+    /// frame's signature (the protocol decoder's `PayloadError::CutShort`).
     Truncated,
     /// An FFT payload whose layout is impossible (data offset beyond the payload, odd 16-bit bins).
     FftLayout,
