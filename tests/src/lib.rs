@@ -27,6 +27,8 @@ pub struct Run {
     pub fault_scope: FaultScope,
     /// Serve odometry.
     pub odometry: bool,
+    /// Simulator seed (None: the scene's).
+    pub seed: Option<u64>,
 }
 
 impl Run {
@@ -39,6 +41,7 @@ impl Run {
             faults: FaultSettings::default(),
             fault_scope: FaultScope::EveryConnection,
             odometry: true,
+            seed: None,
         }
     }
 }
@@ -53,6 +56,9 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
     options.pacing = Pacing::AsFastAsPossible;
     options.faults = run.faults.clone();
     options.fault_scope = run.fault_scope;
+    if let Some(seed) = run.seed {
+        options.seed = Some(seed);
+    }
     if !run.odometry {
         options.odometry_bind = None;
     }
