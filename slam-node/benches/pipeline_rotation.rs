@@ -80,7 +80,10 @@ impl Rig {
             bin_size_m: unit.bin_m,
             range_offset_m: 0.0,
         };
-        let spectrum = SpectrumModel::new(sg, &compensation, NoiseModel::default()).unwrap();
+        // As the simulator renders: a peak's width (FWHM) is one bin.
+        let mut noise = NoiseModel::default();
+        noise.range.resolution_fwhm_m = unit.bin_m;
+        let spectrum = SpectrumModel::new(sg, &compensation, noise).unwrap();
         let radar = SynthRadar::new(
             usize::from(unit.azimuths),
             1.8f64.to_radians(),
@@ -108,6 +111,7 @@ impl Rig {
         let mut settings = PipelineSettings::from_config(&config).unwrap();
         settings.motion = MotionModel::Bicycle { wheelbase_m: 2.7 };
         settings.compensation = compensation;
+        settings.noise.range.resolution_fwhm_m = unit.bin_m;
         settings.detector = slam_node::detect::DetectorSettings::default();
         settings.initial_pose = [0.0, 0.0, 0.0];
         settings.initial_pose_std = [0.0; 3];

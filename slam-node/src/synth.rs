@@ -228,6 +228,8 @@ pub fn from_scene(
     let compensation =
         Compensation::calibrated(scene.receiver.compensation_db_per_decade, &constants);
     let mut noise = NoiseModel::default();
+    // The simulator draws each peak one bin wide (FWHM).
+    noise.range.resolution_fwhm_m = geometry.bin_size_m;
     if scene.noise.enabled {
         noise.present.variance_db2 = scene.noise.target_power_variance_db2;
         noise.range.phase_noise_sigma_m = scene.noise.range_sigma_m;

@@ -72,16 +72,19 @@ fn run(scene_name: &str, settings: DetectorSettings, rotations: u64, seed: u64) 
 }
 
 fn with(kind: DetectorKind, domain: DetectionDomain, scale_db: f64) -> DetectorSettings {
-    let mut s = DetectorSettings::default();
-    s.kind = kind;
-    s.domain = domain;
-    s.ca_scale_db = scale_db;
-    s.os_scale_db = scale_db;
+    let mut s = DetectorSettings {
+        kind,
+        domain,
+        ca_scale_db: scale_db,
+        os_scale_db: scale_db,
+        ..DetectorSettings::default()
+    };
     s.tpp.snr_threshold_db = scale_db;
     s
 }
 
 #[test]
+#[ignore = "measurement sweep (about 30 s in release): cargo test --release -p slam-node --test detection_scoring -- --ignored --nocapture"]
 fn detectors_are_scored_on_the_shipped_scenes() {
     println!(
         "{:<20} {:<8} {:<14} {:>6} {:>8} {:>8} {:>10} {:>12}",

@@ -124,6 +124,9 @@ fn embedded_settings(
     let slope = scene.receiver.compensation_db_per_decade;
     settings.compensation = Compensation::calibrated(slope, &RadarConstants::default());
     settings.beam_width_rad = scene.radar.beam_width_rad;
+    // The simulator draws each peak one bin wide (FWHM).
+    settings.noise.range.resolution_fwhm_m =
+        f64::from(scene.radar.range_gain) * scene.radar.bin_size_m();
     settings.filter.beam_half_width_rad = 0.5 * scene.radar.beam_width_rad;
     settings.initial_pose = scene.start;
     settings.initial_pose_std = [0.0; 3];

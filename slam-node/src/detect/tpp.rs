@@ -76,6 +76,7 @@ pub struct Tpp {
     settings: TppSettings,
     slots: Vec<SlotState>,
     scratch: Vec<f64>,
+    linear: Vec<f64>,
     noise: Vec<f64>,
 }
 
@@ -86,6 +87,7 @@ impl Tpp {
             settings,
             slots: vec![SlotState::default(); slots],
             scratch: Vec::new(),
+            linear: Vec::new(),
             noise: Vec::new(),
         }
     }
@@ -105,7 +107,12 @@ impl Tpp {
             // Bounded by the caller: slot comes from a validated azimuth index.
             self.slots.resize(slot + 1, SlotState::default());
         }
-        smooth_in_range(power_db, s.smooth_half_width_bins, &mut self.scratch);
+        smooth_in_range(
+            power_db,
+            s.smooth_half_width_bins,
+            &mut self.linear,
+            &mut self.scratch,
+        );
         let Some(state) = self.slots.get_mut(slot) else {
             return;
         };
@@ -162,22 +169,26 @@ impl Tpp {
     }
 }
 
-/// Triangular smoothing in linear power across `half` bins each side, result in dB.
-fn smooth_in_range(power_db: &[f64], half: usize, out: &mut Vec<f64>) {
+/// Triangular smoothing in linear power across `half` bins each side, result in dB. Each
+/// bin is converted to linear power once; NaN bins count as zero power.
+fn smooth_in_range(power_db: &[f64], half: usize, linear: &mut Vec<f64>, out: &mut Vec<f64>) {
+    linear.clear();
+    linear.extend(power_db.iter().map(|&p| {
+        if p.is_nan() {
+            0.0
+        } else {
+            10f64.powf(p / 10.0)
+        }
+    }));
     out.clear();
-    let n = power_db.len();
+    let n = linear.len();
     for i in 0..n {
         let lo = i.saturating_sub(half);
         let hi = (i + half + 1).min(n);
         let mut acc = 0.0;
         let mut wsum = 0.0;
-        for (j, &p) in power_db.iter().enumerate().take(hi).skip(lo) {
+        for (j, &lin) in linear.iter().enumerate().take(hi).skip(lo) {
             let w = (half + 1 - i.abs_diff(j)) as f64;
-            let lin = if p.is_nan() {
-                0.0
-            } else {
-                10f64.powf(p / 10.0)
-            };
             acc += w * lin;
             wsum += w;
         }

@@ -76,7 +76,7 @@ impl TruthOracle for SceneTruth {
         // Unix seconds in f64 carry about 0.2 us of rounding: a time a hair before the
         // start is the start.
         let dt = t_s - self.start_s;
-        if !(dt.is_finite() && dt >= -1e-3 && dt < 1.0e7) {
+        if !(-1e-3..1.0e7).contains(&dt) {
             return None;
         }
         let dt = dt.max(0.0);
