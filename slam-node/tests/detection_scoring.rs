@@ -9,7 +9,9 @@
 
 use radar_model::noise::seeded_rng;
 use sim_sensor::trajectory::Trajectory;
-use slam_node::detect::{BeamDetector, DetectionDomain, DetectorKind, DetectorSettings, RangeAxis};
+use slam_node::detect::{
+    BeamDetector, DetectionDomain, DetectorKind, DetectorSettings, FloorProfile, RangeAxis,
+};
 use slam_node::synth::{from_scene, DetectionScore, TrueTarget};
 
 /// Detections within this of a true target's range hit it, metres (two range cells).
@@ -42,6 +44,11 @@ fn run(scene_name: &str, settings: DetectorSettings, rotations: u64, seed: u64) 
         bin_m: g.bin_size_m,
     };
     let gain = radar.spectrum.gain_db().to_vec();
+    let floor = FloorProfile::new(
+        &radar.spectrum,
+        &radar.spectrum.noise().absent,
+        settings.floor_tail_pfa,
+    );
     let n_az = radar.azimuths;
     let period_ns = scene.radar.azimuth_period_ns();
     let mut detector = BeamDetector::new(settings, n_az);
@@ -57,7 +64,14 @@ fn run(scene_name: &str, settings: DetectorSettings, rotations: u64, seed: u64) 
                 .render(&pose, bearing, &world, &mut rng, &mut measured, &mut truth)
                 .expect("render");
             found.clear();
-            detector.detect(i, &measured, &gain, &axis, &mut found);
+            detector.detect(
+                i,
+                &measured,
+                &gain,
+                floor.floor(measured.len()),
+                &axis,
+                &mut found,
+            );
             let ranges: Vec<f64> = found.iter().map(|d| d.range_m).collect();
             // TPP needs a few scans to learn the floor: score it only once warm.
             if k >= 3 {

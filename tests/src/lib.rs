@@ -51,6 +51,14 @@ impl Run {
 pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport, DaemonError> {
     let mut config = config::Config::default();
     config.filter.use_power_in_observation = run.use_power;
+    // A short hand-off queue (half a second of the paper's unit): the simulator is paced by
+    // the pipeline through it, so a radar stall reaches the pipeline as silence at once
+    // instead of hiding behind seconds of queued azimuths in a slow (debug) build.
+    config.radar.azimuth_channel_capacity =
+        config::values::Capacity::new(256, 1 << 20).expect("valid capacity");
+    // Likewise a small socket receive buffer (the default 4 MiB holds ten seconds of it).
+    config.radar.recv_buffer_bytes =
+        config::values::Capacity::new(64 * 1024, 1 << 28).expect("valid size");
     let scene = sim_sensor::scene::shipped::load(run.scene).map_err(sim_sensor::SimError::from)?;
     let mut options = SimOptions::for_tests(scene);
     options.pacing = Pacing::AsFastAsPossible;

@@ -29,7 +29,7 @@ pub mod tpp;
 
 pub use grouping::{BeamDetection, Grouper, GroupingSettings, Observation};
 pub use peaks::{Peak, PeakSettings};
-pub use tpp::{Tpp, TppSettings};
+pub use tpp::{Floor, Tpp, TppSettings};
 
 use cfar::CfarWindow;
 
@@ -72,6 +72,8 @@ pub struct DetectorSettings {
     pub tpp: TppSettings,
     /// Peak extraction.
     pub peaks: PeakSettings,
+    /// Probability at which the floor's tail is set (see [`FloorProfile`]).
+    pub floor_tail_pfa: f64,
     /// Detections nearer than this are ignored (antenna leakage), metres.
     pub min_range_m: f64,
     /// Detections farther than this are ignored (receiver roll-off), metres.
@@ -97,6 +99,7 @@ impl Default for DetectorSettings {
                 min_prominence_db: 6.0,
                 max_peaks: 16,
             },
+            floor_tail_pfa: 1e-3,
             min_range_m: 2.0,
             max_range_m: 1.0e4,
         }
@@ -142,6 +145,7 @@ pub struct BeamDetector {
     snr_db: Vec<f64>,
     peaks: Vec<Peak>,
     work_db: Vec<f64>,
+    floor_work: Vec<f64>,
 }
 
 impl BeamDetector {
@@ -160,6 +164,7 @@ impl BeamDetector {
             snr_db: Vec::new(),
             peaks: Vec::new(),
             work_db: Vec::new(),
+            floor_work: Vec::new(),
         }
     }
 
@@ -174,13 +179,16 @@ impl BeamDetector {
     }
 
     /// Detects the targets in one measured spectrum (dB, as the radar sent it) of azimuth
-    /// slot `slot`, with `gain_db` the receiver's compensation gain per bin (same length);
-    /// appends them to `out` in range order with their uncompensated powers.
+    /// slot `slot`, with `gain_db` the receiver's compensation gain per bin (same length)
+    /// and `floor` the expected target-absent level of the measured spectrum per bin and its
+    /// tail when known (TPP uses them, see [`Tpp::process`]); appends the targets to `out` in range
+    /// order with their uncompensated powers.
     pub fn detect(
         &mut self,
         slot: usize,
         measured_db: &[f64],
         gain_db: &[f64],
+        floor: Option<Floor<'_>>,
         axis: &RangeAxis,
         out: &mut Vec<Detection>,
     ) {
@@ -193,6 +201,19 @@ impl BeamDetector {
                 .work_db
                 .extend(measured_db.iter().zip(gain_db).map(|(m, g)| m - g)),
         }
+        if let Some(floor) = floor.map(|f| f.mean_db) {
+            self.floor_work.clear();
+            match s.domain {
+                DetectionDomain::Measured => self.floor_work.extend(floor.iter().take(n)),
+                DetectionDomain::Uncompensated => self
+                    .floor_work
+                    .extend(floor.iter().zip(gain_db).take(n).map(|(f, g)| f - g)),
+            }
+        }
+        let floor_work = floor.map(|f| Floor {
+            mean_db: self.floor_work.as_slice(),
+            tail_db: f.tail_db.get(..n).unwrap_or_default(),
+        });
         let work = &self.work_db;
         match s.kind {
             DetectorKind::CaCfar => {
@@ -207,7 +228,7 @@ impl BeamDetector {
             ),
             DetectorKind::Tpp => {
                 self.tpp
-                    .process(slot, work, &mut self.flags, &mut self.snr_db);
+                    .process(slot, work, floor_work, &mut self.flags, &mut self.snr_db);
             }
         }
         if s.kind != DetectorKind::Tpp {
@@ -235,6 +256,42 @@ impl BeamDetector {
                 bin: p.bin,
             }
         }));
+    }
+}
+
+/// The floor's mean and tail per bin of a spectrum model: `tail = Q(1 - pfa) - mean`,
+/// `Q` the target-absent floor's quantile at the bin's range (radar-model's noise model).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FloorProfile {
+    /// Mean floor, dB (measured domain).
+    pub mean_db: Vec<f64>,
+    /// Tail above the mean, dB.
+    pub tail_db: Vec<f64>,
+}
+
+impl FloorProfile {
+    /// Tabulates the floor of `model` with the tail at per-bin probability `pfa`.
+    pub fn new(
+        model: &radar_model::spectrum::SpectrumModel,
+        absent: &radar_model::noise::TargetAbsentNoise,
+        pfa: f64,
+    ) -> Self {
+        let g = model.geometry();
+        let e = -pfa.clamp(1e-300, 1.0).ln();
+        let mean_db = model.floor_mean_db().to_vec();
+        let tail_db = (0..g.bins)
+            .zip(&mean_db)
+            .map(|(b, m)| absent.distribution_at(g.bin_range_m(b)).from_exp1(e) - m)
+            .collect();
+        Self { mean_db, tail_db }
+    }
+
+    /// The first `n` bins as a [`Floor`].
+    pub fn floor(&self, n: usize) -> Option<Floor<'_>> {
+        Some(Floor {
+            mean_db: self.mean_db.get(..n)?,
+            tail_db: self.tail_db.get(..n)?,
+        })
     }
 }
 

@@ -17,7 +17,9 @@ use super::settings::PipelineSettings;
 use super::spectrum::{compare_beam, SpectrumScratch, SpectrumTally};
 use super::summary::PipelineSummary;
 use super::truth::{nearest_feature, PoseErrorStats, TruthOracle};
-use crate::detect::{BeamDetection, BeamDetector, Detection, Grouper, Observation, RangeAxis};
+use crate::detect::{
+    BeamDetection, BeamDetector, Detection, FloorProfile, Grouper, Observation, RangeAxis,
+};
 use crate::filter::{
     BeamObservation, BeamReport, Ekf, FilterError, OdometrySample, RadarBeamModel,
 };
@@ -43,6 +45,7 @@ struct RadarState {
     geometry: protocol::Geometry,
     axis: RangeAxis,
     spectrum: SpectrumModel,
+    floor: FloorProfile,
     detector: BeamDetector,
 }
 
@@ -237,7 +240,13 @@ impl Pipeline {
         self.grouper = Some(Grouper::new(
             self.settings.grouping(geometry.azimuth_samples),
         ));
+        let floor = FloorProfile::new(
+            &spectrum,
+            &self.settings.noise.absent,
+            self.settings.detector.floor_tail_pfa,
+        );
         self.radar = Some(RadarState {
+            floor,
             geometry: geometry.clone(),
             axis: RangeAxis {
                 first_bin_m: geometry.range_offset_m,
@@ -296,6 +305,7 @@ impl Pipeline {
                 slot,
                 &s.measured,
                 gain.get(..n).unwrap_or_default(),
+                radar.floor.floor(n),
                 &radar.axis,
                 &mut s.detections,
             );
