@@ -27,6 +27,13 @@ pub struct Budget {
     pub spectra_rotations: usize,
     /// Filter steps (azimuths) of the long stability run.
     pub stability_steps: u64,
+    /// Longest detection run on the CTS350-X-like scene (s).
+    pub heavy_scene_seconds: f64,
+    /// Oxford scans used (at most the 8 recorded).
+    pub oxford_scans: usize,
+    /// Skip the runs that take minutes in a debug build (the CTS350-X-like scene's
+    /// detection runs, the filter over the Oxford scans, the dense-clutter sweep).
+    pub skip_heavy: bool,
     /// Worker threads for independent runs (timed runs always run alone).
     pub jobs: usize,
 }
@@ -39,11 +46,14 @@ impl Budget {
             mc_seconds: 40.0,
             mc_pipeline_runs: 10,
             scene_seconds: 40.0,
-            association_seeds: 5,
-            association_seconds: 30.0,
-            sweep_seconds: 20.0,
-            spectra_rotations: 5,
+            association_seeds: 3,
+            association_seconds: 20.0,
+            sweep_seconds: 8.0,
+            spectra_rotations: 3,
             stability_steps: 1_000_000,
+            heavy_scene_seconds: 2.5,
+            oxford_scans: 8,
+            skip_heavy: false,
             jobs: 2,
         }
     }
@@ -60,6 +70,9 @@ impl Budget {
             sweep_seconds: 4.0,
             spectra_rotations: 1,
             stability_steps: 20_000,
+            heavy_scene_seconds: 1.0,
+            oxford_scans: 8,
+            skip_heavy: false,
             jobs: 2,
         }
     }
@@ -76,6 +89,9 @@ impl Budget {
             sweep_seconds: 0.8,
             spectra_rotations: 1,
             stability_steps: 400,
+            heavy_scene_seconds: 0.5,
+            oxford_scans: 2,
+            skip_heavy: true,
             jobs: 2,
         }
     }

@@ -6,6 +6,7 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 use nalgebra::Matrix3;
+use radar_model::compensation::Compensation;
 use radar_model::geometry::{wrap_angle, Pose2};
 use radar_model::power::PowerModel;
 use sim_sensor::scene::Scene;
@@ -15,21 +16,40 @@ use slam_node::filter::{
     BeamObservation, BeamReport, CovarianceHealth, Ekf, FeatureId, FilterSettings, FilterStats,
     RadarBeamModel,
 };
+use slam_node::pipeline::{PipelineSettings, PipelineSummary};
 
 use crate::error::EvalError;
 use crate::source::{label_targets, AzimuthBeam, SpectrumSource, TargetSource};
 use crate::world::World;
 
-/// Where observations come from (see [`crate::source`]).
+/// How the spectra pipeline detects and groups.
 #[derive(Debug, Clone, PartialEq)]
+pub struct SpectraSettings {
+    /// The detector.
+    pub detector: DetectorSettings,
+    /// The receiver compensation the detector removes (the daemon's configured one).
+    pub compensation: Compensation,
+    /// Grouping range gate (m).
+    pub grouping_range_gate_m: f64,
+    /// Widest group, in beam widths.
+    pub grouping_max_width_beams: f64,
+    /// The noise model whose target-absent floor the detector is told (TPP uses it).
+    pub noise: radar_model::noise::NoiseModel,
+}
+
+/// Where observations come from (see [`crate::source`]).
+#[derive(Debug, Clone)]
 pub enum Mode {
     /// Every feature in the beam, with the filter's noise model.
     Targets,
-    /// Rendered spectra through the detector and grouper.
-    Spectra(DetectorSettings),
+    /// Rendered spectra through the detector and grouper, one filter beam per azimuth.
+    Spectra(Box<SpectraSettings>),
+    /// The daemon's own pipeline with these settings (wire bytes in; see [`crate::daemon`]).
+    Daemon(Box<PipelineSettings>),
 }
 
-/// A new feature farther than this from every true feature was made from clutter (m).
+/// A new feature is matched to the beam target it was initialised from when that target's
+/// position lies within this of the feature's (m).
 pub const IDENTITY_RADIUS_M: f64 = 2.0;
 
 /// Everything that defines a run.
@@ -140,7 +160,7 @@ pub struct AssociationCounts {
     pub wrong: u64,
     /// Unlabelled target (clutter) paired with some feature.
     pub unlabelled_paired: u64,
-    /// Features created from no true feature (nothing within 2 m).
+    /// Features initialised from an unlabelled target (clutter).
     pub clutter_features: u64,
     /// Labelled target left unpaired although a feature of its own was a candidate.
     pub missed: u64,
@@ -186,6 +206,8 @@ pub struct RunOutcome {
     pub azimuths: u64,
     /// Wall time of the whole run including rendering (s).
     pub wall_s: f64,
+    /// The daemon's own summary (daemon mode only).
+    pub daemon: Option<PipelineSummary>,
 }
 
 /// Runs `spec` and measures it.
@@ -196,6 +218,28 @@ pub fn run(spec: &RunSpec) -> Result<RunOutcome, EvalError> {
         ));
     }
     let started = Instant::now();
+    if let Mode::Daemon(settings) = &spec.mode {
+        let mut settings = (**settings).clone();
+        settings.filter = spec.filter.clone();
+        let d = crate::daemon::run_daemon(
+            &spec.scene,
+            spec.seed,
+            spec.seconds,
+            settings,
+            spec.odometry,
+        )?;
+        return Ok(RunOutcome {
+            final_features: d.summary.map_size,
+            beams: d.summary.beams,
+            azimuths: d.summary.azimuths,
+            beam_errors: (d.summary.filter_errors, None),
+            loss_db: (d.loss_db, spec.scene.loss_db),
+            rotations: d.rotations,
+            wall_s: d.wall_s,
+            daemon: Some(d.summary),
+            ..RunOutcome::default()
+        });
+    }
     let world = World::new(spec.scene.clone(), spec.seed, spec.seconds, spec.odometry)?;
     let s = spec.initial_sigma;
     let p0 = Matrix3::from_diagonal(&nalgebra::Vector3::new(
@@ -235,9 +279,10 @@ pub fn run(spec: &RunSpec) -> Result<RunOutcome, EvalError> {
                 index += stride;
             }
         }
-        Mode::Spectra(detector) => {
+        Mode::Daemon(_) => {}
+        Mode::Spectra(settings) => {
             let mut source =
-                SpectrumSource::new(&world, *detector, spec.bin_stride, spec.azimuth_stride)?;
+                SpectrumSource::new(&world, settings, spec.bin_stride, spec.azimuth_stride)?;
             let mut finals = Vec::new();
             let mut index = 0;
             while index < total {
@@ -374,7 +419,7 @@ impl RunState {
         self.pending_work_s = 0.0;
         self.out.beams += 1;
         match result {
-            Ok(report) => self.judge(world, ekf, &labelled, &report),
+            Ok(report) => self.judge(ekf, &labelled, &report),
             Err(e) => self.note_error(&e.to_string()),
         }
         self.batch.clear();
@@ -385,7 +430,7 @@ impl RunState {
 
     fn judge(
         &mut self,
-        world: &World,
+
         ekf: &Ekf<radar_model::motion::MotionModel, RadarBeamModel>,
         targets: &[crate::source::LabelledTarget],
         report: &BeamReport,
@@ -435,18 +480,23 @@ impl RunState {
                 self.out.association.missed += 1;
             }
         }
-        // New features: identify them with the nearest true feature within 2 m.
+        // New features: each was initialised from one of this beam's unclaimed targets, at
+        // the position that target gives from the current pose; it takes that target's
+        // label (None: made from clutter).
+        let pose = ekf.pose();
         for id in &report.initialised {
             let Some(f) = ekf.feature(*id) else {
                 continue;
             };
-            let nearest = world
-                .features
+            let nearest = targets
                 .iter()
-                .map(|a| ((a.xy[0] - f.x_m).hypot(a.xy[1] - f.y_m), a.id))
+                .map(|t| {
+                    let p = pose.point_at(t.target.range_m, t.target.bearing_rad);
+                    ((p[0] - f.x_m).hypot(p[1] - f.y_m), t.label)
+                })
                 .min_by(|a, b| a.0.total_cmp(&b.0))
                 .filter(|(d, _)| *d <= IDENTITY_RADIUS_M)
-                .map(|(_, id)| id);
+                .and_then(|(_, label)| label);
             match nearest {
                 Some(n) => {
                     let owners = self.owners.entry(n).or_insert(0);

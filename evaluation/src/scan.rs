@@ -16,7 +16,7 @@ use radar_model::spectrum::{
     KERNEL_SPAN_SIGMAS,
 };
 use slam_node::detect::{
-    BeamDetection, BeamDetector, DetectorSettings, Grouper, Observation, RangeAxis,
+    BeamDetection, BeamDetector, DetectorSettings, FloorProfile, Grouper, Observation, RangeAxis,
 };
 
 use crate::error::EvalError;
@@ -150,13 +150,64 @@ impl Tally {
     }
 }
 
-/// All bins, and only the bins near predicted targets.
+/// All bins, only the bins near predicted targets, and the peaks.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Comparison {
     /// Every bin.
     pub all: Tally,
     /// Bins within [`TARGET_BIN_HALF_WIDTH_M`] of a predicted target.
     pub targets: Tally,
+    /// Predicted peak level minus the strongest measured bin within [`PEAK_WINDOW_M`] of it,
+    /// for predicted targets at least [`PEAK_MIN_SNR_DB`] above the floor with no other
+    /// predicted target within [`PEAK_ISOLATION_M`] (the paper's figure 8 against 9).
+    pub peaks: Tally,
+}
+
+/// Half-width of the window searched for a target's measured peak (m).
+pub const PEAK_WINDOW_M: f64 = 0.5;
+/// A predicted peak must stand this far above the floor to be compared (dB).
+pub const PEAK_MIN_SNR_DB: f64 = 10.0;
+/// No other predicted target may lie within this of a compared peak (m).
+pub const PEAK_ISOLATION_M: f64 = 2.0;
+
+/// Adds the peak comparison of every isolated, visible predicted target of one beam.
+pub fn add_peaks(
+    tally: &mut Tally,
+    geometry: &SpectrumGeometry,
+    targets: &[SpectrumTarget],
+    predicted: &[f64],
+    measured: &[f64],
+    floor: &[f64],
+) {
+    for (i, t) in targets.iter().enumerate() {
+        let isolated = targets
+            .iter()
+            .enumerate()
+            .all(|(j, u)| j == i || (u.range_m - t.range_m).abs() > PEAK_ISOLATION_M);
+        if !isolated {
+            continue;
+        }
+        let centre = ((t.range_m - geometry.range_offset_m) / geometry.bin_size_m).round();
+        if !(centre.is_finite() && centre >= 0.0) {
+            continue;
+        }
+        // Finite and non-negative; out-of-range indices fall through `get`.
+        let c = centre as usize;
+        let (Some(p), Some(f)) = (predicted.get(c), floor.get(c)) else {
+            continue;
+        };
+        if p - f < PEAK_MIN_SNR_DB {
+            continue;
+        }
+        let half = (PEAK_WINDOW_M / geometry.bin_size_m).ceil().max(1.0) as usize;
+        let lo = c.saturating_sub(half);
+        let hi = (c + half + 1).min(measured.len());
+        let Some(window) = measured.get(lo..hi) else {
+            continue;
+        };
+        let m = window.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        tally.add(p - m);
+    }
 }
 
 /// A target fitted from one scan, in that scan's frame.
@@ -174,6 +225,7 @@ pub struct FittedTarget {
 pub fn detect_scan(
     scan: &Scan,
     detector: DetectorSettings,
+    floor: &FloorProfile,
     gain_db: &[f64],
     axis: &RangeAxis,
     beam_width_rad: f64,
@@ -186,7 +238,14 @@ pub fn detect_scan(
     let mut out = Vec::new();
     for (slot, row) in scan.rows.iter().enumerate() {
         found.clear();
-        det.detect(slot, &row.measured_db, gain_db, axis, &mut found);
+        det.detect(
+            slot,
+            &row.measured_db,
+            gain_db,
+            floor.floor(row.measured_db.len()),
+            axis,
+            &mut found,
+        );
         handoff.clear();
         handoff.extend(found.iter().map(|d| BeamDetection {
             range_m: d.range_m,
@@ -354,6 +413,10 @@ pub fn predict_and_compare(
             })
         }));
         beam_spectrum_targets(&power, &targets, 0.0, &mut spectrum_targets)?;
+        let floor_db: &[f64] = match floor {
+            Floor::Model => model.floor_mean_db(),
+            Floor::PreviousScan(f) => f,
+        };
         match floor {
             Floor::Model => model.predict_into(&spectrum_targets, &mut predicted)?,
             Floor::PreviousScan(f) => {
@@ -380,6 +443,14 @@ pub fn predict_and_compare(
                 cmp.targets.add(d);
             }
         }
+        add_peaks(
+            &mut cmp.peaks,
+            geometry,
+            &spectrum_targets,
+            &predicted,
+            &row.measured_db,
+            floor_db,
+        );
     }
     Ok(cmp)
 }

@@ -17,11 +17,12 @@ use protocol::Timestamp;
 use radar_model::geometry::{features_in_beam, range_bearing, wrap_angle, Beam, BeamHit, Pose2};
 use radar_model::observation::{observe_beam, BeamFeature};
 use radar_model::spectrum::quantize_8bit;
+use radar_model::spectrum::{SpectrumGeometry, SpectrumModel};
 use rand_chacha::ChaCha8Rng;
 use sim_sensor::render::RenderCursor;
 use slam_node::detect::{
-    BeamDetection, BeamDetector, Detection, DetectorSettings, Grouper, GroupingSettings,
-    Observation, RangeAxis,
+    BeamDetection, BeamDetector, Detection, FloorProfile, Grouper, GroupingSettings, Observation,
+    RangeAxis,
 };
 use slam_node::filter::Target;
 
@@ -214,6 +215,7 @@ impl BeamAssembler {
 pub struct SpectrumSource {
     cursor: RenderCursor,
     detector: BeamDetector,
+    floor: FloorProfile,
     assembler: BeamAssembler,
     bin_stride: usize,
     axis: RangeAxis,
@@ -246,10 +248,11 @@ impl SpectrumSource {
     /// of each group of `bin_stride`), processing every `azimuth_stride`-th azimuth.
     pub fn new(
         world: &World,
-        detector: DetectorSettings,
+        settings: &crate::run::SpectraSettings,
         bin_stride: usize,
         azimuth_stride: usize,
     ) -> Result<Self, EvalError> {
+        let detector = settings.detector;
         if bin_stride == 0 || azimuth_stride == 0 {
             return Err(EvalError::Setting("strides must be at least 1".into()));
         }
@@ -261,16 +264,24 @@ impl SpectrumSource {
             bin_m: g.bin_size_m * bin_stride as f64,
         };
         let gain_db = (0..bins)
-            .map(|k| world.compensation.gain_db(axis.range_m(k as f64)))
+            .map(|k| settings.compensation.gain_db(axis.range_m(k as f64)))
             .collect();
-        let grouping = grouping_for(
-            world.azimuths(),
-            world.scene.radar.beam_width_rad,
-            axis.bin_m,
-            azimuth_stride,
-        );
+        let step = std::f64::consts::TAU / world.azimuths().max(1) as f64 * azimuth_stride as f64;
+        let grouping = GroupingSettings {
+            range_gate_m: settings.grouping_range_gate_m.max(1.5 * axis.bin_m),
+            max_step_rad: 1.5 * step,
+            max_width_rad: (settings.grouping_max_width_beams * world.scene.radar.beam_width_rad)
+                .max(step),
+        };
         let az = usize::try_from(world.azimuths()).unwrap_or(usize::MAX);
+        let decimated = SpectrumGeometry {
+            bins,
+            bin_size_m: axis.bin_m,
+            range_offset_m: axis.first_bin_m,
+        };
+        let model = SpectrumModel::new(decimated, &settings.compensation, settings.noise)?;
         Ok(Self {
+            floor: FloorProfile::new(&model, &settings.noise.absent, detector.floor_tail_pfa),
             cursor: world.cursor(),
             detector: BeamDetector::new(detector, az),
             assembler: BeamAssembler::new(grouping),
@@ -326,6 +337,7 @@ impl SpectrumSource {
             slot,
             &self.measured_db,
             &self.gain_db,
+            self.floor.floor(self.measured_db.len()),
             &self.axis,
             &mut self.detections,
         );

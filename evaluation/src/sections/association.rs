@@ -11,7 +11,7 @@ use crate::error::EvalError;
 use crate::metrics::{mean, rms};
 use crate::report::{num, pct, table, Options, Section};
 use crate::run::{run_many, AssociationCounts, Mode, RunOutcome};
-use crate::sections::{shipped_detector, shipped_spec};
+use crate::sections::{shipped_spec, shipped_spectra};
 
 /// The cluttered scene.
 pub const SCENE: &str = "dense-clutter";
@@ -88,10 +88,7 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
     let scene = shipped::load(SCENE)?;
     let mut rows = Vec::new();
     let mut wrong_rates = Vec::new();
-    for (mode_name, mode) in [
-        ("targets", Mode::Targets),
-        ("spectra", Mode::Spectra(shipped_detector())),
-    ] {
+    for (mode_name, mode) in [("targets", Mode::Targets), ("spectra", shipped_spectra()?)] {
         for power in [true, false] {
             let mut specs = Vec::new();
             for k in 0..b.association_seeds {

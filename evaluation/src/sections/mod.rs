@@ -9,18 +9,19 @@ pub mod spectra;
 pub mod stability;
 pub mod sweep;
 
-use radar_model::power::PowerModel;
 use sim_sensor::scene::Scene;
 use sim_sensor::OdometryNoise;
 use slam_node::detect::DetectorSettings;
+use slam_node::filter::FilterSettings;
 
 use crate::error::EvalError;
-use crate::run::{matched_filter, Mode, RunSpec};
+use crate::run::{matched_filter, Mode, RunSpec, SpectraSettings};
 use crate::world::World;
 
-/// A run of `scene` with the settings the daemon ships with (detector and filter defaults,
-/// input noise matched to the simulator's odometry), the filter's power model equal to the
-/// world's, every azimuth, every bin, one beam per update.
+/// A run of `scene` with the settings the daemon ships with (`config::Config::default()`
+/// converted by the daemon: detector, compensation, grouping, filter), the filter's input
+/// noise matched to the simulator's odometry, every azimuth, every bin, one beam per
+/// azimuth. In `Targets` mode the observation noise is the simulator's exact noise instead.
 pub fn shipped_spec(
     scene: Scene,
     seed: u64,
@@ -29,10 +30,22 @@ pub fn shipped_spec(
 ) -> Result<RunSpec, EvalError> {
     let odometry = OdometryNoise::default();
     let world = World::new(scene.clone(), seed, 1.0, odometry)?;
-    let targets = matches!(mode, Mode::Targets);
+    let shipped = crate::daemon::shipped_settings()?;
+    let filter = match mode {
+        Mode::Targets => matched_filter(&world, &odometry, true),
+        _ => FilterSettings {
+            speed_std_mps: odometry.sigma_speed_mps.max(1e-3),
+            steer_std_rad: odometry.sigma_steer_rad.max(1e-5),
+            input_noise_correlation_s: 1.0 / odometry.rate_hz,
+            ..shipped.filter.clone()
+        },
+    };
     Ok(RunSpec {
-        filter: matched_filter(&world, &odometry, targets),
-        filter_power: world.power,
+        filter,
+        filter_power: match mode {
+            Mode::Targets => world.power,
+            _ => shipped.power,
+        },
         scene,
         seed,
         seconds,
@@ -46,12 +59,30 @@ pub fn shipped_spec(
     })
 }
 
-/// The detector the daemon ships with.
-pub fn shipped_detector() -> DetectorSettings {
-    DetectorSettings::default()
+/// The shipped detector, compensation and grouping for the evaluation's own spectra
+/// pipeline.
+pub fn shipped_spectra() -> Result<Mode, EvalError> {
+    let s = crate::daemon::shipped_settings()?;
+    Ok(Mode::Spectra(Box::new(SpectraSettings {
+        detector: s.detector,
+        compensation: s.compensation.clone(),
+        grouping_range_gate_m: s.grouping_range_gate_m,
+        grouping_max_width_beams: s.grouping_max_width_beams,
+        noise: s.noise,
+    })))
 }
 
-/// The filter's power model for a world (same as the simulator's).
-pub fn world_power(world: &World) -> PowerModel {
-    world.power
+/// The daemon's pipeline as shipped.
+pub fn shipped_daemon() -> Result<Mode, EvalError> {
+    Ok(Mode::Daemon(Box::new(crate::daemon::shipped_settings()?)))
+}
+
+/// The shipped detector, for procedures that detect one scan on its own (it must not need
+/// previous scans: TPP does, so CFAR with the shipped threshold and window is used then).
+pub fn single_scan_detector() -> Result<DetectorSettings, EvalError> {
+    let mut d = crate::daemon::shipped_settings()?.detector;
+    if d.kind == slam_node::detect::DetectorKind::Tpp {
+        d.kind = slam_node::detect::DetectorKind::OsCfar;
+    }
+    Ok(d)
 }

@@ -16,13 +16,12 @@ use radar_model::noise::{NoiseModel, RangeSpread};
 use radar_model::power::PowerModel;
 use radar_model::spectrum::SpectrumGeometry;
 use sim_sensor::replay::png::read_polar_png;
-use slam_node::detect::{BeamDetector, RangeAxis};
+use slam_node::detect::{BeamDetector, FloorProfile, RangeAxis};
 use slam_node::filter::{BeamObservation, Ekf, FilterSettings, OdometrySample, RadarBeamModel};
 
 use crate::error::EvalError;
 use crate::report::{num, pct, table, Options, Section};
 use crate::scan::{Row, Scan, Variant};
-use crate::sections::shipped_detector;
 use crate::sections::spectra::{cells, from_previous_scan};
 use crate::source::{grouping_for, AzimuthBeam, BeamAssembler};
 
@@ -214,8 +213,9 @@ pub fn track(
         first_bin_m: 0.0,
         bin_m: BIN_SIZE_M,
     };
+    let shipped = crate::daemon::shipped_settings()?;
     let comp = Variant {
-        form: radar_model::power::SpreadingForm::Paper,
+        form: shipped.power.form,
         slope_db_per_decade,
     }
     .compensation();
@@ -223,16 +223,26 @@ pub fn track(
         .map(|b| comp.gain_db(axis.range_m(b as f64)))
         .collect();
     let azimuths = scans.first().map_or(400, |s| s.scan.rows.len());
-    let mut detector = BeamDetector::new(shipped_detector(), azimuths);
+    let mut detector = BeamDetector::new(shipped.detector, azimuths);
+    let geometry = SpectrumGeometry {
+        bins,
+        bin_size_m: BIN_SIZE_M,
+        range_offset_m: 0.0,
+    };
+    let floor = FloorProfile::new(
+        &radar_model::spectrum::SpectrumModel::new(geometry, &comp, shipped.noise)?,
+        &shipped.noise.absent,
+        shipped.detector.floor_tail_pfa,
+    );
     let mut assembler =
         BeamAssembler::new(grouping_for(azimuths as u64, BEAM_WIDTH_RAD, BIN_SIZE_M, 1));
     let motion = MotionModel::Bicycle {
         wheelbase_m: WHEELBASE_M,
     };
     let settings = FilterSettings {
-        max_range_m: bins as f64 * BIN_SIZE_M,
+        max_range_m: shipped.filter.max_range_m.min(bins as f64 * BIN_SIZE_M),
         beam_half_width_rad: 0.5 * BEAM_WIDTH_RAD,
-        ..FilterSettings::default()
+        ..shipped.filter.clone()
     };
     let first_t = scans
         .first()
@@ -241,7 +251,7 @@ pub fn track(
         .min(scans.first().map_or(0.0, |s| s.time_s));
     let power = PowerModel {
         range_resolution_m: BIN_SIZE_M,
-        ..PowerModel::default()
+        ..shipped.power
     };
     let p0 = Matrix3::from_diagonal(&nalgebra::Vector3::new(1e-6, 1e-6, 1e-8));
     let mut ekf = Ekf::new(
@@ -292,7 +302,14 @@ pub fn track(
     for s in scans {
         for (slot, row) in s.scan.rows.iter().enumerate() {
             found.clear();
-            detector.detect(slot, &row.measured_db, &gain, &axis, &mut found);
+            detector.detect(
+                slot,
+                &row.measured_db,
+                &gain,
+                floor.floor(row.measured_db.len()),
+                &axis,
+                &mut found,
+            );
             assembler.push(
                 AzimuthBeam {
                     index,
@@ -405,7 +422,8 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
             ),
         });
     };
-    let scans = read_scans(&dir)?;
+    let mut scans = read_scans(&dir)?;
+    scans.truncate(opts.budget.oxford_scans.max(2));
     let odometry = read_odometry(&dir.join("radar_odometry.csv"))?;
     // Relative pose of scan k+1 in scan k's frame, and the accumulated truth.
     let mut rel = Vec::new();
@@ -496,6 +514,9 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
             "target bins in bound",
             "target-bin bias (dB)",
             "target bins",
+            "peak bias (dB)",
+            "peak RMS (dB)",
+            "peaks",
             "rho clamped",
         ],
         &rows,
@@ -508,11 +529,37 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
          dead reckoning integrates the same odometry without the radar):\n"
     );
     let mut track_rows = Vec::new();
-    for (name, scale, bias) in [
+    let cases = [
         ("exact", 1.0, 0.0),
         ("speed +5 %, yaw rate +0.02 rad/s", 1.05, 0.02),
-    ] {
-        let r = track(&scans, &truth, &rel, scale, bias, 60.0)?;
+    ];
+    // The two runs are independent: one thread each.
+    let results: Vec<Result<TrackResult, EvalError>> = if opts.budget.skip_heavy {
+        Vec::new()
+    } else {
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = cases
+                .iter()
+                .map(|&(_, scale, bias)| {
+                    let (scans, truth, rel) = (&scans, &truth, &rel);
+                    scope.spawn(move || track(scans, truth, rel, scale, bias, 60.0))
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| {
+                    h.join().unwrap_or_else(|_| {
+                        Err(EvalError::Setting("tracking thread panicked".into()))
+                    })
+                })
+                .collect()
+        })
+    };
+    if results.is_empty() {
+        let _ = writeln!(body, "(Skipped in this budget: the filter over the real scans takes minutes in a debug build.)\n");
+    }
+    for ((name, _, _), r) in cases.iter().zip(results) {
+        let r = r?;
         let last = r
             .per_scan
             .last()

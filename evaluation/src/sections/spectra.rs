@@ -6,20 +6,20 @@
 
 use std::fmt::Write as _;
 
-use radar_model::geometry::{features_in_beam, wrap_angle, Beam, BeamHit, Pose2};
+use radar_model::geometry::{wrap_angle, Pose2};
 use radar_model::power::{PowerModel, PowerTarget};
 use radar_model::spectrum::{beam_spectrum_targets, quantize_8bit, SpectrumModel};
 use sim_sensor::scene::{shipped, Scene, Spreading};
 use sim_sensor::OdometryNoise;
-use slam_node::detect::RangeAxis;
+use slam_node::detect::{FloorProfile, RangeAxis};
 
 use crate::error::EvalError;
 use crate::report::{num, pct, table, Options, Section};
 use crate::scan::{
-    detect_scan, fit_targets, median_floor, predict_and_compare, Comparison, Floor, Row, Scan,
-    Tally, Variant, TARGET_BIN_HALF_WIDTH_M,
+    add_peaks, detect_scan, fit_targets, median_floor, predict_and_compare, Comparison, Floor, Row,
+    Scan, Tally, Variant, TARGET_BIN_HALF_WIDTH_M,
 };
-use crate::sections::shipped_detector;
+use crate::sections::single_scan_detector;
 use crate::world::World;
 
 /// Rendered scans of a world with the true pose at each scan's middle azimuth.
@@ -83,11 +83,9 @@ fn from_truth(world: &World, rotations: usize) -> Result<Vec<(Variant, Compariso
         .collect();
     let mut cursor = world.cursor();
     let mut frame = bytes::BytesMut::new();
-    let mut hits: Vec<BeamHit> = Vec::new();
     let mut targets = Vec::new();
     let mut st = Vec::new();
     let mut predicted = vec![0.0; world.geometry.bins];
-    let radar = &world.scene.radar;
     for index in 0..(rotations as u64 * world.azimuths()) {
         let offset = world.azimuth_offset_ns(index);
         let ts = protocol::Timestamp::new(
@@ -96,28 +94,19 @@ fn from_truth(world: &World, rotations: usize) -> Result<Vec<(Variant, Compariso
         )
         .map_err(|e| EvalError::Setting(format!("timestamp: {e}")))?;
         frame.clear();
-        let rendered = cursor.render(index, 0, ts, &mut frame)?;
+        // The features the simulator put in this beam (at their apparent, bearing-perturbed
+        // positions), so that the comparison tests the power model, not the bearing noise.
+        let inside = cursor.features_in_beam(index)?;
+        cursor.render(index, 0, ts, &mut frame)?;
         let measured: Vec<f64> = cursor
             .last_power_db()
             .iter()
             .map(|&p| f64::from(quantize_8bit(p)) * 0.5)
             .collect();
-        let beam = Beam {
-            bearing_rad: world.bearing_rad(index),
-            width_rad: radar.beam_width_rad,
-            min_range_m: 0.0,
-            max_range_m: radar.max_range_m(),
-        };
-        features_in_beam(
-            &rendered.pose,
-            &beam,
-            world.features.iter().map(|f| f.xy),
-            &mut hits,
-        );
         targets.clear();
-        targets.extend(hits.iter().filter_map(|h| {
-            world.features.get(h.index).map(|f| PowerTarget {
-                range_m: h.range_m,
+        targets.extend(inside.iter().filter_map(|&(range_m, id)| {
+            world.feature(id).map(|f| PowerTarget {
+                range_m,
                 material: f.material,
             })
         }));
@@ -139,6 +128,14 @@ fn from_truth(world: &World, rotations: usize) -> Result<Vec<(Variant, Compariso
                     cmp.targets.add(d);
                 }
             }
+            add_peaks(
+                &mut cmp.peaks,
+                &world.geometry,
+                &st,
+                &predicted,
+                &measured,
+                model.floor_mean_db(),
+            );
         }
     }
     Ok(out)
@@ -154,6 +151,7 @@ pub fn from_previous_scan(
     beam_width_rad: f64,
 ) -> Result<Vec<(Variant, &'static str, Comparison, f64)>, EvalError> {
     let mut out = Vec::new();
+    let detector = single_scan_detector()?;
     let axis = RangeAxis {
         first_bin_m: geometry.range_offset_m,
         bin_m: geometry.bin_size_m,
@@ -163,6 +161,8 @@ pub fn from_previous_scan(
         let gain: Vec<f64> = (0..geometry.bins)
             .map(|b| comp.gain_db(geometry.bin_range_m(b)))
             .collect();
+        let floor_model = SpectrumModel::new(*geometry, &comp, *noise)?;
+        let floor_profile = FloorProfile::new(&floor_model, &noise.absent, detector.floor_tail_pfa);
         let model_power = PowerModel {
             form: variant.form,
             ..*power
@@ -175,7 +175,7 @@ pub fn from_previous_scan(
                 let (Some(prev), Some(next)) = (scans.get(k), scans.get(k + 1)) else {
                     continue;
                 };
-                let obs = detect_scan(prev, shipped_detector(), &gain, &axis, beam_width_rad);
+                let obs = detect_scan(prev, detector, &floor_profile, &gain, &axis, beam_width_rad);
                 let fitted = fit_targets(&obs, &model_power, 0.5 * beam_width_rad)?;
                 clamped += fitted.iter().filter(|f| f.clamped).count();
                 fitted_total += fitted.len();
@@ -197,6 +197,7 @@ pub fn from_previous_scan(
                 )?;
                 merge(&mut cmp.all, &c.all);
                 merge(&mut cmp.targets, &c.targets);
+                merge(&mut cmp.peaks, &c.peaks);
             }
             out.push((
                 variant,
@@ -237,6 +238,9 @@ pub fn cells(c: &Comparison) -> Vec<String> {
         pct(c.targets.fraction_inside()),
         num(c.targets.bias_db(), 2),
         c.targets.bins.to_string(),
+        num(c.peaks.bias_db(), 2),
+        num(c.peaks.rms_db(), 2),
+        c.peaks.bins.to_string(),
     ]
 }
 
@@ -299,7 +303,8 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
     );
     let _ = writeln!(
         body,
-        "**From the true state** (true pose, features, materials, loss):\n"
+        "**From the true state** (true pose, the features the simulator placed in each beam at \
+         their apparent positions, true materials and loss):\n"
     );
     body.push_str(&table(
         &[
@@ -312,6 +317,9 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
             "target bins in bound",
             "target-bin bias (dB)",
             "target bins",
+            "peak bias (dB)",
+            "peak RMS (dB)",
+            "peaks",
         ],
         &truth_rows,
     ));
@@ -336,6 +344,9 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
             "target bins in bound",
             "target-bin bias (dB)",
             "target bins",
+            "peak bias (dB)",
+            "peak RMS (dB)",
+            "peaks",
             "rho clamped",
         ],
         &scan_rows,

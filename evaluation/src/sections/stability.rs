@@ -266,11 +266,10 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
         r.stats.updates,
         (seconds * 20.0).round()
     );
-    rows.push(
-        extremes.row(
-            "long run, circling the outdoor field",
-            steps,
-            format!(
+    rows.push(extremes.row(
+        "long run, circling the outdoor field",
+        steps,
+        format!(
                 "{}{}",
                 r.beam_errors.0,
                 r.beam_errors
@@ -278,16 +277,15 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
                     .as_ref()
                     .map_or(String::new(), |m| format!(" (first: {m})"))
             ),
-            format!(
-                "{:.0} s simulated in {:.1} s; position RMSE {} m; mean NEES {}; features {}",
-                seconds,
-                wall_s,
-                num(rms(r.rotations.iter().map(|x| x.position_error_m())), 3),
-                num(mean(r.rotations.iter().filter_map(|x| x.nees)), 2),
-                r.final_features
-            ),
+        format!(
+            "{:.0} s simulated in {:.1} s; position RMSE {} m; mean NEES {}; features {}",
+            seconds,
+            wall_s,
+            num(rms(r.rotations.iter().map(|x| x.position_error_m())), 3),
+            num(mean(r.rotations.iter().filter_map(|x| x.nees)), 2),
+            r.final_features
         ),
-    );
+    ));
     let fig = "stability_health.svg";
     let health_points = |f: &dyn Fn(&CovarianceHealth) -> f64| -> Vec<(f64, f64)> {
         r.rotations

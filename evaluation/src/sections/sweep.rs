@@ -13,7 +13,7 @@ use crate::metrics::{quantile, rms};
 use crate::plot::{scatter_chart, LabelledPoint, Labels};
 use crate::report::{num, table, Options, Section};
 use crate::run::{run, Mode, RunSpec};
-use crate::sections::{shipped_detector, shipped_spec};
+use crate::sections::{shipped_daemon, shipped_spec, shipped_spectra};
 
 /// One point of the sweep.
 #[derive(Debug, Clone)]
@@ -35,7 +35,7 @@ pub struct Point {
 }
 
 fn variants(base: &RunSpec) -> Vec<(String, bool, RunSpec)> {
-    let mut out = vec![("shipped".to_string(), true, base.clone())];
+    let mut out = vec![("base (shipped settings)".to_string(), false, base.clone())];
     let with = |f: &dyn Fn(&mut RunSpec)| {
         let mut s = base.clone();
         f(&mut s);
@@ -51,14 +51,18 @@ fn variants(base: &RunSpec) -> Vec<(String, bool, RunSpec)> {
     for k in [2, 4] {
         out.push((format!("bins 1/{k}"), false, with(&|s| s.bin_stride = k)));
     }
-    let detector = shipped_detector();
+    let Mode::Spectra(spectra) = &base.mode else {
+        return out;
+    };
+    let spectra = spectra.clone();
     for thr in [9.0, 16.0] {
         out.push((
             format!("OS-CFAR {thr} dB"),
             false,
             with(&|s| {
-                let mut d = detector;
-                d.os_scale_db = thr;
+                let mut d = spectra.clone();
+                d.detector.kind = DetectorKind::OsCfar;
+                d.detector.os_scale_db = thr;
                 s.mode = Mode::Spectra(d);
             }),
         ));
@@ -67,8 +71,9 @@ fn variants(base: &RunSpec) -> Vec<(String, bool, RunSpec)> {
         "CA-CFAR 12 dB".into(),
         false,
         with(&|s| {
-            let mut d = detector;
-            d.kind = DetectorKind::CaCfar;
+            let mut d = spectra.clone();
+            d.detector.kind = DetectorKind::CaCfar;
+            d.detector.ca_scale_db = 12.0;
             s.mode = Mode::Spectra(d);
         }),
     ));
@@ -76,8 +81,8 @@ fn variants(base: &RunSpec) -> Vec<(String, bool, RunSpec)> {
         "TPP".into(),
         false,
         with(&|s| {
-            let mut d = detector;
-            d.kind = DetectorKind::Tpp;
+            let mut d = spectra.clone();
+            d.detector.kind = DetectorKind::Tpp;
             s.mode = Mode::Spectra(d);
         }),
     ));
@@ -106,9 +111,15 @@ fn variants(base: &RunSpec) -> Vec<(String, bool, RunSpec)> {
 /// Runs the sweep on one scene (sequentially: timings are taken one run at a time).
 pub fn sweep(scene_name: &str, seconds: f64) -> Result<Vec<Point>, EvalError> {
     let scene = shipped::load(scene_name)?;
-    let base = shipped_spec(scene, 11, seconds, Mode::Spectra(shipped_detector()))?;
+    let base = shipped_spec(scene.clone(), 11, seconds, shipped_spectra()?)?;
+    let mut all = vec![(
+        "daemon as shipped".to_string(),
+        true,
+        shipped_spec(scene, 11, seconds, shipped_daemon()?)?,
+    )];
+    all.extend(variants(&base));
     let mut points = Vec::new();
-    for (label, shipped, spec) in variants(&base) {
+    for (label, shipped, spec) in all {
         let r = run(&spec)?;
         // Skip the first rotation (warm-up: allocation, first features).
         let times: Vec<f64> = r.rotations.iter().skip(1).map(|x| 1e3 * x.work_s).collect();
@@ -144,7 +155,13 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
          update at the last one's time; `max n features`: the state's feature cap.\n",
         b.sweep_seconds
     );
-    for (scene, period_s) in [("outdoor-field", 0.4), ("dense-clutter", 0.4)] {
+    let scenes: &[&str] = if b.skip_heavy {
+        &["outdoor-field"]
+    } else {
+        &["outdoor-field", "dense-clutter"]
+    };
+    for &scene in scenes {
+        let period_s = 1.0 / shipped::load(scene)?.radar.rotation_hz();
         let points = sweep(scene, b.sweep_seconds)?;
         let fig = format!("sweep_{scene}.svg");
         let title = format!("time per rotation against position error ({scene})");

@@ -1,0 +1,151 @@
+//! The daemon's own pipeline (`slam_node::pipeline::Pipeline`), as it ships, fed with the
+//! simulator's wire bytes: every rendered FFT frame is decoded by `protocol`'s decoder,
+//! wrapped as radar-driver's `Azimuth`, and handed to `process_azimuth` with the odometry
+//! up to its time. Settings come from `config::Config::default()` through the daemon's own
+//! conversion (`PipelineSettings::from_config`).
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use bytes::BytesMut;
+use protocol::{FrameDecoder, Geometry, Message, Timestamp};
+use radar_driver::Azimuth;
+use sim_sensor::render::bin_width;
+use sim_sensor::scene::Scene;
+use sim_sensor::OdometryNoise;
+use slam_node::pipeline::{Pipeline, PipelineSettings, PipelineSummary, SceneTruth};
+
+use crate::error::EvalError;
+use crate::run::RotationRecord;
+use crate::world::{World, EPOCH_S};
+
+/// The settings the daemon ships with: the default configuration, converted by the daemon.
+pub fn shipped_settings() -> Result<PipelineSettings, EvalError> {
+    PipelineSettings::from_config(&config::Config::default())
+        .map_err(|e| EvalError::Setting(format!("shipped configuration: {e}")))
+}
+
+/// What a daemon run measured.
+#[derive(Debug, Clone)]
+pub struct DaemonOutcome {
+    /// One record per rotation (pose at the filter's time against the truth then).
+    pub rotations: Vec<RotationRecord>,
+    /// The daemon's own summary (its pose and map scores included).
+    pub summary: PipelineSummary,
+    /// Wall time including rendering (s).
+    pub wall_s: f64,
+    /// The filter's final radar loss estimate (dB).
+    pub loss_db: f64,
+}
+
+/// The geometry a simulated radar announces.
+pub fn geometry_of(scene: &Scene) -> Geometry {
+    let r = &scene.radar;
+    Geometry {
+        azimuth_samples: r.azimuths,
+        range_in_bins: r.range_bins,
+        bin_size_m: r.bin_size_m(),
+        encoder_size: r.encoder_size,
+        rotation_hz: r.rotation_hz(),
+        packet_rate: r.packet_rate(),
+        range_gain: f64::from(r.range_gain),
+        range_offset_m: f64::from(r.range_offset_m),
+        data_width: bin_width(r.data_width),
+        range_resolution_m: Some(f64::from(r.range_gain) * r.bin_size_m()),
+    }
+}
+
+/// Runs the daemon's pipeline over `seconds` of `scene` with `settings`; the motion model
+/// is the scene's (the configuration's is for the vehicle it describes).
+pub fn run_daemon(
+    scene: &Scene,
+    seed: u64,
+    seconds: f64,
+    mut settings: PipelineSettings,
+    odometry: OdometryNoise,
+) -> Result<DaemonOutcome, EvalError> {
+    let started = Instant::now();
+    let world = World::new(scene.clone(), seed, seconds, odometry)?;
+    settings.motion = world.motion;
+    let start = world.start_pose();
+    settings.initial_pose = [start.x, start.y, start.theta];
+    settings.initial_pose_std = [1e-3, 1e-3, 1e-4];
+    settings.filter.speed_std_mps = odometry.sigma_speed_mps.max(1e-3);
+    settings.filter.steer_std_rad = odometry.sigma_steer_rad.max(1e-5);
+    settings.filter.input_noise_correlation_s = 1.0 / odometry.rate_hz;
+    let truth = SceneTruth::new(scene, EPOCH_S, seconds + 2.0)?;
+    let mut pipeline = Pipeline::new(settings, Some(EPOCH_S), Some(Box::new(truth)))
+        .map_err(|e| EvalError::Setting(format!("pipeline: {e}")))?;
+    let geometry = Arc::new(geometry_of(scene));
+    let mut cursor = world.cursor();
+    let mut frame = BytesMut::new();
+    let mut decoder = FrameDecoder::new();
+    let mut events = Vec::new();
+    let mut next_odometry = 0u64;
+    let mut rotations = Vec::new();
+    let mut work_s = 0.0;
+    let total = world.azimuths_in(seconds);
+    let n = world.azimuths();
+    for index in 0..total {
+        let t = world.azimuth_time_s(index);
+        while world.odometry_time_s(next_odometry) <= t {
+            pipeline.push_odometry(world.odometry(next_odometry));
+            next_odometry += 1;
+        }
+        let offset = world.azimuth_offset_ns(index);
+        let ts = Timestamp::new(
+            u32::try_from(1_700_000_000 + offset / 1_000_000_000).unwrap_or(u32::MAX),
+            u32::try_from(offset % 1_000_000_000).unwrap_or(0),
+        )
+        .map_err(|e| EvalError::Setting(format!("timestamp: {e}")))?;
+        frame.clear();
+        let sweep = u16::try_from(index % 65_536).unwrap_or(0);
+        cursor.render(index, sweep, ts, &mut frame)?;
+        let message = decoder
+            .decode(&mut frame)
+            .map_err(|e| EvalError::Setting(format!("decoding the simulator's frame: {e}")))?;
+        let Some(Message::FftData(fft)) = message else {
+            return Err(EvalError::Setting(
+                "the simulator's frame was not FFT data".into(),
+            ));
+        };
+        let az = Azimuth::from_fft(fft, Arc::clone(&geometry));
+        let clock = Instant::now();
+        events.clear();
+        pipeline
+            .process_azimuth(&az, &mut events)
+            .map_err(|e| EvalError::Setting(format!("pipeline: {e}")))?;
+        work_s += clock.elapsed().as_secs_f64();
+        if (index + 1) % n == 0 {
+            let ekf = pipeline.ekf();
+            let time_s = ekf.state().time_s();
+            let offset_ns = ((time_s - EPOCH_S).max(0.0) * 1e9).round();
+            // A non-negative time within the run, far below u64::MAX.
+            let truth = world.trajectory().pose_at(offset_ns as u64)?;
+            let p = ekf.pose_covariance();
+            rotations.push(RotationRecord {
+                time_s: time_s - EPOCH_S,
+                truth,
+                estimate: ekf.pose(),
+                nees: ekf.pose_nees(&truth).ok(),
+                features: ekf.feature_count(),
+                sigma: [
+                    p[(0, 0)].max(0.0).sqrt(),
+                    p[(1, 1)].max(0.0).sqrt(),
+                    p[(2, 2)].max(0.0).sqrt(),
+                ],
+                work_s,
+                health: None,
+            });
+            work_s = 0.0;
+        }
+    }
+    events.clear();
+    let summary = pipeline.finish(&mut events);
+    Ok(DaemonOutcome {
+        loss_db: pipeline.ekf().state().loss_db(),
+        rotations,
+        summary,
+        wall_s: started.elapsed().as_secs_f64(),
+    })
+}
