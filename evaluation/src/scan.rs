@@ -311,14 +311,18 @@ pub fn fit_targets(
     Ok(fitted.into_iter().map(|(_, _, f)| f).collect())
 }
 
-/// Expected measured spectrum over a given floor: `floor` power-summed with each target's
-/// peak `P_i + gain(R_b)` shaped by a Gaussian of `sigma_m` (radar-model's expected peak).
+/// Expected measured spectrum over a given floor, as radar-model's `expected_into` builds it
+/// over its own floor: `floor` power-summed with each target's peak
+/// `P_i + gain(R_b) - c ((R_b - R_i)^2 + jitter_var)`, `c = 10 / ln 10 / (2 sigma^2)`,
+/// `sigma_m` one look's peak width and `jitter_var_m2` the phase-noise variance (the mean
+/// in dB over looks).
 pub fn predict_over_floor(
     geometry: &SpectrumGeometry,
     gain_db: &[f64],
     floor_db: &[f64],
     targets: &[SpectrumTarget],
     sigma_m: f64,
+    jitter_var_m2: f64,
     out: &mut Vec<f64>,
 ) {
     out.clear();
@@ -339,7 +343,7 @@ pub fn predict_over_floor(
                 break;
             };
             let d = geometry.bin_range_m(b) - t.range_m;
-            *v = db_power_sum(*v, t.power_db + g + coef * d * d);
+            *v = db_power_sum(*v, t.power_db + g + coef * (d * d + jitter_var_m2));
         }
     }
 }
@@ -390,7 +394,8 @@ pub fn predict_and_compare(
         form: variant.form,
         ..*power
     };
-    let sigma = noise.range.expected_sigma_m();
+    let sigma = noise.range.look_sigma_m();
+    let jitter_var = noise.range.phase_noise_sigma_m.powi(2);
     let mut hits: Vec<BeamHit> = Vec::new();
     let mut targets = Vec::new();
     let mut spectrum_targets = Vec::new();
@@ -418,7 +423,7 @@ pub fn predict_and_compare(
             Floor::PreviousScan(f) => f,
         };
         match floor {
-            Floor::Model => model.predict_into(&spectrum_targets, &mut predicted)?,
+            Floor::Model => model.expected_into(&spectrum_targets, &mut predicted)?,
             Floor::PreviousScan(f) => {
                 predict_over_floor(
                     geometry,
@@ -426,6 +431,7 @@ pub fn predict_and_compare(
                     f,
                     &spectrum_targets,
                     sigma,
+                    jitter_var,
                     &mut scratch,
                 );
                 predicted.clear();
@@ -460,7 +466,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn prediction_over_the_model_floor_matches_radar_models_own_prediction() {
+    fn prediction_over_the_model_floor_matches_radar_models_own_expected_spectrum() {
         let geometry = SpectrumGeometry::paper_unit();
         let noise = NoiseModel::default();
         let model = SpectrumModel::new(geometry, &Compensation::default(), noise).expect("model");
@@ -476,7 +482,7 @@ mod tests {
         ];
         let mut expected = vec![0.0; geometry.bins];
         model
-            .predict_into(&targets, &mut expected)
+            .expected_into(&targets, &mut expected)
             .expect("predict");
         let mut ours = Vec::new();
         predict_over_floor(
@@ -484,7 +490,8 @@ mod tests {
             model.gain_db(),
             model.floor_mean_db(),
             &targets,
-            noise.range.expected_sigma_m(),
+            noise.range.look_sigma_m(),
+            noise.range.phase_noise_sigma_m.powi(2),
             &mut ours,
         );
         let worst = expected

@@ -116,7 +116,7 @@ fn from_truth(world: &World, rotations: usize) -> Result<Vec<(Variant, Compariso
                 ..world.power
             };
             beam_spectrum_targets(&power, &targets, world.scene.loss_db, &mut st)?;
-            model.predict_into(&st, &mut predicted)?;
+            model.expected_into(&st, &mut predicted)?;
             for (b, (p, m)) in predicted.iter().zip(&measured).enumerate() {
                 let d = p - m;
                 cmp.all.add(d);
