@@ -143,11 +143,13 @@ pub async fn run_daemon(
         settings.detector = d;
     }
     info!(kind = ?settings.detector.kind, domain = ?settings.detector.domain, "detector");
+    let o = &opts.config.output;
     let output = OutputHandle::spawn(OutputFiles {
-        dir: opts.out_dir.clone(),
         figures: opts.figures,
-        spectrum_figures: 6,
-        capacity: 8192,
+        trajectory: o.trajectory.clone(),
+        map: o.map.clone(),
+        diagnostics: o.diagnostics.clone(),
+        ..OutputFiles::in_dir(opts.out_dir.clone())
     })?;
     let (odo_trigger, odo_shutdown) = shutdown_pair();
     let mut sim_handle = None;

@@ -149,10 +149,17 @@ pub fn summary_text(r: &DaemonReport) -> String {
         r.run.odometry_errors,
         r.run.output_drops
     );
+    let names: Vec<String> = r
+        .writer
+        .files
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
     let _ = writeln!(
         t,
-        "  outputs in {}: trajectory.tum, map.json, diagnostics.jsonl, spectra.jsonl{}",
+        "  outputs in {}: {}{}",
         r.out_dir.display(),
+        names.join(", "),
         if r.writer.figures.is_empty() {
             String::new()
         } else {

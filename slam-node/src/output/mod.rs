@@ -5,6 +5,7 @@
 //! The file writers are generic over `std::io::Write`; [`writer`] runs them on their own
 //! thread behind a channel so the filter never waits for a disk.
 
+pub mod csv;
 pub mod diagnostics;
 pub mod figures;
 pub mod map;

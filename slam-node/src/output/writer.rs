@@ -23,7 +23,7 @@ pub enum OutputEvent {
     Pose(PoseSample),
     /// One rotation's diagnostics.
     Rotation(Box<RotationDiagnostics>),
-    /// A map snapshot (rewrites `map.json`).
+    /// A map snapshot (rewrites the map file).
     Map(MapSnapshot),
     /// A predicted/measured spectrum pair.
     Spectrum(SpectrumComparison),
@@ -42,6 +42,32 @@ pub struct OutputFiles {
     pub spectrum_figures: usize,
     /// Channel capacity, events.
     pub capacity: usize,
+    /// Trajectory file name inside `dir` (TUM).
+    pub trajectory: PathBuf,
+    /// Map file name inside `dir`: CSV when it ends in `.csv`, JSON otherwise.
+    pub map: PathBuf,
+    /// Diagnostics file name inside `dir`: CSV when it ends in `.csv`, JSON Lines otherwise.
+    pub diagnostics: PathBuf,
+}
+
+impl OutputFiles {
+    /// The default names: `trajectory.tum`, `map.json`, `diagnostics.jsonl`.
+    pub fn in_dir(dir: PathBuf) -> Self {
+        Self {
+            dir,
+            figures: true,
+            spectrum_figures: 6,
+            capacity: 8192,
+            trajectory: "trajectory.tum".into(),
+            map: "map.json".into(),
+            diagnostics: "diagnostics.jsonl".into(),
+        }
+    }
+}
+
+fn is_csv(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
 }
 
 /// A writer failure (the daemon logs it; the filter carries on).
@@ -77,6 +103,8 @@ pub struct WriterSummary {
     pub spectra: u64,
     /// Figures drawn.
     pub figures: Vec<PathBuf>,
+    /// The data files written.
+    pub files: Vec<PathBuf>,
 }
 
 /// The filter's end of the output channel.
@@ -103,10 +131,13 @@ impl OutputHandle {
     pub fn spawn(files: OutputFiles) -> Result<Self, WriterError> {
         std::fs::create_dir_all(&files.dir).map_err(io_err(&files.dir))?;
         let (tx, rx) = bounded(files.capacity.max(1));
-        let traj_path = files.dir.join("trajectory.tum");
+        let traj_path = files.dir.join(&files.trajectory);
         let traj = TumWriter::new(create(&traj_path)?).map_err(io_err(&traj_path))?;
-        let diag_path = files.dir.join("diagnostics.jsonl");
-        let diag = create(&diag_path)?;
+        let diag_path = files.dir.join(&files.diagnostics);
+        let mut diag = create(&diag_path)?;
+        if is_csv(&diag_path) {
+            writeln!(diag, "{}", super::csv::DIAGNOSTICS_HEADER).map_err(io_err(&diag_path))?;
+        }
         let spec_path = files.dir.join("spectra.jsonl");
         let spec = create(&spec_path)?;
         let join = std::thread::Builder::new()
@@ -160,14 +191,24 @@ fn run(
     mut diag: BufWriter<File>,
     mut spec: BufWriter<File>,
 ) -> Result<WriterSummary, WriterError> {
-    let mut summary = WriterSummary::default();
+    let mut summary = WriterSummary {
+        files: vec![
+            files.dir.join(&files.trajectory),
+            files.dir.join(&files.map),
+            files.dir.join(&files.diagnostics),
+            files.dir.join("spectra.jsonl"),
+        ],
+        ..WriterSummary::default()
+    };
     let mut poses = Vec::new();
     let mut last_map: Option<MapSnapshot> = None;
     let mut truth = TruthOverlay::default();
-    let map_path = files.dir.join("map.json");
-    let diag_path = files.dir.join("diagnostics.jsonl");
+    let map_path = files.dir.join(&files.map);
+    let diag_path = files.dir.join(&files.diagnostics);
     let spec_path = files.dir.join("spectra.jsonl");
-    let traj_path = files.dir.join("trajectory.tum");
+    let traj_path = files.dir.join(&files.trajectory);
+    let diag_csv = is_csv(&diag_path);
+    let map_csv = is_csv(&map_path);
     for event in rx {
         match event {
             OutputEvent::Pose(p) => {
@@ -176,18 +217,28 @@ fn run(
                 summary.poses += 1;
             }
             OutputEvent::Rotation(r) => {
-                serde_json::to_writer(&mut diag, &r)
-                    .map_err(std::io::Error::other)
-                    .and_then(|()| writeln!(diag))
-                    .map_err(io_err(&diag_path))?;
+                if diag_csv {
+                    writeln!(diag, "{}", super::csv::diagnostics_row(&r))
+                } else {
+                    serde_json::to_writer(&mut diag, &r)
+                        .map_err(std::io::Error::other)
+                        .and_then(|()| writeln!(diag))
+                }
+                .map_err(io_err(&diag_path))?;
                 summary.rotations += 1;
             }
             OutputEvent::Map(m) => {
-                let tmp = files.dir.join("map.json.tmp");
+                let mut tmp_name = map_path.clone().into_os_string();
+                tmp_name.push(".tmp");
+                let tmp = PathBuf::from(tmp_name);
                 let mut w = create(&tmp)?;
-                m.write_json(&mut w)
-                    .and_then(|()| w.flush())
-                    .map_err(io_err(&tmp))?;
+                if map_csv {
+                    super::csv::write_map(&m, &mut w)
+                } else {
+                    m.write_json(&mut w)
+                }
+                .and_then(|()| w.flush())
+                .map_err(io_err(&tmp))?;
                 drop(w);
                 std::fs::rename(&tmp, &map_path).map_err(io_err(&map_path))?;
                 last_map = Some(m);
