@@ -220,6 +220,38 @@ mod tests {
     }
 
     #[test]
+    fn a_paper_model_scene_drives_exactly_as_equation_2_iterates() {
+        // step_s equal to the integration step, so each step is eq. 2 with dt = step_s:
+        // x += v dt cos(theta + a), y += v dt sin(theta + a), theta += a.
+        let scene = Scene::from_toml_str(
+            "eq2",
+            "[motion]\nmodel = \"paper\"\nstep_s = 0.01\n\
+             [start]\nx_m = 1.0\ny_m = 2.0\ntheta_deg = 170.0\n\
+             [[control]]\nt_s = 0.0\nspeed_mps = 2.0\nsteer_rad = 0.003\n",
+        )
+        .expect("valid");
+        let trajectory = Trajectory::new(&scene, 10.0).expect("integrates");
+        let (v, a, dt) = (2.0_f64, 0.003_f64, 0.01_f64);
+        let (mut x, mut y, mut theta) = (1.0_f64, 2.0_f64, 170.0_f64.to_radians());
+        let mut cursor = trajectory.cursor();
+        for k in 1..=500u64 {
+            x += v * dt * (theta + a).cos();
+            y += v * dt * (theta + a).sin();
+            theta = wrap_angle(theta + a);
+            let pose = trajectory
+                .pose_with(&mut cursor, k * STEP_NS)
+                .expect("pose");
+            assert!(
+                (pose.x - x).abs() < 1e-9 && (pose.y - y).abs() < 1e-9,
+                "step {k}: {pose:?} against ({x}, {y})"
+            );
+            assert!(wrap_angle(pose.theta - theta).abs() < 1e-9, "step {k}");
+        }
+        // 500 steps of 0.003 rad turned the heading across +/- pi (170 deg + 86 deg).
+        assert!(theta < 0.0);
+    }
+
+    #[test]
     fn a_stationary_scene_stays_at_its_start_pose() {
         let scene = Scene::from_toml_str(
             "still",
