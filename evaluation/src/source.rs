@@ -65,7 +65,7 @@ impl TargetSource {
     /// A source drawing noise from `seed`.
     pub fn new(world: &World, seed: u64) -> Self {
         Self {
-            rng: radar_model::noise::seeded_rng(seed ^ 0x7A67_E75),
+            rng: radar_model::noise::seeded_rng(seed ^ 0x07A6_7E75),
             hits: Vec::new(),
             cursor: world.cursor(),
         }

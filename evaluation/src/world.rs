@@ -89,7 +89,7 @@ impl World {
             .collect::<Result<Vec<_>, radar_model::ModelError>>()?;
         let motion = motion_model(scene.motion);
         Ok(Self {
-            odometry: OdometryGenerator::new(odometry, seed ^ 0x0D0_3E7E, 0),
+            odometry: OdometryGenerator::new(odometry, seed ^ 0x00D0_3E7E, 0),
             renderer,
             features,
             power,

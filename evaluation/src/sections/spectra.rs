@@ -14,6 +14,7 @@ use sim_sensor::OdometryNoise;
 use slam_node::detect::{FloorProfile, RangeAxis};
 
 use crate::error::EvalError;
+use crate::plot::{line_chart, HLine, Labels, Series};
 use crate::report::{num, pct, table, Options, Section};
 use crate::scan::{
     add_peaks, detect_scan, fit_targets, median_floor, predict_and_compare, Comparison, Floor, Row,
@@ -21,6 +22,60 @@ use crate::scan::{
 };
 use crate::sections::single_scan_detector;
 use crate::world::World;
+
+/// The beam figure's file name.
+const FIGURE: &str = "spectra_beam.svg";
+
+/// Draws a measured and a predicted beam and their difference against the paper's bound
+/// (figures 8 to 10 in one).
+pub fn beam_figure(path: &std::path::Path, t: &BeamTrace, title: &str) -> Result<(), EvalError> {
+    let (ranges, measured, predicted) = t;
+    let diff: Vec<(f64, f64)> = ranges
+        .iter()
+        .zip(measured.iter().zip(predicted))
+        .map(|(r, (m, p))| (*r, p - m))
+        .collect();
+    line_chart(
+        path,
+        Labels {
+            title,
+            x: "range (m)",
+            y: "power (dB) / predicted - measured (dB)",
+        },
+        &[
+            Series {
+                name: "measured (8-bit wire)".into(),
+                points: ranges
+                    .iter()
+                    .copied()
+                    .zip(measured.iter().copied())
+                    .collect(),
+            },
+            Series {
+                name: "predicted (expected over looks)".into(),
+                points: ranges
+                    .iter()
+                    .copied()
+                    .zip(predicted.iter().copied())
+                    .collect(),
+            },
+            Series {
+                name: "predicted - measured".into(),
+                points: diff,
+            },
+        ],
+        &[
+            HLine {
+                name: "+16.35 dB (paper's 99 % bound)".into(),
+                y: radar_model::noise::PAPER_BOUND_99_DB,
+            },
+            HLine {
+                name: "-16.35 dB".into(),
+                y: -radar_model::noise::PAPER_BOUND_99_DB,
+            },
+        ],
+    )
+}
 
 /// Rendered scans of a world with the true pose at each scan's middle azimuth.
 pub fn render_scans(world: &World, rotations: usize) -> Result<(Vec<Scan>, Vec<Pose2>), EvalError> {
@@ -71,7 +126,14 @@ pub fn relative(a: &Pose2, b: &Pose2) -> Pose2 {
 
 /// Compares spectra predicted from the true state (true pose per azimuth, true features,
 /// materials and loss) with the rendered ones, for every variant.
-fn from_truth(world: &World, rotations: usize) -> Result<Vec<(Variant, Comparison)>, EvalError> {
+/// One beam for the figure: ranges, measured, predicted (first variant).
+pub type BeamTrace = (Vec<f64>, Vec<f64>, Vec<f64>);
+
+fn from_truth(
+    world: &World,
+    rotations: usize,
+    trace: &mut Option<BeamTrace>,
+) -> Result<Vec<(Variant, Comparison)>, EvalError> {
     let variants = Variant::all();
     let models = variants
         .iter()
@@ -117,6 +179,12 @@ fn from_truth(world: &World, rotations: usize) -> Result<Vec<(Variant, Compariso
             };
             beam_spectrum_targets(&power, &targets, world.scene.loss_db, &mut st)?;
             model.expected_into(&st, &mut predicted)?;
+            if trace.is_none() && targets.len() >= 2 {
+                let ranges = (0..world.geometry.bins)
+                    .map(|b| world.geometry.bin_range_m(b))
+                    .collect();
+                *trace = Some((ranges, measured.clone(), predicted.clone()));
+            }
             for (b, (p, m)) in predicted.iter().zip(&measured).enumerate() {
                 let d = p - m;
                 cmp.all.add(d);
@@ -249,6 +317,7 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
     let rotations = opts.budget.spectra_rotations.max(1);
     let mut truth_rows = Vec::new();
     let mut scan_rows = Vec::new();
+    let mut figure = false;
     let cases: [(&str, Option<(Spreading, f64)>); 4] = [
         ("penetration-wood", None),
         ("outdoor-field", None),
@@ -264,10 +333,17 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
         let truth = truth_name(&scene);
         let seconds = (rotations + 1) as f64 / scene.radar.rotation_hz();
         let world = World::new(scene, 21, seconds, OdometryNoise::default())?;
-        for (variant, cmp) in from_truth(&world, rotations)? {
+        let mut trace = None;
+        for (variant, cmp) in from_truth(&world, rotations, &mut trace)? {
             let mut row = vec![name.to_string(), truth.clone(), variant.name()];
             row.extend(cells(&cmp));
             truth_rows.push(row);
+        }
+        if name == "penetration-wood" && receiver.is_none() {
+            if let Some(t) = trace {
+                beam_figure(&opts.out_dir.join(FIGURE), &t, "penetration-wood, a two-target beam: prediction from the true state (paper form, 40 dB/dec)")?;
+                figure = true;
+            }
         }
         let (scans, mids) = render_scans(&world, rotations + 1)?;
         let rel: Vec<Pose2> = mids.windows(2).map(|w| relative(&w[0], &w[1])).collect();
@@ -323,6 +399,9 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
         ],
         &truth_rows,
     ));
+    if figure {
+        let _ = writeln!(body, "\n![a predicted and a measured beam]({FIGURE})\n");
+    }
     let _ = writeln!(
         body,
         "\n**From the previous scan alone** (detect with the shipped detector, fit each \
