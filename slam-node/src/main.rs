@@ -40,6 +40,11 @@ struct Args {
     /// Do not draw SVG figures.
     #[arg(long)]
     no_figures: bool,
+    /// With the embedded simulator, model the receiver by [model] compensation (60 dB per
+    /// decade by default, as the paper did) instead of the scene's (40): shows the paper's
+    /// negative spectrum bias.
+    #[arg(long)]
+    configured_compensation: bool,
     /// Progress line every this many rotations (0 = none).
     #[arg(long, default_value_t = 10)]
     progress_every: u64,
@@ -105,6 +110,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         progress_every_rotations: args.progress_every,
         max_stream_s: args.duration.or(if embedded { Some(60.0) } else { None }),
         embedded: sim,
+        keep_configured_compensation: args.configured_compensation,
         config,
         stop: Arc::clone(&stop),
         // Without a configuration file the detector is slam-node's measured default (TPP);

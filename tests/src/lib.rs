@@ -80,6 +80,7 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
         progress_every_rotations: 0,
         stop: Arc::clone(&stop),
         detector: Some(DetectorSettings::default()),
+        keep_configured_compensation: false,
     };
     match tokio::time::timeout(limit, run_daemon(opts, None)).await {
         Ok(r) => r,

@@ -89,6 +89,9 @@ pub struct DaemonOptions {
     pub progress_every_rotations: u64,
     /// Set to stop the run early (Ctrl-C).
     pub stop: Arc<AtomicBool>,
+    /// With the embedded simulator, keep the configuration's `[model] compensation` instead
+    /// of the scene's receiver (to see the paper's 60 dB/decade bias, figure 10).
+    pub keep_configured_compensation: bool,
     /// Detection settings replacing the configuration's `[detector]` (the no-argument run
     /// uses slam-node's measured default, see `detect`).
     pub detector: Option<crate::detect::DetectorSettings>,
@@ -112,6 +115,7 @@ pub struct DaemonReport {
 fn embedded_settings(
     mut settings: PipelineSettings,
     scene: &sim_sensor::scene::Scene,
+    keep_compensation: bool,
 ) -> PipelineSettings {
     // The simulator's odometry means what its scene's motion model says.
     let motion = sim_sensor::trajectory::motion_model(scene.motion);
@@ -122,7 +126,14 @@ fn embedded_settings(
     // The simulator's receiver compensation is known exactly: use it, as a calibrated gain
     // curve would be used on a real unit.
     let slope = scene.receiver.compensation_db_per_decade;
-    settings.compensation = Compensation::calibrated(slope, &RadarConstants::default());
+    if keep_compensation {
+        info!(
+            scene_db_per_decade = slope,
+            "keeping the configured receiver compensation, not the scene's"
+        );
+    } else {
+        settings.compensation = Compensation::calibrated(slope, &RadarConstants::default());
+    }
     settings.beam_width_rad = scene.radar.beam_width_rad;
     // The simulator draws each peak one bin wide (FWHM).
     settings.noise.range.resolution_fwhm_m =
@@ -170,7 +181,7 @@ pub async fn run_daemon(
         let sim_sensor::settings::SourceSpec::Scene(scene) = options.source.clone() else {
             return Err(DaemonError::NotAScene);
         };
-        settings = embedded_settings(settings, &scene);
+        settings = embedded_settings(settings, &scene, opts.keep_configured_compensation);
         let start_s = start_ns as f64 * 1e-9;
         start_time_s = Some(start_s);
         let horizon = opts.max_stream_s.unwrap_or(600.0) + 30.0;
