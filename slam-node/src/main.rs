@@ -45,6 +45,10 @@ struct Args {
     /// negative spectrum bias.
     #[arg(long)]
     configured_compensation: bool,
+    /// Draw predicted vs measured spectra at this bearing, degrees clockwise from forward
+    /// (repeatable); default: the beam with the most mapped features, every 25 rotations.
+    #[arg(long = "spectrum-bearing")]
+    spectrum_bearings: Vec<f64>,
     /// Progress line every this many rotations (0 = none).
     #[arg(long, default_value_t = 10)]
     progress_every: u64,
@@ -111,6 +115,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         max_stream_s: args.duration.or(if embedded { Some(60.0) } else { None }),
         embedded: sim,
         keep_configured_compensation: args.configured_compensation,
+        spectrum_bearings_deg: args.spectrum_bearings.clone(),
         config,
         stop: Arc::clone(&stop),
         // Without a configuration file the detector is slam-node's measured default (TPP);

@@ -81,6 +81,7 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
         stop: Arc::clone(&stop),
         detector: Some(DetectorSettings::default()),
         keep_configured_compensation: false,
+        spectrum_bearings_deg: Vec::new(),
     };
     match tokio::time::timeout(limit, run_daemon(opts, None)).await {
         Ok(r) => r,

@@ -92,6 +92,9 @@ pub struct DaemonOptions {
     /// With the embedded simulator, keep the configuration's `[model] compensation` instead
     /// of the scene's receiver (to see the paper's 60 dB/decade bias, figure 10).
     pub keep_configured_compensation: bool,
+    /// Bearings (degrees, clockwise from forward) whose predicted and measured spectra are
+    /// written and drawn every 25 rotations; empty: the beam with the most mapped features.
+    pub spectrum_bearings_deg: Vec<f64>,
     /// Detection settings replacing the configuration's `[detector]` (the no-argument run
     /// uses slam-node's measured default, see `detect`).
     pub detector: Option<crate::detect::DetectorSettings>,
@@ -153,6 +156,11 @@ pub async fn run_daemon(
     if let Some(d) = opts.detector {
         settings.detector = d;
     }
+    settings.spectrum_bearings_rad = opts
+        .spectrum_bearings_deg
+        .iter()
+        .map(|d| radar_model::geometry::wrap_angle(d.to_radians()))
+        .collect();
     info!(kind = ?settings.detector.kind, domain = ?settings.detector.domain, "detector");
     let o = &opts.config.output;
     let output = OutputHandle::spawn(OutputFiles {

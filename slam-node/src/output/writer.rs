@@ -56,7 +56,7 @@ impl OutputFiles {
         Self {
             dir,
             figures: true,
-            spectrum_figures: 6,
+            spectrum_figures: 12,
             capacity: 8192,
             trajectory: "trajectory.tum".into(),
             map: "map.json".into(),

@@ -76,6 +76,7 @@ pub struct Pipeline {
     rot_spectrum: SpectrumTally,
     rot_nis: (f64, u64),
     rot_sample: Option<(usize, SpectrumComparison)>,
+    rot_chosen: Vec<SpectrumComparison>,
     last_encoder: Option<u16>,
     last_time_s: Option<f64>,
     summary: PipelineSummary,
@@ -120,6 +121,7 @@ impl Pipeline {
             rot_spectrum: SpectrumTally::default(),
             rot_nis: (0.0, 0),
             rot_sample: None,
+            rot_chosen: Vec::new(),
             last_encoder: None,
             last_time_s: None,
             summary: PipelineSummary::default(),
@@ -476,31 +478,42 @@ impl Pipeline {
             return;
         };
         self.rot_spectrum.merge(&tally);
+        let every_rot = self.settings.spectrum_sample_every_rotations;
+        if every_rot == 0 || self.summary.rotations % every_rot != every_rot - 1 {
+            return;
+        }
+        let chosen = &self.settings.spectrum_bearings_rad;
+        let half_step = std::f64::consts::PI / f64::from(radar.geometry.azimuth_samples.max(1));
+        let is_chosen = chosen
+            .iter()
+            .any(|b| wrap_angle(bearing - b).abs() <= half_step);
         let better = self
             .rot_sample
             .as_ref()
             .map_or(true, |(k, _)| features > *k);
-        let every_rot = self.settings.spectrum_sample_every_rotations;
-        if better && every_rot > 0 && self.summary.rotations % every_rot == every_rot - 1 {
-            let n = self.scratch.measured.len();
-            self.rot_sample = Some((
-                features,
-                SpectrumComparison {
-                    rotation: self.summary.rotations,
-                    bearing_rad: bearing,
-                    first_bin_m: radar.axis.first_bin_m,
-                    bin_m: radar.axis.bin_m,
-                    measured_db: self.scratch.measured.clone(),
-                    predicted_db: self
-                        .scratch
-                        .spectrum
-                        .predicted
-                        .get(..n)
-                        .unwrap_or_default()
-                        .to_vec(),
-                    bound_db: self.settings.spectrum_bound_db,
-                },
-            ));
+        if !(is_chosen || (chosen.is_empty() && better)) {
+            return;
+        }
+        let n = self.scratch.measured.len();
+        let sample = SpectrumComparison {
+            rotation: self.summary.rotations,
+            bearing_rad: bearing,
+            first_bin_m: radar.axis.first_bin_m,
+            bin_m: radar.axis.bin_m,
+            measured_db: self.scratch.measured.clone(),
+            predicted_db: self
+                .scratch
+                .spectrum
+                .predicted
+                .get(..n)
+                .unwrap_or_default()
+                .to_vec(),
+            bound_db: self.settings.spectrum_bound_db,
+        };
+        if is_chosen {
+            self.rot_chosen.push(sample);
+        } else {
+            self.rot_sample = Some((features, sample));
         }
     }
 
@@ -523,6 +536,7 @@ impl Pipeline {
         if let Some((_, sample)) = self.rot_sample.take() {
             events.push(OutputEvent::Spectrum(sample));
         }
+        events.extend(self.rot_chosen.drain(..).map(OutputEvent::Spectrum));
         let pose = self.ekf.pose();
         let cov = self.ekf.pose_covariance();
         let t = self.ekf.state().time_s();

@@ -57,8 +57,11 @@ pub struct PipelineSettings {
     pub spectrum_bound_db: f64,
     /// Compare predicted and measured spectra on every k-th azimuth (0 = never).
     pub spectrum_every_azimuths: usize,
-    /// Emit one spectrum comparison for figures every this many rotations (0 = never).
+    /// Emit spectrum comparisons for figures every this many rotations (0 = never).
     pub spectrum_sample_every_rotations: u64,
+    /// Bearings (the paper's beta, radians) whose beams are emitted then; when empty, the
+    /// beam holding the most mapped features is.
+    pub spectrum_bearings_rad: Vec<f64>,
     /// Odometry older than this (in stream time) behind a beam is stale: no update.
     pub odometry_stale_s: f64,
     /// Wall time to wait for odometry to reach a beam's time before declaring it stale.
@@ -207,6 +210,7 @@ impl PipelineSettings {
             spectrum_bound_db: PAPER_BOUND_99_DB,
             spectrum_every_azimuths: 1,
             spectrum_sample_every_rotations: 25,
+            spectrum_bearings_rad: Vec::new(),
             odometry_stale_s: c.odometry.stale_after.as_secs_f64(),
             odometry_wait: c.odometry.stale_after,
             radar_stall: Duration::from_secs(2),
