@@ -22,6 +22,10 @@
 //! The first `warmup_scans` scans of a slot produce no detections: the minimum is not yet
 //! a noise estimate.
 
+/// Most azimuth slots (a rotation's azimuths) the detector keeps memory for; a slot past it
+/// detects nothing rather than allocate without bound.
+pub const MAX_SLOTS: usize = 1 << 16;
+
 /// TPP settings (paper defaults in [`TppSettings::paper`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TppSettings {
@@ -124,8 +128,14 @@ impl Tpp {
     ) {
         let n = power_db.len();
         let s = self.settings;
+        if slot >= MAX_SLOTS {
+            detected.clear();
+            detected.resize(n, false);
+            snr_db.clear();
+            snr_db.resize(n, 0.0);
+            return;
+        }
         if slot >= self.slots.len() {
-            // Bounded by the caller: slot comes from a validated azimuth index.
             self.slots.resize(slot + 1, SlotState::default());
         }
         smooth_in_range(

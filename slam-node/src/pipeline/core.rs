@@ -278,6 +278,11 @@ impl Pipeline {
             self.summary.bad_azimuths += 1;
             return Ok(());
         }
+        if az.encoder >= az.geometry.encoder_size {
+            // An encoder value past the revolution: malformed, and it would index nothing.
+            self.summary.bad_azimuths += 1;
+            return Ok(());
+        }
         self.radar_for(&az.geometry)?;
         if self.last_encoder.is_some_and(|e| az.encoder < e) {
             self.end_rotation(events);

@@ -66,6 +66,8 @@ pub struct RunReport {
     pub output_drops: u64,
     /// Wall time of the whole loop.
     pub wall_s: f64,
+    /// Azimuths the pipeline could not process (bad radar geometry), logged sparsely.
+    pub azimuth_errors: u64,
 }
 
 fn to_sample(r: radar_driver::OdometryRecord) -> OdometrySample {
@@ -194,7 +196,10 @@ pub fn run_pipeline(
         }
         let rotations = pipeline.summary().rotations;
         if let Err(e) = pipeline.process_azimuth(&az, &mut events) {
-            error!(error = %e, "azimuth not processed");
+            report.azimuth_errors += 1;
+            if report.azimuth_errors <= 3 || report.azimuth_errors.is_power_of_two() {
+                error!(error = %e, count = report.azimuth_errors, "azimuth not processed");
+            }
         }
         for ev in events.drain(..) {
             output.send(ev);
