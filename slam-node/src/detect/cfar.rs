@@ -25,7 +25,7 @@ pub struct CfarWindow {
 
 /// Converts dB to linear power.
 fn db_to_linear(power_db: f64) -> f64 {
-    10f64.powf(power_db / 10.0)
+    (power_db * (std::f64::consts::LN_10 / 10.0)).exp()
 }
 
 /// Converts linear power to dB; zero maps to -inf, as it should.

@@ -226,6 +226,9 @@ impl Tpp {
     }
 }
 
+/// `ln(10) / 10`: `10^(x / 10) = exp(x * DB_TO_NEPER)` (exp is cheaper than powf).
+const DB_TO_NEPER: f64 = std::f64::consts::LN_10 / 10.0;
+
 /// Triangular smoothing in linear power across `half` bins each side, result in dB. Each
 /// bin is converted to linear power once; NaN bins count as zero power.
 fn smooth_in_range(power_db: &[f64], half: usize, linear: &mut Vec<f64>, out: &mut Vec<f64>) {
@@ -234,7 +237,7 @@ fn smooth_in_range(power_db: &[f64], half: usize, linear: &mut Vec<f64>, out: &m
         if p.is_nan() {
             0.0
         } else {
-            10f64.powf(p / 10.0)
+            (p * DB_TO_NEPER).exp()
         }
     }));
     out.clear();
