@@ -53,7 +53,7 @@ pub fn summary_text(r: &DaemonReport) -> String {
     if let Some(d) = &r.driver {
         let _ = writeln!(
             t,
-            "  driver: {} azimuths sent, {} dropped, {} reconnects, {} decode errors",
+            "  driver: {} azimuths sent, {} dropped (these counts run until the driver stops, after the pipeline), {} reconnects, {} decode errors",
             d.azimuths_sent,
             d.azimuth_drops,
             d.reconnects,
