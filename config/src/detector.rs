@@ -42,7 +42,10 @@ pub enum Threshold {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RawDetector {
-    /// `"ca-cfar"`, `"os-cfar"` or `"tpp"`. Default `"ca-cfar"`.
+    /// `"ca-cfar"`, `"os-cfar"` or `"tpp"`. Default `"tpp"`: on the simulator's outdoor field it
+    /// detected 0.977 of targets at 1.8 false alarms a rotation, against 0.921 at 7.7 for
+    /// CA-CFAR and 0.951 at 10.6 for OS-CFAR, and it finds both targets of the penetration
+    /// scene where CA-CFAR's 70-cell window misses the second (slam-node's `detection_scoring`).
     pub kind: DetectorKind,
     /// Reference cells (both sides together), `[1, 4096]`. Default 70 (book chapter).
     pub reference_cells: i64,
@@ -70,7 +73,7 @@ pub struct RawDetector {
 impl Default for RawDetector {
     fn default() -> Self {
         Self {
-            kind: DetectorKind::CaCfar,
+            kind: DetectorKind::Tpp,
             reference_cells: 70,
             guard_cells: 2,
             pfa: None,

@@ -118,8 +118,8 @@ fn run(args: Args) -> anyhow::Result<()> {
         spectrum_bearings_deg: args.spectrum_bearings.clone(),
         config,
         stop: Arc::clone(&stop),
-        // Without a configuration file the detector is slam-node's measured default (TPP);
-        // the config crate's built-in default is CA-CFAR, which scored worse.
+        // Without a configuration file the detector is slam-node's measured default (TPP with
+        // the settings scored in `detection_scoring`), not a mapping of `[detector]`.
         detector: args
             .config
             .is_none()
