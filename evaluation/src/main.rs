@@ -55,7 +55,9 @@ fn run() -> anyhow::Result<ExitCode> {
     if let Some(j) = args.jobs {
         budget.jobs = j.max(1);
     }
-    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    // Quoted in the report as the documented, equivalent cargo command.
+    let rest: Vec<String> = std::env::args().skip(1).collect();
+    let command = format!("cargo run --release -p evaluation -- {}", rest.join(" "));
     let opts = Options {
         out_dir: args.out,
         budget,

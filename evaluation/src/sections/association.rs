@@ -111,6 +111,7 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
                 power,
                 c.wrong as f64 / (c.correct + c.wrong).max(1) as f64,
                 mean(totals.position_rmse.iter().copied()),
+                (c.correct + c.wrong) as f64,
             ));
             rows.push(totals.row(mode_name, power, b.association_seeds));
         }
@@ -153,12 +154,19 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
         let with = wrong_rates.iter().find(|w| w.0 == mode && w.1);
         let without = wrong_rates.iter().find(|w| w.0 == mode && !w.1);
         if let (Some(a), Some(b)) = (with, without) {
-            let verdict = if a.2 < b.2 {
-                "fewer wrong pairings with power"
-            } else if a.2 > b.2 {
-                "more wrong pairings with power"
+            // Binomial standard error of the difference of the two wrong-pairing rates.
+            let se = |rate: f64, n: f64| (rate * (1.0 - rate) / n.max(1.0)).sqrt();
+            let diff_se = se(a.2, a.4).hypot(se(b.2, b.4));
+            let verdict = if (a.2 - b.2).abs() <= 2.0 * diff_se {
+                format!(
+                    "no measurable difference in wrong pairings (the gap is within two \
+                     standard errors, {})",
+                    pct(2.0 * diff_se)
+                )
+            } else if a.2 < b.2 {
+                "fewer wrong pairings with power".to_string()
             } else {
-                "the same wrong-pairing rate either way"
+                "more wrong pairings with power".to_string()
             };
             let _ = writeln!(
                 body,
