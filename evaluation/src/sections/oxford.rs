@@ -498,7 +498,9 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
     );
     let _ = writeln!(
         body,
-        "**Predicted against measured, scan k to scan k+1** (shipped detector, rho fitted by \
+        "**Predicted against measured, scan k to scan k+1** (detection by the shipped \
+         detector, or, when that is TPP, which needs several scans, by OS-CFAR with the \
+         shipped window and threshold; rho fitted by \
          eq. 13 with alpha = {}, L = 0, moved by the ground-truth relative pose; the floor from \
          radar-model's target-absent model, which describes the paper's unit, or from the \
          previous scan's per-bin median):\n",

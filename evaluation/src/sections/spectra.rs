@@ -407,7 +407,9 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
     }
     let _ = writeln!(
         body,
-        "\n**From the previous scan alone** (detect with the shipped detector, fit each \
+        "\n**From the previous scan alone** (detect with the shipped detector, or, when that \
+         is TPP, which needs several scans, with OS-CFAR and the shipped window and \
+         threshold; fit each \
          target's rho by eq. 13 with alpha = {} and L = 0, move by the true relative pose \
          between the scans' middle azimuths, predict the next scan). The floor is either \
          radar-model's target-absent model or the per-bin median of the previous scan. \
