@@ -78,7 +78,8 @@ fn the_defaults_are_the_documented_values() {
     assert_eq!(
         c.odometry.source,
         OdometrySource::Tcp {
-            address: "127.0.0.1:6318".parse().unwrap()
+            // The documented default odometry address (a value, nothing binds it here).
+            address: std::net::SocketAddr::from(([127, 0, 0, 1], 6318))
         }
     );
     assert!(
