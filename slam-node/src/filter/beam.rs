@@ -5,7 +5,10 @@
 //! correlation). So:
 //!
 //! - a feature is a **candidate** for association when its estimated bearing is within
-//!   `beam_half_width + association_margin + candidate_sigmas * sigma_beta` of the beam;
+//!   `beam_half_width + association_margin + candidate_sigmas * sqrt(sigma_beta^2 +
+//!   bearing_std^2)` of the beam: a target lands in the beam its *measured* bearing falls in,
+//!   so the measurement's bearing noise widens the arc too (without it a precise estimate, as
+//!   at a standstill, loses its noisier sightings one azimuth over to duplicate features);
 //! - it is **expected** in the beam (an occluder for the features behind it, and a miss if
 //!   not seen) when its estimated bearing is inside the beam's half width;
 //! - its membership is **ambiguous** when its estimated bearing is within
@@ -73,7 +76,12 @@ pub fn candidates_in_beam(
         let bound = ((1.0 + 2.0 / (rb.range_m * rb.range_m)) * trace)
             .max(0.0)
             .sqrt();
-        if offset > base + k * bound {
+        // A target from this feature lands in this beam when the feature's bearing plus the
+        // measurement's bearing noise does: the arc is sized on the innovation's bearing
+        // sigma, not the estimate's alone (or a precise estimate, as at a standstill, loses
+        // its noisier sightings to a duplicate).
+        let meas_var = settings.bearing_std_rad * settings.bearing_std_rad;
+        if offset > base + k * (bound * bound + meas_var).sqrt() {
             continue;
         }
         let Ok((_, jac)) = range_bearing_with_jacobian(&pose, [p.x_m, p.y_m]) else {
@@ -94,7 +102,7 @@ pub fn candidates_in_beam(
             }
         }
         let sigma = var.max(0.0).sqrt();
-        if offset <= base + k * sigma {
+        if offset <= base + k * (sigma * sigma + meas_var).sqrt() {
             out.push(BeamCandidate {
                 slot,
                 range_m: rb.range_m,

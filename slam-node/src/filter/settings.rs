@@ -59,7 +59,8 @@ pub struct FilterSettings {
     /// beam is predicted in it and may be associated (estimates carry bearing error). Such
     /// features are also treated as in the beam by the power model.
     pub association_margin_rad: f64,
-    /// Standard deviations of a feature's predicted bearing added to the candidate arc.
+    /// Standard deviations of the bearing innovation (the feature's predicted bearing and the
+    /// measurement's bearing noise) added to the candidate arc.
     pub candidate_sigmas: f64,
     /// Features nearer than this are not predicted (m): a feature on top of the radar has no
     /// bearing.
