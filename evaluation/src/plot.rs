@@ -81,6 +81,37 @@ fn padded((lo, hi): (f64, f64)) -> (f64, f64) {
     (lo - 0.05 * span, hi + 0.05 * span)
 }
 
+type Chart<'a, 'b> = ChartContext<
+    'a,
+    SVGBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// Clears `root` and draws the caption, the axes and their titles over `x` and `y`.
+fn axes<'a, 'b>(
+    root: &'a DrawingArea<SVGBackend<'b>, plotters::coord::Shift>,
+    path: &Path,
+    labels: Labels<'_>,
+    x: (f64, f64),
+    y: (f64, f64),
+) -> Result<Chart<'a, 'b>, EvalError> {
+    root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+    let mut chart = ChartBuilder::on(root)
+        .caption(labels.title, ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(x.0..x.1, y.0..y.1)
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc(labels.x)
+        .y_desc(labels.y)
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    Ok(chart)
+}
+
 /// Draws `series` as lines, with `hlines` dashed across the chart.
 pub fn line_chart(
     path: &Path,
@@ -98,20 +129,7 @@ pub fn line_chart(
     let (x0, x1) = padded(xs.unwrap_or((0.0, 1.0)));
     let (y0, y1) = padded(ys.unwrap_or((0.0, 1.0)));
     let root = SVGBackend::new(path, (900, 500)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(labels.title, ("sans-serif", 18))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(|e| plot_err(path, e))?;
-    chart
-        .configure_mesh()
-        .x_desc(labels.x)
-        .y_desc(labels.y)
-        .draw()
-        .map_err(|e| plot_err(path, e))?;
+    let mut chart = axes(&root, path, labels, (x0, x1), (y0, y1))?;
     for (k, s) in series.iter().enumerate() {
         let color = PALETTE[k % PALETTE.len()];
         let pts: Vec<(f64, f64)> = s
@@ -156,23 +174,10 @@ pub fn scatter_chart(
     labels: Labels<'_>,
     points: &[LabelledPoint],
 ) -> Result<(), EvalError> {
-    let (x0, x1) = padded(extent(points.iter().map(|p| p.x)).unwrap_or((0.0, 1.0)));
-    let (y0, y1) = padded(extent(points.iter().map(|p| p.y)).unwrap_or((0.0, 1.0)));
+    let x = padded(extent(points.iter().map(|p| p.x)).unwrap_or((0.0, 1.0)));
+    let y = padded(extent(points.iter().map(|p| p.y)).unwrap_or((0.0, 1.0)));
     let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(labels.title, ("sans-serif", 18))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(|e| plot_err(path, e))?;
-    chart
-        .configure_mesh()
-        .x_desc(labels.x)
-        .y_desc(labels.y)
-        .draw()
-        .map_err(|e| plot_err(path, e))?;
+    let mut chart = axes(&root, path, labels, x, y)?;
     let finite = points.iter().filter(|p| p.x.is_finite() && p.y.is_finite());
     chart
         .draw_series(finite.map(|p| {

@@ -22,7 +22,7 @@ use slam_node::filter::{BeamObservation, Ekf, FilterSettings, OdometrySample, Ra
 use crate::error::EvalError;
 use crate::report::{num, pct, table, Options, Section};
 use crate::scan::{Row, Scan, Variant};
-use crate::sections::spectra::{cells, from_previous_scan};
+use crate::sections::spectra::{cells, comparison_header, from_previous_scan};
 use crate::source::{grouping_for, AzimuthBeam, BeamAssembler};
 
 /// Encoder counts per revolution of the CTS350-X.
@@ -507,20 +507,7 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
         crate::scan::ASSUMED_ALPHA
     );
     body.push_str(&table(
-        &[
-            "predictor",
-            "floor",
-            "all bins in bound",
-            "bias (dB)",
-            "RMS (dB)",
-            "target bins in bound",
-            "target-bin bias (dB)",
-            "target bins",
-            "peak bias (dB)",
-            "peak RMS (dB)",
-            "peaks",
-            "rho clamped",
-        ],
+        &comparison_header(&["predictor", "floor"], &["rho clamped"]),
         &rows,
     ));
     let _ = writeln!(

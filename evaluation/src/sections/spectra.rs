@@ -300,6 +300,28 @@ fn truth_name(scene: &Scene) -> String {
     )
 }
 
+/// The column names of [`cells`], in its order.
+pub const COMPARISON_COLUMNS: [&str; 9] = [
+    "all bins in bound",
+    "bias (dB)",
+    "RMS (dB)",
+    "target bins in bound",
+    "target-bin bias (dB)",
+    "target bins",
+    "peak bias (dB)",
+    "peak RMS (dB)",
+    "peaks",
+];
+
+/// A table header: `lead` columns, then [`COMPARISON_COLUMNS`], then `trail`.
+pub fn comparison_header<'a>(lead: &[&'a str], trail: &[&'a str]) -> Vec<&'a str> {
+    lead.iter()
+        .chain(COMPARISON_COLUMNS.iter())
+        .chain(trail.iter())
+        .copied()
+        .collect()
+}
+
 /// The cells of one comparison row.
 pub fn cells(c: &Comparison) -> Vec<String> {
     vec![
@@ -386,20 +408,7 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
          their apparent positions, true materials and loss):\n"
     );
     body.push_str(&table(
-        &[
-            "scene",
-            "truth",
-            "predictor",
-            "all bins in bound",
-            "bias (dB)",
-            "RMS (dB)",
-            "target bins in bound",
-            "target-bin bias (dB)",
-            "target bins",
-            "peak bias (dB)",
-            "peak RMS (dB)",
-            "peaks",
-        ],
+        &comparison_header(&["scene", "truth", "predictor"], &[]),
         &truth_rows,
     ));
     if figure {
@@ -417,22 +426,7 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
         crate::scan::ASSUMED_ALPHA
     );
     body.push_str(&table(
-        &[
-            "scene",
-            "truth",
-            "predictor",
-            "floor",
-            "all bins in bound",
-            "bias (dB)",
-            "RMS (dB)",
-            "target bins in bound",
-            "target-bin bias (dB)",
-            "target bins",
-            "peak bias (dB)",
-            "peak RMS (dB)",
-            "peaks",
-            "rho clamped",
-        ],
+        &comparison_header(&["scene", "truth", "predictor", "floor"], &["rho clamped"]),
         &scan_rows,
     ));
     Ok(Section {
