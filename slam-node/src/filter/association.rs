@@ -323,6 +323,21 @@ mod tests {
     use crate::filter::state::FeatureParams;
     use radar_model::geometry::Pose2;
 
+    /// Two features 10 m and 11 m ahead on one line, predicted from the origin with a
+    /// near-certain state (covariance 1e-6 I over pose, L and both features).
+    fn two_features_on_a_line() -> (BeamPrediction, DMatrix<f64>) {
+        let feature = |x_m| FeatureParams {
+            x_m,
+            y_m: 0.0,
+            u: 0.0,
+            v: 0.0,
+        };
+        let pred = RangeBearingModel
+            .predict_beam(&Pose2::default(), &[feature(10.0), feature(11.0)], 0.0)
+            .unwrap();
+        (pred, DMatrix::identity(12, 12) * 1e-6)
+    }
+
     fn target(range_m: f64) -> Target {
         Target {
             range_m,
@@ -334,24 +349,7 @@ mod tests {
     #[test]
     fn jcbb_pairs_both_targets_where_greedy_nearest_neighbour_pairs_one() {
         // Two features 10 m and 11 m ahead on one line; range sigma 0.5 m.
-        let feats = [
-            FeatureParams {
-                x_m: 10.0,
-                y_m: 0.0,
-                u: 0.0,
-                v: 0.0,
-            },
-            FeatureParams {
-                x_m: 11.0,
-                y_m: 0.0,
-                u: 0.0,
-                v: 0.0,
-            },
-        ];
-        let pred = RangeBearingModel
-            .predict_beam(&Pose2::default(), &feats, 0.0)
-            .unwrap();
-        let p_cc = DMatrix::identity(12, 12) * 1e-6;
+        let (pred, p_cc) = two_features_on_a_line();
         let ctx = BeamContext {
             prediction: &pred,
             p_cc: &p_cc,
@@ -384,24 +382,7 @@ mod tests {
 
     #[test]
     fn a_node_budget_of_one_still_returns_a_consistent_answer() {
-        let feats = [
-            FeatureParams {
-                x_m: 10.0,
-                y_m: 0.0,
-                u: 0.0,
-                v: 0.0,
-            },
-            FeatureParams {
-                x_m: 11.0,
-                y_m: 0.0,
-                u: 0.0,
-                v: 0.0,
-            },
-        ];
-        let pred = RangeBearingModel
-            .predict_beam(&Pose2::default(), &feats, 0.0)
-            .unwrap();
-        let p_cc = DMatrix::identity(12, 12) * 1e-6;
+        let (pred, p_cc) = two_features_on_a_line();
         let ctx = BeamContext {
             prediction: &pred,
             p_cc: &p_cc,
