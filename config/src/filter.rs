@@ -75,6 +75,13 @@ pub struct RawFilter {
     pub max_features: i64,
     /// Observe power as well as range and bearing. Default true.
     pub use_power_in_observation: bool,
+    /// Linearise each feature's observation at its first estimate (the FEJ-EKF), so the
+    /// filter does not gain false confidence in the map's global heading. Default true.
+    pub first_estimate_jacobians: bool,
+    /// Count repeated looks at a feature from an unchanged viewpoint (within one range
+    /// resolution cell and one beam width) as correlated: the k-th look of such a run is
+    /// used with k times its noise variance. Default true.
+    pub repeat_look_decorrelation: bool,
 }
 
 impl Default for RawFilter {
@@ -97,6 +104,8 @@ impl Default for RawFilter {
             retire_after_misses: 5,
             max_features: 1000,
             use_power_in_observation: true,
+            first_estimate_jacobians: true,
+            repeat_look_decorrelation: true,
         }
     }
 }
@@ -143,6 +152,10 @@ pub struct FilterSettings {
     pub max_features: Capacity,
     /// Observe power.
     pub use_power_in_observation: bool,
+    /// First-estimates Jacobians.
+    pub first_estimate_jacobians: bool,
+    /// Repeated looks from one viewpoint counted as correlated.
+    pub repeat_look_decorrelation: bool,
 }
 
 impl Default for FilterSettings {
@@ -236,6 +249,8 @@ impl RawFilter {
                 Capacity::new(self.max_features, MAX_FEATURES),
             ),
             use_power_in_observation: self.use_power_in_observation,
+            first_estimate_jacobians: self.first_estimate_jacobians,
+            repeat_look_decorrelation: self.repeat_look_decorrelation,
         }
     }
 }
@@ -266,6 +281,8 @@ impl From<&FilterSettings> for RawFilter {
             retire_after_misses: crate::values::as_i64(s.retire_after_misses.get()),
             max_features: crate::values::as_i64(s.max_features.get()),
             use_power_in_observation: s.use_power_in_observation,
+            first_estimate_jacobians: s.first_estimate_jacobians,
+            repeat_look_decorrelation: s.repeat_look_decorrelation,
         }
     }
 }

@@ -110,6 +110,8 @@ fn the_defaults_are_the_documented_values() {
     assert_eq!(c.filter.retire_after_misses.get(), 5);
     assert_eq!(c.filter.max_features.get(), 1000);
     assert!(c.filter.use_power_in_observation);
+    assert!(c.filter.first_estimate_jacobians);
+    assert!(c.filter.repeat_look_decorrelation);
     assert_eq!(c.output.trajectory_path(), Path::new("out/trajectory.tum"));
 }
 

@@ -148,6 +148,8 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "detector.kind",
     "filter.association",
     "filter.use_power_in_observation",
+    "filter.first_estimate_jacobians",
+    "filter.repeat_look_decorrelation",
     "output.pictures",
     "output.progress",
 ];

@@ -53,6 +53,8 @@ initial_theta_rad = -2.0
 gate_chi2 = 7.81
 association = "jcbb"
 use_power_in_observation = false
+first_estimate_jacobians = false
+repeat_look_decorrelation = false
 [output]
 directory = "/tmp/run"
 map = "maps/map.csv"

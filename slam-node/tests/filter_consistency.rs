@@ -60,6 +60,8 @@ fn settings(noise: &NoiseModel, use_power: bool) -> FilterSettings {
     let var = noise.observation_variances();
     FilterSettings {
         use_power,
+        // FILTER_MC_FEJ=0 turns first-estimates Jacobians off, for the comparison.
+        first_estimate_jacobians: std::env::var("FILTER_MC_FEJ").map_or(true, |v| v != "0"),
         range_std_m: var[0].sqrt(),
         bearing_std_rad: var[1].sqrt(),
         power_std_db: var[2].sqrt(),

@@ -155,7 +155,14 @@ fn two_targets_at_equal_range_down_one_beam_are_both_used_without_their_power() 
 #[test]
 fn rho_plus_alpha_near_one_keeps_shares_in_range_and_the_covariance_sound() {
     let truth = Pose2::new(0.0, 0.0, 0.0);
-    let mut f = filter(settings(), truth, [1e-4, 1e-4, 1e-6]);
+    // The 400 looks here are drawn independently, and the point is the numerics once the
+    // estimates are precise: count them as independent (no repeat-look inflation, which
+    // would rightly keep a parked radar's estimates loose).
+    let s = FilterSettings {
+        repeat_look_range_m: 0.0,
+        ..settings()
+    };
+    let mut f = filter(s, truth, [1e-4, 1e-4, 1e-6]);
     // A nearly opaque feature (tau = 1e-6) in front of a bright one, both in the beam.
     let scene = [
         feature(10.0, 0.0, 0.7, 0.299_999),
@@ -494,4 +501,45 @@ fn predicting_backwards_or_across_a_huge_gap_is_a_typed_error() {
         f.predict_to(T0 + 1e6),
         Err(FilterError::GapTooLong { .. })
     ));
+}
+
+#[test]
+fn a_vehicle_started_exactly_known_and_parked_keeps_updating() {
+    // The configuration's default: the map frame is the start pose, with zero covariance.
+    // Parked, with wheel odometry reporting exactly zero, y and heading gain no variance;
+    // the updates must leave those zero rows alone rather than refuse (an earlier check
+    // treated the untouched zero variance as a lost definiteness and failed every beam).
+    let truth = Pose2::new(0.0, 0.0, 0.0);
+    let mut f = filter(settings(), truth, [0.0, 0.0, 0.0]);
+    let scene = [feature(12.0, 0.0, 0.5, 0.2), feature(30.0, 0.0, 0.7, 0.1)];
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    for k in 0..40 {
+        let t = T0 + 0.25 * k as f64;
+        f.apply_odometry(OdometrySample {
+            timestamp_s: t,
+            speed_mps: 0.0,
+            steer_rad: 0.0,
+        })
+        .unwrap();
+        f.process_beam(&BeamObservation {
+            timestamp_s: t,
+            bearing_rad: 0.0,
+            targets: noisy(&truth, &scene, 0.0, &mut rng),
+        })
+        .unwrap();
+    }
+    assert_eq!(f.feature_count(), 2);
+    assert_healthy_or_exactly_known(&f);
+}
+
+/// Symmetric, no negative variance, and positive definite on the elements that are not
+/// exactly known.
+fn assert_healthy_or_exactly_known(f: &Filter) {
+    let p = f.state().covariance();
+    assert_eq!(p, &p.transpose());
+    let known: Vec<usize> = (0..p.nrows()).filter(|&i| p[(i, i)] == 0.0).collect();
+    assert!(known.iter().all(|&i| p.row(i).iter().all(|&v| v == 0.0)));
+    let free: Vec<usize> = (0..p.nrows()).filter(|i| !known.contains(i)).collect();
+    let sub = p.select_rows(free.iter()).select_columns(free.iter());
+    assert!(sub.cholesky().is_some(), "not positive definite");
 }

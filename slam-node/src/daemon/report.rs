@@ -73,6 +73,19 @@ pub fn summary_text(r: &DaemonReport) -> String {
             p.nees_sum / p.samples.max(1) as f64
         );
     }
+    if let Some(o) = &s.observation_errors {
+        if let (Some((rm, rs)), Some((bm, bs))) = (o.range_m(), o.bearing_rad()) {
+            let _ = writeln!(
+                t,
+                "  associated observations vs true geometry ({}): range {:+.3} +- {:.3} m, bearing {:+.3} +- {:.3} deg (mean +- std)",
+                o.samples,
+                rm,
+                rs,
+                bm.to_degrees(),
+                bs.to_degrees()
+            );
+        }
+    }
     if let Some(m) = &s.map {
         let _ = writeln!(
             t,

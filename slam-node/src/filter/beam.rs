@@ -213,3 +213,67 @@ pub fn predict_candidates<O: BeamObservationModel + ?Sized>(
         power_usable: usable,
     })
 }
+
+/// Re-linearises the geometric part of a beam prediction's Jacobian at each feature's first
+/// estimate (first-estimates Jacobians, see
+/// [`FilterSettings::first_estimate_jacobians`]). `current` and `first` are the features'
+/// present and first positions in the prediction's candidate order.
+///
+/// - range and bearing rows of feature `i`: the pose and `(x_i, y_i)` columns are replaced
+///   by eq. 3 and 4's Jacobians at `(pose, first_i)`;
+/// - power rows: the power depends on the pose and the positions only through the ranges,
+///   so `dP_i/dR_k = dP_i/d(x_k, y_k) . u_k` with `u_k` the current unit vector from the
+///   radar to feature `k`; the geometric columns are rebuilt as `dP_i/dR_k` times the range
+///   Jacobian at the first estimate. The u, v and L columns are left as they are.
+///
+/// A feature on top of the radar (zero range) keeps its current Jacobian.
+pub fn relinearise_at_first_estimates(
+    jacobian: &mut DMatrix<f64>,
+    pose: &Pose2,
+    current: &[[f64; 2]],
+    first: &[[f64; 2]],
+) {
+    let k = current.len().min(first.len());
+    if jacobian.nrows() < 3 * k || jacobian.ncols() < POSE_DIM + FEATURE_DIM * k {
+        return;
+    }
+    let unit = |p: [f64; 2]| -> Option<[f64; 2]> {
+        let (dx, dy) = (p[0] - pose.x, p[1] - pose.y);
+        let r = dx.hypot(dy);
+        (r > 1e-9 && r.is_finite()).then(|| [dx / r, dy / r])
+    };
+    let units: Vec<Option<([f64; 2], [f64; 2])>> = (0..k)
+        .map(|i| Some((unit(current[i])?, unit(first[i])?)))
+        .collect();
+    for i in 0..k {
+        let fc = POSE_DIM + FEATURE_DIM * i;
+        if units[i].is_some() {
+            if let Ok((_, jac)) = range_bearing_with_jacobian(pose, first[i]) {
+                for c in 0..POSE_DIM {
+                    jacobian[(3 * i, c)] = jac.range_wrt_pose[c];
+                    jacobian[(3 * i + 1, c)] = jac.bearing_wrt_pose[c];
+                }
+                for c in 0..2 {
+                    jacobian[(3 * i, fc + c)] = jac.range_wrt_feature[c];
+                    jacobian[(3 * i + 1, fc + c)] = jac.bearing_wrt_feature[c];
+                }
+            }
+        }
+        // Power row of feature i.
+        let row = 3 * i + 2;
+        let mut pose_x = jacobian[(row, 0)];
+        let mut pose_y = jacobian[(row, 1)];
+        for (q, u) in units.iter().enumerate() {
+            let Some((now, then)) = u else { continue };
+            let qc = POSE_DIM + FEATURE_DIM * q;
+            let d_range = jacobian[(row, qc)] * now[0] + jacobian[(row, qc + 1)] * now[1];
+            // Remove this feature's current contribution to the pose columns, add the FEJ one.
+            pose_x += d_range * (now[0] - then[0]);
+            pose_y += d_range * (now[1] - then[1]);
+            jacobian[(row, qc)] = d_range * then[0];
+            jacobian[(row, qc + 1)] = d_range * then[1];
+        }
+        jacobian[(row, 0)] = pose_x;
+        jacobian[(row, 1)] = pose_y;
+    }
+}

@@ -9,11 +9,13 @@
 mod init;
 
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3};
-use radar_model::geometry::Pose2;
+use radar_model::geometry::{wrap_angle, Pose2};
 use radar_model::material::Material;
 
 use super::association::{associate, innovation, rows_of, BeamContext, GateTable};
-use super::beam::{candidates_in_beam, predict_candidates, BeamCandidate};
+use super::beam::{
+    candidates_in_beam, predict_candidates, relinearise_at_first_estimates, BeamCandidate,
+};
 use super::error::FilterError;
 use super::health::{covariance_health, pose_nees, position_nees, CovarianceHealth};
 use super::lifecycle::TentativeList;
@@ -370,6 +372,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             self.stats.jcbb_runs += 1;
         }
         let mut rows = Vec::new();
+        let mut inflation = Vec::new();
         let mut nu = Vec::new();
         let mut claimed = Vec::new();
         let mut seen = vec![false; slots.len()];
@@ -379,6 +382,11 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             };
             let r = rows_of(i, use_power.get(i).copied().unwrap_or(false));
             nu.extend(innovation(&pred, i, t, &r));
+            let k = match (slots.get(i), pred.z.get(i)) {
+                (Some(&slot), Some(z)) => self.repeat_look(slot, [z[0], z[1]]),
+                _ => 1.0,
+            };
+            inflation.extend(std::iter::repeat(k).take(r.len()));
             rows.extend(r);
             claimed.push(j);
             if let Some(s) = seen.get_mut(i) {
@@ -396,11 +404,21 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             let var = self.noise_var();
             let noise = DMatrix::from_diagonal(&DVector::from_iterator(
                 rows.len(),
-                rows.iter().map(|&r| var[r % 3]),
+                rows.iter().zip(&inflation).map(|(&r, &k)| var[r % 3] * k),
             ));
+            let mut jacobian = pred.jacobian.clone();
+            if self.settings.first_estimate_jacobians {
+                let current: Vec<[f64; 2]> = params.iter().map(|p| [p.x_m, p.y_m]).collect();
+                let first: Vec<[f64; 2]> = slots
+                    .iter()
+                    .zip(&current)
+                    .map(|(&s, &c)| self.state.tracks().get(s).map_or(c, |t| t.first_xy_m))
+                    .collect();
+                relinearise_at_first_estimates(&mut jacobian, &self.pose(), &current, &first);
+            }
             let obs = LinearisedObservation {
                 columns,
-                jacobian: pred.jacobian.select_rows(rows.iter()),
+                jacobian: jacobian.select_rows(rows.iter()),
                 innovation: DVector::from_vec(nu),
                 noise,
             };
@@ -422,6 +440,33 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             .collect();
         self.book_keep(candidates, &visible, &assoc.pairs, beam.timestamp_s, report)?;
         Ok(claimed)
+    }
+
+    /// Counts a look at the feature in `slot`, predicted at `(range, bearing)` in the radar's
+    /// frame, and returns its noise inflation: k for the k-th look of a run from within one
+    /// range-bearing cell of the run's first (see [`FilterSettings::repeat_look_range_m`]).
+    fn repeat_look(&mut self, slot: usize, range_bearing: [f64; 2]) -> f64 {
+        let (cell_r, cell_b) = (
+            self.settings.repeat_look_range_m,
+            self.settings.repeat_look_bearing_rad,
+        );
+        let Some(track) = self.state.track_mut(slot) else {
+            return 1.0;
+        };
+        if cell_r <= 0.0 || cell_b <= 0.0 {
+            return 1.0;
+        }
+        let same = track.look_anchor.is_some_and(|a| {
+            (range_bearing[0] - a[0]).abs() < cell_r
+                && wrap_angle(range_bearing[1] - a[1]).abs() < cell_b
+        });
+        if same {
+            track.repeat_looks = track.repeat_looks.saturating_add(1);
+        } else {
+            track.look_anchor = Some(range_bearing);
+            track.repeat_looks = 1;
+        }
+        f64::from(track.repeat_looks)
     }
 
     /// Hits for the candidates a target was paired with; a miss for each candidate expected

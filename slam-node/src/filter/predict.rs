@@ -83,7 +83,17 @@ pub fn predict_step<M: ProcessModel + ?Sized>(
         return Ok(());
     }
     let step = model.step(&state.pose(), input.speed_mps, input.steer_rad, dt_s)?;
-    let f = step.wrt_pose;
+    let mut f = step.wrt_pose;
+    if settings.first_estimate_jacobians {
+        // The process models move the vehicle rigidly with its heading, so the heading
+        // column of F is (-(y' - y), x' - x, 1). First-estimates Jacobians take the
+        // displacement from the pose as last *predicted* (before the updates since), so
+        // that the propagation and the measurement Jacobians agree on one linearisation
+        // point and global heading stays unobservable.
+        let last = state.predicted_pose;
+        f[(0, 2)] -= state.mean[1] - last.y;
+        f[(1, 2)] += state.mean[0] - last.x;
+    }
     let g = step.wrt_input;
     if f.iter().chain(g.iter()).any(|v| !v.is_finite())
         || !(step.pose.x.is_finite() && step.pose.y.is_finite() && step.pose.theta.is_finite())
@@ -117,6 +127,7 @@ pub fn predict_step<M: ProcessModel + ?Sized>(
     state.mean[0] = step.pose.x;
     state.mean[1] = step.pose.y;
     state.mean[2] = wrap_angle(step.pose.theta);
+    state.predicted_pose = state.pose();
     Ok(())
 }
 
@@ -162,4 +173,58 @@ pub fn predict_to<M: ProcessModel + ?Sized>(
     }
     state.set_time_s(to_s);
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Matrix3;
+    use radar_model::motion::MotionModel;
+
+    /// Under first-estimates Jacobians the propagation maps the rotation generator at the
+    /// pose as last predicted, `(-y, x, 1)`, onto the one at the new prediction, whatever
+    /// update moved the estimate in between: the unobservable direction is carried forward
+    /// intact. A pose covariance that lies wholly along that direction stays along it.
+    #[test]
+    fn fej_propagation_carries_the_rotation_generator_forward() {
+        let settings = FilterSettings {
+            speed_std_mps: 1e-9,
+            steer_std_rad: 1e-9,
+            ..FilterSettings::default()
+        };
+        let last_predicted = Pose2::new(3.0, 1.0, 0.3);
+        let n0 = Vector3::new(-last_predicted.y, last_predicted.x, 1.0);
+        let mut state = SlamState::new(
+            Pose2::new(3.2, 0.9, 0.31), // after an update moved it
+            Matrix3::zeros(),
+            0.0,
+            1.0,
+            0.0,
+        )
+        .unwrap();
+        state.predicted_pose = last_predicted;
+        let s2 = 1e-4;
+        let outer = n0 * n0.transpose() * s2;
+        for r in 0..3 {
+            for c in 0..3 {
+                state.cov[(r, c)] = outer[(r, c)];
+            }
+        }
+        let model = MotionModel::Bicycle { wheelbase_m: 2.7 };
+        let input = OdometrySample {
+            timestamp_s: 0.0,
+            speed_mps: 4.0,
+            steer_rad: 0.2,
+        };
+        predict_step(&mut state, &model, &input, 0.05, &settings).unwrap();
+        let p = state.pose();
+        let n1 = Vector3::new(-p.y, p.x, 1.0);
+        let expected = n1 * n1.transpose() * s2;
+        let got = state.pose_covariance();
+        assert!(
+            (got - expected).abs().max() < 1e-9,
+            "got {got}, expected {expected}"
+        );
+        assert_eq!(state.predicted_pose, p);
+    }
 }

@@ -13,6 +13,25 @@ pub struct FilterSettings {
     /// filter is ordinary range-bearing SLAM (for the evaluation's comparison); u, v and L are
     /// then unobserved and keep their priors.
     pub use_power: bool,
+    /// Evaluate each feature's range and bearing Jacobians (and the range part of its power
+    /// Jacobian) at the position it entered the state with, not at its current estimate:
+    /// the first-estimates Jacobian EKF (Huang, Mourikis and Roumeliotis). The standard EKF
+    /// linearises each feature at a different, moving point, which makes the map's global
+    /// heading look observable and the filter over-confident in it; fixing the linearisation
+    /// point keeps that direction unobservable. The innovation always uses the current
+    /// estimate.
+    pub first_estimate_jacobians: bool,
+    /// Repeated looks from an unchanged viewpoint are not independent: while a feature's
+    /// predicted range and bearing in the radar's frame stay within `repeat_look_range_m`
+    /// and `repeat_look_bearing_rad` of where a run of looks began (a stationary or slowly
+    /// moving vehicle), the errors that depend on the geometry (azimuth and range-bin
+    /// quantisation, partial occlusion, speckle) repeat, so the k-th look of the run is
+    /// used with its noise variance times k. The run's total information then grows as
+    /// `ln k`, not `k`, and a vehicle parked for a minute does not become certain of a
+    /// biased answer. 0 turns it off.
+    pub repeat_look_range_m: f64,
+    /// See [`Self::repeat_look_range_m`] (rad): one azimuth step is the natural cell.
+    pub repeat_look_bearing_rad: f64,
     /// Standard deviation of an observed range (m).
     pub range_std_m: f64,
     /// Standard deviation of an observed bearing (rad). The paper: 1 degree.
@@ -101,6 +120,9 @@ impl Default for FilterSettings {
     fn default() -> Self {
         Self {
             use_power: true,
+            first_estimate_jacobians: true,
+            repeat_look_range_m: 0.25,
+            repeat_look_bearing_rad: 1.8_f64.to_radians(),
             range_std_m: 0.25,
             bearing_std_rad: 1.0_f64.to_radians(),
             power_std_db: 2.4,
@@ -237,6 +259,8 @@ impl FilterSettings {
         positive("steer_std_rad", self.steer_std_rad)?;
         positive("input_noise_correlation_s", self.input_noise_correlation_s)?;
         non_negative("material_variance_per_s", self.material_variance_per_s)?;
+        non_negative("repeat_look_range_m", self.repeat_look_range_m)?;
+        non_negative("repeat_look_bearing_rad", self.repeat_look_bearing_rad)?;
         positive("max_predict_step_s", self.max_predict_step_s)?;
         positive("max_predict_gap_s", self.max_predict_gap_s)?;
         probability("gate_probability", self.gate_probability)?;

@@ -50,6 +50,14 @@ pub struct FeatureTrack {
     pub last_seen_s: f64,
     /// Time up to which the material random walk has been added to its u, v variances.
     pub material_settled_s: f64,
+    /// The position estimate it entered the state with (m): the linearisation point of its
+    /// range and bearing Jacobians under first-estimates Jacobians.
+    pub first_xy_m: [f64; 2],
+    /// Predicted `(range, bearing)` in the radar's frame at the first of the current run of
+    /// looks from an unchanged viewpoint (see [`super::FilterSettings::repeat_look_range_m`]).
+    pub look_anchor: Option<[f64; 2]>,
+    /// Looks in the current run from within one range-bearing cell of `look_anchor`.
+    pub repeat_looks: u32,
 }
 
 /// A feature's estimated state elements.
@@ -73,6 +81,9 @@ pub struct SlamState {
     tracks: Vec<FeatureTrack>,
     next_id: u64,
     time_s: f64,
+    /// The pose as last predicted, before any update since (the propagation's linearisation
+    /// point under first-estimates Jacobians).
+    pub(crate) predicted_pose: Pose2,
 }
 
 /// Index of slot `s`'s first element.
@@ -128,6 +139,7 @@ impl SlamState {
             tracks: Vec::new(),
             next_id: 0,
             time_s,
+            predicted_pose: Pose2::new(pose.x, pose.y, wrap_angle(pose.theta)),
         })
     }
 
@@ -160,11 +172,15 @@ impl SlamState {
                 created_s: time_s,
                 last_seen_s: time_s,
                 material_settled_s: time_s,
+                first_xy_m: [mean[feature_index(k)], mean[feature_index(k) + 1]],
+                look_anchor: None,
+                repeat_looks: 0,
             })
             .collect();
         let mut mean = mean;
         mean[2] = wrap_angle(mean[2]);
         Ok(Self {
+            predicted_pose: Pose2::new(mean[0], mean[1], mean[2]),
             mean,
             cov,
             tracks,
@@ -327,6 +343,9 @@ impl SlamState {
             created_s: time_s,
             last_seen_s: time_s,
             material_settled_s: time_s,
+            first_xy_m: [mean[0], mean[1]],
+            look_anchor: None,
+            repeat_looks: 0,
         });
         Ok(id)
     }

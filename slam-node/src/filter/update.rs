@@ -13,7 +13,9 @@
 //! `P - K S K^T` is the Joseph form `(I - KH) P (I - KH)^T + K R K^T` for the optimal gain,
 //! written so that it is symmetric by construction and never forms the n x n `I - KH`.
 //! Before anything is written the new diagonal `P_ii - sum_k W_ik^2` is checked: an update
-//! that would leave a non-positive variance is refused and the state is left unchanged.
+//! that would leave a non-positive variance is refused and the state is left unchanged (an
+//! element whose variance is already exactly zero, and which the update does not touch, is
+//! left at zero).
 
 use nalgebra::{DMatrix, DVector};
 use radar_model::geometry::wrap_angle;
@@ -131,7 +133,11 @@ pub fn batched_update(
             reduction += w[(i, k)] * w[(i, k)];
         }
         let new_var = state.cov[(i, i)] - reduction;
-        if !(new_var > 0.0 && new_var.is_finite()) {
+        // An element with zero variance (a pose started exactly known and not yet moved
+        // along that axis) has a zero row, so the update leaves it untouched: allowed.
+        // Anything the update does touch must keep a positive variance.
+        let untouched_zero = reduction == 0.0 && new_var == 0.0;
+        if !((new_var > 0.0 || untouched_zero) && new_var.is_finite()) {
             return Err(FilterError::CovarianceLostDefiniteness {
                 index: i,
                 value: new_var,

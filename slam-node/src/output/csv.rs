@@ -18,7 +18,7 @@ use super::map::MapSnapshot;
 pub const MAP_HEADER: &str = "id,x_m,y_m,rho,alpha,tau,observations,c_x_x,c_x_y,c_x_rho,c_x_alpha,c_y_y,c_y_rho,c_y_alpha,c_rho_rho,c_rho_alpha,c_alpha_alpha";
 
 /// The diagnostics CSV's header row.
-pub const DIAGNOSTICS_HEADER: &str = "rotation,timestamp_s,azimuths,skipped_azimuths,detections,observations,associated,new_features,tentative,retired,rejected,map_size,mean_nis,spectrum_in_bound_fraction,spectrum_bias_db,detect_ms,filter_ms,spectrum_ms,total_ms,association_errors";
+pub const DIAGNOSTICS_HEADER: &str = "rotation,timestamp_s,azimuths,skipped_azimuths,detections,observations,associated,new_features,tentative,retired,rejected,map_size,mean_nis,spectrum_in_bound_fraction,spectrum_bias_db,detect_ms,filter_ms,spectrum_ms,total_ms,association_errors,pose_error_x_m,pose_error_y_m,pose_error_theta_rad,pose_sigma_x_m,pose_sigma_y_m,pose_sigma_theta_rad,pose_nees";
 
 /// Writes a map snapshot as CSV.
 pub fn write_map<W: Write>(m: &MapSnapshot, mut w: W) -> io::Result<()> {
@@ -57,7 +57,7 @@ fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
 /// One diagnostics row.
 pub fn diagnostics_row(d: &RotationDiagnostics) -> String {
     format!(
-        "{},{:.9},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{}",
+        "{},{:.9},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{},{},{},{},{},{},{},{}",
         d.rotation,
         d.timestamp_s,
         d.azimuths,
@@ -77,7 +77,14 @@ pub fn diagnostics_row(d: &RotationDiagnostics) -> String {
         d.filter_ms,
         d.spectrum_ms,
         d.total_ms,
-        opt(d.association_errors)
+        opt(d.association_errors),
+        opt(d.pose_error_x_m),
+        opt(d.pose_error_y_m),
+        opt(d.pose_error_theta_rad),
+        opt(d.pose_sigma_x_m),
+        opt(d.pose_sigma_y_m),
+        opt(d.pose_sigma_theta_rad),
+        opt(d.pose_nees)
     )
 }
 

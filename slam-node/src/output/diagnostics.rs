@@ -46,6 +46,20 @@ pub struct RotationDiagnostics {
     pub total_ms: f64,
     /// Associations to the wrong scene feature (only when ground truth is known).
     pub association_errors: Option<u32>,
+    /// Pose error at the rotation's end, estimate minus truth, x (m), when truth is known.
+    pub pose_error_x_m: Option<f64>,
+    /// Pose error, y (m).
+    pub pose_error_y_m: Option<f64>,
+    /// Pose error, heading (rad, wrapped).
+    pub pose_error_theta_rad: Option<f64>,
+    /// The filter's own standard deviations of x (m), y (m) and heading (rad).
+    pub pose_sigma_x_m: Option<f64>,
+    /// See `pose_sigma_x_m`.
+    pub pose_sigma_y_m: Option<f64>,
+    /// See `pose_sigma_x_m`.
+    pub pose_sigma_theta_rad: Option<f64>,
+    /// Pose NEES (3 dof) against truth: 95% of rotations below 7.81 for a consistent filter.
+    pub pose_nees: Option<f64>,
 }
 
 /// A predicted and a measured spectrum of one beam, for figures and offline checks.

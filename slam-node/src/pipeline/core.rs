@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use nalgebra::Matrix3;
 use radar_driver::Azimuth;
-use radar_model::geometry::{wrap_angle, Pose2};
+use radar_model::geometry::{range_bearing, wrap_angle, Pose2};
 use radar_model::motion::{ControlInput, MotionModel};
 use radar_model::spectrum::{SpectrumGeometry, SpectrumModel};
 use tracing::{info, warn};
@@ -423,6 +423,16 @@ impl Pipeline {
             let xy = true_pose.point_at(t.range_m, t.bearing_rad);
             let seen = nearest_feature(truth.features(), xy, 1.5).map(|(i, _)| i);
             let mapped = nearest_feature(truth.features(), [f.x_m, f.y_m], 2.0).map(|(i, _)| i);
+            if let Some(tf) = seen.and_then(|a| truth.features().get(a)) {
+                let rb = range_bearing(&true_pose, [tf.x_m, tf.y_m]);
+                self.summary
+                    .observation_errors
+                    .get_or_insert_with(Default::default)
+                    .add(
+                        t.range_m - rb.range_m,
+                        wrap_angle(t.bearing_rad - rb.bearing_rad),
+                    );
+            }
             match (seen, mapped) {
                 (Some(a), Some(b)) if a != b => {
                     self.summary.association_errors += 1;
@@ -559,6 +569,13 @@ impl Pipeline {
         if let Some(truth_pose) = self.truth.as_ref().and_then(|tr| tr.pose_at(t)) {
             if self.held.is_some() {
                 let nees = self.ekf.pose_nees(&truth_pose).ok();
+                d.pose_error_x_m = Some(pose.x - truth_pose.x);
+                d.pose_error_y_m = Some(pose.y - truth_pose.y);
+                d.pose_error_theta_rad = Some(wrap_angle(pose.theta - truth_pose.theta));
+                d.pose_sigma_x_m = Some(cov[(0, 0)].max(0.0).sqrt());
+                d.pose_sigma_y_m = Some(cov[(1, 1)].max(0.0).sqrt());
+                d.pose_sigma_theta_rad = Some(cov[(2, 2)].max(0.0).sqrt());
+                d.pose_nees = nees;
                 self.pose_errors.add(
                     &pose,
                     [cov[(0, 0)], cov[(1, 1)], cov[(2, 2)]],

@@ -164,6 +164,18 @@ impl PipelineSettings {
         let f = &c.filter;
         let filter = FilterSettings {
             use_power: f.use_power_in_observation,
+            first_estimate_jacobians: f.first_estimate_jacobians,
+            // A look repeats while the feature stays within one range cell and one beam.
+            repeat_look_range_m: if f.repeat_look_decorrelation {
+                c.model.range_resolution_m.get()
+            } else {
+                0.0
+            },
+            repeat_look_bearing_rad: if f.repeat_look_decorrelation {
+                beam_width_rad
+            } else {
+                0.0
+            },
             range_std_m: c.model.sigma_range_m.get(),
             bearing_std_rad: c.model.sigma_bearing_rad(),
             power_std_db: c.model.sigma_power_db.get(),

@@ -6,7 +6,7 @@ use serde::Serialize;
 
 use super::core::DaemonEkf;
 use super::spectrum::SpectrumTally;
-use super::truth::{MapScore, PoseErrorStats};
+use super::truth::{MapScore, ObservationErrorStats, PoseErrorStats};
 use crate::filter::state::feature_index;
 use crate::output::{MapFeature, MapSnapshot, RotationDiagnostics};
 
@@ -75,6 +75,8 @@ pub struct PipelineSummary {
     pub spectrum: SpectrumTally,
     /// Pose error against truth.
     pub pose: Option<PoseErrorStats>,
+    /// Associated observations against the true geometry (truth known only).
+    pub observation_errors: Option<ObservationErrorStats>,
     /// Map against the scene.
     pub map: Option<MapScore>,
     #[serde(skip)]

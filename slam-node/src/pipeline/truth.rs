@@ -107,6 +107,57 @@ pub fn nearest_feature(
         .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
+/// Errors of the associated observations against the true geometry: each observation's
+/// range and bearing minus those of the scene feature it came from (the nearest within
+/// 1.5 m of where it points), seen from the true pose at its timestamp. Compares what the
+/// detector and the grouping really deliver with the noise the filter assumes.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct ObservationErrorStats {
+    /// Observations compared.
+    pub samples: u64,
+    /// Sum of range errors, m.
+    pub range_sum_m: f64,
+    /// Sum of squared range errors, m^2.
+    pub range_sum_sq_m2: f64,
+    /// Sum of bearing errors (wrapped), rad.
+    pub bearing_sum_rad: f64,
+    /// Sum of squared bearing errors, rad^2.
+    pub bearing_sum_sq_rad2: f64,
+}
+
+impl ObservationErrorStats {
+    /// Adds one observation's errors.
+    pub fn add(&mut self, range_error_m: f64, bearing_error_rad: f64) {
+        if !(range_error_m.is_finite() && bearing_error_rad.is_finite()) {
+            return;
+        }
+        self.samples += 1;
+        self.range_sum_m += range_error_m;
+        self.range_sum_sq_m2 += range_error_m * range_error_m;
+        self.bearing_sum_rad += bearing_error_rad;
+        self.bearing_sum_sq_rad2 += bearing_error_rad * bearing_error_rad;
+    }
+
+    fn mean_std(&self, sum: f64, sum_sq: f64) -> Option<(f64, f64)> {
+        (self.samples > 1).then(|| {
+            let n = self.samples as f64;
+            let mean = sum / n;
+            let var = ((sum_sq - n * mean * mean) / (n - 1.0)).max(0.0);
+            (mean, var.sqrt())
+        })
+    }
+
+    /// Mean and standard deviation of the range errors, m (at least two samples).
+    pub fn range_m(&self) -> Option<(f64, f64)> {
+        self.mean_std(self.range_sum_m, self.range_sum_sq_m2)
+    }
+
+    /// Mean and standard deviation of the bearing errors, rad (at least two samples).
+    pub fn bearing_rad(&self) -> Option<(f64, f64)> {
+        self.mean_std(self.bearing_sum_rad, self.bearing_sum_sq_rad2)
+    }
+}
+
 /// Pose error statistics against truth, accumulated per rotation.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct PoseErrorStats {
