@@ -29,6 +29,10 @@ pub struct Run {
     pub odometry: bool,
     /// Simulator seed (None: the scene's).
     pub seed: Option<u64>,
+    /// First-estimates Jacobians in the filter (the shipped default: on).
+    pub first_estimate_jacobians: bool,
+    /// Repeat-look decorrelation in the filter (the shipped default: on).
+    pub repeat_look_decorrelation: bool,
 }
 
 impl Run {
@@ -42,6 +46,8 @@ impl Run {
             fault_scope: FaultScope::EveryConnection,
             odometry: true,
             seed: None,
+            first_estimate_jacobians: true,
+            repeat_look_decorrelation: true,
         }
     }
 }
@@ -51,6 +57,8 @@ impl Run {
 pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport, DaemonError> {
     let mut config = config::Config::default();
     config.filter.use_power_in_observation = run.use_power;
+    config.filter.first_estimate_jacobians = run.first_estimate_jacobians;
+    config.filter.repeat_look_decorrelation = run.repeat_look_decorrelation;
     // A short hand-off queue (half a second of the paper's unit): the simulator is paced by
     // the pipeline through it, so a radar stall reaches the pipeline as silence at once
     // instead of hiding behind seconds of queued azimuths in a slow (debug) build.

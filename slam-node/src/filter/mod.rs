@@ -14,6 +14,20 @@
 //! - [`radar`]: radar-model's physics behind the filter's traits.
 //! - [`ekf`]: [`Ekf`], the whole filter per beam.
 //! - [`settings`]: [`FilterSettings`], plain validated values.
+//!
+//! Two departures from the textbook EKF, both measured on the simulator (60-seed ensemble,
+//! `slam-node/README.md`) and both switchable:
+//!
+//! - **First-estimates Jacobians** (Huang, Mourikis and Roumeliotis): each feature's range,
+//!   bearing and power Jacobians are evaluated at the position it entered the state with,
+//!   and the propagation at the pose as last predicted, so every linearisation agrees that a
+//!   rotation of the whole world is unobservable ([`beam::relinearise_at_first_estimates`]).
+//!   The standard EKF, linearising each feature at a moving estimate, gains information on
+//!   the map's global heading that no measurement carries.
+//! - **Repeat-look decorrelation**: while a feature stays within one range cell and one beam
+//!   width of where a run of looks began (a parked or slow vehicle), its k-th look is used
+//!   with k times its noise variance: the errors tied to the geometry (azimuth and bin
+//!   quantisation, partial occlusion, speckle) repeat from look to look.
 
 pub mod association;
 pub mod beam;
