@@ -143,8 +143,9 @@ fn embedded_settings(
         f64::from(scene.radar.range_gain) * scene.radar.bin_size_m();
     settings.filter.beam_half_width_rad = 0.5 * scene.radar.beam_width_rad;
     if settings.filter.repeat_look_range_m > 0.0 && settings.filter.repeat_look_bearing_rad > 0.0 {
-        settings.filter.repeat_look_range_m = settings.noise.range.resolution_fwhm_m;
-        settings.filter.repeat_look_bearing_rad = scene.radar.beam_width_rad;
+        use crate::pipeline::settings::REPEAT_LOOK_CELL_FRACTION as F;
+        settings.filter.repeat_look_range_m = F * settings.noise.range.resolution_fwhm_m;
+        settings.filter.repeat_look_bearing_rad = F * scene.radar.beam_width_rad;
     }
     settings.initial_pose = scene.start;
     settings.initial_pose_std = [0.0; 3];

@@ -383,7 +383,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             let r = rows_of(i, use_power.get(i).copied().unwrap_or(false));
             nu.extend(innovation(&pred, i, t, &r));
             let k = match (slots.get(i), pred.z.get(i)) {
-                (Some(&slot), Some(z)) => self.repeat_look(slot, [z[0], z[1]]),
+                (Some(&slot), Some(z)) => self.repeat_look(slot, [z[0], z[1]], beam.timestamp_s),
                 _ => 1.0,
             };
             inflation.extend(std::iter::repeat(k).take(r.len()));
@@ -443,13 +443,17 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     }
 
     /// Counts a look at the feature in `slot`, predicted at `(range, bearing)` in the radar's
-    /// frame, and returns its noise inflation: k for the k-th look of a run from within one
-    /// range-bearing cell of the run's first (see [`FilterSettings::repeat_look_range_m`]).
-    fn repeat_look(&mut self, slot: usize, range_bearing: [f64; 2]) -> f64 {
+    /// frame at `now`, and returns its noise inflation: k for the k-th look of a run from
+    /// within one range-bearing cell of the run's first (see
+    /// [`FilterSettings::repeat_look_range_m`]). Looks of one sweep (less than
+    /// `confirm_min_separation_s` after the run's last look: neighbouring azimuths, each
+    /// quantised differently) are independent and count as 1 without ending the run.
+    fn repeat_look(&mut self, slot: usize, look: [f64; 2], now: f64) -> f64 {
         let (cell_r, cell_b) = (
             self.settings.repeat_look_range_m,
             self.settings.repeat_look_bearing_rad,
         );
+        let same_sweep = self.settings.confirm_min_separation_s;
         let Some(track) = self.state.track_mut(slot) else {
             return 1.0;
         };
@@ -457,15 +461,19 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             return 1.0;
         }
         let same = track.look_anchor.is_some_and(|a| {
-            (range_bearing[0] - a[0]).abs() < cell_r
-                && wrap_angle(range_bearing[1] - a[1]).abs() < cell_b
+            (look[0] - a[0]).abs() < cell_r && wrap_angle(look[1] - a[1]).abs() < cell_b
         });
-        if same {
-            track.repeat_looks = track.repeat_looks.saturating_add(1);
-        } else {
-            track.look_anchor = Some(range_bearing);
+        if !same {
+            track.look_anchor = Some(look);
             track.repeat_looks = 1;
+            track.last_look_s = now;
+            return 1.0;
         }
+        if now - track.last_look_s < same_sweep {
+            return 1.0;
+        }
+        track.last_look_s = now;
+        track.repeat_looks = track.repeat_looks.saturating_add(1);
         f64::from(track.repeat_looks)
     }
 

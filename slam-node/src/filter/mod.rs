@@ -27,7 +27,8 @@
 //! - **Repeat-look decorrelation**: while a feature stays within one range cell and one beam
 //!   width of where a run of looks began (a parked or slow vehicle), its k-th look is used
 //!   with k times its noise variance: the errors tied to the geometry (azimuth and bin
-//!   quantisation, partial occlusion, speckle) repeat from look to look.
+//!   quantisation, partial occlusion, speckle) repeat from rotation to rotation. Looks of
+//!   one sweep (neighbouring azimuths) stay independent.
 
 pub mod association;
 pub mod beam;

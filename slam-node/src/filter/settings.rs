@@ -28,7 +28,8 @@ pub struct FilterSettings {
     /// quantisation, partial occlusion, speckle) repeat, so the k-th look of the run is
     /// used with its noise variance times k. The run's total information then grows as
     /// `ln k`, not `k`, and a vehicle parked for a minute does not become certain of a
-    /// biased answer. 0 turns it off.
+    /// biased answer. Looks within one sweep (less than `confirm_min_separation_s` apart:
+    /// neighbouring azimuths, quantised differently) count as independent. 0 turns it off.
     pub repeat_look_range_m: f64,
     /// See [`Self::repeat_look_range_m`] (rad): one azimuth step is the natural cell.
     pub repeat_look_bearing_rad: f64,

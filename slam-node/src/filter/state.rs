@@ -56,6 +56,8 @@ pub struct FeatureTrack {
     /// Predicted `(range, bearing)` in the radar's frame at the first of the current run of
     /// looks from an unchanged viewpoint (see [`super::FilterSettings::repeat_look_range_m`]).
     pub look_anchor: Option<[f64; 2]>,
+    /// Time of the run's latest counted look (s).
+    pub last_look_s: f64,
     /// Looks in the current run from within one range-bearing cell of `look_anchor`.
     pub repeat_looks: u32,
 }
@@ -175,6 +177,7 @@ impl SlamState {
                 first_xy_m: [mean[feature_index(k)], mean[feature_index(k) + 1]],
                 look_anchor: None,
                 repeat_looks: 0,
+                last_look_s: time_s,
             })
             .collect();
         let mut mean = mean;
@@ -346,6 +349,7 @@ impl SlamState {
             first_xy_m: [mean[0], mean[1]],
             look_anchor: None,
             repeat_looks: 0,
+            last_look_s: time_s,
         });
         Ok(id)
     }

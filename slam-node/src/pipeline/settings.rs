@@ -17,6 +17,10 @@ use statrs::distribution::{ChiSquared, ContinuousCDF};
 use crate::detect::{DetectorKind, DetectorSettings, GroupingSettings};
 use crate::filter::FilterSettings;
 
+/// The share of a range resolution cell and of a beam width within which a feature's
+/// predicted position counts as seen again from the same viewpoint.
+pub const REPEAT_LOOK_CELL_FRACTION: f64 = 1.0;
+
 /// A setting that could not be turned into the daemon's form.
 #[derive(Debug, thiserror::Error)]
 pub enum SettingsError {
@@ -165,14 +169,15 @@ impl PipelineSettings {
         let filter = FilterSettings {
             use_power: f.use_power_in_observation,
             first_estimate_jacobians: f.first_estimate_jacobians,
-            // A look repeats while the feature stays within one range cell and one beam.
+            // A look repeats while the feature stays within a quarter of a range cell and a
+            // quarter of a beam of where the run began.
             repeat_look_range_m: if f.repeat_look_decorrelation {
-                c.model.range_resolution_m.get()
+                REPEAT_LOOK_CELL_FRACTION * c.model.range_resolution_m.get()
             } else {
                 0.0
             },
             repeat_look_bearing_rad: if f.repeat_look_decorrelation {
-                beam_width_rad
+                REPEAT_LOOK_CELL_FRACTION * beam_width_rad
             } else {
                 0.0
             },
