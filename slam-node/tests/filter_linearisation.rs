@@ -13,7 +13,7 @@
 //! the errors that depend on the geometry repeat; the k-th look of such a run counts with
 //! k times its noise variance.
 
-use nalgebra::{DMatrix, DVector, Matrix3};
+use nalgebra::{DVector, Matrix2, Matrix3};
 use radar_model::geometry::Pose2;
 use radar_model::material::Material;
 use radar_model::motion::MotionModel;
@@ -140,10 +140,9 @@ fn first_estimate_jacobians_keep_a_global_rotation_unobservable() {
     }
 }
 
-/// A filter at the origin, still, seeing one feature straight ahead at 20 m in every
-/// rotation: returns the feature's position variance along and across the line of sight
-/// after `rotations` looks.
-fn stationary_looks(rotations: usize, repeat_look: bool) -> (f64, f64) {
+/// A range-bearing filter at the origin, exactly known, with repeat-look decorrelation on
+/// (cells of one 0.25 m bin and one 1.8 deg beam) or off.
+fn range_bearing_filter(repeat_look: bool) -> Ekf<MotionModel, RangeBearingModel> {
     let settings = FilterSettings {
         use_power: false,
         repeat_look_range_m: if repeat_look { 0.25 } else { 0.0 },
@@ -154,7 +153,7 @@ fn stationary_looks(rotations: usize, repeat_look: bool) -> (f64, f64) {
         },
         ..FilterSettings::default()
     };
-    let mut ekf = Ekf::new(
+    Ekf::new(
         settings,
         Pose2::new(0.0, 0.0, 0.0),
         Matrix3::zeros(),
@@ -162,29 +161,58 @@ fn stationary_looks(rotations: usize, repeat_look: bool) -> (f64, f64) {
         MotionModel::Bicycle { wheelbase_m: 2.7 },
         RangeBearingModel,
     )
+    .unwrap()
+}
+
+/// One look at a target straight ahead at `range_m`, with the held odometry `speed_mps`.
+fn look(
+    ekf: &mut Ekf<MotionModel, RangeBearingModel>,
+    t: f64,
+    speed_mps: f64,
+    range_m: f64,
+    bearing_rad: f64,
+) {
+    ekf.apply_odometry(OdometrySample {
+        timestamp_s: t,
+        speed_mps,
+        steer_rad: 0.0,
+    })
     .unwrap();
+    ekf.predict_to(t).unwrap();
+    ekf.process_beam(&BeamObservation {
+        timestamp_s: t,
+        bearing_rad: 0.0,
+        targets: vec![Target {
+            range_m,
+            bearing_rad,
+            power_db: 60.0,
+        }],
+    })
+    .unwrap();
+}
+
+/// The first feature's position covariance is the same with repeat-look decorrelation on and
+/// off.
+fn assert_setting_changes_nothing(run: impl Fn(bool) -> Matrix2<f64>) {
+    let on = run(true);
+    let off = run(false);
+    assert!(
+        (on - off).abs().max() <= 1e-12 * off.abs().max(),
+        "on {on}, off {off}"
+    );
+}
+
+/// A filter at the origin, still, seeing one feature straight ahead at 20 m in every
+/// rotation: returns the feature's position variance along and across the line of sight
+/// after `rotations` looks.
+fn stationary_looks(rotations: usize, repeat_look: bool) -> (f64, f64) {
+    let mut ekf = range_bearing_filter(repeat_look);
     let mut noise = [0.03, -0.02, 0.01, 0.04, -0.03, 0.0, 0.02, -0.01]
         .iter()
         .cycle();
     for k in 0..rotations + 1 {
-        let t = 0.4 * k as f64;
-        ekf.apply_odometry(OdometrySample {
-            timestamp_s: t,
-            speed_mps: 0.0,
-            steer_rad: 0.0,
-        })
-        .unwrap();
         let e = noise.next().copied().unwrap_or(0.0);
-        ekf.process_beam(&BeamObservation {
-            timestamp_s: t,
-            bearing_rad: 0.0,
-            targets: vec![Target {
-                range_m: 20.0 + e,
-                bearing_rad: 0.2 * e,
-                power_db: 60.0,
-            }],
-        })
-        .unwrap();
+        look(&mut ekf, 0.4 * k as f64, 0.0, 20.0 + e, 0.2 * e);
     }
     let f = ekf.features();
     assert_eq!(f.len(), 1, "one feature mapped");
@@ -213,53 +241,29 @@ fn a_moving_viewpoint_starts_a_new_run_of_looks() {
     // The same feature seen from positions 1 m apart: every look is a fresh one, so the
     // setting changes nothing.
     let run = |repeat_look: bool| {
-        let settings = FilterSettings {
-            use_power: false,
-            repeat_look_range_m: if repeat_look { 0.25 } else { 0.0 },
-            repeat_look_bearing_rad: if repeat_look {
-                1.8_f64.to_radians()
-            } else {
-                0.0
-            },
-            ..FilterSettings::default()
-        };
-        let mut ekf = Ekf::new(
-            settings,
-            Pose2::new(0.0, 0.0, 0.0),
-            Matrix3::zeros(),
-            0.0,
-            MotionModel::Bicycle { wheelbase_m: 2.7 },
-            RangeBearingModel,
-        )
-        .unwrap();
+        let mut ekf = range_bearing_filter(repeat_look);
         for k in 0..12 {
             let t = 0.4 * k as f64;
-            ekf.apply_odometry(OdometrySample {
-                timestamp_s: t,
-                speed_mps: 2.5,
-                steer_rad: 0.0,
-            })
-            .unwrap();
-            ekf.predict_to(t).unwrap();
-            let x = ekf.pose().x;
-            ekf.process_beam(&BeamObservation {
-                timestamp_s: t,
-                bearing_rad: 0.0,
-                targets: vec![Target {
-                    range_m: 40.0 - x,
-                    bearing_rad: 0.0,
-                    power_db: 60.0,
-                }],
-            })
-            .unwrap();
+            let x = ekf.pose().x + 2.5 * (t - ekf.state().time_s()).max(0.0);
+            look(&mut ekf, t, 2.5, 40.0 - x, 0.0);
         }
-        let c = ekf.features()[0].position_cov;
-        DMatrix::from_column_slice(2, 2, c.as_slice())
+        ekf.features()[0].position_cov
     };
-    let on = run(true);
-    let off = run(false);
-    assert!(
-        (&on - &off).abs().max() <= 1e-12 * off.abs().max(),
-        "on {on}, off {off}"
-    );
+    assert_setting_changes_nothing(run);
+}
+
+#[test]
+fn looks_of_one_sweep_stay_independent() {
+    // Neighbouring azimuths of one sweep (2 ms apart) see a target quantised differently:
+    // with the setting on, they count as independent looks, as with it off.
+    let run = |repeat_look: bool| {
+        let mut ekf = range_bearing_filter(repeat_look);
+        look(&mut ekf, 0.0, 0.0, 20.0, 0.0);
+        look(&mut ekf, 0.4, 0.0, 20.02, 0.001);
+        for (k, e) in [0.01, -0.02, 0.03, 0.0, -0.01].iter().enumerate() {
+            look(&mut ekf, 0.8 + 0.002 * k as f64, 0.0, 20.0 + e, 0.1 * e);
+        }
+        ekf.features()[0].position_cov
+    };
+    assert_setting_changes_nothing(run);
 }
