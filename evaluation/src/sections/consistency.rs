@@ -241,7 +241,9 @@ fn interpretation(t: &Summary, p: &Summary) -> String {
                  standard deviation at the end {:.3} deg). The known mechanism in EKF-SLAM \
                  (Bailey et al. 2006; Huang and Dissanayake 2007) is linearisation about a \
                  wrong heading, which lets updates claim heading information they do not \
-                 carry; this run does not isolate the cause.",
+                 carry; the filter linearises each feature at its first estimate (FEJ, which \
+                 removes the false information along the global rotation), and what remains \
+                 is not isolated by this run.",
                 x.label, x.heading_sigma_deg,
             );
         }
