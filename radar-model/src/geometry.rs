@@ -123,6 +123,30 @@ pub struct RangeBearingJacobian {
     pub bearing_wrt_feature: [f64; 2],
 }
 
+impl RangeBearingJacobian {
+    /// Writes the range row into `jacobian` row `row` and the bearing row into `row + 1`:
+    /// the pose derivatives into columns 0..3, the feature's into `feature_column` and the
+    /// one after. Other columns are left as they are.
+    ///
+    /// # Panics
+    /// If those rows or columns lie outside `jacobian` (a caller's layout error).
+    pub fn write_rows(
+        &self,
+        jacobian: &mut nalgebra::DMatrix<f64>,
+        row: usize,
+        feature_column: usize,
+    ) {
+        for c in 0..3 {
+            jacobian[(row, c)] = self.range_wrt_pose[c];
+            jacobian[(row + 1, c)] = self.bearing_wrt_pose[c];
+        }
+        for c in 0..2 {
+            jacobian[(row, feature_column + c)] = self.range_wrt_feature[c];
+            jacobian[(row + 1, feature_column + c)] = self.bearing_wrt_feature[c];
+        }
+    }
+}
+
 /// Range, bearing and their Jacobian (eq. 3, 4). With `dx = x_f - x`, `dy = y_f - y`:
 /// `dR/d(x, y, theta) = (-dx/R, -dy/R, 0)`, `dR/d(x_f, y_f) = (dx/R, dy/R)`,
 /// `dbeta/d(x, y, theta) = (-dy/R^2, dx/R^2, 1)`, `dbeta/d(x_f, y_f) = (dy/R^2, -dx/R^2)`.

@@ -109,15 +109,7 @@ pub fn observe_beam(
     let mut jacobian = DMatrix::zeros(3 * n, cols);
     let mut unresolvable = vec![false; n];
     for (k, g) in geometry.iter().enumerate() {
-        let fc = BeamObservation::feature_column(k);
-        for c in 0..POSE_COLUMNS {
-            jacobian[(3 * k, c)] = g.range_wrt_pose[c];
-            jacobian[(3 * k + 1, c)] = g.bearing_wrt_pose[c];
-        }
-        for c in 0..2 {
-            jacobian[(3 * k, fc + c)] = g.range_wrt_feature[c];
-            jacobian[(3 * k + 1, fc + c)] = g.bearing_wrt_feature[c];
-        }
+        g.write_rows(&mut jacobian, 3 * k, BeamObservation::feature_column(k));
     }
     for (ri, &i) in order.iter().enumerate() {
         z[i].power_db = powers.power_db[ri];

@@ -249,14 +249,7 @@ pub fn relinearise_at_first_estimates(
         let fc = POSE_DIM + FEATURE_DIM * i;
         if units[i].is_some() {
             if let Ok((_, jac)) = range_bearing_with_jacobian(pose, first[i]) {
-                for c in 0..POSE_DIM {
-                    jacobian[(3 * i, c)] = jac.range_wrt_pose[c];
-                    jacobian[(3 * i + 1, c)] = jac.bearing_wrt_pose[c];
-                }
-                for c in 0..2 {
-                    jacobian[(3 * i, fc + c)] = jac.range_wrt_feature[c];
-                    jacobian[(3 * i + 1, fc + c)] = jac.bearing_wrt_feature[c];
-                }
+                jac.write_rows(jacobian, 3 * i, fc);
             }
         }
         // Power row of feature i.

@@ -114,15 +114,7 @@ impl BeamObservationModel for RangeBearingModel {
             let (rb, jac) = range_bearing_with_jacobian(pose, [f.x_m, f.y_m])
                 .map_err(|e| FilterError::Model(e.to_string()))?;
             z.push([rb.range_m, rb.bearing_rad, 0.0]);
-            let fc = POSE_DIM + FEATURE_DIM * i;
-            for c in 0..3 {
-                jacobian[(3 * i, c)] = jac.range_wrt_pose[c];
-                jacobian[(3 * i + 1, c)] = jac.bearing_wrt_pose[c];
-            }
-            for c in 0..2 {
-                jacobian[(3 * i, fc + c)] = jac.range_wrt_feature[c];
-                jacobian[(3 * i + 1, fc + c)] = jac.bearing_wrt_feature[c];
-            }
+            jac.write_rows(&mut jacobian, 3 * i, POSE_DIM + FEATURE_DIM * i);
         }
         Ok(BeamPrediction {
             z,
