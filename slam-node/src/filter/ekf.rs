@@ -335,7 +335,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 .settle_material(slot, self.settings.material_variance_per_s);
         }
         let params = self.beam_params(slots);
-        let pred = predict_candidates(
+        let mut pred = predict_candidates(
             &self.observer,
             &self.pose(),
             self.state.loss_db(),
@@ -406,7 +406,8 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 rows.len(),
                 rows.iter().zip(&inflation).map(|(&r, &k)| var[r % 3] * k),
             ));
-            let mut jacobian = pred.jacobian.clone();
+            // Association is done: the prediction's Jacobian may now be re-linearised in place.
+            let jacobian = &mut pred.jacobian;
             if self.settings.first_estimate_jacobians {
                 let current: Vec<[f64; 2]> = params.iter().map(|p| [p.x_m, p.y_m]).collect();
                 let first: Vec<[f64; 2]> = slots
@@ -414,7 +415,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                     .zip(&current)
                     .map(|(&s, &c)| self.state.tracks().get(s).map_or(c, |t| t.first_xy_m))
                     .collect();
-                relinearise_at_first_estimates(&mut jacobian, &self.pose(), &current, &first);
+                relinearise_at_first_estimates(jacobian, &self.pose(), &current, &first);
             }
             let obs = LinearisedObservation {
                 columns,
