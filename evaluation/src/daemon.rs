@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use bytes::BytesMut;
-use protocol::{FrameDecoder, Geometry, Message, Timestamp};
+use protocol::{FrameDecoder, Geometry, Message};
 use radar_driver::Azimuth;
 use sim_sensor::render::bin_width;
 use sim_sensor::scene::Scene;
@@ -92,12 +92,7 @@ pub fn run_daemon(
             pipeline.push_odometry(world.odometry(next_odometry));
             next_odometry += 1;
         }
-        let offset = world.azimuth_offset_ns(index);
-        let ts = Timestamp::new(
-            u32::try_from(1_700_000_000 + offset / 1_000_000_000).unwrap_or(u32::MAX),
-            u32::try_from(offset % 1_000_000_000).unwrap_or(0),
-        )
-        .map_err(|e| EvalError::Setting(format!("timestamp: {e}")))?;
+        let ts = world.azimuth_timestamp(index)?;
         frame.clear();
         let sweep = u16::try_from(index % 65_536).unwrap_or(0);
         cursor.render(index, sweep, ts, &mut frame)?;

@@ -128,6 +128,16 @@ impl World {
         offset_ns(&self.scene.radar, index)
     }
 
+    /// The wire timestamp of azimuth `index` (whole seconds from the 1.7e9 s epoch).
+    pub fn azimuth_timestamp(&self, index: u64) -> Result<protocol::Timestamp, EvalError> {
+        let offset = self.azimuth_offset_ns(index);
+        protocol::Timestamp::new(
+            u32::try_from(1_700_000_000 + offset / 1_000_000_000).unwrap_or(u32::MAX),
+            u32::try_from(offset % 1_000_000_000).unwrap_or(0),
+        )
+        .map_err(|e| EvalError::Setting(format!("timestamp: {e}")))
+    }
+
     /// Bearing of azimuth `index` (rad, clockwise from forward, wrapped): its encoder angle.
     pub fn bearing_rad(&self, index: u64) -> f64 {
         let r = &self.scene.radar;

@@ -60,24 +60,33 @@ fn cases() -> Vec<(&'static str, Scene)> {
     ]
 }
 
+/// One criterion case: successive azimuths of `scene` rendered into a reused frame.
+fn bench_azimuths(
+    group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    name: String,
+    scene: &Scene,
+) {
+    let r = renderer(scene);
+    let mut cursor = r.cursor();
+    let mut frame = BytesMut::with_capacity(16 * 1024);
+    let mut k = 0u64;
+    group.bench_function(name, |b| {
+        b.iter(|| {
+            frame.clear();
+            cursor
+                .render(k, k as u16, Timestamp::EPOCH, &mut frame)
+                .expect("render");
+            k += 1;
+            black_box(frame.len())
+        })
+    });
+}
+
 fn bench_render(c: &mut Criterion) {
     let mut group = c.benchmark_group("render_azimuth");
     group.throughput(Throughput::Elements(1));
     for (name, scene) in cases() {
-        let r = renderer(&scene);
-        let mut cursor = r.cursor();
-        let mut frame = BytesMut::with_capacity(16 * 1024);
-        let mut k = 0u64;
-        group.bench_function(name, |b| {
-            b.iter(|| {
-                frame.clear();
-                cursor
-                    .render(k, k as u16, Timestamp::EPOCH, &mut frame)
-                    .expect("render");
-                k += 1;
-                black_box(frame.len())
-            })
-        });
+        bench_azimuths(&mut group, name.to_string(), &scene);
     }
     group.finish();
 
@@ -85,20 +94,11 @@ fn bench_render(c: &mut Criterion) {
     group.throughput(Throughput::Elements(1));
     for extra in [0usize, 10_000, 100_000] {
         let scene = with_far_features(shipped::load("outdoor-field").expect("scene"), extra);
-        let r = renderer(&scene);
-        let mut cursor = r.cursor();
-        let mut frame = BytesMut::with_capacity(16 * 1024);
-        let mut k = 0u64;
-        group.bench_function(format!("paper-200/outdoor-field+{extra}-far"), |b| {
-            b.iter(|| {
-                frame.clear();
-                cursor
-                    .render(k, k as u16, Timestamp::EPOCH, &mut frame)
-                    .expect("render");
-                k += 1;
-                black_box(frame.len())
-            })
-        });
+        bench_azimuths(
+            &mut group,
+            format!("paper-200/outdoor-field+{extra}-far"),
+            &scene,
+        );
     }
     group.finish();
 }

@@ -88,12 +88,7 @@ pub fn render_scans(world: &World, rotations: usize) -> Result<(Vec<Scan>, Vec<P
         let mut scan = Scan::default();
         for a in 0..n {
             let index = k * n + a;
-            let offset = world.azimuth_offset_ns(index);
-            let ts = protocol::Timestamp::new(
-                u32::try_from(1_700_000_000 + offset / 1_000_000_000).unwrap_or(u32::MAX),
-                u32::try_from(offset % 1_000_000_000).unwrap_or(0),
-            )
-            .map_err(|e| EvalError::Setting(format!("timestamp: {e}")))?;
+            let ts = world.azimuth_timestamp(index)?;
             frame.clear();
             cursor.render(index, 0, ts, &mut frame)?;
             scan.rows.push(Row {
@@ -150,12 +145,7 @@ fn from_truth(
     let mut st = Vec::new();
     let mut predicted = vec![0.0; world.geometry.bins];
     for index in 0..(rotations as u64 * world.azimuths()) {
-        let offset = world.azimuth_offset_ns(index);
-        let ts = protocol::Timestamp::new(
-            u32::try_from(1_700_000_000 + offset / 1_000_000_000).unwrap_or(u32::MAX),
-            u32::try_from(offset % 1_000_000_000).unwrap_or(0),
-        )
-        .map_err(|e| EvalError::Setting(format!("timestamp: {e}")))?;
+        let ts = world.azimuth_timestamp(index)?;
         frame.clear();
         // The features the simulator put in this beam (at their apparent, bearing-perturbed
         // positions), so that the comparison tests the power model, not the bearing noise.

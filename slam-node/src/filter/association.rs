@@ -338,6 +338,16 @@ mod tests {
         (pred, DMatrix::identity(12, 12) * 1e-6)
     }
 
+    /// The fixture's context: no power rows, range sigma 0.5 m.
+    fn range_only_context<'a>(pred: &'a BeamPrediction, p_cc: &'a DMatrix<f64>) -> BeamContext<'a> {
+        BeamContext {
+            prediction: pred,
+            p_cc,
+            use_power: &[false, false],
+            noise_var: [0.25, 1e-4, 1.0],
+        }
+    }
+
     fn target(range_m: f64) -> Target {
         Target {
             range_m,
@@ -350,12 +360,7 @@ mod tests {
     fn jcbb_pairs_both_targets_where_greedy_nearest_neighbour_pairs_one() {
         // Two features 10 m and 11 m ahead on one line; range sigma 0.5 m.
         let (pred, p_cc) = two_features_on_a_line();
-        let ctx = BeamContext {
-            prediction: &pred,
-            p_cc: &p_cc,
-            use_power: &[false, false],
-            noise_var: [0.25, 1e-4, 1.0],
-        };
+        let ctx = range_only_context(&pred, &p_cc);
         // T0 at 10.55 m: 1.1 sigma from F0, 0.9 sigma from F1. T1 at 11.6 m: 1.2 sigma from F1,
         // 3.2 sigma from F0 (outside the 99% 2-dof gate of 9.21).
         let targets = [target(10.55), target(11.6)];
@@ -383,12 +388,7 @@ mod tests {
     #[test]
     fn a_node_budget_of_one_still_returns_a_consistent_answer() {
         let (pred, p_cc) = two_features_on_a_line();
-        let ctx = BeamContext {
-            prediction: &pred,
-            p_cc: &p_cc,
-            use_power: &[false, false],
-            noise_var: [0.25, 1e-4, 1.0],
-        };
+        let ctx = range_only_context(&pred, &p_cc);
         let targets = [target(10.55), target(11.6)];
         let gates = GateTable::new(0.99, 8);
         let assoc = associate(&ctx, &targets, &gates, &gates, 1);
