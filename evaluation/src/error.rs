@@ -18,7 +18,7 @@ pub enum EvalError {
     Model(#[from] radar_model::ModelError),
     /// The filter rejected its settings or its initial state.
     #[error("filter: {0}")]
-    Filter(#[from] slam_node::filter::FilterError),
+    Filter(#[from] slam_filter::FilterError),
     /// A recorded scan could not be read.
     #[error("replay: {0}")]
     Replay(#[from] sim_sensor::ReplayError),

@@ -11,11 +11,11 @@ use radar_model::geometry::{wrap_angle, Pose2};
 use radar_model::power::PowerModel;
 use sim_sensor::scene::Scene;
 use sim_sensor::OdometryNoise;
-use slam_node::detect::DetectorSettings;
-use slam_node::filter::{
+use slam_filter::{
     BeamObservation, BeamReport, CovarianceHealth, Ekf, FeatureId, FilterSettings, FilterStats,
     RadarBeamModel,
 };
+use slam_node::detect::DetectorSettings;
 use slam_node::pipeline::{PipelineSettings, PipelineSummary};
 
 use crate::error::EvalError;
@@ -348,8 +348,8 @@ impl RunState {
 
     fn feed_odometry<M, O>(&mut self, world: &World, ekf: &mut Ekf<M, O>, until_s: f64)
     where
-        M: slam_node::filter::ProcessModel,
-        O: slam_node::filter::BeamObservationModel,
+        M: slam_filter::ProcessModel,
+        O: slam_filter::BeamObservationModel,
     {
         while world.odometry_time_s(self.next_odometry) <= until_s {
             let sample = world.odometry(self.next_odometry);

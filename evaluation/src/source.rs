@@ -20,11 +20,11 @@ use radar_model::spectrum::quantize_8bit;
 use radar_model::spectrum::{SpectrumGeometry, SpectrumModel};
 use rand_chacha::ChaCha8Rng;
 use sim_sensor::render::RenderCursor;
+use slam_filter::Target;
 use slam_node::detect::{
     BeamDetection, BeamDetector, Detection, FloorProfile, Grouper, GroupingSettings, Observation,
     RangeAxis,
 };
-use slam_node::filter::Target;
 
 use crate::error::EvalError;
 use crate::world::World;

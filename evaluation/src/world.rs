@@ -19,7 +19,7 @@ use sim_sensor::render::{azimuth_in_rotation, offset_ns, physics, RenderCursor, 
 use sim_sensor::scene::Scene;
 use sim_sensor::trajectory::{motion_model, Trajectory};
 use sim_sensor::OdometryNoise;
-use slam_node::filter::OdometrySample;
+use slam_filter::OdometrySample;
 
 use crate::error::EvalError;
 

@@ -25,7 +25,7 @@ use radar_model::power::{PowerModel, RadarConstants};
 use radar_model::spectrum::{quantize_8bit, SpectrumGeometry, SpectrumModel};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
-use slam_node::filter::OdometrySample;
+use slam_filter::OdometrySample;
 use slam_node::pipeline::{Pipeline, PipelineSettings};
 use slam_node::synth::{SynthFeature, SynthRadar, TrueTarget};
 

@@ -16,7 +16,6 @@
 pub mod angles;
 pub mod daemon;
 pub mod detect;
-pub mod filter;
 pub mod output;
 pub mod pipeline;
 pub mod synth;

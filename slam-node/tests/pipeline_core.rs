@@ -9,7 +9,7 @@ use radar_model::geometry::{wrap_angle, Pose2};
 use radar_model::material::Material;
 use radar_model::noise::seeded_rng;
 use radar_model::spectrum::quantize_8bit;
-use slam_node::filter::OdometrySample;
+use slam_filter::OdometrySample;
 use slam_node::output::OutputEvent;
 use slam_node::pipeline::{Pipeline, PipelineSettings};
 use slam_node::synth::{SynthFeature, SynthRadar};

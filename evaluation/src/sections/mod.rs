@@ -11,8 +11,8 @@ pub mod sweep;
 
 use sim_sensor::scene::Scene;
 use sim_sensor::OdometryNoise;
+use slam_filter::FilterSettings;
 use slam_node::detect::DetectorSettings;
-use slam_node::filter::FilterSettings;
 
 use crate::error::EvalError;
 use crate::run::{matched_filter, Mode, RunSpec, SpectraSettings};

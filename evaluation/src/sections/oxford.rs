@@ -16,8 +16,8 @@ use radar_model::noise::{NoiseModel, RangeSpread};
 use radar_model::power::PowerModel;
 use radar_model::spectrum::SpectrumGeometry;
 use sim_sensor::replay::png::read_polar_png;
+use slam_filter::{BeamObservation, Ekf, FilterSettings, OdometrySample, RadarBeamModel};
 use slam_node::detect::{BeamDetector, FloorProfile, RangeAxis};
-use slam_node::filter::{BeamObservation, Ekf, FilterSettings, OdometrySample, RadarBeamModel};
 
 use crate::error::EvalError;
 use crate::report::{num, pct, table, Options, Section};
@@ -369,8 +369,8 @@ pub fn track(
 
 fn feed<M, O>(ekf: &mut Ekf<M, O>, odometry: &[OdometrySample], next: &mut usize, until_s: f64)
 where
-    M: slam_node::filter::ProcessModel,
-    O: slam_node::filter::BeamObservationModel,
+    M: slam_filter::ProcessModel,
+    O: slam_filter::BeamObservationModel,
 {
     while let Some(o) = odometry.get(*next) {
         if o.timestamp_s > until_s {

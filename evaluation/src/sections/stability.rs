@@ -15,7 +15,7 @@ use radar_model::power::PowerModel;
 use rand::Rng;
 use sim_sensor::scene::shipped;
 use sim_sensor::schedule::{ControlKey, ControlSchedule, Interpolation};
-use slam_node::filter::{
+use slam_filter::{
     batched_update, BeamObservation, CovarianceHealth, Ekf, FilterSettings, LinearisedObservation,
     OdometrySample, RadarBeamModel, SlamState, Target,
 };
@@ -197,7 +197,7 @@ fn wide_variances(updates: usize, seed: u64) -> Result<(u64, HealthExtremes), Ev
     });
     let mut state = SlamState::from_parts(mean, cov, 0.0)?;
     let mut health = HealthExtremes::default();
-    health.add(&slam_node::filter::health::covariance_health(
+    health.add(&slam_filter::health::covariance_health(
         state.covariance(),
         true,
     ));
@@ -221,7 +221,7 @@ fn wide_variances(updates: usize, seed: u64) -> Result<(u64, HealthExtremes), Ev
             errors += 1;
         }
         if k % 100 == 0 || k + 1 == updates {
-            health.add(&slam_node::filter::health::covariance_health(
+            health.add(&slam_filter::health::covariance_health(
                 state.covariance(),
                 true,
             ));

@@ -7,7 +7,7 @@
 
 use crate::angles::wrap_angle;
 use crate::detect::Observation;
-use crate::filter::{BeamObservation, Target};
+use slam_filter::{BeamObservation, Target};
 
 /// Gathers observations into beams.
 #[derive(Debug)]

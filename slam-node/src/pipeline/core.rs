@@ -20,10 +20,8 @@ use super::truth::{nearest_feature, PoseErrorStats, TruthOracle};
 use crate::detect::{
     BeamDetection, BeamDetector, Detection, FloorProfile, Grouper, Observation, RangeAxis,
 };
-use crate::filter::{
-    BeamObservation, BeamReport, Ekf, FilterError, OdometrySample, RadarBeamModel,
-};
 use crate::output::{OutputEvent, PoseSample, RotationDiagnostics, SpectrumComparison};
+use slam_filter::{BeamObservation, BeamReport, Ekf, FilterError, OdometrySample, RadarBeamModel};
 
 /// The filter the daemon runs.
 pub type DaemonEkf = Ekf<MotionModel, RadarBeamModel>;

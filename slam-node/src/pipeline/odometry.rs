@@ -5,7 +5,7 @@
 
 use std::collections::VecDeque;
 
-use crate::filter::OdometrySample;
+use slam_filter::OdometrySample;
 
 /// Samples not yet applied, in time order.
 #[derive(Debug)]

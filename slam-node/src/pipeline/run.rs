@@ -13,8 +13,8 @@ use tracing::{error, info, warn};
 
 use super::core::{DaemonEkf, Pipeline};
 use super::summary::PipelineSummary;
-use crate::filter::OdometrySample;
 use crate::output::OutputHandle;
+use slam_filter::OdometrySample;
 
 /// What the pipeline thread reads.
 pub struct PipelineInputs {

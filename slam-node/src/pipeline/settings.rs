@@ -15,7 +15,7 @@ use radar_model::power::{PowerModel, RadarConstants, SpreadingForm};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use crate::detect::{DetectorKind, DetectorSettings, GroupingSettings};
-use crate::filter::FilterSettings;
+use slam_filter::FilterSettings;
 
 /// The share of a range resolution cell and of a beam width within which a feature's
 /// predicted position counts as seen again from the same viewpoint.

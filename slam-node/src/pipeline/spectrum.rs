@@ -10,7 +10,7 @@ use radar_model::spectrum::{
     beam_spectrum_targets, compare_spectra, SpectrumModel, SpectrumTarget,
 };
 
-use crate::filter::SlamState;
+use slam_filter::SlamState;
 
 /// Running in-bound and bias figures over the beams compared in one rotation.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]

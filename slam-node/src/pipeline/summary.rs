@@ -7,8 +7,8 @@ use serde::Serialize;
 use super::core::DaemonEkf;
 use super::spectrum::SpectrumTally;
 use super::truth::{MapScore, ObservationErrorStats, PoseErrorStats};
-use crate::filter::state::feature_index;
 use crate::output::{MapFeature, MapSnapshot, RotationDiagnostics};
+use slam_filter::state::feature_index;
 
 /// Rotation times kept for percentiles (the most recent ones).
 const TIMES_KEPT: usize = 10_000;
@@ -196,8 +196,8 @@ pub fn snapshot(ekf: &DaemonEkf) -> MapSnapshot {
     }
     let loss_var = p
         .get((
-            crate::filter::state::LOSS_INDEX,
-            crate::filter::state::LOSS_INDEX,
+            slam_filter::state::LOSS_INDEX,
+            slam_filter::state::LOSS_INDEX,
         ))
         .copied()
         .unwrap_or(0.0);

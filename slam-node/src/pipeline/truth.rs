@@ -6,7 +6,7 @@
 use radar_model::geometry::{wrap_angle, Pose2};
 use serde::Serialize;
 
-use crate::filter::FeatureEstimate;
+use slam_filter::FeatureEstimate;
 
 /// A true feature.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

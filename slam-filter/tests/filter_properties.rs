@@ -10,9 +10,9 @@ use nalgebra::{DMatrix, DVector, Matrix3, Matrix4};
 use proptest::prelude::*;
 use radar_model::geometry::Pose2;
 use radar_model::motion::MotionModel;
-use slam_node::filter::predict::{predict_to, OdometrySample, ProcessModel};
-use slam_node::filter::state::SlamState;
-use slam_node::filter::{
+use slam_filter::predict::{predict_to, OdometrySample, ProcessModel};
+use slam_filter::state::SlamState;
+use slam_filter::{
     batched_update, BeamObservation, Ekf, FilterSettings, LinearisedObservation, RadarBeamModel,
     Target,
 };

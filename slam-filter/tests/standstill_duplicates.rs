@@ -17,9 +17,7 @@ use radar_model::power::PowerModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use slam_node::filter::{
-    BeamObservation, Ekf, FilterSettings, OdometrySample, RadarBeamModel, Target,
-};
+use slam_filter::{BeamObservation, Ekf, FilterSettings, OdometrySample, RadarBeamModel, Target};
 
 const T0: f64 = 1_700_000_000.0;
 /// The paper's radar: 200 azimuths a rotation, beams 1.8 degrees wide, 2.5 Hz.

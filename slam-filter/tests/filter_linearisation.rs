@@ -18,9 +18,9 @@ use radar_model::geometry::Pose2;
 use radar_model::material::Material;
 use radar_model::motion::MotionModel;
 use radar_model::power::PowerModel;
-use slam_node::filter::beam::relinearise_at_first_estimates;
-use slam_node::filter::state::FeatureParams;
-use slam_node::filter::{
+use slam_filter::beam::relinearise_at_first_estimates;
+use slam_filter::state::FeatureParams;
+use slam_filter::{
     BeamObservation, BeamObservationModel, Ekf, FilterSettings, OdometrySample, RadarBeamModel,
     RangeBearingModel, Target,
 };

@@ -7,9 +7,9 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use nalgebra::{DMatrix, DVector};
-use slam_node::filter::observation::state_columns;
-use slam_node::filter::state::SlamState;
-use slam_node::filter::{batched_update, LinearisedObservation};
+use slam_filter::observation::state_columns;
+use slam_filter::state::SlamState;
+use slam_filter::{batched_update, LinearisedObservation};
 
 /// A dense, well-conditioned covariance: `D + 0.5 u u^T / n` with a smooth u.
 fn state(features: usize) -> SlamState {

@@ -3,10 +3,10 @@
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix4};
 use radar_model::geometry::Pose2;
 use radar_model::motion::MotionModel;
-use slam_node::filter::observation::{state_columns, BeamObservationModel, RangeBearingModel};
-use slam_node::filter::predict::{predict_to, OdometrySample};
-use slam_node::filter::state::SlamState;
-use slam_node::filter::{batched_update, FilterSettings, LinearisedObservation};
+use slam_filter::observation::{state_columns, BeamObservationModel, RangeBearingModel};
+use slam_filter::predict::{predict_to, OdometrySample};
+use slam_filter::state::SlamState;
+use slam_filter::{batched_update, FilterSettings, LinearisedObservation};
 
 fn close(a: f64, b: f64, tol: f64) -> bool {
     (a - b).abs() <= tol

@@ -14,9 +14,7 @@ use radar_model::material::Material;
 use radar_model::motion::MotionModel;
 use radar_model::observation::{observe_beam, BeamFeature};
 use radar_model::power::PowerModel;
-use slam_node::filter::{
-    BeamObservation, Ekf, FilterSettings, OdometrySample, RadarBeamModel, Target,
-};
+use slam_filter::{BeamObservation, Ekf, FilterSettings, OdometrySample, RadarBeamModel, Target};
 
 type Filter = Ekf<MotionModel, RadarBeamModel>;
 

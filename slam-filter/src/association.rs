@@ -319,8 +319,8 @@ impl Jcbb<'_, '_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::filter::observation::{BeamObservationModel, RangeBearingModel};
-    use crate::filter::state::FeatureParams;
+    use crate::observation::{BeamObservationModel, RangeBearingModel};
+    use crate::state::FeatureParams;
     use radar_model::geometry::Pose2;
 
     /// Two features 10 m and 11 m ahead on one line, predicted from the origin with a

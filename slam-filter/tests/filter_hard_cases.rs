@@ -11,7 +11,7 @@ use radar_model::observation::{observe_beam, BeamFeature};
 use radar_model::power::PowerModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use slam_node::filter::{
+use slam_filter::{
     BeamObservation, Ekf, FilterError, FilterSettings, OdometrySample, RadarBeamModel, Target,
 };
 

@@ -19,9 +19,7 @@ use radar_model::power::PowerModel;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use slam_node::filter::{
-    BeamObservation, Ekf, FilterSettings, OdometrySample, RadarBeamModel, Target,
-};
+use slam_filter::{BeamObservation, Ekf, FilterSettings, OdometrySample, RadarBeamModel, Target};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 const AZIMUTHS: usize = 200;
