@@ -27,6 +27,7 @@
 pub mod compensation;
 pub mod error;
 pub mod geometry;
+pub mod layout;
 pub mod material;
 pub mod motion;
 pub mod noise;

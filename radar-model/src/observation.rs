@@ -14,10 +14,8 @@ use crate::material::Material;
 use crate::power::{beam_powers_with_jacobian, PowerModel, PowerTarget};
 use nalgebra::DMatrix;
 
-/// Columns per feature in the observation Jacobian: `x, y, u, v`.
-pub const FEATURE_COLUMNS: usize = 4;
-/// Columns of the pose at the start of the observation Jacobian.
-pub const POSE_COLUMNS: usize = 3;
+use crate::layout::{self, Component, ObservationRow};
+pub use crate::layout::{FEATURE_COLUMNS, POSE_COLUMNS};
 
 /// A feature in a beam, as held in the state.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -61,17 +59,17 @@ pub struct BeamObservation {
 impl BeamObservation {
     /// Column index of feature `k`'s first (`x`) column.
     pub fn feature_column(k: usize) -> usize {
-        POSE_COLUMNS + FEATURE_COLUMNS * k
+        layout::feature_column(k)
     }
 
     /// Column index of `L` for a beam of `n` features.
     pub fn loss_column(n: usize) -> usize {
-        POSE_COLUMNS + FEATURE_COLUMNS * n
+        layout::loss_column(n)
     }
 }
 
 /// Predicts `[R_i, beta_i, P_i]` for every feature in one beam and the dense Jacobian
-/// (eq. 3, 4, 13, 14). Row `3i` is `R_i`, `3i+1` is `beta_i`, `3i+2` is `P_i`.
+/// (eq. 3, 4, 13, 14), rows and columns as [`crate::layout`] lays them out.
 ///
 /// # Errors
 /// Non-finite inputs, a feature at the sensor, or an invalid power model.
@@ -105,29 +103,33 @@ pub fn observe_beam(
         .collect();
     let powers = beam_powers_with_jacobian(model, &targets, loss_db)?;
 
-    let cols = BeamObservation::loss_column(n) + 1;
-    let mut jacobian = DMatrix::zeros(3 * n, cols);
+    let cols = layout::columns(n);
+    let mut jacobian = DMatrix::zeros(layout::rows(n), cols);
     let mut unresolvable = vec![false; n];
     for (k, g) in geometry.iter().enumerate() {
-        g.write_rows(&mut jacobian, 3 * k, BeamObservation::feature_column(k));
+        g.write_rows(
+            &mut jacobian,
+            ObservationRow::new(k, Component::Range).index(),
+            layout::feature_column(k),
+        );
     }
     for (ri, &i) in order.iter().enumerate() {
         z[i].power_db = powers.power_db[ri];
         unresolvable[i] = powers.unresolvable[ri];
-        let row = 3 * i + 2;
+        let row = ObservationRow::new(i, Component::Power).index();
         for (rk, &k) in order.iter().enumerate().take(ri + 1) {
             let d_range = powers.wrt_range[(ri, rk)];
             let g = &geometry[k];
             for c in 0..POSE_COLUMNS {
                 jacobian[(row, c)] += d_range * g.range_wrt_pose[c];
             }
-            let fc = BeamObservation::feature_column(k);
+            let fc = layout::feature_column(k);
             jacobian[(row, fc)] = d_range * g.range_wrt_feature[0];
             jacobian[(row, fc + 1)] = d_range * g.range_wrt_feature[1];
             jacobian[(row, fc + 2)] = powers.wrt_u[(ri, rk)];
             jacobian[(row, fc + 3)] = powers.wrt_v[(ri, rk)];
         }
-        jacobian[(row, cols - 1)] = -1.0;
+        jacobian[(row, layout::loss_column(n))] = -1.0;
     }
     Ok(BeamObservation {
         z,

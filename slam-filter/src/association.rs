@@ -8,9 +8,10 @@
 
 use nalgebra::{DMatrix, DVector};
 use radar_model::geometry::wrap_angle;
+use radar_model::layout::{Component, ObservationRow};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use super::observation::{BeamPrediction, Target};
+use super::observation::{row_indices, BeamPrediction, Target};
 
 /// Chi-square thresholds for one gate probability, by degrees of freedom.
 #[derive(Debug, Clone)]
@@ -53,12 +54,8 @@ pub fn chi2_quantile(p: f64, dof: usize) -> f64 {
 
 /// The rows of one feature's observation used in the update: range, bearing, and power
 /// when it is used.
-pub(crate) fn rows_of(local: usize, with_power: bool) -> Vec<usize> {
-    if with_power {
-        vec![3 * local, 3 * local + 1, 3 * local + 2]
-    } else {
-        vec![3 * local, 3 * local + 1]
-    }
+pub(crate) fn rows_of(local: usize, with_power: bool) -> Vec<ObservationRow> {
+    ObservationRow::of_feature(local, with_power).collect()
 }
 
 /// Innovation of target `t` against feature `local`'s prediction on `rows` (bearing wrapped).
@@ -66,18 +63,16 @@ pub(crate) fn innovation(
     pred: &BeamPrediction,
     local: usize,
     t: &Target,
-    rows: &[usize],
+    rows: &[ObservationRow],
 ) -> Vec<f64> {
     let zhat = pred.z.get(local).copied().unwrap_or([0.0; 3]);
     let z = [t.range_m, t.bearing_rad, t.power_db];
     rows.iter()
-        .map(|&r| {
-            let c = r % 3;
-            let d = z[c] - zhat[c];
-            if c == 1 {
-                wrap_angle(d)
-            } else {
-                d
+        .map(|r| {
+            let d = r.component.of(&z) - r.component.of(&zhat);
+            match r.component {
+                Component::Bearing => wrap_angle(d),
+                Component::Range | Component::Power => d,
             }
         })
         .collect()
@@ -133,10 +128,13 @@ impl BeamContext<'_> {
         if m == 0 {
             return Some((0.0, 0));
         }
-        let h = self.prediction.jacobian.select_rows(rows.iter());
+        let h = self
+            .prediction
+            .jacobian
+            .select_rows(row_indices(&rows).iter());
         let mut s = &h * self.p_cc * h.transpose();
-        for (i, &r) in rows.iter().enumerate() {
-            s[(i, i)] += self.noise_var[r % 3];
+        for (i, r) in rows.iter().enumerate() {
+            s[(i, i)] += r.component.of(&self.noise_var);
         }
         let s = 0.5 * (&s + s.transpose());
         let chol = s.cholesky()?;

@@ -24,11 +24,12 @@
 
 use nalgebra::DMatrix;
 use radar_model::geometry::{range_bearing, range_bearing_with_jacobian, wrap_angle, Pose2};
+use radar_model::layout::{self, Component, ObservationRow};
 
 use super::error::FilterError;
 use super::observation::{beam_columns, BeamObservationModel, BeamPrediction};
 use super::settings::FilterSettings;
-use super::state::{feature_index, FeatureParams, SlamState, FEATURE_DIM, POSE_DIM};
+use super::state::{feature_index, FeatureParams, SlamState};
 
 /// A feature considered for one beam.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -117,8 +118,8 @@ pub fn candidates_in_beam(
     out
 }
 
-/// Copies rows `3 src..3 src + 3` of `from` (columns in the order of `members`, candidate
-/// indices) into rows `3 dst..` of `to` (columns in candidate order).
+/// Copies feature `src`'s rows of `from` (columns in the order of `members`, candidate
+/// indices) into feature `dst`'s rows of `to` (columns in candidate order).
 fn copy_rows(
     from: &DMatrix<f64>,
     src: usize,
@@ -126,19 +127,24 @@ fn copy_rows(
     to: &mut DMatrix<f64>,
     dst: usize,
 ) {
-    let n_to = to.ncols();
-    let n_from = from.ncols();
-    for r in 0..3 {
-        for c in 0..POSE_DIM {
-            to[(3 * dst + r, c)] = from[(3 * src + r, c)];
+    let k_to = (to.ncols() - layout::columns(0)) / layout::FEATURE_COLUMNS;
+    let (loss_to, loss_from) = (
+        layout::loss_column(k_to),
+        layout::loss_column(members.len()),
+    );
+    for component in Component::ALL {
+        let r_to = ObservationRow::new(dst, component).index();
+        let r_from = ObservationRow::new(src, component).index();
+        for c in 0..layout::POSE_COLUMNS {
+            to[(r_to, c)] = from[(r_from, c)];
         }
         for (q, &cand) in members.iter().enumerate() {
-            for e in 0..FEATURE_DIM {
-                to[(3 * dst + r, POSE_DIM + FEATURE_DIM * cand + e)] =
-                    from[(3 * src + r, POSE_DIM + FEATURE_DIM * q + e)];
+            for e in 0..layout::FEATURE_COLUMNS {
+                to[(r_to, layout::feature_column(cand) + e)] =
+                    from[(r_from, layout::feature_column(q) + e)];
             }
         }
-        to[(3 * dst + r, n_to - 1)] = from[(3 * src + r, n_from - 1)];
+        to[(r_to, loss_to)] = from[(r_from, loss_from)];
     }
 }
 
@@ -158,11 +164,11 @@ pub fn predict_candidates<O: BeamObservationModel + ?Sized>(
     let occluders: Vec<usize> = (0..k).filter(|&i| candidates[i].expected).collect();
     let mut z = vec![[0.0; 3]; k];
     let mut usable = vec![false; k];
-    let mut jacobian = DMatrix::zeros(3 * k, beam_columns(k));
+    let mut jacobian = DMatrix::zeros(layout::rows(k), beam_columns(k));
     let check = |p: &BeamPrediction, m: usize| {
         if p.z.len() != m
             || p.power_usable.len() != m
-            || p.jacobian.nrows() != 3 * m
+            || p.jacobian.nrows() != layout::rows(m)
             || p.jacobian.ncols() != beam_columns(m)
         {
             Err(FilterError::Shape(
@@ -212,61 +218,4 @@ pub fn predict_candidates<O: BeamObservationModel + ?Sized>(
         jacobian,
         power_usable: usable,
     })
-}
-
-/// Re-linearises the geometric part of a beam prediction's Jacobian at each feature's first
-/// estimate (first-estimates Jacobians, see
-/// [`FilterSettings::first_estimate_jacobians`]). `current` and `first` are the features'
-/// present and first positions in the prediction's candidate order.
-///
-/// - range and bearing rows of feature `i`: the pose and `(x_i, y_i)` columns are replaced
-///   by eq. 3 and 4's Jacobians at `(pose, first_i)`;
-/// - power rows: the power depends on the pose and the positions only through the ranges,
-///   so `dP_i/dR_k = dP_i/d(x_k, y_k) . u_k` with `u_k` the current unit vector from the
-///   radar to feature `k`; the geometric columns are rebuilt as `dP_i/dR_k` times the range
-///   Jacobian at the first estimate. The u, v and L columns are left as they are.
-///
-/// A feature on top of the radar (zero range) keeps its current Jacobian.
-pub fn relinearise_at_first_estimates(
-    jacobian: &mut DMatrix<f64>,
-    pose: &Pose2,
-    current: &[[f64; 2]],
-    first: &[[f64; 2]],
-) {
-    let k = current.len().min(first.len());
-    if jacobian.nrows() < 3 * k || jacobian.ncols() < POSE_DIM + FEATURE_DIM * k {
-        return;
-    }
-    let unit = |p: [f64; 2]| -> Option<[f64; 2]> {
-        let (dx, dy) = (p[0] - pose.x, p[1] - pose.y);
-        let r = dx.hypot(dy);
-        (r > 1e-9 && r.is_finite()).then(|| [dx / r, dy / r])
-    };
-    let units: Vec<Option<([f64; 2], [f64; 2])>> = (0..k)
-        .map(|i| Some((unit(current[i])?, unit(first[i])?)))
-        .collect();
-    for i in 0..k {
-        let fc = POSE_DIM + FEATURE_DIM * i;
-        if units[i].is_some() {
-            if let Ok((_, jac)) = range_bearing_with_jacobian(pose, first[i]) {
-                jac.write_rows(jacobian, 3 * i, fc);
-            }
-        }
-        // Power row of feature i.
-        let row = 3 * i + 2;
-        let mut pose_x = jacobian[(row, 0)];
-        let mut pose_y = jacobian[(row, 1)];
-        for (q, u) in units.iter().enumerate() {
-            let Some((now, then)) = u else { continue };
-            let qc = POSE_DIM + FEATURE_DIM * q;
-            let d_range = jacobian[(row, qc)] * now[0] + jacobian[(row, qc + 1)] * now[1];
-            // Remove this feature's current contribution to the pose columns, add the FEJ one.
-            pose_x += d_range * (now[0] - then[0]);
-            pose_y += d_range * (now[1] - then[1]);
-            jacobian[(row, qc)] = d_range * then[0];
-            jacobian[(row, qc + 1)] = d_range * then[1];
-        }
-        jacobian[(row, 0)] = pose_x;
-        jacobian[(row, 1)] = pose_y;
-    }
 }

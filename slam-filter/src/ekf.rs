@@ -9,18 +9,21 @@
 mod init;
 
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3};
-use radar_model::geometry::{wrap_angle, Pose2};
+use radar_model::geometry::Pose2;
+use radar_model::layout::ObservationRow;
 use radar_model::material::Material;
 
-use super::association::{associate, innovation, rows_of, BeamContext, GateTable};
-use super::beam::{
-    candidates_in_beam, predict_candidates, relinearise_at_first_estimates, BeamCandidate,
-};
+use super::association::{associate, innovation, rows_of, Association, BeamContext, GateTable};
+use super::beam::{candidates_in_beam, predict_candidates, BeamCandidate};
 use super::error::FilterError;
+use super::fej::relinearise_at_first_estimates;
 use super::health::{covariance_health, pose_nees, position_nees, CovarianceHealth};
 use super::lifecycle::TentativeList;
-use super::observation::{state_columns, BeamObservation, BeamObservationModel};
+use super::observation::{
+    row_indices, state_columns, BeamObservation, BeamObservationModel, BeamPrediction,
+};
 use super::predict::{predict_to, OdometrySample, ProcessModel};
+use super::repeat_look::LookCell;
 use super::settings::FilterSettings;
 use super::state::{FeatureId, FeatureParams, SlamState};
 use super::update::{batched_update, LinearisedObservation, UpdateOutcome};
@@ -88,6 +91,23 @@ pub struct FilterStats {
     pub dropped_targets: u64,
     /// Unpaired targets inside some feature's exclusion gate.
     pub excluded_targets: u64,
+}
+
+/// A beam's prediction (step 2) and what the association and update need with it.
+#[derive(Debug)]
+struct PredictedBeam {
+    /// The candidates' state slots, in range order.
+    slots: Vec<usize>,
+    /// Their parameters at prediction time.
+    params: Vec<FeatureParams>,
+    /// `(R, beta, P)` and the beam-local Jacobian.
+    prediction: BeamPrediction,
+    /// Whether each candidate's power row is used.
+    use_power: Vec<bool>,
+    /// State indices of the beam-local columns.
+    columns: Vec<usize>,
+    /// Covariance of those columns.
+    p_cc: DMatrix<f64>,
 }
 
 /// The augmented-state EKF with its models.
@@ -273,13 +293,61 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         candidates_in_beam(&self.state, &self.settings, &self.pose(), bearing_rad)
     }
 
-    /// Processes every target detected down one beam. Non-finite input, too many targets,
-    /// a time before the state's or a gap past the limit are rejected before the state is
-    /// touched. If the batched update fails (S not positive definite, or a variance would
-    /// go non-positive) the state has been predicted to the beam's time but not updated. If
-    /// initialising a confirmed target fails, the updates before it stand and the remaining
-    /// unclaimed targets of the beam are not processed.
+    /// Processes every target detected down one beam, in the paper's steps:
+    ///
+    /// 1. **prediction**: the vehicle (and the state's time) to the beam's timestamp with the
+    ///    held odometry (eq. 2);
+    /// 2. **observation prediction**: the features the beam concerns, in range order, and
+    ///    their joint `(R, beta, P)` with the multi-target power of eq. 13;
+    /// 3. **data association** of the beam's targets with those predictions;
+    /// 4. **update**: one batched EKF update with every associated target (eq. 14);
+    /// 5. **map management**: hits, misses where a feature should have been seen, retirement;
+    /// 6. **augmentation**: unclaimed targets start or confirm tentatives, and confirmed ones
+    ///    enter the state with their reflectivity and absorption.
+    ///
+    /// Non-finite input, too many targets, a time before the state's or a gap past the limit
+    /// are rejected before the state is touched. If the batched update fails (S not positive
+    /// definite, or a variance would go non-positive) the state has been predicted to the
+    /// beam's time but not updated. If initialising a confirmed target fails, the updates
+    /// before it stand and the remaining unclaimed targets of the beam are not processed.
     pub fn process_beam(&mut self, beam: &BeamObservation) -> Result<BeamReport, FilterError> {
+        self.check_beam(beam)?;
+        if beam.targets.is_empty() && self.settings.defer_empty_beams {
+            return self.empty_beam(beam);
+        }
+        // 1. Prediction.
+        self.predict_to(beam.timestamp_s)?;
+        let mut report = BeamReport::default();
+        let in_beam = self.features_in_beam(beam.bearing_rad);
+        report.candidates = self.ids_of(&in_beam);
+        let mut unclaimed: Vec<usize> = (0..beam.targets.len()).collect();
+        if !in_beam.is_empty() {
+            // 2. Observation prediction.
+            let mut predicted = self.predict_observations(&in_beam)?;
+            // 3. Data association.
+            let association = self.associate_beam(beam, &predicted, &mut report);
+            // 4. Update.
+            let claimed = self.update(beam, &mut predicted, &association, &mut report)?;
+            unclaimed.retain(|j| !claimed.contains(j));
+            // 5. Map management.
+            let visible = self.visible(&predicted.prediction);
+            self.book_keep(
+                &in_beam,
+                &visible,
+                &association.pairs,
+                beam.timestamp_s,
+                &mut report,
+            )?;
+        }
+        // 6. Augmentation.
+        self.handle_unclaimed(beam, &unclaimed, &mut report)?;
+        self.tentatives
+            .expire(beam.timestamp_s, self.settings.tentative_timeout_s);
+        Ok(report)
+    }
+
+    /// Rejects non-finite values and too many targets before anything is touched.
+    fn check_beam(&self, beam: &BeamObservation) -> Result<(), FilterError> {
         beam.check()?;
         if beam.targets.len() > self.settings.max_targets_per_beam {
             return Err(FilterError::TooManyTargets {
@@ -287,26 +355,14 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 limit: self.settings.max_targets_per_beam,
             });
         }
-        if beam.targets.is_empty() && self.settings.defer_empty_beams {
-            return self.empty_beam(beam);
-        }
-        self.predict_to(beam.timestamp_s)?;
-        let mut report = BeamReport::default();
-        let in_beam = self.features_in_beam(beam.bearing_rad);
-        let slots: Vec<usize> = in_beam.iter().map(|c| c.slot).collect();
-        report.candidates = slots
+        Ok(())
+    }
+
+    fn ids_of(&self, candidates: &[BeamCandidate]) -> Vec<FeatureId> {
+        candidates
             .iter()
-            .filter_map(|&s| self.state.tracks().get(s).map(|t| t.id))
-            .collect();
-        let mut unclaimed: Vec<usize> = (0..beam.targets.len()).collect();
-        if !slots.is_empty() {
-            let claimed = self.update_beam(beam, &in_beam, &mut report)?;
-            unclaimed.retain(|j| !claimed.contains(j));
-        }
-        self.handle_unclaimed(beam, &unclaimed, &mut report)?;
-        self.tentatives
-            .expire(beam.timestamp_s, self.settings.tentative_timeout_s);
-        Ok(report)
+            .filter_map(|c| self.state.tracks().get(c.slot).map(|t| t.id))
+            .collect()
     }
 
     fn beam_params(&self, slots: &[usize]) -> Vec<FeatureParams> {
@@ -321,161 +377,161 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         ]
     }
 
-    /// Associates and updates; returns the claimed target indices.
-    fn update_beam(
+    /// Step 2: brings the candidates' material noise up to date and predicts their joint
+    /// observation, with the covariance of the beam's columns.
+    fn predict_observations(
         &mut self,
-        beam: &BeamObservation,
         candidates: &[BeamCandidate],
-        report: &mut BeamReport,
-    ) -> Result<Vec<usize>, FilterError> {
+    ) -> Result<PredictedBeam, FilterError> {
         let slots: Vec<usize> = candidates.iter().map(|c| c.slot).collect();
-        let slots = &slots[..];
-        for &slot in slots {
+        for &slot in &slots {
             self.state
                 .settle_material(slot, self.settings.material_variance_per_s);
         }
-        let params = self.beam_params(slots);
-        let mut pred = predict_candidates(
+        let params = self.beam_params(&slots);
+        let prediction = predict_candidates(
             &self.observer,
             &self.pose(),
             self.state.loss_db(),
             candidates,
             &params,
         )?;
-        let use_power: Vec<bool> = pred
+        let use_power: Vec<bool> = prediction
             .power_usable
             .iter()
             .map(|&u| u && self.settings.use_power)
             .collect();
-        let columns = state_columns(slots);
+        let columns = state_columns(&slots);
         let p_cc = self
             .state
             .covariance()
             .select_rows(columns.iter())
             .select_columns(columns.iter());
+        Ok(PredictedBeam {
+            slots,
+            params,
+            prediction,
+            use_power,
+            columns,
+            p_cc,
+        })
+    }
+
+    /// Step 3: gates, nearest neighbour or JCBB.
+    fn associate_beam(
+        &mut self,
+        beam: &BeamObservation,
+        predicted: &PredictedBeam,
+        report: &mut BeamReport,
+    ) -> Association {
         let ctx = BeamContext {
-            prediction: &pred,
-            p_cc: &p_cc,
-            use_power: &use_power,
+            prediction: &predicted.prediction,
+            p_cc: &predicted.p_cc,
+            use_power: &predicted.use_power,
             noise_var: self.noise_var(),
         };
-        let assoc = associate(
+        let association = associate(
             &ctx,
             &beam.targets,
             &self.gates,
             &self.exclusion,
             self.settings.jcbb_max_nodes,
         );
-        report.used_jcbb = assoc.used_jcbb;
-        report.jcbb_budget_exhausted = assoc.budget_exhausted;
-        if assoc.used_jcbb {
+        report.used_jcbb = association.used_jcbb;
+        report.jcbb_budget_exhausted = association.budget_exhausted;
+        if association.used_jcbb {
             self.stats.jcbb_runs += 1;
         }
-        let mut rows = Vec::new();
+        association
+    }
+
+    /// Step 4: one batched update with every associated target; returns the claimed target
+    /// indices (associated, or inside a feature's exclusion gate).
+    fn update(
+        &mut self,
+        beam: &BeamObservation,
+        predicted: &mut PredictedBeam,
+        association: &Association,
+        report: &mut BeamReport,
+    ) -> Result<Vec<usize>, FilterError> {
+        let mut rows: Vec<ObservationRow> = Vec::new();
         let mut inflation = Vec::new();
         let mut nu = Vec::new();
         let mut claimed = Vec::new();
-        let mut seen = vec![false; slots.len()];
-        for (j, f) in assoc.pairs.iter().enumerate() {
+        for (j, f) in association.pairs.iter().enumerate() {
             let (Some(i), Some(t)) = (*f, beam.targets.get(j)) else {
                 continue;
             };
-            let r = rows_of(i, use_power.get(i).copied().unwrap_or(false));
-            nu.extend(innovation(&pred, i, t, &r));
-            let k = match (slots.get(i), pred.z.get(i)) {
+            let r = rows_of(i, predicted.use_power.get(i).copied().unwrap_or(false));
+            nu.extend(innovation(&predicted.prediction, i, t, &r));
+            let k = match (predicted.slots.get(i), predicted.prediction.z.get(i)) {
                 (Some(&slot), Some(z)) => self.repeat_look(slot, [z[0], z[1]], beam.timestamp_s),
                 _ => 1.0,
             };
             inflation.extend(std::iter::repeat(k).take(r.len()));
             rows.extend(r);
             claimed.push(j);
-            if let Some(s) = seen.get_mut(i) {
-                *s = true;
-            }
         }
-        for (j, near) in assoc.near_feature.iter().enumerate() {
+        for (j, near) in association.near_feature.iter().enumerate() {
             if *near && !claimed.contains(&j) {
                 claimed.push(j);
                 report.excluded_targets += 1;
                 self.stats.excluded_targets += 1;
             }
         }
-        if !rows.is_empty() {
-            let var = self.noise_var();
-            let noise = DMatrix::from_diagonal(&DVector::from_iterator(
-                rows.len(),
-                rows.iter().zip(&inflation).map(|(&r, &k)| var[r % 3] * k),
-            ));
-            // Association is done: the prediction's Jacobian may now be re-linearised in place.
-            let jacobian = &mut pred.jacobian;
-            if self.settings.first_estimate_jacobians {
-                let current: Vec<[f64; 2]> = params.iter().map(|p| [p.x_m, p.y_m]).collect();
-                let first: Vec<[f64; 2]> = slots
-                    .iter()
-                    .zip(&current)
-                    .map(|(&s, &c)| self.state.tracks().get(s).map_or(c, |t| t.first_xy_m))
-                    .collect();
-                relinearise_at_first_estimates(jacobian, &self.pose(), &current, &first);
-            }
-            let obs = LinearisedObservation {
-                columns,
-                jacobian: jacobian.select_rows(rows.iter()),
-                innovation: DVector::from_vec(nu),
-                noise,
-            };
-            let outcome = batched_update(&mut self.state, &obs)?;
-            self.stats.updates += 1;
-            self.stats.nis_sum += outcome.nis;
-            self.stats.nis_dof_sum += outcome.dof as u64;
-            report.update = Some(outcome);
+        if rows.is_empty() {
+            return Ok(claimed);
         }
-        // Book-keeping: hits, misses, retirement.
-        let visible: Vec<bool> = (0..slots.len())
-            .map(|i| {
-                !self.settings.use_power
-                    || pred
-                        .z
-                        .get(i)
-                        .map_or(true, |z| z[2] >= self.settings.min_detectable_power_db)
-            })
-            .collect();
-        self.book_keep(candidates, &visible, &assoc.pairs, beam.timestamp_s, report)?;
+        let var = self.noise_var();
+        let noise = DMatrix::from_diagonal(&DVector::from_iterator(
+            rows.len(),
+            rows.iter()
+                .zip(&inflation)
+                .map(|(r, &k)| r.component.of(&var) * k),
+        ));
+        // Association is done: the prediction's Jacobian may now be re-linearised in place.
+        let jacobian = &mut predicted.prediction.jacobian;
+        if self.settings.first_estimate_jacobians {
+            let current: Vec<[f64; 2]> = predicted.params.iter().map(|p| [p.x_m, p.y_m]).collect();
+            let first: Vec<[f64; 2]> = predicted
+                .slots
+                .iter()
+                .zip(&current)
+                .map(|(&s, &c)| self.state.tracks().get(s).map_or(c, |t| t.first_xy_m))
+                .collect();
+            relinearise_at_first_estimates(jacobian, &self.pose(), &current, &first);
+        }
+        let obs = LinearisedObservation {
+            columns: predicted.columns.clone(),
+            jacobian: jacobian.select_rows(row_indices(&rows).iter()),
+            innovation: DVector::from_vec(nu),
+            noise,
+        };
+        let outcome = batched_update(&mut self.state, &obs)?;
+        self.stats.updates += 1;
+        self.stats.nis_sum += outcome.nis;
+        self.stats.nis_dof_sum += outcome.dof as u64;
+        report.update = Some(outcome);
         Ok(claimed)
     }
 
-    /// Counts a look at the feature in `slot`, predicted at `(range, bearing)` in the radar's
-    /// frame at `now`, and returns its noise inflation: k for the k-th look of a run from
-    /// within one range-bearing cell of the run's first (see
-    /// [`FilterSettings::repeat_look_range_m`]). Looks of one sweep (less than
-    /// `confirm_min_separation_s` after the run's last look: neighbouring azimuths, each
-    /// quantised differently) are independent and count as 1 without ending the run.
+    /// Whether each predicted feature would be detectable (power above the threshold); all
+    /// are when power is not used.
+    fn visible(&self, prediction: &BeamPrediction) -> Vec<bool> {
+        prediction
+            .z
+            .iter()
+            .map(|z| !self.settings.use_power || z[2] >= self.settings.min_detectable_power_db)
+            .collect()
+    }
+
+    /// Counts a look at the feature in `slot` and returns its noise inflation (see
+    /// [`crate::repeat_look`]).
     fn repeat_look(&mut self, slot: usize, look: [f64; 2], now: f64) -> f64 {
-        let (cell_r, cell_b) = (
-            self.settings.repeat_look_range_m,
-            self.settings.repeat_look_bearing_rad,
-        );
-        let same_sweep = self.settings.confirm_min_separation_s;
-        let Some(track) = self.state.track_mut(slot) else {
-            return 1.0;
-        };
-        if cell_r <= 0.0 || cell_b <= 0.0 {
-            return 1.0;
-        }
-        let same = track.look_anchor.is_some_and(|a| {
-            (look[0] - a[0]).abs() < cell_r && wrap_angle(look[1] - a[1]).abs() < cell_b
-        });
-        if !same {
-            track.look_anchor = Some(look);
-            track.repeat_looks = 1;
-            track.last_look_s = now;
-            return 1.0;
-        }
-        if now - track.last_look_s < same_sweep {
-            return 1.0;
-        }
-        track.last_look_s = now;
-        track.repeat_looks = track.repeat_looks.saturating_add(1);
-        f64::from(track.repeat_looks)
+        let cell = LookCell::from_settings(&self.settings);
+        self.state
+            .track_mut(slot)
+            .map_or(1.0, |track| cell.inflation(track, look, now))
     }
 
     /// Hits for the candidates a target was paired with; a miss for each candidate expected

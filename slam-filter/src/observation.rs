@@ -10,6 +10,7 @@
 
 use nalgebra::{DMatrix, Matrix3};
 use radar_model::geometry::{range_bearing_with_jacobian, Pose2};
+use radar_model::layout::{self, Component, ObservationRow};
 
 use super::error::FilterError;
 use super::state::{feature_index, FeatureParams, FEATURE_DIM, LOSS_INDEX, POSE_DIM};
@@ -75,8 +76,8 @@ impl BeamObservation {
 pub struct BeamPrediction {
     /// `[R_i, beta_i, P_i]` per feature, in the order given.
     pub z: Vec<[f64; 3]>,
-    /// `3k x (3 + 4k + 1)`: rows `3i..3i+3` are feature i's `(R, beta, P)`; columns are
-    /// `[x, y, theta, (x, y, u, v) per feature in order, L]`.
+    /// `3k x (3 + 4k + 1)`, laid out as [`radar_model::layout`] says: feature i's
+    /// `(R, beta, P)` rows; columns `[x, y, theta, (x, y, u, v) per feature in order, L]`.
     pub jacobian: DMatrix<f64>,
     /// Whether each feature's power prediction can be used (false when not resolvable
     /// from its neighbour, or when the model has no power).
@@ -108,13 +109,17 @@ impl BeamObservationModel for RangeBearingModel {
         _loss_db: f64,
     ) -> Result<BeamPrediction, FilterError> {
         let k = features.len();
-        let mut jacobian = DMatrix::zeros(3 * k, beam_columns(k));
+        let mut jacobian = DMatrix::zeros(layout::rows(k), layout::columns(k));
         let mut z = Vec::with_capacity(k);
         for (i, f) in features.iter().enumerate() {
             let (rb, jac) = range_bearing_with_jacobian(pose, [f.x_m, f.y_m])
                 .map_err(|e| FilterError::Model(e.to_string()))?;
             z.push([rb.range_m, rb.bearing_rad, 0.0]);
-            jac.write_rows(&mut jacobian, 3 * i, POSE_DIM + FEATURE_DIM * i);
+            jac.write_rows(
+                &mut jacobian,
+                ObservationRow::new(i, Component::Range).index(),
+                layout::feature_column(i),
+            );
         }
         Ok(BeamPrediction {
             z,
@@ -126,13 +131,18 @@ impl BeamObservationModel for RangeBearingModel {
 
 /// Number of beam-local Jacobian columns for `k` features.
 pub const fn beam_columns(k: usize) -> usize {
-    POSE_DIM + FEATURE_DIM * k + 1
+    layout::columns(k)
+}
+
+/// The Jacobian row indices of `rows`, in order.
+pub fn row_indices(rows: &[ObservationRow]) -> Vec<usize> {
+    rows.iter().map(|r| r.index()).collect()
 }
 
 /// State indices of the beam-local columns, given the features' slots in beam order.
 pub fn state_columns(slots: &[usize]) -> Vec<usize> {
     let mut cols = Vec::with_capacity(beam_columns(slots.len()));
-    cols.extend(0..POSE_DIM);
+    cols.extend(0..layout::POSE_COLUMNS);
     for &s in slots {
         let i = feature_index(s);
         cols.extend(i..i + FEATURE_DIM);
@@ -149,3 +159,6 @@ pub fn noise_block(range_std_m: f64, bearing_std_rad: f64, power_std_db: f64) ->
         power_std_db * power_std_db,
     ))
 }
+
+// The state stores a feature's block in the order the beam layout uses.
+const _: () = assert!(FEATURE_DIM == layout::FEATURE_COLUMNS && POSE_DIM == layout::POSE_COLUMNS);

@@ -18,7 +18,7 @@ use radar_model::geometry::Pose2;
 use radar_model::material::Material;
 use radar_model::motion::MotionModel;
 use radar_model::power::PowerModel;
-use slam_filter::beam::relinearise_at_first_estimates;
+use slam_filter::fej::relinearise_at_first_estimates;
 use slam_filter::state::FeatureParams;
 use slam_filter::{
     BeamObservation, BeamObservationModel, Ekf, FilterSettings, OdometrySample, RadarBeamModel,

@@ -223,7 +223,11 @@ fn a_seeded_run_ends_in_the_stored_state_to_1e_9() {
         )
     });
     let stored: serde_json::Value = serde_json::from_str(&text).expect("stored run is JSON");
-    assert!(r.ids.len() >= 8, "the run mapped only {} features", r.ids.len());
+    assert!(
+        r.ids.len() >= 8,
+        "the run mapped only {} features",
+        r.ids.len()
+    );
     let ids: Vec<u64> = stored["ids"]
         .as_array()
         .expect("ids")
@@ -238,7 +242,11 @@ fn a_seeded_run_ends_in_the_stored_state_to_1e_9() {
     ] {
         assert_eq!(Some(got), stored[key].as_u64(), "{key} changed");
     }
-    assert_close("time_s", &[r.time_s], &[stored["time_s"].as_f64().expect("time")]);
+    assert_close(
+        "time_s",
+        &[r.time_s],
+        &[stored["time_s"].as_f64().expect("time")],
+    );
     assert_close("mean", &r.mean, &floats(&stored, "mean"));
     assert_close(
         "covariance",

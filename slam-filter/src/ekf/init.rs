@@ -3,6 +3,7 @@
 
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix4};
 use radar_model::geometry::{range_bearing, wrap_angle, Pose2};
+use radar_model::layout::{self, Component, ObservationRow};
 use radar_model::material::Material;
 
 use super::super::beam::{predict_candidates, BeamCandidate};
@@ -24,7 +25,7 @@ fn unpack_beam_columns(x: &[f64], features: usize) -> (Pose2, Vec<FeatureParams>
     let pose = Pose2::new(get(0), get(1), get(2));
     let params = (0..features)
         .map(|k| {
-            let b = 3 + 4 * k;
+            let b = layout::feature_column(k);
             FeatureParams {
                 x_m: get(b),
                 y_m: get(b + 1),
@@ -33,7 +34,7 @@ fn unpack_beam_columns(x: &[f64], features: usize) -> (Pose2, Vec<FeatureParams>
             }
         })
         .collect();
-    (pose, params, get(3 + 4 * features))
+    (pose, params, get(layout::loss_column(features)))
 }
 
 impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
@@ -176,7 +177,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         let Some(local) = slots.iter().position(|&s| s == new_slot) else {
             return Ok(());
         };
-        let row = 3 * local + 2;
+        let row = ObservationRow::new(local, Component::Power).index();
         let columns = state_columns(&slots);
         let x0: Vec<f64> = columns.iter().map(|&c| self.state.mean()[c]).collect();
         let p_cc = self
@@ -201,7 +202,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             let h = pred.jacobian.select_rows([row].iter());
             let mut dx = DVector::from_iterator(x.len(), x0.iter().zip(&x).map(|(a, b)| a - b));
             dx[2] = wrap_angle(dx[2]);
-            let nu = t.power_db - zhat[2] - (&h * &dx)[0];
+            let nu = t.power_db - Component::Power.of(zhat) - (&h * &dx)[0];
             let pht = &p_cc * h.transpose();
             let s_val = (&h * &pht)[0] + r;
             if !(s_val.is_finite() && s_val > 0.0 && nu.is_finite()) {
