@@ -174,6 +174,19 @@ impl Geometry {
         f64::from(azimuth) * std::f64::consts::TAU / f64::from(self.encoder_size)
     }
 
+    /// Azimuth in encoder counts to the azimuth's index in the rotation,
+    /// `encoder x azimuth_samples / encoder_size` rounded down, in `0..azimuth_samples` for
+    /// encoder values inside the revolution (`None` past it, or for an empty geometry).
+    /// With 5600 encoder counts and 400 azimuths, encoder 14 is azimuth 1.
+    pub fn azimuth_index(&self, encoder: u16) -> Option<u16> {
+        if encoder >= self.encoder_size || self.azimuth_samples == 0 {
+            return None;
+        }
+        let index =
+            u32::from(encoder) * u32::from(self.azimuth_samples) / u32::from(self.encoder_size);
+        u16::try_from(index).ok()
+    }
+
     /// Azimuth in encoder counts to degrees.
     pub fn azimuth_deg(&self, azimuth: u16) -> f64 {
         f64::from(azimuth) * 360.0 / f64::from(self.encoder_size)
@@ -216,5 +229,42 @@ impl Geometry {
             BinWidth::Eight => units::bin8_to_db(u8::try_from(raw).unwrap_or(u8::MAX)),
             BinWidth::Sixteen => units::bin16_to_db(raw),
         }
+    }
+}
+
+#[cfg(test)]
+mod azimuth_index_tests {
+    use super::*;
+    use crate::BinWidth;
+
+    fn cts350x() -> Geometry {
+        Geometry {
+            azimuth_samples: 400,
+            range_in_bins: 3768,
+            bin_size_m: 0.0438,
+            encoder_size: 5600,
+            rotation_hz: 4.0,
+            packet_rate: 1600,
+            range_gain: 1.0,
+            range_offset_m: 0.0,
+            data_width: BinWidth::Eight,
+            range_resolution_m: None,
+        }
+    }
+
+    #[test]
+    fn azimuth_index_counts_azimuths_not_encoder_values() {
+        let g = cts350x();
+        assert_eq!(g.azimuth_index(0), Some(0));
+        assert_eq!(g.azimuth_index(13), Some(0));
+        assert_eq!(g.azimuth_index(14), Some(1));
+        assert_eq!(g.azimuth_index(56), Some(4));
+        assert_eq!(g.azimuth_index(5599), Some(399));
+        assert_eq!(g.azimuth_index(5600), None);
+        let empty = Geometry {
+            azimuth_samples: 0,
+            ..cts350x()
+        };
+        assert_eq!(empty.azimuth_index(3), None);
     }
 }
