@@ -269,6 +269,40 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         Ok(())
     }
 
+    /// The odometry sample the filter holds (the latest applied): the motion assumed from
+    /// the state's time on.
+    pub fn held_odometry(&self) -> Option<OdometrySample> {
+        self.odometry
+    }
+
+    /// The pose extrapolated to `time_s` from the current estimate with the held odometry,
+    /// mean only (the state is not touched); the current pose for a time at or before the
+    /// state's. `None` without odometry or when the motion model fails.
+    pub fn pose_at(&self, time_s: f64) -> Option<Pose2> {
+        let held = self.odometry?;
+        self.extrapolate_pose(&held, time_s).ok()
+    }
+
+    /// Steps the mean pose from the state's time to `time_s` with `held`, in steps of at
+    /// most `max_predict_step_s` (as the prediction does).
+    fn extrapolate_pose(&self, held: &OdometrySample, time_s: f64) -> Result<Pose2, FilterError> {
+        let gap_s = time_s - self.state.time_s();
+        let mut pose = self.pose();
+        if gap_s > 0.0 {
+            let steps = (gap_s / self.settings.max_predict_step_s).ceil().max(1.0);
+            let dt = gap_s / steps;
+            let mut done = 0.0;
+            while done < steps {
+                pose = self
+                    .motion
+                    .step(&pose, held.speed_mps, held.steer_rad, dt)?
+                    .pose;
+                done += 1.0;
+            }
+        }
+        Ok(pose)
+    }
+
     /// Predicts the state to `time_s` with the held odometry.
     pub fn predict_to(&mut self, time_s: f64) -> Result<(), FilterError> {
         let held = self.odometry.ok_or(FilterError::NoOdometry)?;
@@ -599,19 +633,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 limit_s: self.settings.max_predict_gap_s,
             });
         }
-        let mut pose = self.pose();
-        if gap_s > 0.0 {
-            let steps = (gap_s / self.settings.max_predict_step_s).ceil().max(1.0);
-            let dt = gap_s / steps;
-            let mut done = 0.0;
-            while done < steps {
-                pose = self
-                    .motion
-                    .step(&pose, held.speed_mps, held.steer_rad, dt)?
-                    .pose;
-                done += 1.0;
-            }
-        }
+        let pose = self.extrapolate_pose(&held, beam.timestamp_s)?;
         let candidates = candidates_in_beam(&self.state, &self.settings, &pose, beam.bearing_rad);
         let mut report = BeamReport {
             candidates: candidates

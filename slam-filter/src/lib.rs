@@ -69,3 +69,7 @@ pub use radar::RadarBeamModel;
 pub use settings::{FilterSettings, SettingsError};
 pub use state::{FeatureId, SlamState};
 pub use update::{batched_update, LinearisedObservation, UpdateOutcome};
+
+/// The filter with radar-model's physics: its motion models and the multi-target beam
+/// observation of eq. 13.
+pub type RadarEkf = Ekf<radar_model::motion::MotionModel, RadarBeamModel>;

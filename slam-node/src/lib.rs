@@ -13,7 +13,6 @@
 //!
 //! IO happens only in `daemon`, `pipeline::run` (channels) and `output::writer` (files).
 
-pub mod angles;
 pub mod daemon;
 pub mod detect;
 pub mod output;

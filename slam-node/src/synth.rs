@@ -75,7 +75,7 @@ impl SynthRadar {
 
     /// Bearing of azimuth `index` (clockwise from forward, wrapped).
     pub fn bearing_rad(&self, index: usize) -> f64 {
-        crate::angles::wrap_angle(
+        radar_model::geometry::wrap_angle(
             std::f64::consts::TAU * index as f64 / self.azimuths.max(1) as f64,
         )
     }

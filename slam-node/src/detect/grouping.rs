@@ -14,7 +14,7 @@
 //! A group wider than `max_width_rad` (a wall seen along its length) is closed and a new one
 //! started, so an extended target becomes a row of observations, not one smeared point.
 
-use crate::angles::wrap_angle;
+use radar_model::geometry::wrap_angle;
 
 /// One target as the filter sees it: `z = [R, beta, P]` at `timestamp_s`.
 #[derive(Debug, Clone, Copy, PartialEq)]

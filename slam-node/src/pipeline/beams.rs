@@ -5,8 +5,8 @@
 //! A beam's timestamp is its earliest target's, so beams leave in non-decreasing time (the
 //! filter refuses to predict backwards); each target keeps its own bearing.
 
-use crate::angles::wrap_angle;
 use crate::detect::Observation;
+use radar_model::geometry::wrap_angle;
 use slam_filter::{BeamObservation, Target};
 
 /// Gathers observations into beams.

@@ -6,15 +6,19 @@
 
 pub mod beams;
 pub mod core;
+pub mod frontend;
+pub mod gate;
 pub mod odometry;
 pub mod run;
 pub mod settings;
 pub mod spectrum;
+pub mod stats;
 pub mod summary;
 pub mod truth;
 
 pub use self::core::{DaemonEkf, Pipeline, PipelineError};
+pub use frontend::{FrontEnd, FrontEndSettings};
 pub use run::{run_pipeline, PipelineInputs, RunControl, RunReport};
 pub use settings::PipelineSettings;
 pub use summary::PipelineSummary;
-pub use truth::{SceneTruth, TrueFeature, TruthOracle};
+pub use truth::{SceneTruth, TrueFeature, TruthObserver, TruthOracle};

@@ -14,7 +14,8 @@ use radar_model::noise::{FloorDistribution, NoiseModel, PAPER_BOUND_99_DB};
 use radar_model::power::{PowerModel, RadarConstants, SpreadingForm};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use crate::detect::{DetectorKind, DetectorSettings, GroupingSettings};
+use super::frontend::FrontEndSettings;
+use crate::detect::{DetectorKind, DetectorSettings};
 use slam_filter::FilterSettings;
 
 /// The share of a range resolution cell and of a beam width within which a feature's
@@ -235,13 +236,15 @@ impl PipelineSettings {
         })
     }
 
-    /// Grouping settings for a radar with `azimuths` spectra per rotation.
-    pub fn grouping(&self, azimuths: u16) -> GroupingSettings {
-        let step = std::f64::consts::TAU / f64::from(azimuths.max(1));
-        GroupingSettings {
-            range_gate_m: self.grouping_range_gate_m,
-            max_step_rad: 1.5 * step,
-            max_width_rad: (self.grouping_max_width_beams * self.beam_width_rad).max(step),
+    /// The front end's settings.
+    pub fn front_end(&self) -> FrontEndSettings {
+        FrontEndSettings {
+            detector: self.detector,
+            grouping_range_gate_m: self.grouping_range_gate_m,
+            grouping_max_width_beams: self.grouping_max_width_beams,
+            beam_width_rad: self.beam_width_rad,
+            compensation: self.compensation.clone(),
+            noise: self.noise,
         }
     }
 }

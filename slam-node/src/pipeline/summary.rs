@@ -1,14 +1,12 @@
-//! Running totals of a run and the end-of-run summary; map snapshots from the filter.
+//! Running totals of a run and the end-of-run summary.
 
 use std::collections::VecDeque;
 
 use serde::Serialize;
 
-use super::core::DaemonEkf;
 use super::spectrum::SpectrumTally;
 use super::truth::{MapScore, ObservationErrorStats, PoseErrorStats};
-use crate::output::{MapFeature, MapSnapshot, RotationDiagnostics};
-use slam_filter::state::feature_index;
+use crate::output::RotationDiagnostics;
 
 /// Rotation times kept for percentiles (the most recent ones).
 const TIMES_KEPT: usize = 10_000;
@@ -141,71 +139,5 @@ impl PipelineSummary {
             0
         };
         v.get(k.min(v.len() - 1)).copied().unwrap_or(0.0)
-    }
-}
-
-/// The filter's map as a [`MapSnapshot`]: positions, rho and alpha with their covariance
-/// (the (u, v) block mapped through the softmax's Jacobian), and L.
-pub fn snapshot(ekf: &DaemonEkf) -> MapSnapshot {
-    let state = ekf.state();
-    let p = state.covariance();
-    let mut features = Vec::with_capacity(state.feature_count());
-    for slot in 0..state.feature_count() {
-        let (Some(params), Some(track)) = (state.params(slot), state.tracks().get(slot)) else {
-            continue;
-        };
-        let material = radar_model::material::Material::new(params.u, params.v);
-        let shares = material.shares();
-        let j = material.shares_jacobian();
-        let base = feature_index(slot);
-        // Covariance of (x, y, u, v) from the state.
-        let c = |r: usize, k: usize| p.get((base + r, base + k)).copied().unwrap_or(0.0);
-        // Transform T = diag(I2, J): cov' = T C T^T.
-        let t = |r: usize, k: usize| -> f64 {
-            match (r, k) {
-                (0, 0) | (1, 1) => 1.0,
-                (2, 2) => j[0][0],
-                (2, 3) => j[0][1],
-                (3, 2) => j[1][0],
-                (3, 3) => j[1][1],
-                _ => 0.0,
-            }
-        };
-        let mut cov = [[0.0; 4]; 4];
-        for (r, row) in cov.iter_mut().enumerate() {
-            for (k, out) in row.iter_mut().enumerate() {
-                let mut acc = 0.0;
-                for a in 0..4 {
-                    for b in 0..4 {
-                        acc += t(r, a) * c(a, b) * t(k, b);
-                    }
-                }
-                *out = acc;
-            }
-        }
-        features.push(MapFeature {
-            id: track.id.0,
-            x_m: params.x_m,
-            y_m: params.y_m,
-            rho: shares.rho,
-            alpha: shares.alpha,
-            tau: shares.tau,
-            covariance: cov,
-            observations: track.hits,
-        });
-    }
-    let loss_var = p
-        .get((
-            slam_filter::state::LOSS_INDEX,
-            slam_filter::state::LOSS_INDEX,
-        ))
-        .copied()
-        .unwrap_or(0.0);
-    MapSnapshot {
-        format: MapSnapshot::FORMAT.into(),
-        timestamp_s: state.time_s(),
-        loss_db: state.loss_db(),
-        loss_var_db2: loss_var,
-        features,
     }
 }

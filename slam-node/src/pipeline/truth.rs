@@ -3,10 +3,13 @@
 //! own 3-sigma bounds, association errors, features mapped vs in the scene, rho/alpha
 //! convergence) without knowing where the truth comes from.
 
-use radar_model::geometry::{wrap_angle, Pose2};
+use radar_model::geometry::{range_bearing, wrap_angle, Pose2};
 use serde::Serialize;
 
-use slam_filter::FeatureEstimate;
+use slam_filter::{BeamObservation, BeamReport, FeatureEstimate, RadarEkf};
+
+use super::summary::PipelineSummary;
+use crate::output::RotationDiagnostics;
 
 /// A true feature.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -319,4 +322,148 @@ pub fn score_map(
         s.initial_alpha_error = a0_sum / n;
     }
     s
+}
+
+/// Truth scoring as an optional observer of the pipeline: it reads the beams, the filter's
+/// reports and estimates, and never changes what the pipeline does.
+#[derive(Debug)]
+pub struct TruthObserver {
+    oracle: Box<dyn TruthOracle>,
+    pose_errors: PoseErrorStats,
+    in_range: Vec<bool>,
+    observation_errors: Option<ObservationErrorStats>,
+    association_errors: u64,
+    clutter_associations: u64,
+}
+
+/// An observation counts as coming from a true feature within this distance (m).
+const SEEN_GATE_M: f64 = 1.5;
+/// A mapped feature stands for the true feature within this distance (m).
+const MAPPED_GATE_M: f64 = 2.0;
+
+impl TruthObserver {
+    /// An observer scoring against `oracle`.
+    pub fn new(oracle: Box<dyn TruthOracle>) -> Self {
+        Self {
+            in_range: vec![false; oracle.features().len()],
+            oracle,
+            pose_errors: PoseErrorStats::default(),
+            observation_errors: None,
+            association_errors: 0,
+            clutter_associations: 0,
+        }
+    }
+
+    /// The true pose at `t_s`.
+    pub fn pose_at(&self, t_s: f64) -> Option<Pose2> {
+        self.oracle.pose_at(t_s)
+    }
+
+    /// Scores one processed beam's associations: the observation's error against the true
+    /// geometry, and whether it was paired with the mapped feature of another true feature
+    /// (an association error; returned as the count for this beam) or came from no true
+    /// feature (clutter).
+    pub fn on_beam(&mut self, beam: &BeamObservation, report: &BeamReport, ekf: &RadarEkf) -> u32 {
+        let Some(true_pose) = self.oracle.pose_at(beam.timestamp_s) else {
+            return 0;
+        };
+        let features = self.oracle.features();
+        let mut wrong = 0;
+        for &(j, id) in &report.associated {
+            let (Some(t), Some(f)) = (beam.targets.get(j), ekf.feature(id)) else {
+                continue;
+            };
+            let xy = true_pose.point_at(t.range_m, t.bearing_rad);
+            let seen = nearest_feature(features, xy, SEEN_GATE_M).map(|(i, _)| i);
+            let mapped = nearest_feature(features, [f.x_m, f.y_m], MAPPED_GATE_M).map(|(i, _)| i);
+            if let Some(tf) = seen.and_then(|a| features.get(a)) {
+                let rb = range_bearing(&true_pose, [tf.x_m, tf.y_m]);
+                self.observation_errors
+                    .get_or_insert_with(Default::default)
+                    .add(
+                        t.range_m - rb.range_m,
+                        wrap_angle(t.bearing_rad - rb.bearing_rad),
+                    );
+            }
+            match (seen, mapped) {
+                (Some(a), Some(b)) if a != b => {
+                    self.association_errors += 1;
+                    wrong += 1;
+                }
+                (None, _) => self.clutter_associations += 1,
+                _ => {}
+            }
+        }
+        wrong
+    }
+
+    /// Scores the pose at the end of a rotation (when the filter has odometry) into `d`,
+    /// and marks the true features within `max_range_m` as having come into range.
+    pub fn on_rotation(
+        &mut self,
+        ekf: &RadarEkf,
+        has_odometry: bool,
+        max_range_m: f64,
+        d: &mut RotationDiagnostics,
+    ) {
+        let t = ekf.state().time_s();
+        let Some(truth) = self.oracle.pose_at(t) else {
+            return;
+        };
+        if has_odometry {
+            let pose = ekf.pose();
+            let cov = ekf.pose_covariance();
+            let nees = ekf.pose_nees(&truth).ok();
+            d.pose_error_x_m = Some(pose.x - truth.x);
+            d.pose_error_y_m = Some(pose.y - truth.y);
+            d.pose_error_theta_rad = Some(wrap_angle(pose.theta - truth.theta));
+            d.pose_sigma_x_m = Some(cov[(0, 0)].max(0.0).sqrt());
+            d.pose_sigma_y_m = Some(cov[(1, 1)].max(0.0).sqrt());
+            d.pose_sigma_theta_rad = Some(cov[(2, 2)].max(0.0).sqrt());
+            d.pose_nees = nees;
+            self.pose_errors
+                .add(&pose, [cov[(0, 0)], cov[(1, 1)], cov[(2, 2)]], &truth, nees);
+        }
+        for (flag, f) in self.in_range.iter_mut().zip(self.oracle.features()) {
+            if (f.x_m - truth.x).hypot(f.y_m - truth.y) <= max_range_m {
+                *flag = true;
+            }
+        }
+    }
+
+    /// Writes the run's scores into `summary`: pose errors, observation errors, association
+    /// errors and the final map against the true features.
+    pub fn score(
+        &self,
+        ekf: &RadarEkf,
+        initial_rho: f64,
+        initial_alpha: f64,
+        summary: &mut PipelineSummary,
+    ) {
+        summary.pose = Some(self.pose_errors.clone());
+        summary.observation_errors = self.observation_errors.clone();
+        summary.association_errors = self.association_errors;
+        summary.clutter_associations = self.clutter_associations;
+        let features = ekf.features();
+        let in_range = self.in_range.iter().filter(|&&b| b).count();
+        let mut score = score_map(
+            &features,
+            self.oracle.features(),
+            in_range,
+            MAPPED_GATE_M,
+            initial_rho,
+            initial_alpha,
+        );
+        score.loss_db = ekf.state().loss_db();
+        if let Some(true_loss) = self.oracle.loss_db() {
+            score.true_loss_db = Some(true_loss);
+            score.mean_rho_error_gauge_fixed = Some(gauge_fixed_rho_error(
+                &features,
+                self.oracle.features(),
+                MAPPED_GATE_M,
+                score.loss_db - true_loss,
+            ));
+        }
+        summary.map = Some(score);
+    }
 }
