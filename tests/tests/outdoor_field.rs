@@ -37,6 +37,14 @@ async fn the_daemon_maps_the_outdoor_field_and_its_materials_move_toward_the_sce
     // The predicted spectra agree with the measured ones inside the paper's bound.
     let inside = s.spectrum.in_bound_fraction().expect("beams compared");
     assert!(inside > 0.9, "in-bound fraction {inside:.3}");
+    // The daemon takes azimuths from the driver and asks for no rotations, so none is
+    // counted as dropped.
+    let driver = report.driver.as_ref().expect("driver counters");
+    assert_eq!(
+        driver.rotation_drops, 0,
+        "rotations counted as dropped: {}",
+        driver.rotation_drops
+    );
     // Outputs are on disk.
     for f in &report.writer.files {
         assert!(f.exists(), "{} missing", f.display());

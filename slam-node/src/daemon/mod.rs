@@ -183,6 +183,9 @@ pub async fn run_daemon(
     let mut scene_name = None;
     let mut truth_overlay = TruthOverlay::default();
     let mut driver_settings = DriverSettings::from_config(&opts.config.radar);
+    // The pipeline takes azimuths and finds rotation ends itself: no rotation channel, so
+    // the driver neither assembles rotations nor counts them as dropped.
+    driver_settings.handoff.rotation_capacity = None;
     let (azimuths, driver, odometry): (_, _, Option<Box<dyn OdometrySource>>) = if let Some(sim) =
         opts.embedded
     {

@@ -284,7 +284,7 @@ impl Pipeline {
         if every == 0 || self.ekf.feature_count() == 0 {
             return;
         }
-        if usize::from(index) % every != 0 {
+        if !spectrum_due(index, every) {
             return;
         }
         let Some(pose) = self.predicted_pose(az.timestamp_s) else {
@@ -415,4 +415,86 @@ impl Pipeline {
 
 fn ms(a: Instant, b: Instant) -> f64 {
     b.duration_since(a).as_secs_f64() * 1e3
+}
+
+/// Whether the azimuth of index `index` in its rotation is one of every `every`-th.
+fn spectrum_due(index: u16, every: usize) -> bool {
+    every > 0 && usize::from(index) % every == 0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use protocol::BinWidth;
+    use radar_model::geometry::range_bearing;
+    use slam_filter::{BeamObservation, OdometrySample, Target};
+
+    #[test]
+    fn every_kth_azimuth_counts_azimuths_not_encoder_values() {
+        // A CTS350-X: 5600 encoder counts, 400 azimuths (14 counts apart).
+        let g = protocol::Geometry {
+            azimuth_samples: 400,
+            range_in_bins: 3768,
+            bin_size_m: 0.0438,
+            encoder_size: 5600,
+            rotation_hz: 4.0,
+            packet_rate: 1600,
+            range_gain: 1.0,
+            range_offset_m: 0.0,
+            data_width: BinWidth::Eight,
+            range_resolution_m: None,
+        };
+        let checked = (0..400u16)
+            .filter_map(|a| g.azimuth_index(a * 14))
+            .filter(|&i| spectrum_due(i, 4))
+            .count();
+        assert_eq!(checked, 100, "every 4th of 400 azimuths");
+    }
+
+    #[test]
+    fn the_map_written_carries_the_material_random_walk_of_features_not_seen_lately() {
+        let settings = PipelineSettings::from_config(&config::Config::default()).unwrap();
+        let mut p = Pipeline::new(settings, Some(0.0), None).unwrap();
+        let still = |t: f64| OdometrySample {
+            timestamp_s: t,
+            speed_mps: 0.0,
+            steer_rad: 0.0,
+        };
+        p.ekf.apply_odometry(still(0.0)).unwrap();
+        // One post seen from a parked vehicle until it is confirmed into the map.
+        let post = [20.0, 0.0];
+        let rb = range_bearing(&p.ekf.pose(), post);
+        for k in 1..=10 {
+            let t = 0.4 * f64::from(k);
+            p.ekf.apply_odometry(still(t)).unwrap();
+            p.ekf
+                .process_beam(&BeamObservation {
+                    timestamp_s: t,
+                    bearing_rad: rb.bearing_rad,
+                    targets: vec![Target {
+                        range_m: rb.range_m,
+                        bearing_rad: rb.bearing_rad,
+                        power_db: -40.0,
+                    }],
+                })
+                .unwrap();
+        }
+        assert_eq!(p.ekf.feature_count(), 1, "the post is mapped");
+        // A minute without seeing it.
+        for t in 5..=60 {
+            p.ekf.apply_odometry(still(f64::from(t))).unwrap();
+        }
+        let unsettled = MapSnapshot::from_state(p.ekf.state());
+        let mut settled = p.ekf.clone();
+        settled.settle_material_noise();
+        let written = p.map_snapshot();
+        assert_eq!(written, MapSnapshot::from_state(settled.state()));
+        let var = |m: &MapSnapshot| m.features[0].covariance[2][2];
+        assert!(
+            var(&written) > 1.01 * var(&unsettled),
+            "rho variance written {} against {} without the random walk",
+            var(&written),
+            var(&unsettled)
+        );
+    }
 }
