@@ -337,33 +337,53 @@ impl RawModel {
                 "model.sigma_power_db",
                 PositiveF64::new(self.sigma_power_db),
             ),
-            noise_floor: NoiseFloor {
-                near_mean_db: c.check(
-                    "model.noise_floor_near_mean_db",
-                    FiniteF64::new(self.noise_floor_near_mean_db),
-                ),
-                near_variance_db2: c.check(
-                    "model.noise_floor_near_variance_db2",
-                    PositiveF64::new(self.noise_floor_near_variance_db2),
-                ),
-                near_range_m: c.check(
-                    "model.noise_floor_near_range_m",
-                    PositiveF64::new(self.noise_floor_near_range_m),
-                ),
-                transition_m: c.check(
-                    "model.noise_floor_transition_m",
-                    PositiveF64::new(self.noise_floor_transition_m),
-                ),
-                weibull_scale: c.check(
-                    "model.noise_floor_weibull_scale",
-                    PositiveF64::new(self.noise_floor_weibull_scale),
-                ),
-                weibull_shape: c.check(
-                    "model.noise_floor_weibull_shape",
-                    PositiveF64::new(self.noise_floor_weibull_shape),
-                ),
-            },
+            noise_floor: self.check_noise_floor(c),
         }
+    }
+
+    /// The target-absent floor; the close-in fit must end before the Weibull starts.
+    fn check_noise_floor(&self, c: &mut Checker) -> NoiseFloor {
+        let floor = NoiseFloor {
+            near_mean_db: c.check(
+                "model.noise_floor_near_mean_db",
+                FiniteF64::new(self.noise_floor_near_mean_db),
+            ),
+            near_variance_db2: c.check(
+                "model.noise_floor_near_variance_db2",
+                PositiveF64::new(self.noise_floor_near_variance_db2),
+            ),
+            near_range_m: c.check(
+                "model.noise_floor_near_range_m",
+                PositiveF64::new(self.noise_floor_near_range_m),
+            ),
+            transition_m: c.check(
+                "model.noise_floor_transition_m",
+                PositiveF64::new(self.noise_floor_transition_m),
+            ),
+            weibull_scale: c.check(
+                "model.noise_floor_weibull_scale",
+                PositiveF64::new(self.noise_floor_weibull_scale),
+            ),
+            weibull_shape: c.check(
+                "model.noise_floor_weibull_shape",
+                PositiveF64::new(self.noise_floor_weibull_shape),
+            ),
+        };
+        let (near, transition) = (self.noise_floor_near_range_m, self.noise_floor_transition_m);
+        let both_valid = PositiveF64::new(near).is_ok() && PositiveF64::new(transition).is_ok();
+        if both_valid && near >= transition {
+            c.fail(
+                "model.noise_floor_near_range_m",
+                ValueError::OutOfRange {
+                    range: format!(
+                        "(0, noise_floor_transition_m = {})",
+                        floor.transition_m.get()
+                    ),
+                    got: floor.near_range_m.get().to_string(),
+                },
+            );
+        }
+        floor
     }
 }
 

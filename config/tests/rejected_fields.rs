@@ -89,6 +89,7 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[model]\nnoise_floor_near_mean_db = nan", "model.noise_floor_near_mean_db", "must be a finite number"),
     ("[model]\nnoise_floor_near_variance_db2 = 0.0", "model.noise_floor_near_variance_db2", "must be > 0"),
     ("[model]\nnoise_floor_transition_m = -45.0", "model.noise_floor_transition_m", "must be > 0"),
+    ("[model]\nnoise_floor_near_range_m = 50.0", "model.noise_floor_near_range_m", "must be in (0, noise_floor_transition_m = 45), got 50"),
     ("[model]\nnoise_floor_weibull_scale = 0.0", "model.noise_floor_weibull_scale", "must be > 0"),
     ("[model]\nnoise_floor_weibull_shape = -5.333", "model.noise_floor_weibull_shape", "must be > 0"),
     // [detector]

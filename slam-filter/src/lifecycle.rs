@@ -2,9 +2,11 @@
 //!
 //! A target no feature claims becomes tentative: its world position and that position's
 //! covariance (pose uncertainty and measurement noise propagated through the inverse of
-//! eq. 3, 4) are kept. A later target inside a tentative's 2-D chi-square gate, at least
-//! `confirm_min_separation_s` later, confirms it, and the filter initialises a feature from
-//! the confirming observation. Unconfirmed tentatives expire; their number is bounded.
+//! eq. 3, 4) are kept. A later target inside a tentative's 2-D chi-square gate is another
+//! look at it when it comes at least `confirm_min_separation_s` after the previous look (a
+//! later rotation, not a neighbouring azimuth of the same sweep); the look that makes
+//! `confirm_after` looks confirms it, and the filter initialises a feature from that
+//! observation. Unconfirmed tentatives expire; their number is bounded.
 
 use nalgebra::{Matrix2, Matrix2x3, Matrix3, Vector2};
 use radar_model::geometry::Pose2;
@@ -26,6 +28,10 @@ pub struct Tentative {
     pub last_seen_s: f64,
     /// Number of sightings.
     pub sightings: u32,
+    /// Looks: sightings at least the confirmation separation apart (the first counts).
+    pub looks: u32,
+    /// Time of the latest look (s).
+    pub last_look_s: f64,
 }
 
 /// World position of a target and its Jacobians with respect to the pose and `(R, beta)`
@@ -85,6 +91,7 @@ impl TentativeList {
         now_s: f64,
         gate_2dof: f64,
         min_separation_s: f64,
+        confirm_after: u32,
         capacity: usize,
     ) -> Sighting {
         let (p, jp, jz) = inverse_observation(pose, t);
@@ -106,19 +113,26 @@ impl TentativeList {
                 let Some(tent) = self.items.get_mut(idx) else {
                     return Sighting::Dropped;
                 };
-                if now_s - tent.first_seen_s >= min_separation_s {
+                let new_look = now_s - tent.last_look_s >= min_separation_s;
+                if new_look && tent.looks.saturating_add(1) >= confirm_after {
                     self.items.swap_remove(idx);
-                    Sighting::Confirmed
-                } else {
-                    tent.position = p;
-                    tent.covariance = cov;
-                    tent.power_db = t.power_db;
-                    tent.last_seen_s = now_s;
-                    tent.sightings = tent.sightings.saturating_add(1);
-                    Sighting::Refreshed
+                    return Sighting::Confirmed;
                 }
+                if new_look {
+                    tent.looks = tent.looks.saturating_add(1);
+                    tent.last_look_s = now_s;
+                }
+                tent.position = p;
+                tent.covariance = cov;
+                tent.power_db = t.power_db;
+                tent.last_seen_s = now_s;
+                tent.sightings = tent.sightings.saturating_add(1);
+                Sighting::Refreshed
             }
             None => {
+                if confirm_after <= 1 {
+                    return Sighting::Confirmed;
+                }
                 if self.items.len() >= capacity {
                     return Sighting::Dropped;
                 }
@@ -129,9 +143,52 @@ impl TentativeList {
                     first_seen_s: now_s,
                     last_seen_s: now_s,
                     sightings: 1,
+                    looks: 1,
+                    last_look_s: now_s,
                 });
                 Sighting::New
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn offer(list: &mut TentativeList, now_s: f64, confirm_after: u32) -> Sighting {
+        list.offer(
+            &Pose2::new(0.0, 0.0, 0.0),
+            &Matrix3::from_diagonal(&nalgebra::Vector3::new(1e-4, 1e-4, 1e-6)),
+            [0.01, 1e-4],
+            &Target {
+                range_m: 20.0,
+                bearing_rad: 0.3,
+                power_db: -40.0,
+            },
+            now_s,
+            9.21,
+            0.1,
+            confirm_after,
+            16,
+        )
+    }
+
+    #[test]
+    fn confirmation_takes_the_configured_number_of_looks_and_a_sweep_counts_once() {
+        let mut list = TentativeList::default();
+        assert_eq!(offer(&mut list, 0.0, 3), Sighting::New);
+        // A neighbouring azimuth of the same sweep is not another look.
+        assert_eq!(offer(&mut list, 0.002, 3), Sighting::Refreshed);
+        assert_eq!(offer(&mut list, 0.4, 3), Sighting::Refreshed);
+        assert_eq!(list.items()[0].looks, 2);
+        assert_eq!(offer(&mut list, 0.8, 3), Sighting::Confirmed);
+        assert!(list.items().is_empty());
+        // The shipped two looks: confirmed on the next rotation.
+        assert_eq!(offer(&mut list, 1.0, 2), Sighting::New);
+        assert_eq!(offer(&mut list, 1.4, 2), Sighting::Confirmed);
+        // One look: every unclaimed target is mapped at once.
+        assert_eq!(offer(&mut list, 2.0, 1), Sighting::Confirmed);
+        assert!(list.items().is_empty());
     }
 }

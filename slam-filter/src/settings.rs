@@ -93,6 +93,9 @@ pub struct FilterSettings {
     /// A tentative target must be seen again at least this much later (s) to be confirmed
     /// (so two adjacent beams of one rotation do not confirm each other).
     pub confirm_min_separation_s: f64,
+    /// Looks (sightings at least `confirm_min_separation_s` apart) that confirm a tentative
+    /// target into a feature; 1 maps every unclaimed target at once. Default 2.
+    pub confirm_after: u32,
     /// A tentative target not seen again within this time is forgotten (s).
     pub tentative_timeout_s: f64,
     /// A beam with more targets than this is refused (typed error, state untouched): a
@@ -144,6 +147,7 @@ impl Default for FilterSettings {
             max_range_m: 200.0,
             min_detectable_power_db: f64::NEG_INFINITY,
             confirm_min_separation_s: 0.1,
+            confirm_after: 2,
             tentative_timeout_s: 2.0,
             max_targets_per_beam: 64,
             max_tentatives: 4_096,
@@ -277,6 +281,7 @@ impl FilterSettings {
             });
         }
         non_negative("confirm_min_separation_s", self.confirm_min_separation_s)?;
+        count("confirm_after", self.confirm_after as usize)?;
         positive("tentative_timeout_s", self.tentative_timeout_s)?;
         count("max_targets_per_beam", self.max_targets_per_beam)?;
         count("max_tentatives", self.max_tentatives)?;

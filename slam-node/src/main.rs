@@ -49,9 +49,10 @@ struct Args {
     /// (repeatable); default: the beam with the most mapped features, every 25 rotations.
     #[arg(long = "spectrum-bearing")]
     spectrum_bearings: Vec<f64>,
-    /// Progress line every this many rotations (0 = none).
-    #[arg(long, default_value_t = 10)]
-    progress_every: u64,
+    /// Progress line every this many rotations (0 = none; default 10, or none when the
+    /// configuration says `[output] progress = false`).
+    #[arg(long)]
+    progress_every: Option<u64>,
 }
 
 fn main() -> ExitCode {
@@ -111,7 +112,11 @@ fn run(args: Args) -> anyhow::Result<()> {
             .clone()
             .unwrap_or_else(|| config.output.directory.clone()),
         figures: config.output.pictures && !args.no_figures,
-        progress_every_rotations: args.progress_every,
+        progress_every_rotations: args.progress_every.unwrap_or(if config.output.progress {
+            10
+        } else {
+            0
+        }),
         max_stream_s: args.duration.or(if embedded { Some(60.0) } else { None }),
         embedded: sim,
         keep_configured_compensation: args.configured_compensation,

@@ -63,6 +63,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 beam.timestamp_s,
                 gate2,
                 self.settings.confirm_min_separation_s,
+                self.settings.confirm_after,
                 self.settings.max_tentatives,
             );
             match sighting {

@@ -8,7 +8,7 @@ use config::detector::{DetectorKind as ConfigKind, Threshold};
 use config::filter::Gate;
 use config::model::{Compensation as ConfigCompensation, Spreading};
 use config::odometry::MotionModel as ConfigMotion;
-use radar_model::compensation::{Compensation, GainCurve, GainTable};
+use radar_model::compensation::{Compensation, GainCurve, GainTable, RollOff};
 use radar_model::motion::MotionModel;
 use radar_model::noise::{FloorDistribution, NoiseModel, PAPER_BOUND_99_DB};
 use radar_model::power::{PowerModel, RadarConstants, SpreadingForm};
@@ -122,9 +122,21 @@ impl PipelineSettings {
     /// Builds the daemon's settings from a validated configuration.
     pub fn from_config(c: &config::Config) -> Result<Self, SettingsError> {
         let constants = RadarConstants::default();
+        // The configured roll-off replaces the slope curves' default one; a measured table is
+        // the whole curve, roll-off included.
+        let rolloff = c.model.rolloff.map(|r| RollOff {
+            corner_m: r.corner_m.get(),
+            order: r.order.get(),
+        });
         let compensation = match &c.model.compensation {
-            ConfigCompensation::Slope40DbPerDecade => Compensation::calibrated(40.0, &constants),
-            ConfigCompensation::Slope60DbPerDecade => Compensation::paper_sixty(&constants),
+            ConfigCompensation::Slope40DbPerDecade => Compensation {
+                rolloff,
+                ..Compensation::calibrated(40.0, &constants)
+            },
+            ConfigCompensation::Slope60DbPerDecade => Compensation {
+                rolloff,
+                ..Compensation::paper_sixty(&constants)
+            },
             ConfigCompensation::Table(t) => {
                 let points: Vec<(f64, f64)> = t
                     .points()
@@ -142,6 +154,7 @@ impl PipelineSettings {
         let mut noise = NoiseModel::default();
         let nf = &c.model.noise_floor;
         noise.absent.near_mean_db = nf.near_mean_db.get();
+        noise.absent.near_range_m = nf.near_range_m.get();
         noise.absent.near_variance_db2 = nf.near_variance_db2.get();
         noise.absent.weibull_from_m = nf.transition_m.get();
         noise.absent.weibull_scale_db = nf.weibull_scale.get();
@@ -199,6 +212,7 @@ impl PipelineSettings {
             max_range_m: c.detector.range.max_m(),
             max_features: f.max_features.get(),
             retire_after_misses: u32::try_from(f.retire_after_misses.get()).unwrap_or(u32::MAX),
+            confirm_after: u32::try_from(f.confirm_after.get()).unwrap_or(u32::MAX),
             initial_loss_db: f.initial_loss_db.get(),
             initial_loss_std_db: f.initial_sigma_loss_db.get(),
             ..FilterSettings::default()
@@ -348,6 +362,25 @@ mod tests {
         );
         assert!(ca > ca_scale_db_for_pfa(1e-4, 70));
         assert!(os > 0.0 && ca.is_finite());
+    }
+
+    #[test]
+    fn every_model_and_filter_setting_of_the_reference_file_reaches_the_pipeline() {
+        let text = "[filter]\nconfirm_after = 4\n[model]\nrolloff_corner_m = 150.0\nrolloff_order = 2\nnoise_floor_near_range_m = 12.0\n";
+        let c = config::Config::from_toml_str(text).unwrap();
+        let s = PipelineSettings::from_config(&c).unwrap();
+        assert_eq!(s.filter.confirm_after, 4);
+        assert_eq!(
+            s.compensation.rolloff,
+            Some(RollOff {
+                corner_m: 150.0,
+                order: 2
+            })
+        );
+        assert_eq!(s.noise.absent.near_range_m, 12.0);
+        let none = config::Config::from_toml_str("[model]\nrolloff_order = 0\n").unwrap();
+        let s = PipelineSettings::from_config(&none).unwrap();
+        assert_eq!(s.compensation.rolloff, None);
     }
 
     #[test]
