@@ -17,4 +17,5 @@ pub mod daemon;
 pub mod detect;
 pub mod output;
 pub mod pipeline;
+#[cfg(feature = "sim")]
 pub mod synth;

@@ -3,7 +3,8 @@
 //! With no arguments it starts the simulator in this process (the shipped outdoor-field
 //! scene on 127.0.0.1:0), runs the daemon against it for 60 s of simulated driving and
 //! prints a summary against ground truth. With `--config vehicle.toml` it connects to the
-//! radar and odometry the file names and runs until stopped.
+//! radar and odometry the file names and runs until stopped. A vehicle build
+//! (`--no-default-features`) links no simulator and needs `--config`.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -12,7 +13,7 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use clap::Parser;
-use slam_node::daemon::{report, run_daemon, DaemonOptions, EmbeddedSim};
+use slam_node::daemon::{report, run_daemon, DaemonOptions};
 
 /// Augmented-state EKF SLAM for a rotating mm-wave radar (Jose & Adams).
 #[derive(Debug, Parser)]
@@ -21,12 +22,15 @@ struct Args {
     /// Configuration file; without it the embedded simulator runs with the shipped defaults.
     #[arg(long)]
     config: Option<PathBuf>,
+    #[cfg(feature = "sim")]
     /// Start the simulator in this process even with --config (uses its [sim] section).
     #[arg(long)]
     embedded_sim: bool,
+    #[cfg(feature = "sim")]
     /// Scene for the embedded simulator (a shipped name or a file).
     #[arg(long)]
     scene: Option<String>,
+    #[cfg(feature = "sim")]
     /// Run the embedded simulator as fast as possible instead of in real time.
     #[arg(long)]
     fast: bool,
@@ -40,6 +44,7 @@ struct Args {
     /// Do not draw SVG figures.
     #[arg(long)]
     no_figures: bool,
+    #[cfg(feature = "sim")]
     /// With the embedded simulator, model the receiver by [model] compensation (60 dB per
     /// decade by default, as the paper did) instead of the scene's (40): shows the paper's
     /// negative spectrum bias.
@@ -79,29 +84,19 @@ fn run(args: Args) -> anyhow::Result<()> {
         }
         None => config::Config::default(),
     };
+    #[cfg(feature = "sim")]
     let embedded = args.config.is_none() || args.embedded_sim;
+    #[cfg(not(feature = "sim"))]
+    let embedded = false;
+    #[cfg(not(feature = "sim"))]
+    if args.config.is_none() {
+        anyhow::bail!(
+            "this is a vehicle build, without the simulator: pass --config with the radar's and the odometry's addresses (see config/examples/vehicle.toml)"
+        );
+    }
+    #[cfg(feature = "sim")]
     let sim = if embedded {
-        let mut sim = config.sim.clone();
-        if let Some(scene) = &args.scene {
-            sim.scene = if scene.contains('/') || scene.contains('.') {
-                config::sim::SceneRef::File(PathBuf::from(scene))
-            } else {
-                config::sim::SceneRef::Shipped(scene.clone())
-            };
-        }
-        let mut options =
-            sim_sensor::SimOptions::from_config(&sim).context("building the simulator")?;
-        options.bind = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
-        options.odometry_bind = Some(std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
-        if args.fast {
-            options.pacing = sim_sensor::settings::Pacing::AsFastAsPossible;
-        }
-        let now_ns = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
-            .unwrap_or(0);
-        options.start_time_ns = Some(now_ns);
-        Some(EmbeddedSim { options })
+        Some(embedded_sim(&args, &config)?)
     } else {
         None
     };
@@ -118,8 +113,12 @@ fn run(args: Args) -> anyhow::Result<()> {
             0
         }),
         max_stream_s: args.duration.or(if embedded { Some(60.0) } else { None }),
+        #[cfg(feature = "sim")]
         embedded: sim,
+        #[cfg(feature = "sim")]
         keep_configured_compensation: args.configured_compensation,
+        #[cfg(not(feature = "sim"))]
+        keep_configured_compensation: false,
         spectrum_bearings_deg: args.spectrum_bearings.clone(),
         config,
         stop: Arc::clone(&stop),
@@ -160,4 +159,33 @@ fn run(args: Args) -> anyhow::Result<()> {
     let report = result.context("running the daemon")?;
     print!("{}", report::summary_text(&report));
     Ok(())
+}
+
+/// The simulator to start in this process, from `[sim]` and the command line.
+#[cfg(feature = "sim")]
+fn embedded_sim(
+    args: &Args,
+    config: &config::Config,
+) -> anyhow::Result<slam_node::daemon::EmbeddedSim> {
+    let mut sim = config.sim.clone();
+    if let Some(scene) = &args.scene {
+        sim.scene = if scene.contains('/') || scene.contains('.') {
+            config::sim::SceneRef::File(PathBuf::from(scene))
+        } else {
+            config::sim::SceneRef::Shipped(scene.clone())
+        };
+    }
+    let mut options =
+        sim_sensor::SimOptions::from_config(&sim).context("building the simulator")?;
+    options.bind = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
+    options.odometry_bind = Some(std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
+    if args.fast {
+        options.pacing = sim_sensor::settings::Pacing::AsFastAsPossible;
+    }
+    let now_ns = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
+        .unwrap_or(0);
+    options.start_time_ns = Some(now_ns);
+    Ok(slam_node::daemon::EmbeddedSim { options })
 }

@@ -5,6 +5,8 @@
 //! client); the pipeline runs on its own thread fed by the driver's lock-free channel; the
 //! writer runs on another, fed by a channel the pipeline never blocks on.
 
+#[cfg(feature = "sim")]
+pub mod embedded;
 pub mod report;
 pub mod sink;
 
@@ -13,12 +15,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
-use radar_driver::{
-    shutdown_pair, Driver, DriverSettings, OdometrySource, TcpOdometry, TcpOdometrySettings,
-};
-use radar_model::compensation::Compensation;
-use radar_model::power::RadarConstants;
-use sim_sensor::{SimOptions, SimServer};
+use radar_driver::{shutdown_pair, Driver, DriverSettings, OdometrySource};
 use tracing::{info, warn};
 
 use crate::output::figures::TruthOverlay;
@@ -26,9 +23,11 @@ use crate::output::writer::WriterSummary;
 use crate::output::{OutputEvent, OutputFiles, OutputHandle};
 use crate::pipeline::run::ProgressFn;
 use crate::pipeline::{
-    run_pipeline, Pipeline, PipelineInputs, PipelineSettings, RunControl, RunReport, SceneTruth,
-    TruthOracle,
+    run_pipeline, Pipeline, PipelineInputs, PipelineSettings, RunControl, RunReport,
 };
+
+#[cfg(feature = "sim")]
+pub use embedded::EmbeddedSim;
 
 /// Why the daemon could not run.
 #[derive(Debug, thiserror::Error)]
@@ -40,7 +39,8 @@ pub enum DaemonError {
     #[error(transparent)]
     Pipeline(#[from] crate::pipeline::PipelineError),
     /// The embedded simulator failed.
-    #[error("simulator: {0}")]
+    #[cfg(feature = "sim")]
+    #[error("simulator")]
     Sim(#[from] sim_sensor::SimError),
     /// The driver failed.
     #[error("radar driver: {0}")]
@@ -58,18 +58,12 @@ pub enum DaemonError {
     #[error("the pipeline thread panicked")]
     PipelinePanicked,
     /// The embedded simulator must render a scene (replays carry no ground truth).
+    #[cfg(feature = "sim")]
     #[error("the embedded simulator must run a scene, not a replay")]
     NotAScene,
     /// The driver was built without an azimuth channel.
     #[error("the radar driver has no azimuth channel")]
     NoAzimuthChannel,
-}
-
-/// The simulator to start in this process.
-#[derive(Debug, Clone)]
-pub struct EmbeddedSim {
-    /// The simulator's options (bind 127.0.0.1:0 for tests and the default run).
-    pub options: SimOptions,
 }
 
 /// Everything a daemon run needs.
@@ -78,6 +72,7 @@ pub struct DaemonOptions {
     /// The validated configuration.
     pub config: config::Config,
     /// Start this simulator and connect to it instead of `[radar] address`.
+    #[cfg(feature = "sim")]
     pub embedded: Option<EmbeddedSim>,
     /// Stop after this much stream time.
     pub max_stream_s: Option<f64>,
@@ -115,43 +110,6 @@ pub struct DaemonReport {
     pub scene: Option<String>,
 }
 
-fn embedded_settings(
-    mut settings: PipelineSettings,
-    scene: &sim_sensor::scene::Scene,
-    keep_compensation: bool,
-) -> PipelineSettings {
-    // The simulator's odometry means what its scene's motion model says.
-    let motion = sim_sensor::trajectory::motion_model(scene.motion);
-    if motion != settings.motion {
-        info!(?motion, configured = ?settings.motion, "using the scene's motion model for its odometry");
-        settings.motion = motion;
-    }
-    // The simulator's receiver compensation is known exactly: use it, as a calibrated gain
-    // curve would be used on a real unit.
-    let slope = scene.receiver.compensation_db_per_decade;
-    if keep_compensation {
-        info!(
-            scene_db_per_decade = slope,
-            "keeping the configured receiver compensation, not the scene's"
-        );
-    } else {
-        settings.compensation = Compensation::calibrated(slope, &RadarConstants::default());
-    }
-    settings.beam_width_rad = scene.radar.beam_width_rad;
-    // The simulator draws each peak one bin wide (FWHM).
-    settings.noise.range.resolution_fwhm_m =
-        f64::from(scene.radar.range_gain) * scene.radar.bin_size_m();
-    settings.filter.beam_half_width_rad = 0.5 * scene.radar.beam_width_rad;
-    if settings.filter.repeat_look_range_m > 0.0 && settings.filter.repeat_look_bearing_rad > 0.0 {
-        use crate::pipeline::settings::REPEAT_LOOK_CELL_FRACTION as F;
-        settings.filter.repeat_look_range_m = F * settings.noise.range.resolution_fwhm_m;
-        settings.filter.repeat_look_bearing_rad = F * scene.radar.beam_width_rad;
-    }
-    settings.initial_pose = scene.start;
-    settings.initial_pose_std = [0.0; 3];
-    settings
-}
-
 /// Runs the daemon to the end of the stream, the duration limit or a stop request.
 pub async fn run_daemon(
     opts: DaemonOptions,
@@ -176,87 +134,64 @@ pub async fn run_daemon(
         ..OutputFiles::in_dir(opts.out_dir.clone())
     })?;
     let (odo_trigger, odo_shutdown) = shutdown_pair();
-    let mut sim_handle = None;
-    let mut truth: Option<Box<dyn TruthOracle>> = None;
+    #[cfg(feature = "sim")]
+    let mut sim_handle: Option<sim_sensor::SimHandle> = None;
+    #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
     let mut pipeline: Option<Pipeline> = None;
+    #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
     let mut start_time_s = None;
+    #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
     let mut scene_name = None;
+    #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
     let mut truth_overlay = TruthOverlay::default();
     let mut driver_settings = DriverSettings::from_config(&opts.config.radar);
     // The pipeline takes azimuths and finds rotation ends itself: no rotation channel, so
     // the driver neither assembles rotations nor counts them as dropped.
     driver_settings.handoff.rotation_capacity = None;
-    let (azimuths, driver, odometry): (_, _, Option<Box<dyn OdometrySource>>) = if let Some(sim) =
-        opts.embedded
-    {
-        let mut options = sim.options;
-        options.ground_truth_path = Some(opts.out_dir.join("ground-truth.jsonl"));
-        let start_ns = *options
-            .start_time_ns
-            .get_or_insert(1_704_067_200_000_000_000);
-        let sim_sensor::settings::SourceSpec::Scene(scene) = options.source.clone() else {
-            return Err(DaemonError::NotAScene);
-        };
-        settings = embedded_settings(settings, &scene, opts.keep_configured_compensation);
-        let start_s = start_ns as f64 * 1e-9;
-        start_time_s = Some(start_s);
-        let horizon = opts.max_stream_s.unwrap_or(600.0) + 30.0;
-        let oracle = SceneTruth::new(&scene, start_s, horizon)?;
-        truth_overlay.features = oracle.features().iter().map(|f| (f.x_m, f.y_m)).collect();
-        truth_overlay.trajectory = (0..(horizon.min(3600.0) * 4.0) as usize)
-            .filter_map(|k| oracle.pose_at(start_s + k as f64 * 0.25))
-            .map(|p| (p.x, p.y))
-            .collect();
-        if let Some(limit) = opts.max_stream_s {
-            let keep = (limit * 4.0).ceil() as usize + 1;
-            truth_overlay.trajectory.truncate(keep);
-        }
-        truth = Some(Box::new(oracle));
-        scene_name = Some(scene.name.clone());
-        // Everything that can fail is checked before the simulator starts.
-        pipeline = Some(Pipeline::new(settings.clone(), start_time_s, truth.take())?);
-        let fast = options.pacing == sim_sensor::settings::Pacing::AsFastAsPossible;
-        let handle = SimServer::spawn(options).await?;
-        info!(radar = %handle.local_addr(), odometry = ?handle.odometry_addr(), scene = %scene.name, "embedded simulator started");
-        driver_settings.address = handle.local_addr();
-        let odometry_addr = handle.odometry_addr();
-        sim_handle = Some(handle);
-        let odometry: Option<Box<dyn OdometrySource>> = odometry_addr.map(|a| {
-            Box::new(TcpOdometry::spawn(
-                &tokio::runtime::Handle::current(),
-                TcpOdometrySettings::new(a),
-                odo_shutdown.clone(),
-            )) as Box<dyn OdometrySource>
-        });
-        if fast {
-            let capacity = driver_settings.handoff.azimuth_capacity.unwrap_or(4096);
-            let (sink, rx) = sink::BlockingSink::new(capacity);
-            (
-                rx,
-                Driver::with_sink(driver_settings, Box::new(sink)),
-                odometry,
-            )
+    #[cfg(feature = "sim")]
+    let embedded = opts.embedded;
+    #[cfg(not(feature = "sim"))]
+    let embedded: Option<std::convert::Infallible> = None;
+    let (azimuths, driver, odometry): (_, _, Option<Box<dyn OdometrySource>>) =
+        if let Some(sim) = embedded {
+            #[cfg(feature = "sim")]
+            {
+                let started = embedded::start(
+                    sim,
+                    settings,
+                    driver_settings,
+                    &opts.out_dir,
+                    opts.max_stream_s,
+                    opts.keep_configured_compensation,
+                    odo_shutdown.clone(),
+                )
+                .await?;
+                settings = started.settings;
+                start_time_s = started.start_time_s;
+                truth_overlay = started.truth_overlay;
+                scene_name = Some(started.scene_name);
+                pipeline = Some(started.pipeline);
+                sim_handle = Some(started.handle);
+                (started.azimuths, started.driver, started.odometry)
+            }
+            #[cfg(not(feature = "sim"))]
+            match sim {}
         } else {
+            let odometry = radar_driver::odometry::open_configured(
+                &opts.config.odometry,
+                &tokio::runtime::Handle::current(),
+                odo_shutdown.clone(),
+            )?;
+            if odometry.is_none() {
+                return Err(DaemonError::NoOdometry);
+            }
             let (driver, receivers) = Driver::new(driver_settings);
             let rx = receivers.azimuths.ok_or(DaemonError::NoAzimuthChannel)?;
             (rx, driver, odometry)
-        }
-    } else {
-        let odometry = radar_driver::odometry::open_configured(
-            &opts.config.odometry,
-            &tokio::runtime::Handle::current(),
-            odo_shutdown.clone(),
-        )?;
-        if odometry.is_none() {
-            return Err(DaemonError::NoOdometry);
-        }
-        let (driver, receivers) = Driver::new(driver_settings);
-        let rx = receivers.azimuths.ok_or(DaemonError::NoAzimuthChannel)?;
-        (rx, driver, odometry)
-    };
+        };
     let pipeline = match pipeline {
         Some(p) => p,
-        None => Pipeline::new(settings, start_time_s, truth)?,
+        None => Pipeline::new(settings, start_time_s, None)?,
     };
     let driver_handle = driver.spawn();
     let control = RunControl {
@@ -288,6 +223,7 @@ pub async fn run_daemon(
         }
     };
     odo_trigger.trigger();
+    #[cfg(feature = "sim")]
     if let Some(h) = sim_handle {
         if let Err(e) = h.shutdown().await {
             warn!(error = %e, "simulator shutdown");

@@ -10,6 +10,8 @@ pub mod frontend;
 pub mod gate;
 pub mod odometry;
 pub mod run;
+#[cfg(feature = "sim")]
+pub mod scene_truth;
 pub mod settings;
 pub mod spectrum;
 pub mod stats;
@@ -19,6 +21,8 @@ pub mod truth;
 pub use self::core::{DaemonEkf, Pipeline, PipelineError};
 pub use frontend::{FrontEnd, FrontEndSettings};
 pub use run::{run_pipeline, PipelineInputs, RunControl, RunReport};
+#[cfg(feature = "sim")]
+pub use scene_truth::SceneTruth;
 pub use settings::PipelineSettings;
 pub use summary::PipelineSummary;
-pub use truth::{SceneTruth, TrueFeature, TruthObserver, TruthOracle};
+pub use truth::{TrueFeature, TruthObserver, TruthOracle};

@@ -1,0 +1,144 @@
+//! The simulator started in this process (the `sim` feature, on by default; a vehicle build
+//! turns it off and links no simulator): the daemon's settings adjusted to the scene, ground
+//! truth from the scene, the simulator's server and odometry on 127.0.0.1.
+
+use std::path::Path;
+
+use crossbeam_channel::Receiver;
+use radar_driver::{
+    Azimuth, Driver, DriverSettings, OdometrySource, Shutdown, TcpOdometry, TcpOdometrySettings,
+};
+use radar_model::compensation::Compensation;
+use radar_model::power::RadarConstants;
+use sim_sensor::{SimHandle, SimOptions, SimServer};
+use tracing::info;
+
+use super::{sink, DaemonError};
+use crate::output::figures::TruthOverlay;
+use crate::pipeline::{Pipeline, PipelineSettings, SceneTruth, TruthOracle};
+
+/// The simulator to start in this process.
+#[derive(Debug, Clone)]
+pub struct EmbeddedSim {
+    /// The simulator's options (bind 127.0.0.1:0 for tests and the default run).
+    pub options: SimOptions,
+}
+
+fn embedded_settings(
+    mut settings: PipelineSettings,
+    scene: &sim_sensor::scene::Scene,
+    keep_compensation: bool,
+) -> PipelineSettings {
+    // The simulator's odometry means what its scene's motion model says.
+    let motion = sim_sensor::trajectory::motion_model(scene.motion);
+    if motion != settings.motion {
+        info!(?motion, configured = ?settings.motion, "using the scene's motion model for its odometry");
+        settings.motion = motion;
+    }
+    // The simulator's receiver compensation is known exactly: use it, as a calibrated gain
+    // curve would be used on a real unit.
+    let slope = scene.receiver.compensation_db_per_decade;
+    if keep_compensation {
+        info!(
+            scene_db_per_decade = slope,
+            "keeping the configured receiver compensation, not the scene's"
+        );
+    } else {
+        settings.compensation = Compensation::calibrated(slope, &RadarConstants::default());
+    }
+    settings.beam_width_rad = scene.radar.beam_width_rad;
+    // The simulator draws each peak one bin wide (FWHM).
+    settings.noise.range.resolution_fwhm_m =
+        f64::from(scene.radar.range_gain) * scene.radar.bin_size_m();
+    settings.filter.beam_half_width_rad = 0.5 * scene.radar.beam_width_rad;
+    if settings.filter.repeat_look_range_m > 0.0 && settings.filter.repeat_look_bearing_rad > 0.0 {
+        use crate::pipeline::settings::REPEAT_LOOK_CELL_FRACTION as F;
+        settings.filter.repeat_look_range_m = F * settings.noise.range.resolution_fwhm_m;
+        settings.filter.repeat_look_bearing_rad = F * scene.radar.beam_width_rad;
+    }
+    settings.initial_pose = scene.start;
+    settings.initial_pose_std = [0.0; 3];
+    settings
+}
+
+/// What starting the embedded simulator gives the daemon.
+#[allow(missing_debug_implementations)] // holds a `dyn OdometrySource`
+pub(super) struct Started {
+    pub settings: PipelineSettings,
+    pub start_time_s: Option<f64>,
+    pub truth_overlay: TruthOverlay,
+    pub scene_name: String,
+    pub pipeline: Pipeline,
+    pub handle: SimHandle,
+    pub azimuths: Receiver<Azimuth>,
+    pub driver: Driver,
+    pub odometry: Option<Box<dyn OdometrySource>>,
+}
+
+/// Starts the simulator and connects a driver and an odometry client to it; the pipeline is
+/// built (everything that can fail is checked) before the simulator starts.
+pub(super) async fn start(
+    sim: EmbeddedSim,
+    settings: PipelineSettings,
+    mut driver_settings: DriverSettings,
+    out_dir: &Path,
+    max_stream_s: Option<f64>,
+    keep_configured_compensation: bool,
+    odo_shutdown: Shutdown,
+) -> Result<Started, DaemonError> {
+    let mut options = sim.options;
+    options.ground_truth_path = Some(out_dir.join("ground-truth.jsonl"));
+    let start_ns = *options
+        .start_time_ns
+        .get_or_insert(1_704_067_200_000_000_000);
+    let sim_sensor::settings::SourceSpec::Scene(scene) = options.source.clone() else {
+        return Err(DaemonError::NotAScene);
+    };
+    let settings = embedded_settings(settings, &scene, keep_configured_compensation);
+    let start_s = start_ns as f64 * 1e-9;
+    let horizon = max_stream_s.unwrap_or(600.0) + 30.0;
+    let oracle = SceneTruth::new(&scene, start_s, horizon)?;
+    let mut truth_overlay = TruthOverlay {
+        features: oracle.features().iter().map(|f| (f.x_m, f.y_m)).collect(),
+        trajectory: (0..(horizon.min(3600.0) * 4.0) as usize)
+            .filter_map(|k| oracle.pose_at(start_s + k as f64 * 0.25))
+            .map(|p| (p.x, p.y))
+            .collect(),
+    };
+    if let Some(limit) = max_stream_s {
+        let keep = (limit * 4.0).ceil() as usize + 1;
+        truth_overlay.trajectory.truncate(keep);
+    }
+    let pipeline = Pipeline::new(settings.clone(), Some(start_s), Some(Box::new(oracle)))?;
+    let fast = options.pacing == sim_sensor::settings::Pacing::AsFastAsPossible;
+    let handle = SimServer::spawn(options).await?;
+    info!(radar = %handle.local_addr(), odometry = ?handle.odometry_addr(), scene = %scene.name, "embedded simulator started");
+    driver_settings.address = handle.local_addr();
+    let odometry: Option<Box<dyn OdometrySource>> = handle.odometry_addr().map(|a| {
+        Box::new(TcpOdometry::spawn(
+            &tokio::runtime::Handle::current(),
+            TcpOdometrySettings::new(a),
+            odo_shutdown,
+        )) as Box<dyn OdometrySource>
+    });
+    let (azimuths, driver) = if fast {
+        let capacity = driver_settings.handoff.azimuth_capacity.unwrap_or(4096);
+        let (sink, rx) = sink::BlockingSink::new(capacity);
+        (rx, Driver::with_sink(driver_settings, Box::new(sink)))
+    } else {
+        let (driver, receivers) = Driver::new(driver_settings);
+        let rx = receivers.azimuths.ok_or(DaemonError::NoAzimuthChannel)?;
+        (rx, driver)
+    };
+    Ok(Started {
+        settings,
+        start_time_s: Some(start_s),
+        truth_overlay,
+        scene_name: scene.name.clone(),
+        pipeline,
+        handle,
+        azimuths,
+        driver,
+        odometry,
+    })
+}
