@@ -91,6 +91,8 @@ pub struct FilterStats {
     pub dropped_targets: u64,
     /// Unpaired targets inside some feature's exclusion gate.
     pub excluded_targets: u64,
+    /// Odometry gaps bridged by re-initialising the pose covariance.
+    pub bridged_gaps: u64,
 }
 
 /// A beam's prediction (step 2) and what the association and update need with it.
@@ -240,7 +242,10 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     }
 
     /// Takes a new odometry sample: predicts to its timestamp with the previous sample held,
-    /// then holds this one. The first sample only starts the clock (the vehicle is assumed
+    /// then holds this one. After a gap longer than
+    /// [`FilterSettings::max_predict_gap_s`] the motion in between is unknown: the gap is
+    /// bridged (see [`FilterSettings::gap_speed_mps`]) and counted in
+    /// [`FilterStats::bridged_gaps`], never refused. The first sample only starts the clock (the vehicle is assumed
     /// still at the initial pose until then). A sample older than the state is held from
     /// the state's time (counted in [`FilterStats::late_odometry`]).
     pub fn apply_odometry(&mut self, sample: OdometrySample) -> Result<(), FilterError> {
@@ -250,6 +255,11 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 if sample.timestamp_s > self.state.time_s() {
                     self.state.set_time_s(sample.timestamp_s);
                 }
+            }
+            Some(_)
+                if sample.timestamp_s - self.state.time_s() > self.settings.max_predict_gap_s =>
+            {
+                self.bridge_gap(sample.timestamp_s);
             }
             Some(held) => {
                 if sample.timestamp_s >= self.state.time_s() {
@@ -301,6 +311,22 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             }
         }
         Ok(pose)
+    }
+
+    /// Jumps the state to `time_s` across an odometry gap: the pose covariance grows by what
+    /// the vehicle could have done meanwhile (see [`FilterSettings::gap_speed_mps`]).
+    fn bridge_gap(&mut self, time_s: f64) {
+        let gap_s = time_s - self.state.time_s();
+        let s = &self.settings;
+        let sigma_xy = (s.gap_speed_mps * gap_s).min(s.gap_max_sigma_m);
+        let sigma_theta = (s.gap_yaw_rate_rps * gap_s).min(std::f64::consts::PI);
+        self.state.inflate_pose_covariance([
+            sigma_xy * sigma_xy,
+            sigma_xy * sigma_xy,
+            sigma_theta * sigma_theta,
+        ]);
+        self.state.set_time_s(time_s);
+        self.stats.bridged_gaps += 1;
     }
 
     /// Predicts the state to `time_s` with the held odometry.

@@ -61,6 +61,15 @@ pub struct FilterSettings {
     /// Longest gap the filter will predict across in one call (s); a longer one is an error
     /// (stale odometry or a clock jump), not something to integrate blindly.
     pub max_predict_gap_s: f64,
+    /// Across an odometry gap longer than `max_predict_gap_s` nothing is known of the motion:
+    /// the filter jumps to the new sample's time and re-initialises the pose covariance by
+    /// adding `(gap_speed_mps * gap)^2` to x and y and `(gap_yaw_rate_rps * gap)^2` to the
+    /// heading, capped at `gap_max_sigma_m` and pi (the map is kept).
+    pub gap_speed_mps: f64,
+    /// See [`Self::gap_speed_mps`] (rad/s).
+    pub gap_yaw_rate_rps: f64,
+    /// See [`Self::gap_speed_mps`] (m).
+    pub gap_max_sigma_m: f64,
     /// Probability mass inside the association gate (for example 0.95 or 0.99).
     pub gate_probability: f64,
     /// Probability mass of the wider exclusion gate: an unpaired target inside some feature's
@@ -137,6 +146,9 @@ impl Default for FilterSettings {
             defer_empty_beams: true,
             max_predict_step_s: 0.05,
             max_predict_gap_s: 5.0,
+            gap_speed_mps: 2.0,
+            gap_yaw_rate_rps: 0.2,
+            gap_max_sigma_m: 100.0,
             gate_probability: 0.99,
             exclusion_probability: 0.9999,
             jcbb_max_nodes: 5_000,
@@ -268,6 +280,9 @@ impl FilterSettings {
         non_negative("repeat_look_bearing_rad", self.repeat_look_bearing_rad)?;
         positive("max_predict_step_s", self.max_predict_step_s)?;
         positive("max_predict_gap_s", self.max_predict_gap_s)?;
+        positive("gap_speed_mps", self.gap_speed_mps)?;
+        positive("gap_yaw_rate_rps", self.gap_yaw_rate_rps)?;
+        positive("gap_max_sigma_m", self.gap_max_sigma_m)?;
         probability("gate_probability", self.gate_probability)?;
         probability("exclusion_probability", self.exclusion_probability)?;
         positive("beam_half_width_rad", self.beam_half_width_rad)?;

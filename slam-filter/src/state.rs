@@ -274,6 +274,17 @@ impl SlamState {
         }
     }
 
+    /// Adds `variances` to the pose's x, y and heading variances (the covariance stays
+    /// positive definite: a diagonal, non-negative addition). Negative or non-finite entries
+    /// are ignored.
+    pub fn inflate_pose_covariance(&mut self, variances: [f64; 3]) {
+        for (i, v) in variances.into_iter().enumerate() {
+            if v.is_finite() && v > 0.0 {
+                self.cov[(i, i)] += v;
+            }
+        }
+    }
+
     /// A feature's parameters by slot.
     pub fn params(&self, slot: usize) -> Option<FeatureParams> {
         if slot >= self.tracks.len() {

@@ -543,3 +543,27 @@ fn assert_healthy_or_exactly_known(f: &Filter) {
     let sub = p.select_rows(free.iter()).select_columns(free.iter());
     assert!(sub.cholesky().is_some(), "not positive definite");
 }
+
+#[test]
+fn an_odometry_gap_past_the_limit_is_bridged_not_refused_forever() {
+    let mut f = filter(settings(), Pose2::default(), [1e-2, 1e-2, 1e-3]);
+    let odo = |t: f64| OdometrySample {
+        timestamp_s: t,
+        speed_mps: 1.0,
+        steer_rad: 0.0,
+    };
+    f.apply_odometry(odo(T0)).unwrap();
+    f.apply_odometry(odo(T0 + 0.1)).unwrap();
+    let before = f.pose_covariance();
+    // The bridge is silent for 60 s, then odometry returns.
+    f.apply_odometry(odo(T0 + 60.1)).unwrap();
+    assert_eq!(f.stats().bridged_gaps, 1);
+    assert_eq!(f.state().time_s(), T0 + 60.1);
+    let after = f.pose_covariance();
+    assert!(after[(0, 0)] > before[(0, 0)] + 100.0, "x variance {}", after[(0, 0)]);
+    assert!(after[(2, 2)] > before[(2, 2)], "heading variance");
+    // And the filter goes on: the next samples predict normally.
+    f.apply_odometry(odo(T0 + 60.2)).unwrap();
+    f.predict_to(T0 + 60.3).unwrap();
+    assert_eq!(f.stats().bridged_gaps, 1);
+}
