@@ -39,6 +39,12 @@ pub const DEFAULT_ODOMETRY_ADDRESS: &str = "127.0.0.1:6318";
 pub const DEFAULT_STEP_S: f64 = 0.05;
 /// Default wheelbase of the bicycle model, metres.
 pub const DEFAULT_WHEELBASE_M: f64 = 2.7;
+/// Default physical limit on the reported speed, m/s (216 km/h).
+pub const DEFAULT_MAX_SPEED_MPS: f64 = 60.0;
+/// Default physical limit on the reported steer, rad.
+pub const DEFAULT_MAX_STEER_RAD: f64 = 1.2;
+/// Default physical limit on the change of speed, m/s^2.
+pub const DEFAULT_MAX_ACCEL_MPS2: f64 = 20.0;
 
 /// `[odometry]` as written in the file.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -63,6 +69,13 @@ pub struct RawOdometry {
     pub sigma_steer_rad: f64,
     /// Odometry older than this (ms > 0) is stale. Default 500.
     pub stale_after_ms: i64,
+    /// A record reporting a faster speed (m/s > 0, either direction) is refused. Default 60.
+    pub max_speed_mps: f64,
+    /// A record reporting a larger steer (rad > 0, either side) is refused. Default 1.2.
+    pub max_steer_rad: f64,
+    /// A record whose speed changed faster than this since the last accepted one (m/s^2 > 0;
+    /// checked over intervals up to 1 s) is refused. Default 20 (2 g).
+    pub max_accel_mps2: f64,
 }
 
 impl Default for RawOdometry {
@@ -77,6 +90,9 @@ impl Default for RawOdometry {
             sigma_speed_mps: 0.1,
             sigma_steer_rad: 0.01,
             stale_after_ms: 500,
+            max_speed_mps: DEFAULT_MAX_SPEED_MPS,
+            max_steer_rad: DEFAULT_MAX_STEER_RAD,
+            max_accel_mps2: DEFAULT_MAX_ACCEL_MPS2,
         }
     }
 }
@@ -126,6 +142,12 @@ pub struct OdometrySettings {
     pub sigma_steer_rad: NonNegativeF64,
     /// Age past which odometry is stale.
     pub stale_after: Duration,
+    /// Largest believable speed, m/s.
+    pub max_speed_mps: PositiveF64,
+    /// Largest believable steer, rad.
+    pub max_steer_rad: PositiveF64,
+    /// Largest believable change of speed, m/s^2.
+    pub max_accel_mps2: PositiveF64,
 }
 
 impl Default for OdometrySettings {
@@ -222,6 +244,18 @@ impl RawOdometry {
                 "odometry.stale_after_ms",
                 values::duration_from_ms(self.stale_after_ms),
             ),
+            max_speed_mps: c.check(
+                "odometry.max_speed_mps",
+                PositiveF64::new(self.max_speed_mps),
+            ),
+            max_steer_rad: c.check(
+                "odometry.max_steer_rad",
+                PositiveF64::new(self.max_steer_rad),
+            ),
+            max_accel_mps2: c.check(
+                "odometry.max_accel_mps2",
+                PositiveF64::new(self.max_accel_mps2),
+            ),
         }
     }
 }
@@ -252,6 +286,9 @@ impl From<&OdometrySettings> for RawOdometry {
             sigma_speed_mps: s.sigma_speed_mps.get(),
             sigma_steer_rad: s.sigma_steer_rad.get(),
             stale_after_ms: values::whole_ms(s.stale_after),
+            max_speed_mps: s.max_speed_mps.get(),
+            max_steer_rad: s.max_steer_rad.get(),
+            max_accel_mps2: s.max_accel_mps2.get(),
         }
     }
 }

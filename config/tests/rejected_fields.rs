@@ -43,6 +43,9 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[odometry]\nsigma_speed_mps = -0.1", "odometry.sigma_speed_mps", "must be >= 0, got -0.1"),
     ("[odometry]\nsigma_steer_rad = nan", "odometry.sigma_steer_rad", "must be a finite number"),
     ("[odometry]\nstale_after_ms = 0", "odometry.stale_after_ms", "must be > 0, got 0"),
+    ("[odometry]\nmax_speed_mps = 0.0", "odometry.max_speed_mps", "must be > 0, got 0"),
+    ("[odometry]\nmax_steer_rad = -1.0", "odometry.max_steer_rad", "must be > 0, got -1"),
+    ("[odometry]\nmax_accel_mps2 = nan", "odometry.max_accel_mps2", "must be a finite number"),
     // [sim]
     ("[sim]\nbind = \"127.0.0.1\"", "sim.bind", "must be an address"),
     ("[sim]\nodometry_bind = \":6318\"", "sim.odometry_bind", "must be an address"),

@@ -383,7 +383,7 @@ impl TruthObserver {
         summary: &mut PipelineSummary,
     ) {
         summary.pose = Some(self.pose_errors.clone());
-        summary.observation_errors = self.observation_errors.clone();
+        summary.observation_errors = self.observation_errors;
         summary.association_errors = self.association_errors;
         summary.clutter_associations = self.clutter_associations;
         let features = ekf.features();
