@@ -9,7 +9,6 @@
 //! - [`output`]: trajectory, map, diagnostics, figures; the writer thread writes files.
 //! - [`daemon`]: driver, odometry, simulator, pipeline and writer wired together (sockets,
 //!   threads).
-//! - [`synth`]: synthetic rotations with known targets for tests and benchmarks. No IO.
 //!
 //! IO happens only in `daemon`, `pipeline::run` (channels) and `output::writer` (files).
 
@@ -17,5 +16,3 @@ pub mod daemon;
 pub mod detect;
 pub mod output;
 pub mod pipeline;
-#[cfg(feature = "sim")]
-pub mod synth;

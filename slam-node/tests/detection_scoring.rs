@@ -1,18 +1,18 @@
-//! Scores the three detectors on the simulator's shipped scenes: spectra rendered through
-//! radar-model with the scene's radar, receiver and noise, the vehicle driven along the
-//! scene's schedule, and every detection checked against the targets really in its beam.
+//! Scores the three detectors on the simulator's shipped scenes: spectra rendered by the
+//! simulator's own renderer (`sim_sensor::render`) with the scene's radar, receiver, noise
+//! and trajectory, and every detection checked against the targets really in its beam.
 //!
 //! Prints probability of detection and false alarms per rotation for each detector over a
 //! sweep of thresholds (run with `--nocapture`), and asserts what the daemon relies on:
 //! the default detector finds both targets of the paper's penetration scenes down one beam,
 //! and on the outdoor field it keeps most targets at a bounded false-alarm rate.
 
-use radar_model::noise::seeded_rng;
-use sim_sensor::trajectory::Trajectory;
+mod support;
+
 use slam_node::detect::{
     BeamDetector, DetectionDomain, DetectorKind, DetectorSettings, FloorProfile, RangeAxis,
 };
-use slam_node::synth::{from_scene, DetectionScore, TrueTarget};
+use support::{SimRadar, TrueTarget};
 
 /// Detections within this of a true target's range hit it, metres (two range cells).
 const TOL_M: f64 = 0.5;
@@ -21,6 +21,71 @@ const MIN_SNR_DB: f64 = 10.0;
 
 /// Threshold sweep, dB over each detector's noise estimate.
 const THRESHOLDS_DB: [f64; 5] = [12.0, 16.0, 20.0, 24.0, 28.0];
+
+/// Counts of a detector's performance against truth.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct DetectionScore {
+    /// True targets at or above the SNR of interest.
+    targets: u64,
+    /// Of those, detected (a detection within the range tolerance).
+    hits: u64,
+    /// Detections near no true target of the beam.
+    false_alarms: u64,
+    /// Beams scored.
+    beams: u64,
+    /// Beams that held two or more targets of interest.
+    multi_target_beams: u64,
+    /// Of those, beams where every target of interest was detected.
+    multi_target_complete: u64,
+}
+
+impl DetectionScore {
+    /// Probability of detection.
+    fn pd(&self) -> f64 {
+        if self.targets == 0 {
+            0.0
+        } else {
+            self.hits as f64 / self.targets as f64
+        }
+    }
+
+    /// Scores one beam: detections at `detected_m` against `truth`. Targets weaker than
+    /// `min_snr_db` count neither as targets nor, when detected, as false alarms.
+    fn score_beam(
+        &mut self,
+        truth: &[TrueTarget],
+        detected_m: &[f64],
+        tol_m: f64,
+        min_snr_db: f64,
+    ) {
+        self.beams += 1;
+        let mut of_interest = 0;
+        let mut complete = true;
+        for t in truth {
+            if t.snr_db < min_snr_db {
+                continue;
+            }
+            of_interest += 1;
+            self.targets += 1;
+            if detected_m.iter().any(|&d| (d - t.range_m).abs() <= tol_m) {
+                self.hits += 1;
+            } else {
+                complete = false;
+            }
+        }
+        if of_interest >= 2 {
+            self.multi_target_beams += 1;
+            if complete {
+                self.multi_target_complete += 1;
+            }
+        }
+        for &d in detected_m {
+            if !truth.iter().any(|t| (d - t.range_m).abs() <= tol_m) {
+                self.false_alarms += 1;
+            }
+        }
+    }
+}
 
 struct Run {
     score: DetectionScore,
@@ -35,9 +100,8 @@ impl Run {
 
 fn run(scene_name: &str, settings: DetectorSettings, rotations: u64, seed: u64) -> Run {
     let scene = sim_sensor::scene::shipped::load(scene_name).expect("shipped scene");
-    let (mut radar, world) = from_scene(&scene).expect("scene renders");
     let horizon_s = rotations as f64 / scene.radar.rotation_hz() + 2.0;
-    let trajectory = Trajectory::new(&scene, horizon_s).expect("trajectory");
+    let mut radar = SimRadar::new(&scene, Some(seed), horizon_s, 0);
     let g = *radar.spectrum.geometry();
     let axis = RangeAxis {
         first_bin_m: g.range_offset_m,
@@ -49,24 +113,18 @@ fn run(scene_name: &str, settings: DetectorSettings, rotations: u64, seed: u64) 
         &radar.spectrum.noise().absent,
         settings.floor_tail_pfa,
     );
-    let n_az = radar.azimuths;
-    let period_ns = scene.radar.azimuth_period_ns();
-    let mut detector = BeamDetector::new(settings, n_az);
-    let mut rng = seeded_rng(seed);
-    let (mut measured, mut truth, mut found) = (Vec::new(), Vec::<TrueTarget>::new(), Vec::new());
+    let n_az = radar.azimuths();
+    let mut detector = BeamDetector::new(settings, n_az as usize);
+    let (mut truth, mut found) = (Vec::<TrueTarget>::new(), Vec::new());
     let mut score = DetectionScore::default();
     for k in 0..rotations {
         for i in 0..n_az {
-            let t_ns = (k * n_az as u64 + i as u64) * period_ns;
-            let pose = trajectory.pose_at(t_ns).expect("pose");
-            let bearing = radar.bearing_rad(i);
-            radar
-                .render(&pose, bearing, &world, &mut rng, &mut measured, &mut truth)
-                .expect("render");
+            let index = k * n_az + i;
+            let measured = radar.render_db(index);
             found.clear();
             detector.detect(
-                i,
-                &measured,
+                i as usize,
+                measured,
                 &gain,
                 floor.floor(measured.len()),
                 &axis,
@@ -75,6 +133,7 @@ fn run(scene_name: &str, settings: DetectorSettings, rotations: u64, seed: u64) 
             let ranges: Vec<f64> = found.iter().map(|d| d.range_m).collect();
             // TPP needs a few scans to learn the floor: score it only once warm.
             if k >= 3 {
+                radar.true_targets(index, &mut truth);
                 score.score_beam(&truth, &ranges, TOL_M, MIN_SNR_DB);
             }
         }

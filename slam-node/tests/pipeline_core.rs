@@ -1,35 +1,22 @@
 //! The pipeline without sockets or threads: azimuths and odometry handed in directly.
+//! The azimuths are the simulator's: a scene rendered by `sim_sensor::render` and decoded
+//! from the frames it sends.
 
-use std::sync::Arc;
+mod support;
 
-use bytes::Bytes;
-use protocol::{BinWidth, Geometry};
 use radar_driver::Azimuth;
-use radar_model::geometry::{wrap_angle, Pose2};
-use radar_model::material::Material;
-use radar_model::noise::seeded_rng;
-use radar_model::spectrum::quantize_8bit;
+use sim_sensor::radar::RadarPreset;
 use slam_filter::OdometrySample;
 use slam_node::output::OutputEvent;
 use slam_node::pipeline::{Pipeline, PipelineSettings};
-use slam_node::synth::{SynthFeature, SynthRadar};
+use support::SimRadar;
 
+/// Unix time of the first azimuth, nanoseconds.
+const T0_NS: u64 = 1_700_000_000_000_000_000;
 const T0: f64 = 1.7e9;
 
-fn geometry() -> Arc<Geometry> {
-    Arc::new(Geometry {
-        azimuth_samples: 200,
-        range_in_bins: 800,
-        bin_size_m: 0.25,
-        encoder_size: 5600,
-        rotation_hz: 2.5,
-        packet_rate: 500,
-        range_gain: 1.0,
-        range_offset_m: 0.0,
-        data_width: BinWidth::Eight,
-        range_resolution_m: Some(0.25),
-    })
-}
+/// The four reflectors the still radar looks at, world metres.
+const REFLECTORS: [(f64, f64); 4] = [(10.0, 5.0), (-8.0, 12.0), (20.0, -15.0), (-12.0, -9.0)];
 
 fn settings() -> PipelineSettings {
     let mut s = PipelineSettings::from_config(&config::Config::default()).unwrap();
@@ -42,67 +29,16 @@ fn settings() -> PipelineSettings {
     s
 }
 
-/// A stationary radar looking at four reflectors; `rotations` rotations of azimuths.
+/// A stationary radar (the paper's unit: 200 azimuths of 800 bins) looking at four
+/// reflectors; `rotations` rotations of azimuths, 8-bit as on the wire.
 fn azimuths(rotations: u64) -> Vec<Azimuth> {
-    let g = geometry();
-    let spectrum = radar_model::spectrum::SpectrumModel::new(
-        radar_model::spectrum::SpectrumGeometry {
-            bins: 800,
-            bin_size_m: 0.25,
-            range_offset_m: 0.0,
-        },
-        &settings().compensation,
-        radar_model::noise::NoiseModel::default(),
-    )
-    .unwrap();
-    let mut radar = SynthRadar::new(
-        200,
-        1.8f64.to_radians(),
-        0.0,
-        radar_model::power::PowerModel::default(),
-        spectrum,
-    );
-    let world: Vec<SynthFeature> = [(10.0, 5.0), (-8.0, 12.0), (20.0, -15.0), (-12.0, -9.0)]
-        .iter()
-        .map(|&(x_m, y_m)| SynthFeature {
-            x_m,
-            y_m,
-            material: Material::from_rho_alpha(0.5, 0.3).unwrap(),
-        })
-        .collect();
-    let mut rng = seeded_rng(5);
-    let (mut measured, mut truth) = (Vec::new(), Vec::new());
-    let pose = Pose2::new(0.0, 0.0, 0.0);
-    (0..rotations * 200)
-        .map(|k| {
-            let i = k % 200;
-            let encoder = u16::try_from(i * 28).unwrap();
-            let angle = f64::from(encoder) * std::f64::consts::TAU / 5600.0;
-            radar
-                .render(
-                    &pose,
-                    wrap_angle(angle),
-                    &world,
-                    &mut rng,
-                    &mut measured,
-                    &mut truth,
-                )
-                .unwrap();
-            Azimuth {
-                encoder,
-                angle_rad: angle,
-                timestamp_s: T0 + k as f64 / 500.0,
-                sweep_counter: u16::try_from(k % 65536).unwrap(),
-                width: BinWidth::Eight,
-                bins: Bytes::from(
-                    measured
-                        .iter()
-                        .map(|&p| quantize_8bit(p))
-                        .collect::<Vec<u8>>(),
-                ),
-                geometry: Arc::clone(&g),
-            }
-        })
+    let mut scene = support::empty_scene("four-reflectors", RadarPreset::Paper200, 5);
+    for (x, y) in REFLECTORS {
+        support::add_point(&mut scene, x, y, 0.5, 0.3);
+    }
+    let mut radar = SimRadar::new(&scene, None, rotations as f64 / 2.5 + 1.0, T0_NS);
+    (0..rotations * radar.azimuths())
+        .map(|k| radar.azimuth(k))
         .collect()
 }
 
@@ -147,7 +83,7 @@ fn with_odometry_a_still_radar_maps_its_four_reflectors_at_each_azimuths_time() 
     assert_eq!(s.rotations, 8);
     assert!(s.beams > 0);
     let features = p.ekf().features();
-    for (x, y) in [(10.0, 5.0), (-8.0, 12.0), (20.0, -15.0), (-12.0, -9.0)] {
+    for (x, y) in REFLECTORS {
         let nearest = features
             .iter()
             .map(|f| (f.x_m - x).hypot(f.y_m - y))
