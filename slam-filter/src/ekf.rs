@@ -316,7 +316,13 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// Jumps the state to `time_s` across an odometry gap: the pose covariance grows by what
     /// the vehicle could have done meanwhile (see [`FilterSettings::gap_speed_mps`]).
     fn bridge_gap(&mut self, time_s: f64) {
-        let gap_s = time_s - self.state.time_s();
+        self.inflate_for_gap(time_s - self.state.time_s());
+        self.state.set_time_s(time_s);
+        self.stats.bridged_gaps += 1;
+    }
+
+    /// Grows the pose covariance by what the vehicle could do in `gap_s` of unknown motion.
+    fn inflate_for_gap(&mut self, gap_s: f64) {
         let s = &self.settings;
         let sigma_xy = (s.gap_speed_mps * gap_s).min(s.gap_max_sigma_m);
         let sigma_theta = (s.gap_yaw_rate_rps * gap_s).min(std::f64::consts::PI);
@@ -325,8 +331,26 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             sigma_xy * sigma_xy,
             sigma_theta * sigma_theta,
         ]);
+    }
+
+    /// Moves the filter onto a new clock at `time_s` (the sensor's clock was set, forwards or
+    /// backwards): the map is kept, the pose covariance grows as across a gap of
+    /// [`FilterSettings::max_predict_gap_s`] of unknown motion, and the held odometry is
+    /// dropped (it belongs to the old clock): beams are refused until odometry on the new
+    /// clock arrives. Counted in [`FilterStats::bridged_gaps`].
+    pub fn resync_clock(&mut self, time_s: f64) -> Result<(), FilterError> {
+        if !time_s.is_finite() {
+            return Err(FilterError::NonFiniteObservation {
+                what: "timestamp_s",
+                value: time_s,
+            });
+        }
+        self.inflate_for_gap(self.settings.max_predict_gap_s);
         self.state.set_time_s(time_s);
         self.stats.bridged_gaps += 1;
+        self.odometry = None;
+        self.tentatives = TentativeList::default();
+        Ok(())
     }
 
     /// Predicts the state to `time_s` with the held odometry.

@@ -560,7 +560,11 @@ fn an_odometry_gap_past_the_limit_is_bridged_not_refused_forever() {
     assert_eq!(f.stats().bridged_gaps, 1);
     assert_eq!(f.state().time_s(), T0 + 60.1);
     let after = f.pose_covariance();
-    assert!(after[(0, 0)] > before[(0, 0)] + 100.0, "x variance {}", after[(0, 0)]);
+    assert!(
+        after[(0, 0)] > before[(0, 0)] + 100.0,
+        "x variance {}",
+        after[(0, 0)]
+    );
     assert!(after[(2, 2)] > before[(2, 2)], "heading variance");
     // And the filter goes on: the next samples predict normally.
     f.apply_odometry(odo(T0 + 60.2)).unwrap();

@@ -162,6 +162,13 @@ pub fn summary_text(r: &DaemonReport) -> String {
         r.run.odometry_errors,
         r.run.output_drops
     );
+    if s.odometry_refused + s.clock_outliers + s.clock_jumps > 0 {
+        let _ = writeln!(
+            t,
+            "  untrusted input: {} odometry records refused (physical limits or wild time), {} azimuths with wild timestamps dropped, {} radar clock jumps resynchronised",
+            s.odometry_refused, s.clock_outliers, s.clock_jumps
+        );
+    }
     let names: Vec<String> = r
         .writer
         .files

@@ -17,8 +17,8 @@
 //! # Which detector is the default, and why
 //!
 //! Chosen by measurement on the simulator's scenes with `cargo test --release -p slam-node
-//! --test detection_scoring -- --nocapture`, which synthesises rotations with known targets
-//! through radar-model and counts hits (a detection within two range cells of a true target
+//! --test detection_scoring -- --nocapture`, which renders rotations with known targets
+//! through the simulator's own renderer and counts hits (a detection within two range cells of a true target
 //! in its beam) and false alarms per rotation for each detector. The figures and the choice
 //! are recorded in `slam-node/README.md` ("Detection").
 

@@ -17,8 +17,9 @@ use radar_driver::Azimuth;
 use radar_model::geometry::{wrap_angle, Pose2};
 use tracing::{info, warn};
 
+use super::clock::{Verdict, WireClock};
 use super::frontend::{FrontEnd, GeometryError};
-use super::gate::OdometryGate;
+use super::gate::{worth_logging, OdometryGate};
 use super::settings::PipelineSettings;
 use super::spectrum::{compare_beam, SpectrumScratch};
 use super::stats::{RotationStats, StageTimes};
@@ -32,6 +33,10 @@ pub type DaemonEkf = RadarEkf;
 
 /// Pending odometry samples held at most (past it the oldest is applied at once).
 const ODOMETRY_QUEUE: usize = 1 << 16;
+/// Azimuth timestamps may step forward by at most this (s) between azimuths; a wilder one
+/// costs that azimuth unless this many consecutive azimuths confirm the new clock.
+const AZIMUTH_MAX_STEP_S: f64 = 2.0;
+const AZIMUTH_JUMP_CONFIRM: u32 = 16;
 
 /// Why the pipeline could not start or go on.
 #[derive(Debug, thiserror::Error)]
@@ -55,6 +60,7 @@ pub struct Pipeline {
     truth: Option<TruthObserver>,
     beams: Vec<BeamObservation>,
     spectrum: SpectrumScratch,
+    clock: WireClock,
     last_index: Option<u16>,
     last_time_s: Option<f64>,
     summary: PipelineSummary,
@@ -96,7 +102,12 @@ impl Pipeline {
         )?;
         Ok(Self {
             front_end: FrontEnd::new(settings.front_end()),
-            gate: OdometryGate::new(ODOMETRY_QUEUE, settings.odometry_stale_s),
+            gate: OdometryGate::new(
+                ODOMETRY_QUEUE,
+                settings.odometry_stale_s,
+                settings.odometry_limits,
+            ),
+            clock: WireClock::new(AZIMUTH_MAX_STEP_S, AZIMUTH_JUMP_CONFIRM),
             ekf,
             stats: RotationStats::default(),
             truth: truth.map(TruthObserver::new),
@@ -177,8 +188,10 @@ impl Pipeline {
     pub fn push_odometry(&mut self, sample: OdometrySample) {
         self.start_at_first_odometry(&sample);
         self.summary.odometry_samples += 1;
-        if let Some(forced) = self.gate.push(sample) {
-            self.apply_odometry(forced);
+        match self.gate.push(sample) {
+            Ok(Some(forced)) => self.apply_odometry(forced),
+            Ok(None) => {}
+            Err(_) => self.summary.odometry_refused += 1,
         }
     }
 
@@ -195,10 +208,35 @@ impl Pipeline {
         az: &Azimuth,
         events: &mut Vec<OutputEvent>,
     ) -> Result<(), PipelineError> {
-        if !az.timestamp_s.is_finite() || self.last_time_s.is_some_and(|t| az.timestamp_s < t) {
-            // Time went backwards on the wire: nothing sensible can be done with it.
-            self.summary.bad_azimuths += 1;
-            return Ok(());
+        match self.clock.observe(az.timestamp_s) {
+            Verdict::Accept => {}
+            Verdict::Outlier => {
+                // A wild timestamp (far ahead, backwards, not finite) costs this azimuth.
+                self.summary.bad_azimuths += 1;
+                self.summary.clock_outliers += 1;
+                if worth_logging(self.summary.clock_outliers) {
+                    warn!(
+                        time_s = az.timestamp_s,
+                        clock_s = self.clock.now_s(),
+                        dropped = self.summary.clock_outliers,
+                        "azimuth timestamp far from the radar's clock: azimuth dropped"
+                    );
+                }
+                return Ok(());
+            }
+            Verdict::Jump { from_s, to_s } => {
+                warn!(
+                    from_s,
+                    to_s,
+                    "the radar's clock jumped: the filter moves to the new clock (map kept, pose uncertainty grown, odometry awaited)"
+                );
+                self.summary.clock_jumps += 1;
+                self.end_rotation(events);
+                self.last_index = None;
+                if let Err(e) = self.ekf.resync_clock(to_s) {
+                    warn!(error = %e, "could not move the filter to the new clock");
+                }
+            }
         }
         let Some(index) = az.geometry.azimuth_index(az.encoder) else {
             // An encoder value past the revolution: malformed, and it would index nothing.

@@ -8,6 +8,7 @@
 use slam_filter::{Ekf, OdometrySample, ProcessModel};
 use tracing::warn;
 
+use super::clock::{Verdict, WireClock};
 use super::odometry::OdometryQueue;
 use super::summary::RefusalCounts;
 use slam_filter::BeamObservationModel;
@@ -24,12 +25,59 @@ pub enum Refusal {
     },
 }
 
+/// Physical limits on what odometry may report.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometryLimits {
+    /// Largest |speed| (m/s).
+    pub max_speed_mps: f64,
+    /// Largest |steer| (rad).
+    pub max_steer_rad: f64,
+    /// Largest |change of speed| per second over intervals up to 1 s (m/s^2).
+    pub max_accel_mps2: f64,
+}
+
+impl Default for OdometryLimits {
+    fn default() -> Self {
+        Self {
+            max_speed_mps: 60.0,
+            max_steer_rad: 1.2,
+            max_accel_mps2: 20.0,
+        }
+    }
+}
+
+/// Why an odometry record was not taken.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OdometryRejection {
+    /// Its timestamp is far from the stream's clock (and not yet confirmed as a jump).
+    WildTime,
+    /// Speed, steer or acceleration past the physical limits.
+    Implausible,
+}
+
 /// Odometry waiting for the radar, and the refusal rule.
 #[derive(Debug)]
 pub struct OdometryGate {
     queue: OdometryQueue,
+    clock: WireClock,
+    limits: OdometryLimits,
+    last_accepted: Option<OdometrySample>,
     stale_after_s: f64,
     last_warning_s: f64,
+    rejected: u64,
+}
+
+/// Odometry timestamps may step forward by at most this between records (s); a wilder one
+/// must be confirmed by this many records before the clock follows it.
+const ODOMETRY_MAX_STEP_S: f64 = 2.0;
+const ODOMETRY_JUMP_CONFIRM: u32 = 8;
+/// The acceleration limit is checked over intervals up to this (s): after a longer silence
+/// any speed is believable.
+const ACCEL_WINDOW_S: f64 = 1.0;
+
+/// Logs the 1st, 2nd, 4th, 8th... occurrence of something (bounded, deterministic).
+pub fn worth_logging(count: u64) -> bool {
+    count.is_power_of_two()
 }
 
 /// Warnings about refused beams at most this often (stream seconds).
@@ -38,17 +86,79 @@ const WARN_EVERY_S: f64 = 5.0;
 impl OdometryGate {
     /// A gate holding at most `capacity` pending samples, refusing beams whose odometry is
     /// older than `stale_after_s`.
-    pub fn new(capacity: usize, stale_after_s: f64) -> Self {
+    pub fn new(capacity: usize, stale_after_s: f64, limits: OdometryLimits) -> Self {
         Self {
             queue: OdometryQueue::new(capacity),
+            clock: WireClock::new(ODOMETRY_MAX_STEP_S, ODOMETRY_JUMP_CONFIRM),
+            limits,
+            last_accepted: None,
             stale_after_s,
             last_warning_s: f64::NEG_INFINITY,
+            rejected: 0,
         }
     }
 
-    /// Queues a sample; returns one that must be applied now (the queue is full).
-    pub fn push(&mut self, sample: OdometrySample) -> Option<OdometrySample> {
-        self.queue.push(sample)
+    /// Checks a record against the physical limits and the stream's clock, then queues it;
+    /// returns a sample that must be applied now (the queue is full). A refused record is
+    /// counted and logged (the 1st, 2nd, 4th... time).
+    pub fn push(
+        &mut self,
+        sample: OdometrySample,
+    ) -> Result<Option<OdometrySample>, OdometryRejection> {
+        if let Err(why) = self.check(&sample) {
+            self.rejected += 1;
+            if worth_logging(self.rejected) {
+                warn!(
+                    time_s = sample.timestamp_s,
+                    speed_mps = sample.speed_mps,
+                    steer_rad = sample.steer_rad,
+                    ?why,
+                    refused = self.rejected,
+                    "odometry record refused"
+                );
+            }
+            return Err(why);
+        }
+        self.last_accepted = Some(sample);
+        Ok(self.queue.push(sample))
+    }
+
+    fn check(&mut self, s: &OdometrySample) -> Result<(), OdometryRejection> {
+        let l = &self.limits;
+        let plausible = s.speed_mps.is_finite()
+            && s.steer_rad.is_finite()
+            && s.speed_mps.abs() <= l.max_speed_mps
+            && s.steer_rad.abs() <= l.max_steer_rad;
+        if !plausible {
+            return Err(OdometryRejection::Implausible);
+        }
+        if let Some(last) = self.last_accepted {
+            let dt = s.timestamp_s - last.timestamp_s;
+            if dt > 0.0
+                && dt <= ACCEL_WINDOW_S
+                && (s.speed_mps - last.speed_mps).abs() > l.max_accel_mps2 * dt.max(0.05)
+            {
+                return Err(OdometryRejection::Implausible);
+            }
+        }
+        match self.clock.observe(s.timestamp_s) {
+            Verdict::Accept => Ok(()),
+            Verdict::Outlier => Err(OdometryRejection::WildTime),
+            Verdict::Jump { from_s, to_s } => {
+                warn!(
+                    from_s,
+                    to_s, "odometry clock jumped: pending records dropped, clock resynchronised"
+                );
+                self.queue.reset();
+                self.last_accepted = None;
+                Ok(())
+            }
+        }
+    }
+
+    /// Records refused (wild time or past the physical limits).
+    pub fn rejected(&self) -> u64 {
+        self.rejected
     }
 
     /// Newest sample time received (not necessarily applied).

@@ -5,6 +5,7 @@
 //! thread that feeds it from the driver's channel and odometry and ships its outputs.
 
 pub mod beams;
+pub mod clock;
 pub mod core;
 pub mod frontend;
 pub mod gate;

@@ -78,6 +78,12 @@ impl OdometryQueue {
         self.applied_s
     }
 
+    /// Forgets every pending sample and the newest time (the sender's clock jumped).
+    pub fn reset(&mut self) {
+        self.queue.clear();
+        self.latest_s = None;
+    }
+
     /// Samples dropped for being out of order or not finite.
     pub fn out_of_order(&self) -> u64 {
         self.out_of_order

@@ -209,13 +209,14 @@ pub fn run_pipeline(
                 p(pipeline.summary(), pipeline.ekf());
             }
         }
-        let first = *first_time_s.get_or_insert(az.timestamp_s);
-        if control
-            .max_stream_s
-            .is_some_and(|limit| az.timestamp_s - first >= limit)
-        {
-            info!(stream_s = az.timestamp_s - first, "stream duration reached");
-            break;
+        // Stream time is the pipeline's accepted clock: one wild timestamp neither ends the
+        // run nor stretches it.
+        if let Some(now) = pipeline.last_time_s() {
+            let first = *first_time_s.get_or_insert(now);
+            if control.max_stream_s.is_some_and(|limit| now - first >= limit) {
+                info!(stream_s = now - first, "stream duration reached");
+                break;
+            }
         }
     }
     report.summary = pipeline.finish(&mut events);

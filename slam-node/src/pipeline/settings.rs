@@ -15,6 +15,7 @@ use radar_model::power::{PowerModel, RadarConstants, SpreadingForm};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::frontend::FrontEndSettings;
+use super::gate::OdometryLimits;
 use crate::detect::{DetectorKind, DetectorSettings};
 use slam_filter::FilterSettings;
 
@@ -69,6 +70,8 @@ pub struct PipelineSettings {
     pub spectrum_bearings_rad: Vec<f64>,
     /// Odometry older than this (in stream time) behind a beam is stale: no update.
     pub odometry_stale_s: f64,
+    /// Physical limits on odometry records.
+    pub odometry_limits: OdometryLimits,
     /// Wall time to wait for odometry to reach a beam's time before declaring it stale.
     pub odometry_wait: Duration,
     /// Wall time without an azimuth after which the radar is declared stalled.
@@ -244,6 +247,11 @@ impl PipelineSettings {
             spectrum_sample_every_rotations: 25,
             spectrum_bearings_rad: Vec::new(),
             odometry_stale_s: c.odometry.stale_after.as_secs_f64(),
+            odometry_limits: OdometryLimits {
+                max_speed_mps: c.odometry.max_speed_mps.get(),
+                max_steer_rad: c.odometry.max_steer_rad.get(),
+                max_accel_mps2: c.odometry.max_accel_mps2.get(),
+            },
             odometry_wait: c.odometry.stale_after,
             radar_stall: Duration::from_secs(2),
             map_every_rotations: 20,

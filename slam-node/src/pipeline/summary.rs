@@ -52,6 +52,13 @@ pub struct PipelineSummary {
     pub odometry_samples: u64,
     /// Odometry samples dropped (out of order or not finite).
     pub odometry_out_of_order: u64,
+    /// Odometry records refused: past the physical limits, or stamped far from the
+    /// odometry's clock.
+    pub odometry_refused: u64,
+    /// Azimuths dropped for a timestamp far from the radar's clock.
+    pub clock_outliers: u64,
+    /// Radar clock jumps the pipeline resynchronised to.
+    pub clock_jumps: u64,
     /// Features in the final map.
     pub map_size: usize,
     /// Stream time of the first and last azimuth.

@@ -1,0 +1,166 @@
+//! Input a real radar, an odometry bridge or a clock can produce, through the pipeline (no
+//! sockets): each case costs what it must and the daemon goes back to mapping.
+//!
+//! - one far-future azimuth timestamp: that azimuth only (it used to stop SLAM for good);
+//! - one far-future odometry record: that record only (every later record used to be "out
+//!   of order", so the map stopped);
+//! - absurd but finite odometry: refused at the gate (the pose used to go to 1e199 m);
+//! - an odometry gap past the filter's limit: bridged (every later sample used to fail).
+
+mod support;
+
+use radar_driver::Azimuth;
+use sim_sensor::radar::RadarPreset;
+use slam_filter::OdometrySample;
+use slam_node::pipeline::{Pipeline, PipelineSettings, PipelineSummary};
+use support::SimRadar;
+
+const T0_NS: u64 = 1_700_000_000_000_000_000;
+const T0: f64 = 1.7e9;
+/// 2100-01-01 in Unix seconds.
+const YEAR_2100_S: f64 = 4_102_444_800.0;
+
+fn settings() -> PipelineSettings {
+    let mut s = PipelineSettings::from_config(&config::Config::default()).unwrap();
+    s.detector = slam_node::detect::DetectorSettings::default();
+    s.compensation = radar_model::compensation::Compensation::calibrated(
+        40.0,
+        &radar_model::power::RadarConstants::default(),
+    );
+    s.initial_pose_std = [0.0; 3];
+    s
+}
+
+/// A still radar (the paper's unit) looking at four reflectors.
+fn azimuths(rotations: u64) -> Vec<Azimuth> {
+    let mut scene = support::empty_scene("four-reflectors", RadarPreset::Paper200, 5);
+    for (x, y) in [(10.0, 5.0), (-8.0, 12.0), (20.0, -15.0), (-12.0, -9.0)] {
+        support::add_point(&mut scene, x, y, 0.5, 0.3);
+    }
+    let mut radar = SimRadar::new(&scene, None, rotations as f64 / 2.5 + 1.0, T0_NS);
+    (0..rotations * radar.azimuths())
+        .map(|k| radar.azimuth(k))
+        .collect()
+}
+
+fn still(t: f64) -> OdometrySample {
+    OdometrySample {
+        timestamp_s: t,
+        speed_mps: 0.0,
+        steer_rad: 0.0,
+    }
+}
+
+/// Runs `azimuths` with odometry every 50 ms up to each azimuth's true time `clock[i]`,
+/// letting `odometry` change the k-th record; returns the summary and the pipeline.
+fn run(
+    azimuths: &[Azimuth],
+    clock: &[f64],
+    mut odometry: impl FnMut(usize, OdometrySample) -> OdometrySample,
+) -> (PipelineSummary, Pipeline) {
+    let mut p = Pipeline::new(settings(), Some(T0), None).unwrap();
+    let mut events = Vec::new();
+    let mut next_odo = T0;
+    let mut k = 0;
+    for (az, &now) in azimuths.iter().zip(clock) {
+        while next_odo <= now {
+            p.push_odometry(odometry(k, still(next_odo)));
+            k += 1;
+            next_odo += 0.05;
+        }
+        p.process_azimuth(az, &mut events).unwrap();
+        events.clear();
+    }
+    let s = p.finish(&mut events);
+    (s, p)
+}
+
+#[test]
+fn one_far_future_azimuth_timestamp_costs_that_azimuth_only() {
+    let mut az = azimuths(10);
+    let clock: Vec<f64> = az.iter().map(|a| a.timestamp_s).collect();
+    let n = az.len();
+    let (baseline, b) = run(&az, &clock, |_, o| o);
+    az[n / 3].timestamp_s = YEAR_2100_S;
+    let (s, p) = run(&az, &clock, |_, o| o);
+    assert_eq!(s.clock_outliers, 1);
+    assert_eq!(s.bad_azimuths, 1);
+    assert_eq!(s.azimuths, baseline.azimuths - 1);
+    assert!(
+        s.beams + 5 >= baseline.beams,
+        "beams {} against {} without the wild stamp",
+        s.beams,
+        baseline.beams
+    );
+    assert_eq!(p.ekf().feature_count(), b.ekf().feature_count());
+    assert!(p.ekf().state().time_s() < T0 + 10.0);
+}
+
+#[test]
+fn one_far_future_odometry_record_costs_that_record_only() {
+    let az = azimuths(10);
+    let clock: Vec<f64> = az.iter().map(|a| a.timestamp_s).collect();
+    let (_, b) = run(&az, &clock, |_, o| o);
+    let (s, p) = run(&az, &clock, |k, o| {
+        if k == 20 {
+            OdometrySample {
+                timestamp_s: YEAR_2100_S,
+                ..o
+            }
+        } else {
+            o
+        }
+    });
+    assert_eq!(s.odometry_refused, 1);
+    assert_eq!(s.refused.stale_odometry, 0, "odometry kept flowing");
+    assert_eq!(p.ekf().feature_count(), b.ekf().feature_count());
+}
+
+#[test]
+fn absurd_but_finite_odometry_is_refused_at_the_gate() {
+    let az = azimuths(10);
+    let clock: Vec<f64> = az.iter().map(|a| a.timestamp_s).collect();
+    let (_, b) = run(&az, &clock, |_, o| o);
+    let (s, p) = run(&az, &clock, |k, o| match k {
+        30 => OdometrySample {
+            speed_mps: 1e199,
+            ..o
+        },
+        31 => OdometrySample {
+            steer_rad: 1e100,
+            ..o
+        },
+        32 => OdometrySample {
+            steer_rad: 1000.0,
+            ..o
+        },
+        _ => o,
+    });
+    assert_eq!(s.odometry_refused, 3);
+    let pose = p.ekf().pose();
+    assert!(
+        pose.x.abs() < 0.5 && pose.y.abs() < 0.5,
+        "pose ({}, {})",
+        pose.x,
+        pose.y
+    );
+    assert_eq!(p.ekf().feature_count(), b.ekf().feature_count());
+}
+
+#[test]
+fn a_confirmed_radar_clock_jump_resynchronises_and_mapping_resumes() {
+    let mut az = azimuths(12);
+    let n = az.len();
+    // From a third of the way on, the radar's clock is an hour ahead (it was set).
+    for a in az.iter_mut().skip(n / 3) {
+        a.timestamp_s += 3600.0;
+    }
+    let clock: Vec<f64> = az.iter().map(|a| a.timestamp_s).collect();
+    let (s, p) = run(&az, &clock, |_, o| o);
+    assert_eq!(s.clock_jumps, 1);
+    assert!(s.clock_outliers <= 16, "outliers {}", s.clock_outliers);
+    // The odometry (generated against the radar's stamps here) follows the jump: beams
+    // are taken again on the new clock.
+    assert!(p.ekf().state().time_s() > T0 + 3600.0);
+    assert!(p.ekf().feature_count() >= 4);
+}
