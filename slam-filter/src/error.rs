@@ -95,7 +95,7 @@ pub enum FilterError {
     /// The state already holds the maximum number of features.
     #[error("the state already holds the maximum of {0} features")]
     TooManyFeatures(usize),
-    /// The observation model failed for this beam.
-    #[error("observation model failed: {0}")]
-    Model(String),
+    /// The observation or motion model failed for this beam.
+    #[error("the radar model failed")]
+    Model(#[from] radar_model::ModelError),
 }

@@ -112,8 +112,8 @@ impl BeamObservationModel for RangeBearingModel {
         let mut jacobian = DMatrix::zeros(layout::rows(k), layout::columns(k));
         let mut z = Vec::with_capacity(k);
         for (i, f) in features.iter().enumerate() {
-            let (rb, jac) = range_bearing_with_jacobian(pose, [f.x_m, f.y_m])
-                .map_err(|e| FilterError::Model(e.to_string()))?;
+            let (rb, jac) =
+                range_bearing_with_jacobian(pose, [f.x_m, f.y_m]).map_err(FilterError::Model)?;
             z.push([rb.range_m, rb.bearing_rad, 0.0]);
             jac.write_rows(
                 &mut jacobian,

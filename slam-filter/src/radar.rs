@@ -23,7 +23,7 @@ impl ProcessModel for MotionModel {
     ) -> Result<MotionStep, FilterError> {
         let (next, jac) = self
             .predict_with_jacobian(pose, &ControlInput::new(speed_mps, steer_rad), dt_s)
-            .map_err(|e| FilterError::Model(e.to_string()))?;
+            .map_err(FilterError::Model)?;
         let wrt_pose: Matrix3<f64> = jac.wrt_pose;
         Ok(MotionStep {
             pose: next,
@@ -55,8 +55,7 @@ impl BeamObservationModel for RadarBeamModel {
                 material: Material::new(f.u, f.v),
             })
             .collect();
-        let obs = observe_beam(pose, &beam, loss_db, &self.power)
-            .map_err(|e| FilterError::Model(e.to_string()))?;
+        let obs = observe_beam(pose, &beam, loss_db, &self.power).map_err(FilterError::Model)?;
         Ok(BeamPrediction {
             z: obs.z.iter().map(|o| o.as_array()).collect(),
             power_usable: obs.unresolvable.iter().map(|u| !u).collect(),

@@ -36,7 +36,7 @@ struct Args {
     fast: bool,
     /// Stop after this much stream time, seconds (default: 60 with the embedded simulator,
     /// unlimited against a radar).
-    #[arg(long)]
+    #[arg(long, value_parser = positive_seconds)]
     duration: Option<f64>,
     /// Output folder (default: [output] directory).
     #[arg(long)]
@@ -158,7 +158,24 @@ fn run(args: Args) -> anyhow::Result<()> {
     runtime.shutdown_timeout(std::time::Duration::from_secs(2));
     let report = result.context("running the daemon")?;
     print!("{}", report::summary_text(&report));
+    if let Some(e) = report.driver_failure {
+        return Err(anyhow::Error::new(e).context("the radar driver failed"));
+    }
     Ok(())
+}
+
+/// The longest run `--duration` takes: a year of stream.
+const MAX_DURATION_S: f64 = 365.0 * 86_400.0;
+
+/// A duration in seconds: finite, positive, at most a year.
+fn positive_seconds(text: &str) -> Result<f64, String> {
+    let v: f64 = text
+        .parse()
+        .map_err(|_| format!("{text:?} is not a number of seconds"))?;
+    if !(v.is_finite() && v > 0.0 && v <= MAX_DURATION_S) {
+        return Err(format!("must be in (0, {MAX_DURATION_S}] s, got {text}"));
+    }
+    Ok(v)
 }
 
 /// The simulator to start in this process, from `[sim]` and the command line.

@@ -105,7 +105,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         let (p, g_pose, g_rb) = inverse_observation(&pose, t);
         let material =
             Material::from_rho_alpha(self.settings.initial_rho, self.settings.initial_alpha)
-                .map_err(|e| FilterError::Model(e.to_string()))?;
+                .map_err(FilterError::Model)?;
         let n = self.state.dim();
         let cov = self.state.covariance();
         let mut cross = DMatrix::zeros(FEATURE_DIM, n);

@@ -43,16 +43,16 @@ pub enum DaemonError {
     #[error("simulator")]
     Sim(#[from] sim_sensor::SimError),
     /// The driver failed.
-    #[error("radar driver: {0}")]
+    #[error("radar driver")]
     Driver(#[from] radar_driver::DriverError),
     /// The odometry source could not be opened.
-    #[error("odometry: {0}")]
+    #[error("odometry")]
     Odometry(#[from] radar_driver::OdometryError),
     /// There is no odometry and the daemon will not invent motion.
     #[error("no odometry source configured ([odometry] source = \"none\"): slam-node needs the vehicle's odometry to predict its motion and will not fabricate it")]
     NoOdometry,
     /// The output writer failed.
-    #[error("output: {0}")]
+    #[error("output")]
     Output(#[from] crate::output::WriterError),
     /// The pipeline thread panicked.
     #[error("the pipeline thread panicked")]
@@ -108,6 +108,9 @@ pub struct DaemonReport {
     pub out_dir: PathBuf,
     /// Scene name when the simulator was embedded.
     pub scene: Option<String>,
+    /// Why the radar driver failed, if it did (it gave up reconnecting, or its recording
+    /// could not be written): the run's job failed even though a summary exists.
+    pub driver_failure: Option<radar_driver::DriverError>,
 }
 
 /// Runs the daemon to the end of the stream, the duration limit or a stop request.
@@ -211,10 +214,12 @@ pub async fn run_daemon(
         .await
         .map_err(|_| DaemonError::PipelinePanicked)?;
     let (run, output) = joined.map_err(|_| DaemonError::PipelinePanicked)?;
+    let mut driver_failure = None;
     let driver = match tokio::time::timeout(Duration::from_secs(5), driver_handle.stop()).await {
         Ok(Ok(exit)) => Some(exit.metrics),
         Ok(Err(e)) => {
             warn!(error = %e, "radar driver ended with an error");
+            driver_failure = Some(e);
             None
         }
         Err(_) => {
@@ -241,5 +246,6 @@ pub async fn run_daemon(
         writer,
         out_dir: opts.out_dir,
         scene: scene_name,
+        driver_failure,
     })
 }

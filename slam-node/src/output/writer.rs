@@ -74,7 +74,7 @@ fn is_csv(path: &Path) -> bool {
 #[derive(Debug, thiserror::Error)]
 pub enum WriterError {
     /// A file could not be created or written.
-    #[error("writing {path}: {source}")]
+    #[error("writing {path}")]
     Io {
         /// The file.
         path: String,

@@ -213,7 +213,10 @@ pub fn run_pipeline(
         // run nor stretches it.
         if let Some(now) = pipeline.last_time_s() {
             let first = *first_time_s.get_or_insert(now);
-            if control.max_stream_s.is_some_and(|limit| now - first >= limit) {
+            if control
+                .max_stream_s
+                .is_some_and(|limit| now - first >= limit)
+            {
                 info!(stream_s = now - first, "stream duration reached");
                 break;
             }

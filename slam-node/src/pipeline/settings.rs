@@ -27,11 +27,8 @@ pub const REPEAT_LOOK_CELL_FRACTION: f64 = 1.0;
 #[derive(Debug, thiserror::Error)]
 pub enum SettingsError {
     /// The configured compensation table was rejected by radar-model.
-    #[error("model.compensation_table: {0}")]
-    CompensationTable(String),
-    /// A derived value is out of range.
-    #[error("{0}")]
-    Derived(String),
+    #[error("model.compensation_table was rejected by the radar model")]
+    CompensationTable(#[source] radar_model::ModelError),
 }
 
 /// Everything the pipeline needs besides the radar's own geometry.
@@ -146,8 +143,7 @@ impl PipelineSettings {
                     .iter()
                     .map(|p| (p.range_m.get(), p.gain_db.get()))
                     .collect();
-                let table = GainTable::new(&points)
-                    .map_err(|e| SettingsError::CompensationTable(e.to_string()))?;
+                let table = GainTable::new(&points).map_err(SettingsError::CompensationTable)?;
                 Compensation {
                     curve: GainCurve::Table(table),
                     rolloff: None,

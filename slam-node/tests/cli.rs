@@ -1,0 +1,57 @@
+//! The binary refuses bad values at parse time and exits non-zero when its job failed.
+
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+fn slam_node() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_slam-node"))
+}
+
+#[test]
+fn durations_that_are_not_finite_positive_seconds_are_refused_at_parse_time() {
+    for bad in ["NaN", "inf", "-1", "0", "1e20", "soon"] {
+        let out = slam_node()
+            .args([&format!("--duration={bad}"), "--no-figures"])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "--duration {bad}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("--duration"), "--duration {bad}: {err}");
+    }
+}
+
+#[test]
+fn a_driver_that_gives_up_reconnecting_makes_the_process_exit_non_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    // A port nobody listens on: bind, read the port, close.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let odometry = dir.path().join("odometry.txt");
+    std::fs::write(
+        &odometry,
+        "# odometry v1 timestamp_s speed_mps steer_rad\n1700000000.0 0 0\n",
+    )
+    .unwrap();
+    let config = dir.path().join("vehicle.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[radar]\naddress = \"127.0.0.1:{port}\"\nconnect_timeout_ms = 200\nreconnect_initial_backoff_ms = 10\nreconnect_max_backoff_ms = 20\nreconnect_max_attempts = 2\n\n[odometry]\nsource = \"file\"\npath = \"{}\"\n\n[output]\ndirectory = \"{}\"\npictures = false\nprogress = false\n",
+            odometry.display(),
+            dir.path().join("out").display()
+        ),
+    )
+    .unwrap();
+    let started = Instant::now();
+    let out = slam_node()
+        .args(["--config", config.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(started.elapsed() < Duration::from_secs(60));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "stderr: {err}");
+    assert!(err.contains("radar driver"), "stderr: {err}");
+}
