@@ -2,8 +2,8 @@
 
 use thiserror::Error;
 
+use super::id::FeatureId;
 use super::settings::SettingsError;
-use super::state::FeatureId;
 
 /// Why a filter operation was refused or failed. When an operation returns an error the
 /// state is unchanged unless the variant says otherwise.

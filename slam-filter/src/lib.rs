@@ -50,6 +50,7 @@ pub mod ekf;
 pub mod error;
 pub mod fej;
 pub mod health;
+mod id;
 pub mod lifecycle;
 pub mod observation;
 pub mod predict;
@@ -57,6 +58,7 @@ pub mod radar;
 pub mod repeat_look;
 pub mod settings;
 pub mod state;
+mod symmetric;
 pub mod update;
 
 pub use beam::BeamCandidate;

@@ -31,9 +31,7 @@ pub const FEATURE_BASE: usize = 4;
 /// Elements per feature: x, y, u, v.
 pub const FEATURE_DIM: usize = 4;
 
-/// A feature's identity: never reused, unchanged when other features come and go.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct FeatureId(pub u64);
+pub use super::id::FeatureId;
 
 /// Book-keeping for one feature in the state (not part of the estimate).
 #[derive(Debug, Clone, PartialEq)]
@@ -164,7 +162,7 @@ impl SlamState {
         check_finite(mean.as_slice(), "state mean")?;
         check_finite(cov.as_slice(), "state covariance")?;
         check_finite(&[time_s], "state time")?;
-        super::update::mirror_lower(&mut cov);
+        super::symmetric::mirror_lower(&mut cov);
         let features = (n - FEATURE_BASE) / FEATURE_DIM;
         let tracks = (0..features)
             .map(|k| FeatureTrack {

@@ -13,6 +13,7 @@ pub mod odometry;
 pub mod run;
 #[cfg(feature = "sim")]
 pub mod scene_truth;
+pub mod scores;
 pub mod settings;
 pub mod spectrum;
 pub mod stats;

@@ -4,8 +4,8 @@ use std::collections::VecDeque;
 
 use serde::Serialize;
 
+use super::scores::{MapScore, ObservationErrorStats, PoseErrorStats};
 use super::spectrum::SpectrumTally;
-use super::truth::{MapScore, ObservationErrorStats, PoseErrorStats};
 use crate::output::RotationDiagnostics;
 
 /// Rotation times kept for percentiles (the most recent ones).
