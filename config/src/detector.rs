@@ -14,6 +14,8 @@ pub const MAX_REFERENCE_CELLS: usize = 4096;
 pub const MAX_GUARD_CELLS: u64 = 4096;
 /// Most targets kept per beam.
 pub const MAX_TARGETS_PER_BEAM: usize = 1024;
+/// Largest detector state budget, MiB.
+pub const MAX_STATE_MIB: usize = 16_384;
 /// Default CFAR false-alarm probability.
 pub const DEFAULT_PFA: f64 = 1e-4;
 
@@ -64,6 +66,10 @@ pub struct RawDetector {
     pub tpp_detect: f64,
     /// Most targets kept per beam, `[1, 1024]`. Default 16.
     pub max_targets_per_beam: i64,
+    /// Memory the detector may keep across rotations (TPP: 16 bytes per bin per azimuth),
+    /// MiB in [1, 16384]. A radar whose announced geometry needs more is refused with a clear
+    /// error instead of being allocated. Default 256 (a CTS350-X needs 23).
+    pub max_state_mib: i64,
     /// Nearest range searched, m >= 0. Default 1.
     pub min_range_m: f64,
     /// Farthest range searched, m > `min_range_m`. Default 200.
@@ -82,6 +88,7 @@ impl Default for RawDetector {
             tpp_alpha: 0.1,
             tpp_detect: 0.8,
             max_targets_per_beam: 16,
+            max_state_mib: 256,
             min_range_m: 1.0,
             max_range_m: 200.0,
         }
@@ -135,6 +142,8 @@ pub struct DetectorSettings {
     pub tpp_detect: Probability,
     /// Most targets per beam.
     pub max_targets_per_beam: Capacity,
+    /// Memory the detector may keep, MiB.
+    pub max_state_mib: Capacity,
     /// Ranges searched.
     pub range: RangeWindow,
 }
@@ -221,6 +230,10 @@ impl RawDetector {
                 "detector.max_targets_per_beam",
                 Capacity::new(self.max_targets_per_beam, MAX_TARGETS_PER_BEAM),
             ),
+            max_state_mib: c.check(
+                "detector.max_state_mib",
+                Capacity::new(self.max_state_mib, MAX_STATE_MIB),
+            ),
             range,
         }
     }
@@ -243,6 +256,7 @@ impl From<&DetectorSettings> for RawDetector {
             tpp_alpha: s.tpp_alpha.get(),
             tpp_detect: s.tpp_detect.get(),
             max_targets_per_beam: crate::values::as_i64(s.max_targets_per_beam.get()),
+            max_state_mib: crate::values::as_i64(s.max_state_mib.get()),
             min_range_m: s.range.min_m(),
             max_range_m: s.range.max_m(),
         }

@@ -108,6 +108,7 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[detector]\ntpp_alpha = 0.0", "detector.tpp_alpha", "must be in (0, 1), got 0"),
     ("[detector]\ntpp_detect = 1.1", "detector.tpp_detect", "must be in [0, 1], got 1.1"),
     ("[detector]\nmax_targets_per_beam = 0", "detector.max_targets_per_beam", "must be in [1, 1024], got 0"),
+    ("[detector]\nmax_state_mib = 0", "detector.max_state_mib", "must be in [1, 16384], got 0"),
     ("[detector]\nmin_range_m = -1.0", "detector.min_range_m", "must be >= 0, got -1"),
     ("[detector]\nmax_range_m = 0.0", "detector.max_range_m", "must be > 0, got 0"),
     ("[detector]\nmin_range_m = 50.0\nmax_range_m = 50.0", "detector.min_range_m", "must be < detector.max_range_m (50), got 50"),

@@ -83,6 +83,9 @@ struct SlotState {
     scans: u32,
 }
 
+/// Bytes of state TPP keeps per bin of each azimuth (four f32 per bin).
+pub const STATE_BYTES_PER_BIN: usize = 4 * std::mem::size_of::<f32>();
+
 /// The TPP detector's memory across rotations, one slot per azimuth index.
 #[derive(Debug, Clone)]
 pub struct Tpp {

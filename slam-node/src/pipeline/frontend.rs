@@ -35,6 +35,8 @@ pub struct FrontEndSettings {
     pub compensation: Compensation,
     /// Noise model (the target-absent floor the detector is told about).
     pub noise: NoiseModel,
+    /// Bytes the detector may keep across rotations; a geometry needing more is refused.
+    pub max_detector_state_bytes: usize,
 }
 
 impl FrontEndSettings {
@@ -49,19 +51,36 @@ impl FrontEndSettings {
     }
 }
 
-/// The radar geometry did not make a spectrum model.
+/// The radar's announced geometry cannot be processed.
 #[derive(Debug, thiserror::Error)]
-#[error("radar geometry ({azimuths} azimuths, {bins} bins of {bin_m} m) makes no spectrum model")]
-pub struct GeometryError {
-    /// Azimuths per rotation.
-    pub azimuths: u16,
-    /// Bins per azimuth.
-    pub bins: u16,
-    /// Bin size after the range gain (m).
-    pub bin_m: f64,
-    /// Why.
-    #[source]
-    pub source: radar_model::ModelError,
+pub enum GeometryError {
+    /// The geometry does not make a spectrum model.
+    #[error(
+        "radar geometry ({azimuths} azimuths, {bins} bins of {bin_m} m) makes no spectrum model"
+    )]
+    NoSpectrumModel {
+        /// Azimuths per rotation.
+        azimuths: u16,
+        /// Bins per azimuth.
+        bins: u16,
+        /// Bin size after the range gain (m).
+        bin_m: f64,
+        /// Why.
+        #[source]
+        source: radar_model::ModelError,
+    },
+    /// The detector's state for this geometry would exceed its memory budget.
+    #[error("radar geometry ({azimuths} azimuths x {bins} bins) needs {needed_bytes} bytes of detector state, over the budget of {budget_bytes} ([detector] max_state_mib): refused")]
+    DetectorStateTooLarge {
+        /// Azimuths per rotation.
+        azimuths: u16,
+        /// Bins per azimuth.
+        bins: u16,
+        /// What the state would take.
+        needed_bytes: usize,
+        /// What it may take.
+        budget_bytes: usize,
+    },
 }
 
 /// Per-radar state, rebuilt when the radar's configuration changes.
@@ -122,13 +141,22 @@ impl FrontEnd {
             return Ok(());
         }
         let bin_m = geometry.range_gain * geometry.bin_size_m;
+        let needed_bytes = self.detector_state_bytes(geometry);
+        if needed_bytes > self.settings.max_detector_state_bytes {
+            return Err(GeometryError::DetectorStateTooLarge {
+                azimuths: geometry.azimuth_samples,
+                bins: geometry.range_in_bins,
+                needed_bytes,
+                budget_bytes: self.settings.max_detector_state_bytes,
+            });
+        }
         let sg = SpectrumGeometry {
             bins: usize::from(geometry.range_in_bins),
             bin_size_m: bin_m,
             range_offset_m: geometry.range_offset_m,
         };
         let spectrum = SpectrumModel::new(sg, &self.settings.compensation, self.settings.noise)
-            .map_err(|source| GeometryError {
+            .map_err(|source| GeometryError::NoSpectrumModel {
                 azimuths: geometry.azimuth_samples,
                 bins: geometry.range_in_bins,
                 bin_m,
@@ -163,6 +191,17 @@ impl FrontEnd {
             ),
         });
         Ok(())
+    }
+
+    /// Bytes the detector keeps across rotations for `geometry` (TPP: every bin of every
+    /// azimuth; the CFAR detectors keep none).
+    pub fn detector_state_bytes(&self, geometry: &protocol::Geometry) -> usize {
+        if self.settings.detector.kind != crate::detect::DetectorKind::Tpp {
+            return 0;
+        }
+        usize::from(geometry.azimuth_samples)
+            .saturating_mul(usize::from(geometry.range_in_bins))
+            .saturating_mul(crate::detect::tpp::STATE_BYTES_PER_BIN)
     }
 
     /// Detects and groups one azimuth (its geometry must have been [`Self::configure`]d):
@@ -254,5 +293,48 @@ impl FrontEnd {
     /// The geometry in force.
     pub fn geometry(&self) -> Option<&protocol::Geometry> {
         self.radar.as_ref().map(|r| &r.geometry)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use protocol::BinWidth;
+
+    fn geometry(azimuths: u16, bins: u16) -> protocol::Geometry {
+        protocol::Geometry {
+            azimuth_samples: azimuths,
+            range_in_bins: bins,
+            bin_size_m: 0.0438,
+            encoder_size: 5600,
+            rotation_hz: 4.0,
+            packet_rate: 1600,
+            range_gain: 1.0,
+            range_offset_m: 0.0,
+            data_width: BinWidth::Eight,
+            range_resolution_m: None,
+        }
+    }
+
+    #[test]
+    fn the_largest_legal_geometry_is_refused_before_any_detector_state_is_allocated() {
+        let settings = super::super::PipelineSettings::from_config(&config::Config::default())
+            .unwrap()
+            .front_end();
+        let mut fe = FrontEnd::new(settings);
+        // 65,535 x 65,535 bins would need 68 GB of TPP state.
+        let err = fe.configure(&geometry(u16::MAX, u16::MAX)).unwrap_err();
+        assert!(
+            matches!(err, GeometryError::DetectorStateTooLarge { needed_bytes, budget_bytes, .. }
+                if needed_bytes > 60_000_000_000 && budget_bytes == 256 << 20),
+            "{err}"
+        );
+        assert!(fe.geometry().is_none());
+        // A CTS350-X fits (23 MiB).
+        fe.configure(&geometry(400, 3768)).unwrap();
+        assert_eq!(
+            fe.detector_state_bytes(&geometry(400, 3768)),
+            400 * 3768 * 16
+        );
     }
 }

@@ -44,6 +44,8 @@ pub struct PipelineSettings {
     pub motion: MotionModel,
     /// Detection.
     pub detector: DetectorSettings,
+    /// Bytes the detector may keep across rotations.
+    pub max_detector_state_bytes: usize,
     /// Grouping across azimuths (its angular step is set from the radar's geometry).
     pub grouping_range_gate_m: f64,
     /// Widest group, in beam widths.
@@ -232,6 +234,7 @@ impl PipelineSettings {
             ],
             motion,
             detector,
+            max_detector_state_bytes: c.detector.max_state_mib.get().saturating_mul(1 << 20),
             grouping_range_gate_m: (2.0 * c.model.range_resolution_m.get()).max(0.5),
             grouping_max_width_beams: 3.0,
             beam_width_rad,
@@ -263,6 +266,7 @@ impl PipelineSettings {
             beam_width_rad: self.beam_width_rad,
             compensation: self.compensation.clone(),
             noise: self.noise,
+            max_detector_state_bytes: self.max_detector_state_bytes,
         }
     }
 }
