@@ -71,6 +71,9 @@ pub struct RawFilter {
     /// Misses (predicted visible, not seen) before a feature is retired, `[1, 1000]`.
     /// Default 5.
     pub retire_after_misses: i64,
+    /// A feature in the radar's range that nothing was associated with for this long is
+    /// retired, s >= 0 (0 = never). Default 4 (ten rotations of the paper's unit).
+    pub retire_unseen_after_s: f64,
     /// Most features in the state, `[1, 100000]`. Default 1000.
     pub max_features: i64,
     /// Observe power as well as range and bearing. Default true.
@@ -102,6 +105,7 @@ impl Default for RawFilter {
             association: Association::NearestNeighbour,
             confirm_after: 2,
             retire_after_misses: 5,
+            retire_unseen_after_s: 4.0,
             max_features: 1000,
             use_power_in_observation: true,
             first_estimate_jacobians: true,
@@ -148,6 +152,8 @@ pub struct FilterSettings {
     pub confirm_after: Capacity,
     /// Misses to retire.
     pub retire_after_misses: Capacity,
+    /// Retire features in range unseen for this long, s (0 = never).
+    pub retire_unseen_after_s: NonNegativeF64,
     /// Most features.
     pub max_features: Capacity,
     /// Observe power.
@@ -244,6 +250,10 @@ impl RawFilter {
                 "filter.retire_after_misses",
                 Capacity::new(self.retire_after_misses, MAX_LIFE_CYCLE_COUNT),
             ),
+            retire_unseen_after_s: c.check(
+                "filter.retire_unseen_after_s",
+                NonNegativeF64::new(self.retire_unseen_after_s),
+            ),
             max_features: c.check(
                 "filter.max_features",
                 Capacity::new(self.max_features, MAX_FEATURES),
@@ -279,6 +289,7 @@ impl From<&FilterSettings> for RawFilter {
             association: s.association,
             confirm_after: crate::values::as_i64(s.confirm_after.get()),
             retire_after_misses: crate::values::as_i64(s.retire_after_misses.get()),
+            retire_unseen_after_s: s.retire_unseen_after_s.get(),
             max_features: crate::values::as_i64(s.max_features.get()),
             use_power_in_observation: s.use_power_in_observation,
             first_estimate_jacobians: s.first_estimate_jacobians,

@@ -128,6 +128,7 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[filter]\ngate_probability = 0.95\ngate_chi2 = 7.81", "filter.gate_chi2", "cannot be set together with filter.gate_probability"),
     ("[filter]\nconfirm_after = 0", "filter.confirm_after", "must be in [1, 1000], got 0"),
     ("[filter]\nretire_after_misses = 1001", "filter.retire_after_misses", "must be in [1, 1000], got 1001"),
+    ("[filter]\nretire_unseen_after_s = -1.0", "filter.retire_unseen_after_s", "must be >= 0, got -1"),
     ("[filter]\nmax_features = 0", "filter.max_features", "must be in [1, 100000], got 0"),
     ("[filter]\nmax_features = 100001", "filter.max_features", "got 100001"),
     // [output]

@@ -367,6 +367,33 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             .settle_all_material(self.settings.material_variance_per_s);
     }
 
+    /// Retires every feature within the radar's range of the current pose that no target
+    /// has been associated with for [`FilterSettings::retire_unseen_after_s`] (see there);
+    /// returns their ids. Call once a rotation. O(N).
+    pub fn retire_unseen(&mut self) -> Result<Vec<FeatureId>, FilterError> {
+        let limit = self.settings.retire_unseen_after_s;
+        if limit <= 0.0 {
+            return Ok(Vec::new());
+        }
+        let now = self.state.time_s();
+        let pose = self.pose();
+        let (near, far) = (self.settings.min_range_m, self.settings.max_range_m);
+        let stale: Vec<FeatureId> = (0..self.state.feature_count())
+            .filter_map(|slot| {
+                let p = self.state.params(slot)?;
+                let track = self.state.tracks().get(slot)?;
+                let range = (p.x_m - pose.x).hypot(p.y_m - pose.y);
+                let unseen = now - track.last_seen_s > limit;
+                (unseen && (near..=far).contains(&range)).then_some(track.id)
+            })
+            .collect();
+        for &id in &stale {
+            self.state.remove(id)?;
+            self.stats.retired += 1;
+        }
+        Ok(stale)
+    }
+
     /// Removes a feature (map management); its id is never reused.
     pub fn remove_feature(&mut self, id: FeatureId) -> Result<(), FilterError> {
         self.state.remove(id)

@@ -105,6 +105,13 @@ pub struct FilterSettings {
     /// Looks (sightings at least `confirm_min_separation_s` apart) that confirm a tentative
     /// target into a feature; 1 maps every unclaimed target at once. Default 2.
     pub confirm_after: u32,
+    /// A feature within the radar's range (`min_range_m..max_range_m` of the pose) that no
+    /// target has been associated with for this long is retired by
+    /// [`crate::Ekf::retire_unseen`] (s; 0 switches it off). The radar looks in every
+    /// direction each rotation, so a real feature in range is seen within a few rotations;
+    /// misses inside beams count only where something else was detected, so without this a
+    /// phantom in a direction that stays empty would be kept for ever.
+    pub retire_unseen_after_s: f64,
     /// A tentative target not seen again within this time is forgotten (s).
     pub tentative_timeout_s: f64,
     /// A beam with more targets than this is refused (typed error, state untouched): a
@@ -160,6 +167,7 @@ impl Default for FilterSettings {
             min_detectable_power_db: f64::NEG_INFINITY,
             confirm_min_separation_s: 0.1,
             confirm_after: 2,
+            retire_unseen_after_s: 0.0,
             tentative_timeout_s: 2.0,
             max_targets_per_beam: 64,
             max_tentatives: 4_096,
@@ -297,6 +305,7 @@ impl FilterSettings {
         }
         non_negative("confirm_min_separation_s", self.confirm_min_separation_s)?;
         count("confirm_after", self.confirm_after as usize)?;
+        non_negative("retire_unseen_after_s", self.retire_unseen_after_s)?;
         positive("tentative_timeout_s", self.tentative_timeout_s)?;
         count("max_targets_per_beam", self.max_targets_per_beam)?;
         count("max_tentatives", self.max_tentatives)?;

@@ -571,3 +571,48 @@ fn an_odometry_gap_past_the_limit_is_bridged_not_refused_forever() {
     f.predict_to(T0 + 60.3).unwrap();
     assert_eq!(f.stats().bridged_gaps, 1);
 }
+
+#[test]
+fn phantoms_in_directions_that_stay_empty_are_retired_and_the_seen_feature_kept() {
+    let s = FilterSettings {
+        retire_unseen_after_s: 2.0,
+        max_range_m: 100.0,
+        ..settings()
+    };
+    let truth = Pose2::new(0.0, 0.0, 0.0);
+    let mut f = filter(s, truth, [1e-4, 1e-4, 1e-6]);
+    let power = PowerModel::default();
+    let beam_of = |xy: [f64; 2], t: f64| {
+        let z = observe_beam(&truth, &[feature(xy[0], xy[1], 0.5, 0.2)], 0.0, &power).unwrap();
+        BeamObservation {
+            timestamp_s: t,
+            bearing_rad: z.z[0].bearing_rad,
+            targets: vec![Target {
+                range_m: z.z[0].range_m,
+                bearing_rad: z.z[0].bearing_rad,
+                power_db: z.z[0].power_db,
+            }],
+        }
+    };
+    let post = [12.0, 3.0];
+    let phantom = [-9.0, 7.0];
+    // A burst: the phantom is seen for a second, the post all along.
+    for k in 0..40 {
+        let t = T0 + 0.25 * f64::from(k);
+        f.apply_odometry(OdometrySample {
+            timestamp_s: t,
+            speed_mps: 0.0,
+            steer_rad: 0.0,
+        })
+        .unwrap();
+        f.process_beam(&beam_of(post, t)).unwrap();
+        if k < 4 {
+            f.process_beam(&beam_of(phantom, t + 0.1)).unwrap();
+        }
+        f.retire_unseen().unwrap();
+    }
+    let left: Vec<[f64; 2]> = f.features().iter().map(|e| [e.x_m, e.y_m]).collect();
+    assert_eq!(left.len(), 1, "features left: {left:?}");
+    assert!((left[0][0] - post[0]).abs() < 0.5 && (left[0][1] - post[1]).abs() < 0.5);
+    assert_eq!(f.stats().retired, 1);
+}

@@ -392,6 +392,10 @@ impl Pipeline {
         if self.stats.is_empty() {
             return;
         }
+        match self.ekf.retire_unseen() {
+            Ok(gone) => self.stats.on_retired(gone.len()),
+            Err(e) => warn!(error = %e, "retiring unseen features failed"),
+        }
         let mut d = self.stats.close(
             self.summary.rotations,
             self.last_time_s.unwrap_or(0.0),

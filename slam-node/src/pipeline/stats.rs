@@ -66,6 +66,11 @@ impl RotationStats {
         associated
     }
 
+    /// Counts features retired for going unseen in range.
+    pub fn on_retired(&mut self, n: usize) {
+        self.rot.retired += count(n);
+    }
+
     /// Counts associations to the wrong true feature (truth known only).
     pub fn on_association_errors(&mut self, wrong: u32) {
         if wrong > 0 {
