@@ -162,6 +162,13 @@ pub fn summary_text(r: &DaemonReport) -> String {
         r.run.odometry_errors,
         r.run.output_drops
     );
+    if s.rotations_behind > 0 {
+        let _ = writeln!(
+            t,
+            "  behind real time: {} of {} rotations took longer to process than the radar took to send them",
+            s.rotations_behind, s.rotations
+        );
+    }
     if s.odometry_refused + s.clock_outliers + s.clock_jumps > 0 {
         let _ = writeln!(
             t,

@@ -381,6 +381,28 @@ impl Pipeline {
         self.stats.keep_sample(sample, features, is_chosen);
     }
 
+    /// Warns (the 1st, 2nd, 4th... time) when a rotation took longer to process than the
+    /// radar took to send it: the pipeline is falling behind real time.
+    fn warn_if_behind(&mut self, rotation_ms: f64) {
+        let Some(hz) = self.front_end.geometry().map(|g| g.rotation_hz) else {
+            return;
+        };
+        let period_ms = 1e3 / hz;
+        if !(hz > 0.0 && rotation_ms > period_ms) {
+            return;
+        }
+        self.summary.rotations_behind += 1;
+        if worth_logging(self.summary.rotations_behind) {
+            warn!(
+                rotation_ms,
+                period_ms,
+                features = self.ekf.feature_count(),
+                count = self.summary.rotations_behind,
+                "behind real time: a rotation took longer to process than the radar took to send it"
+            );
+        }
+    }
+
     /// The map as written: material variances brought up to date first.
     fn map_snapshot(&mut self) -> MapSnapshot {
         self.ekf.settle_material_noise();
@@ -403,6 +425,7 @@ impl Pipeline {
             &mut self.summary,
             events,
         );
+        self.warn_if_behind(d.total_ms);
         let pose = self.ekf.pose();
         let cov = self.ekf.pose_covariance();
         events.push(OutputEvent::Pose(PoseSample {

@@ -75,6 +75,8 @@ pub struct PipelineSummary {
     pub spectrum_ms: f64,
     /// Slowest rotation, ms.
     pub max_rotation_ms: f64,
+    /// Rotations that took longer to process than the radar took to send them.
+    pub rotations_behind: u64,
     /// Spectrum comparison over the run.
     #[serde(skip)]
     pub spectrum: SpectrumTally,
