@@ -54,6 +54,28 @@ struct Args {
     /// (repeatable); default: the beam with the most mapped features, every 25 rotations.
     #[arg(long = "spectrum-bearing")]
     spectrum_bearings: Vec<f64>,
+    /// Replay a folder of recorded Oxford Radar RobotCar polar scans (its `radar/*.png` and
+    /// `radar_odometry.csv`) through the simulator's server, the driver and the daemon, with
+    /// odometry made from the ground truth (see the --odometry-* options).
+    #[cfg(feature = "sim")]
+    #[arg(long, conflicts_with = "scene")]
+    replay_dir: Option<PathBuf>,
+    /// With --replay-dir: the odometry reads this factor times the true speed.
+    #[cfg(feature = "sim")]
+    #[arg(long, default_value_t = 1.0, requires = "replay_dir")]
+    odometry_speed_scale: f64,
+    /// With --replay-dir: rad/s added to the true yaw rate.
+    #[cfg(feature = "sim")]
+    #[arg(long, default_value_t = 0.0, requires = "replay_dir")]
+    odometry_yaw_rate_bias: f64,
+    /// With --replay-dir: speed noise (m/s) and yaw-rate noise (rad/s) per 50 ms sample.
+    #[cfg(feature = "sim")]
+    #[arg(long, num_args = 2, value_names = ["SPEED", "YAW_RATE"], requires = "replay_dir")]
+    odometry_noise: Option<Vec<f64>>,
+    /// With --replay-dir: seed of the odometry noise.
+    #[cfg(feature = "sim")]
+    #[arg(long, default_value_t = 1, requires = "replay_dir")]
+    odometry_seed: u64,
     /// Progress line every this many rotations (0 = none; default 10, or none when the
     /// configuration says `[output] progress = false`).
     #[arg(long)]
@@ -112,9 +134,15 @@ fn run(args: Args) -> anyhow::Result<()> {
         } else {
             0
         }),
-        max_stream_s: args.duration.or(if embedded { Some(60.0) } else { None }),
+        max_stream_s: args.duration.or(if embedded && !replaying(&args) {
+            Some(60.0)
+        } else {
+            None
+        }),
         #[cfg(feature = "sim")]
         embedded: sim,
+        #[cfg(feature = "sim")]
+        recorded: recorded(&args)?,
         #[cfg(feature = "sim")]
         keep_configured_compensation: args.configured_compensation,
         #[cfg(not(feature = "sim"))]
@@ -205,4 +233,59 @@ fn embedded_sim(
         .unwrap_or(0);
     options.start_time_ns = Some(now_ns);
     Ok(slam_node::daemon::EmbeddedSim { options })
+}
+
+/// Whether the run replays recorded scans.
+fn replaying(args: &Args) -> bool {
+    #[cfg(feature = "sim")]
+    {
+        args.replay_dir.is_some()
+    }
+    #[cfg(not(feature = "sim"))]
+    {
+        let _ = args;
+        false
+    }
+}
+
+/// The recorded scans to replay, with the odometry's errors.
+#[cfg(feature = "sim")]
+fn recorded(args: &Args) -> anyhow::Result<Option<slam_node::daemon::RecordedReplay>> {
+    use slam_node::daemon::replay::OdometryErrors;
+    let Some(dir) = &args.replay_dir else {
+        return Ok(None);
+    };
+    if !dir.is_dir() {
+        anyhow::bail!(
+            "--replay-dir {}: no such folder (the Oxford scans are read from ../shared/data/oxford-radar-robotcar)",
+            dir.display()
+        );
+    }
+    let mut errors = OdometryErrors {
+        seed: args.odometry_seed,
+        speed_scale: args.odometry_speed_scale,
+        yaw_rate_bias_rps: args.odometry_yaw_rate_bias,
+        ..OdometryErrors::default()
+    };
+    if let Some(noise) = &args.odometry_noise {
+        errors.sigma_speed_mps = noise.first().copied().unwrap_or(errors.sigma_speed_mps);
+        errors.sigma_yaw_rate_rps = noise.get(1).copied().unwrap_or(errors.sigma_yaw_rate_rps);
+    }
+    let finite = [
+        errors.speed_scale,
+        errors.yaw_rate_bias_rps,
+        errors.sigma_speed_mps,
+        errors.sigma_yaw_rate_rps,
+    ];
+    if finite.iter().any(|v| !v.is_finite())
+        || errors.speed_scale <= 0.0
+        || errors.sigma_speed_mps < 0.0
+        || errors.sigma_yaw_rate_rps < 0.0
+    {
+        anyhow::bail!("the --odometry-* values must be finite, the scale > 0 and the noise >= 0");
+    }
+    Ok(Some(slam_node::daemon::RecordedReplay {
+        dir: dir.clone(),
+        errors,
+    }))
 }

@@ -55,3 +55,62 @@ fn a_driver_that_gives_up_reconnecting_makes_the_process_exit_non_zero() {
     assert_eq!(out.status.code(), Some(1), "stderr: {err}");
     assert!(err.contains("radar driver"), "stderr: {err}");
 }
+
+/// The Oxford scans beside the workspace, when they are there.
+fn oxford() -> Option<std::path::PathBuf> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data/oxford-radar-robotcar");
+    if dir.join("radar_odometry.csv").exists() {
+        Some(dir)
+    } else {
+        eprintln!(
+            "skipped: {} is absent (the Oxford scans are read from there, never copied)",
+            dir.display()
+        );
+        None
+    }
+}
+
+#[test]
+fn real_scans_replay_through_the_driver_and_are_scored_against_ground_truth_and_dead_reckoning() {
+    let Some(dir) = oxford() else { return };
+    let out = tempfile::tempdir().unwrap();
+    let run = slam_node()
+        .args([
+            "--replay-dir",
+            dir.to_str().unwrap(),
+            "--fast",
+            "--no-figures",
+        ])
+        .args(["--out", out.path().to_str().unwrap()])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    for expected in [
+        "rotations 8, azimuths 3200 (0 malformed)",
+        "against the ground truth: filter RMS",
+        "dead reckoning with the same odometry RMS",
+        "per 100 m driven",
+        "real-time factor",
+    ] {
+        assert!(
+            stdout.contains(expected),
+            "{expected:?} missing from\n{stdout}"
+        );
+    }
+}
+
+#[test]
+fn a_replay_folder_that_is_not_there_is_refused_by_name() {
+    let out = slam_node()
+        .args(["--replay-dir", "/nonexistent/scans", "--fast"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/scans"));
+}

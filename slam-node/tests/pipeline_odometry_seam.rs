@@ -85,6 +85,7 @@ fn run_with(odometry: MockSource) -> RunReport {
         &output,
         RunControl {
             stop: Arc::new(AtomicBool::new(false)),
+            end_after_silence: None,
             max_stream_s: None,
             progress: None,
         },

@@ -82,6 +82,7 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
     let opts = DaemonOptions {
         config,
         embedded: Some(EmbeddedSim { options }),
+        recorded: None,
         max_stream_s: Some(run.duration_s),
         out_dir: out.to_path_buf(),
         figures: false,

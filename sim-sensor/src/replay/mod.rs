@@ -4,3 +4,4 @@
 
 pub mod png;
 pub mod raw;
+pub mod truth;

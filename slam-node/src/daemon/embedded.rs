@@ -13,6 +13,10 @@ use radar_model::power::RadarConstants;
 use sim_sensor::{SimHandle, SimOptions, SimServer};
 use tracing::info;
 
+use super::replay::{
+    MemoryOdometry, OdometryErrors, RecordedTruth, ReplayFigures, CTS350X_BEAM_WIDTH_RAD,
+    OXFORD_BIN_M, WHEELBASE_M,
+};
 use super::{sink, DaemonError};
 use crate::output::figures::TruthOverlay;
 use crate::pipeline::{Pipeline, PipelineSettings, SceneTruth, TruthOracle};
@@ -73,6 +77,7 @@ pub(super) struct Started {
     pub azimuths: Receiver<Azimuth>,
     pub driver: Driver,
     pub odometry: Option<Box<dyn OdometrySource>>,
+    pub replay: Option<ReplayFigures>,
 }
 
 /// Starts the simulator and connects a driver and an odometry client to it; the pipeline is
@@ -140,5 +145,93 @@ pub(super) async fn start(
         azimuths,
         driver,
         odometry,
+        replay: None,
+    })
+}
+
+/// Recorded scans to replay through the simulator, with their ground truth.
+#[derive(Debug, Clone)]
+pub struct RecordedReplay {
+    /// The data set's folder (its `radar/` scans and `radar_odometry.csv`).
+    pub dir: std::path::PathBuf,
+    /// The errors put on the ground truth's motion to make the odometry.
+    pub errors: OdometryErrors,
+}
+
+/// The daemon's settings for a CTS350-X's recorded scans: the unit's beam and bins, the
+/// bicycle model the odometry was made with.
+fn recorded_settings(mut settings: PipelineSettings, max_range_m: f64) -> PipelineSettings {
+    settings.motion = radar_model::motion::MotionModel::Bicycle {
+        wheelbase_m: WHEELBASE_M,
+    };
+    settings.beam_width_rad = CTS350X_BEAM_WIDTH_RAD;
+    settings.filter.beam_half_width_rad = 0.5 * CTS350X_BEAM_WIDTH_RAD;
+    settings.noise.range.resolution_fwhm_m = OXFORD_BIN_M;
+    settings.power.range_resolution_m = OXFORD_BIN_M;
+    settings.filter.max_range_m = settings.filter.max_range_m.min(max_range_m);
+    settings.detector.max_range_m = settings.detector.max_range_m.min(max_range_m);
+    if settings.filter.repeat_look_range_m > 0.0 && settings.filter.repeat_look_bearing_rad > 0.0 {
+        settings.filter.repeat_look_range_m = OXFORD_BIN_M;
+        settings.filter.repeat_look_bearing_rad = CTS350X_BEAM_WIDTH_RAD;
+    }
+    settings.initial_pose_std = [1e-3, 1e-3, 1e-4];
+    settings
+}
+
+/// Replays recorded scans through the simulator's server, with odometry from their ground
+/// truth; the pipeline scores itself against that truth.
+pub(super) async fn start_replay(
+    mut options: SimOptions,
+    recorded: RecordedReplay,
+    settings: PipelineSettings,
+    mut driver_settings: DriverSettings,
+) -> Result<Started, DaemonError> {
+    let truth = RecordedTruth::read_oxford(&recorded.dir)?;
+    let scan_dir = RecordedTruth::scan_dir(&recorded.dir);
+    let recording = sim_sensor::replay::png::PngRecording::open(&scan_dir)
+        .map_err(sim_sensor::SimError::from)?;
+    let max_range_m = f64::from(recording.bins) * OXFORD_BIN_M;
+    options.source = sim_sensor::settings::SourceSpec::OxfordPng(scan_dir.clone());
+    options.odometry_bind = None;
+    options.ground_truth_path = None;
+    options.start_time_ns = None;
+    let settings = recorded_settings(settings, max_range_m);
+    let samples = truth.odometry(&recorded.errors);
+    let figures = ReplayFigures::new(&truth, &samples, recorded.errors);
+    let start_time_s = truth.times_s().first().copied();
+    let truth_overlay = TruthOverlay {
+        features: Vec::new(),
+        trajectory: truth
+            .times_s()
+            .iter()
+            .filter_map(|&t| truth.pose_at(t))
+            .map(|p| (p.x, p.y))
+            .collect(),
+    };
+    let pipeline = Pipeline::new(settings.clone(), None, Some(Box::new(truth)))?;
+    let fast = options.pacing == sim_sensor::settings::Pacing::AsFastAsPossible;
+    let handle = SimServer::spawn(options).await?;
+    info!(radar = %handle.local_addr(), scans = %scan_dir.display(), "replaying recorded scans");
+    driver_settings.address = handle.local_addr();
+    let (azimuths, driver) = if fast {
+        let capacity = driver_settings.handoff.azimuth_capacity.unwrap_or(4096);
+        let (sink, rx) = sink::BlockingSink::new(capacity);
+        (rx, Driver::with_sink(driver_settings, Box::new(sink)))
+    } else {
+        let (driver, receivers) = Driver::new(driver_settings);
+        let rx = receivers.azimuths.ok_or(DaemonError::NoAzimuthChannel)?;
+        (rx, driver)
+    };
+    Ok(Started {
+        settings,
+        start_time_s,
+        truth_overlay,
+        scene_name: format!("recorded scans in {}", scan_dir.display()),
+        pipeline,
+        handle,
+        azimuths,
+        driver,
+        odometry: Some(Box::new(MemoryOdometry::new(samples))),
+        replay: Some(figures),
     })
 }

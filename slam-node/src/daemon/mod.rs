@@ -7,6 +7,8 @@
 
 #[cfg(feature = "sim")]
 pub mod embedded;
+#[cfg(feature = "sim")]
+pub mod replay;
 pub mod report;
 pub mod sink;
 
@@ -27,7 +29,7 @@ use crate::pipeline::{
 };
 
 #[cfg(feature = "sim")]
-pub use embedded::EmbeddedSim;
+pub use embedded::{EmbeddedSim, RecordedReplay};
 
 /// Why the daemon could not run.
 #[derive(Debug, thiserror::Error)]
@@ -38,6 +40,10 @@ pub enum DaemonError {
     /// The pipeline could not start.
     #[error(transparent)]
     Pipeline(#[from] crate::pipeline::PipelineError),
+    /// Recorded scans could not be replayed.
+    #[cfg(feature = "sim")]
+    #[error("replay")]
+    Replay(#[from] replay::ReplayError),
     /// The embedded simulator failed.
     #[cfg(feature = "sim")]
     #[error("simulator")]
@@ -74,6 +80,10 @@ pub struct DaemonOptions {
     /// Start this simulator and connect to it instead of `[radar] address`.
     #[cfg(feature = "sim")]
     pub embedded: Option<EmbeddedSim>,
+    /// With `embedded`: replay these recorded scans (its scene is ignored) with odometry
+    /// from their ground truth.
+    #[cfg(feature = "sim")]
+    pub recorded: Option<RecordedReplay>,
     /// Stop after this much stream time.
     pub max_stream_s: Option<f64>,
     /// Output folder.
@@ -108,6 +118,9 @@ pub struct DaemonReport {
     pub out_dir: PathBuf,
     /// Scene name when the simulator was embedded.
     pub scene: Option<String>,
+    /// Replays of recorded scans: dead reckoning and the distance driven.
+    #[cfg(feature = "sim")]
+    pub replay: Option<replay::ReplayFigures>,
     /// Why the radar driver failed, if it did (it gave up reconnecting, or its recording
     /// could not be written): the run's job failed even though a summary exists.
     pub driver_failure: Option<radar_driver::DriverError>,
@@ -141,6 +154,8 @@ pub async fn run_daemon(
     let mut sim_handle: Option<sim_sensor::SimHandle> = None;
     #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
     let mut pipeline: Option<Pipeline> = None;
+    #[cfg(feature = "sim")]
+    let mut replay_figures = None;
     #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
     let mut start_time_s = None;
     #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
@@ -155,49 +170,63 @@ pub async fn run_daemon(
     let embedded = opts.embedded;
     #[cfg(not(feature = "sim"))]
     let embedded: Option<std::convert::Infallible> = None;
-    let (azimuths, driver, odometry): (_, _, Option<Box<dyn OdometrySource>>) =
-        if let Some(sim) = embedded {
-            #[cfg(feature = "sim")]
-            {
-                let started = embedded::start(
-                    sim,
-                    settings,
-                    driver_settings,
-                    &opts.out_dir,
-                    opts.max_stream_s,
-                    opts.keep_configured_compensation,
-                    odo_shutdown.clone(),
-                )
-                .await?;
-                settings = started.settings;
-                start_time_s = started.start_time_s;
-                truth_overlay = started.truth_overlay;
-                scene_name = Some(started.scene_name);
-                pipeline = Some(started.pipeline);
-                sim_handle = Some(started.handle);
-                (started.azimuths, started.driver, started.odometry)
-            }
-            #[cfg(not(feature = "sim"))]
-            match sim {}
-        } else {
-            let odometry = radar_driver::odometry::open_configured(
-                &opts.config.odometry,
-                &tokio::runtime::Handle::current(),
-                odo_shutdown.clone(),
-            )?;
-            if odometry.is_none() {
-                return Err(DaemonError::NoOdometry);
-            }
-            let (driver, receivers) = Driver::new(driver_settings);
-            let rx = receivers.azimuths.ok_or(DaemonError::NoAzimuthChannel)?;
-            (rx, driver, odometry)
-        };
+    let (azimuths, driver, odometry): (_, _, Option<Box<dyn OdometrySource>>) = if let Some(sim) =
+        embedded
+    {
+        #[cfg(feature = "sim")]
+        {
+            let started = match opts.recorded {
+                Some(recorded) => {
+                    embedded::start_replay(sim.options, recorded, settings, driver_settings).await?
+                }
+                None => {
+                    embedded::start(
+                        sim,
+                        settings,
+                        driver_settings,
+                        &opts.out_dir,
+                        opts.max_stream_s,
+                        opts.keep_configured_compensation,
+                        odo_shutdown.clone(),
+                    )
+                    .await?
+                }
+            };
+            replay_figures = started.replay;
+            settings = started.settings;
+            start_time_s = started.start_time_s;
+            truth_overlay = started.truth_overlay;
+            scene_name = Some(started.scene_name);
+            pipeline = Some(started.pipeline);
+            sim_handle = Some(started.handle);
+            (started.azimuths, started.driver, started.odometry)
+        }
+        #[cfg(not(feature = "sim"))]
+        match sim {}
+    } else {
+        let odometry = radar_driver::odometry::open_configured(
+            &opts.config.odometry,
+            &tokio::runtime::Handle::current(),
+            odo_shutdown.clone(),
+        )?;
+        if odometry.is_none() {
+            return Err(DaemonError::NoOdometry);
+        }
+        let (driver, receivers) = Driver::new(driver_settings);
+        let rx = receivers.azimuths.ok_or(DaemonError::NoAzimuthChannel)?;
+        (rx, driver, odometry)
+    };
     let pipeline = match pipeline {
         Some(p) => p,
         None => Pipeline::new(settings, start_time_s, None)?,
     };
     let driver_handle = driver.spawn();
+    #[cfg(feature = "sim")]
+    let end_after_silence = replay_figures.is_some().then(|| Duration::from_secs(2));
+    #[cfg(not(feature = "sim"))]
+    let end_after_silence = None;
     let control = RunControl {
+        end_after_silence,
         stop: Arc::clone(&opts.stop),
         max_stream_s: opts.max_stream_s,
         progress,
@@ -246,6 +275,8 @@ pub async fn run_daemon(
         writer,
         out_dir: opts.out_dir,
         scene: scene_name,
+        #[cfg(feature = "sim")]
+        replay: replay_figures,
         driver_failure,
     })
 }

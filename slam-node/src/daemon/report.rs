@@ -86,7 +86,7 @@ pub fn summary_text(r: &DaemonReport) -> String {
             );
         }
     }
-    if let Some(m) = &s.map {
+    if let Some(m) = s.map.as_ref().filter(|m| m.scene_features > 0) {
         let _ = writeln!(
             t,
             "  map: {} features mapped; scene has {} ({} came within range); {} mapped features match {} distinct scene features (mean error {:.2} m); {} unmatched",
@@ -118,7 +118,15 @@ pub fn summary_text(r: &DaemonReport) -> String {
             s.clutter_associations
         );
     } else {
-        let _ = writeln!(t, "  associations {}", s.associations);
+        let loss = s
+            .map
+            .as_ref()
+            .map_or(String::new(), |m| format!("; L {:.2} dB", m.loss_db));
+        let _ = writeln!(
+            t,
+            "  map: {} features (no true features to compare with); associations {}{loss}",
+            s.map_size, s.associations
+        );
     }
     match (s.spectrum.in_bound_fraction(), s.spectrum.bias_db()) {
         (Some(f), Some(b)) => {
@@ -162,6 +170,34 @@ pub fn summary_text(r: &DaemonReport) -> String {
         r.run.odometry_errors,
         r.run.output_drops
     );
+    #[cfg(feature = "sim")]
+    if let Some(rp) = &r.replay {
+        let e = &rp.errors;
+        let _ = writeln!(
+            t,
+            "  recorded drive: {:.1} m; odometry from the ground truth x{:.3} speed, {:+.3} rad/s yaw rate, noise {:.3} m/s / {:.4} rad/s (seed {})",
+            rp.distance_m, e.speed_scale, e.yaw_rate_bias_rps, e.sigma_speed_mps, e.sigma_yaw_rate_rps, e.seed
+        );
+        let filter = s
+            .pose
+            .as_ref()
+            .map(|p| (p.rms_position_m(), p.final_position_m));
+        let _ = writeln!(
+            t,
+            "  against the ground truth: filter RMS {} m, final {} m; dead reckoning with the same odometry RMS {:.3} m, final {:.3} m",
+            filter.map_or("-".into(), |f| format!("{:.3}", f.0)),
+            filter.map_or("-".into(), |f| format!("{:.3}", f.1)),
+            rp.dead_reckoning_rms_m,
+            rp.dead_reckoning_final_m
+        );
+        let _ = writeln!(
+            t,
+            "  features in the map {} ({:.0} per 100 m driven), detections {:.1} per rotation",
+            s.map_size,
+            100.0 * s.map_size as f64 / rp.distance_m.max(1e-9),
+            s.detections as f64 / s.rotations.max(1) as f64
+        );
+    }
     if s.rotations_behind > 0 {
         let _ = writeln!(
             t,

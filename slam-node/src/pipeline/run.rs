@@ -43,6 +43,10 @@ pub struct RunControl {
     pub max_stream_s: Option<f64>,
     /// Called after every rotation.
     pub progress: Option<ProgressFn>,
+    /// End the run when no azimuth has come for this long after the first (a recording
+    /// that has been played out); `None` waits through silences (a live radar stalls and
+    /// comes back).
+    pub end_after_silence: Option<Duration>,
 }
 
 impl std::fmt::Debug for RunControl {
@@ -148,6 +152,15 @@ pub fn run_pipeline(
         let az = match inputs.azimuths.recv_timeout(Duration::from_millis(100)) {
             Ok(az) => az,
             Err(RecvTimeoutError::Timeout) => {
+                if let Some(limit) = control.end_after_silence {
+                    if first_time_s.is_some() && last_azimuth.elapsed() >= limit {
+                        info!(
+                            silent_s = last_azimuth.elapsed().as_secs_f64(),
+                            "the recording has played out"
+                        );
+                        break;
+                    }
+                }
                 if stalled_since.is_none() && last_azimuth.elapsed() >= stall_after {
                     warn!(
                         silent_s = last_azimuth.elapsed().as_secs_f64(),

@@ -1,0 +1,179 @@
+//! Ground truth that comes with recorded scans: the Oxford Radar RobotCar's
+//! `radar_odometry.csv` (each row: the pose of the scan at `source_radar_timestamp` in the
+//! frame of the scan at `destination_radar_timestamp`; x forward, y right, yaw clockwise),
+//! chained into poses in the first scan's frame (x forward, y left, heading
+//! counter-clockwise), one per scan. No IO beyond reading the one file.
+
+use std::path::{Path, PathBuf};
+
+use radar_model::geometry::{wrap_angle, Pose2};
+
+/// Largest ground-truth file read (bytes).
+pub const MAX_TRUTH_BYTES: u64 = 1 << 26;
+
+/// Why the ground truth could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum TruthError {
+    /// The file could not be read.
+    #[error("reading {path}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file is larger than [`MAX_TRUTH_BYTES`].
+    #[error("{path}: {bytes} bytes is larger than the {MAX_TRUTH_BYTES} read")]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size.
+        bytes: u64,
+    },
+    /// A row that does not parse.
+    #[error("{path}, row {row}: {reason}")]
+    Row {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        row: usize,
+        /// What is wrong.
+        reason: String,
+    },
+    /// No row links a scan to the one before it.
+    #[error("{path}: no row gives scan {to_us} relative to scan {from_us}")]
+    Missing {
+        /// The file.
+        path: PathBuf,
+        /// The earlier scan (µs).
+        from_us: i64,
+        /// The later scan (µs).
+        to_us: i64,
+    },
+}
+
+/// One row: the later scan's pose in the earlier scan's frame, in our convention.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RelativePose {
+    /// The later scan (µs since the epoch).
+    pub source_us: i64,
+    /// The earlier scan (µs since the epoch).
+    pub destination_us: i64,
+    /// The source's pose in the destination's frame (x forward, y left, CCW heading).
+    pub pose: Pose2,
+}
+
+/// `a` followed by `b` (`b` expressed in `a`'s frame).
+pub fn compose(a: &Pose2, b: &Pose2) -> Pose2 {
+    let (s, c) = a.theta.sin_cos();
+    Pose2::new(
+        a.x + c * b.x - s * b.y,
+        a.y + s * b.x + c * b.y,
+        wrap_angle(a.theta + b.theta),
+    )
+}
+
+/// Parses `radar_odometry.csv` (header line first; ten comma-separated fields a row).
+pub fn read_oxford_odometry(path: &Path) -> Result<Vec<RelativePose>, TruthError> {
+    let io = |source| TruthError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let bytes = std::fs::metadata(path).map_err(io)?.len();
+    if bytes > MAX_TRUTH_BYTES {
+        return Err(TruthError::TooLarge {
+            path: path.to_path_buf(),
+            bytes,
+        });
+    }
+    let text = std::fs::read_to_string(path).map_err(io)?;
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate().skip(1) {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let bad = |reason: String| TruthError::Row {
+            path: path.to_path_buf(),
+            row: i + 1,
+            reason,
+        };
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        if f.len() != 10 {
+            return Err(bad(format!("{} fields, expected 10", f.len())));
+        }
+        let num = |k: usize| -> Result<f64, TruthError> {
+            f.get(k)
+                .and_then(|s| s.parse::<f64>().ok())
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| bad(format!("field {} is not a finite number", k + 1)))
+        };
+        let int = |k: usize| -> Result<i64, TruthError> {
+            f.get(k)
+                .and_then(|s| s.parse::<i64>().ok())
+                .ok_or_else(|| bad(format!("field {} is not an integer", k + 1)))
+        };
+        out.push(RelativePose {
+            source_us: int(8)?,
+            destination_us: int(9)?,
+            pose: Pose2::new(num(2)?, -num(3)?, -num(7)?),
+        });
+    }
+    Ok(out)
+}
+
+/// Poses of the scans at `scan_times_us` (in order) in the first scan's frame, chained from
+/// the relative poses; every consecutive pair must have a row.
+pub fn chain_poses(
+    path: &Path,
+    rows: &[RelativePose],
+    scan_times_us: &[i64],
+) -> Result<Vec<Pose2>, TruthError> {
+    let mut poses = Vec::with_capacity(scan_times_us.len());
+    let mut last = Pose2::default();
+    poses.push(last);
+    for w in scan_times_us.windows(2) {
+        let (from_us, to_us) = (w[0], w[1]);
+        let rel = rows
+            .iter()
+            .find(|r| r.source_us == to_us && r.destination_us == from_us)
+            .ok_or(TruthError::Missing {
+                path: path.to_path_buf(),
+                from_us,
+                to_us,
+            })?;
+        last = compose(&last, &rel.pose);
+        poses.push(last);
+    }
+    Ok(poses)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_chain_into_poses_and_a_missing_link_names_both_scans() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("radar_odometry.csv");
+        std::fs::write(
+            &path,
+            "source_timestamp,destination_timestamp,x,y,z,roll,pitch,yaw,source_radar_timestamp,destination_radar_timestamp\n\
+             0,0,2.0,0.0,0,0,0,-0.1,200,100\n\
+             0,0,2.0,0.0,0,0,0,0.0,300,200\n",
+        )
+        .unwrap();
+        let rows = read_oxford_odometry(&path).unwrap();
+        let poses = chain_poses(&path, &rows, &[100, 200, 300]).unwrap();
+        assert_eq!(poses.len(), 3);
+        // A clockwise yaw in the data set is a left (counter-clockwise) turn... negated:
+        // yaw -0.1 clockwise is +0.1 counter-clockwise.
+        assert!((poses[1].theta - 0.1).abs() < 1e-12);
+        assert!((poses[2].x - (2.0 + 2.0 * 0.1f64.cos())).abs() < 1e-12);
+        let err = chain_poses(&path, &rows, &[100, 250]).unwrap_err();
+        assert!(err.to_string().contains("250"), "{err}");
+        std::fs::write(&path, "header\n1,2,3\n").unwrap();
+        let err = read_oxford_odometry(&path).unwrap_err();
+        assert!(err.to_string().contains("row 2"), "{err}");
+    }
+}

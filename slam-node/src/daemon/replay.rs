@@ -1,0 +1,430 @@
+//! Real recorded scans through the real path (the `sim` feature): the simulator replays a
+//! folder of Oxford Radar RobotCar polar scans over TCP on 127.0.0.1, the radar driver reads
+//! them, the daemon maps; its odometry is made from the data set's ground truth with a
+//! stated, seeded noise and bias, and its pose is scored against the ground truth and
+//! against dead reckoning with the same odometry.
+
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use radar_driver::odometry::OdometryRecord;
+use radar_driver::{OdometryError, OdometryPoll, OdometrySource};
+use radar_model::geometry::{wrap_angle, Pose2};
+use radar_model::motion::MotionModel;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use sim_sensor::replay::truth::{chain_poses, compose, read_oxford_odometry, TruthError};
+use slam_filter::{OdometrySample, ProcessModel};
+
+use crate::pipeline::{TrueFeature, TruthOracle};
+
+/// Odometry samples a second made from the ground truth.
+pub const ODOMETRY_HZ: f64 = 20.0;
+/// Wheelbase the yaw rate is turned into bicycle steering with (m).
+pub const WHEELBASE_M: f64 = 2.7;
+/// The CTS350-X's horizontal beam width (rad).
+pub const CTS350X_BEAM_WIDTH_RAD: f64 = 1.8 * std::f64::consts::PI / 180.0;
+/// The Oxford data set's bin size (m).
+pub const OXFORD_BIN_M: f64 = 0.0438;
+
+/// The errors put on the ground truth's motion to make the odometry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometryErrors {
+    /// Seed of the noise.
+    pub seed: u64,
+    /// Speed noise (m/s, standard deviation per sample).
+    pub sigma_speed_mps: f64,
+    /// Yaw-rate noise (rad/s, standard deviation per sample).
+    pub sigma_yaw_rate_rps: f64,
+    /// Speed scale (1.05: the odometry reads 5 % fast).
+    pub speed_scale: f64,
+    /// Yaw-rate bias (rad/s).
+    pub yaw_rate_bias_rps: f64,
+}
+
+impl Default for OdometryErrors {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            sigma_speed_mps: 0.05,
+            sigma_yaw_rate_rps: 0.005,
+            speed_scale: 1.0,
+            yaw_rate_bias_rps: 0.0,
+        }
+    }
+}
+
+/// Why a replay could not be set up.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// The folder's scans could not be listed.
+    #[error("listing the scans in {path}")]
+    List {
+        /// The folder.
+        path: PathBuf,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A scan's file name is not its timestamp in microseconds.
+    #[error("{path}: a scan's file name must be its timestamp in microseconds")]
+    BadName {
+        /// The file.
+        path: PathBuf,
+    },
+    /// Fewer than two scans.
+    #[error("{path}: {count} scans; a replay needs at least two")]
+    TooFew {
+        /// The folder.
+        path: PathBuf,
+        /// How many.
+        count: usize,
+    },
+    /// Scans out of time order.
+    #[error("{path}: scan {later_us} comes after {earlier_us} but is not later")]
+    OutOfOrder {
+        /// The folder.
+        path: PathBuf,
+        /// The earlier file's timestamp.
+        earlier_us: i64,
+        /// The later file's timestamp.
+        later_us: i64,
+    },
+    /// The ground truth could not be read.
+    #[error("ground truth")]
+    Truth(#[from] TruthError),
+}
+
+/// The ground truth of a recorded drive: the scans' times and poses (the first scan's frame),
+/// interpolated linearly between scans and extrapolated one scan interval beyond the ends.
+#[derive(Debug, Clone)]
+pub struct RecordedTruth {
+    times_s: Vec<f64>,
+    poses: Vec<Pose2>,
+}
+
+impl RecordedTruth {
+    /// Reads `dir`'s scan names (`<µs>.png`) and `radar_odometry.csv`.
+    pub fn read_oxford(dir: &Path) -> Result<Self, ReplayError> {
+        let list = |source| ReplayError::List {
+            path: dir.to_path_buf(),
+            source,
+        };
+        let scans = dir.join("radar");
+        let scan_dir = if scans.is_dir() {
+            scans
+        } else {
+            dir.to_path_buf()
+        };
+        let mut times_us = Vec::new();
+        for entry in std::fs::read_dir(&scan_dir).map_err(list)? {
+            let path = entry.map_err(list)?.path();
+            if !path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+            {
+                continue;
+            }
+            let us = path
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .and_then(|s| s.parse::<i64>().ok())
+                .ok_or_else(|| ReplayError::BadName { path: path.clone() })?;
+            times_us.push(us);
+        }
+        times_us.sort_unstable();
+        if times_us.len() < 2 {
+            return Err(ReplayError::TooFew {
+                path: scan_dir,
+                count: times_us.len(),
+            });
+        }
+        if let Some(w) = times_us.windows(2).find(|w| w[1] <= w[0]) {
+            return Err(ReplayError::OutOfOrder {
+                path: scan_dir,
+                earlier_us: w[0],
+                later_us: w[1],
+            });
+        }
+        let csv = dir.join("radar_odometry.csv");
+        let rows = read_oxford_odometry(&csv)?;
+        let poses = chain_poses(&csv, &rows, &times_us)?;
+        Ok(Self {
+            times_s: times_us.iter().map(|&us| us as f64 * 1e-6).collect(),
+            poses,
+        })
+    }
+
+    /// The folder of scans to replay for `dir` (its `radar/` subfolder when there is one).
+    pub fn scan_dir(dir: &Path) -> PathBuf {
+        let scans = dir.join("radar");
+        if scans.is_dir() {
+            scans
+        } else {
+            dir.to_path_buf()
+        }
+    }
+
+    /// Scan times (s).
+    pub fn times_s(&self) -> &[f64] {
+        &self.times_s
+    }
+
+    /// Distance driven (m).
+    pub fn distance_m(&self) -> f64 {
+        self.poses
+            .windows(2)
+            .map(|w| (w[1].x - w[0].x).hypot(w[1].y - w[0].y))
+            .sum()
+    }
+
+    /// Speed and yaw rate over segment `k` (between scans k and k + 1).
+    fn segment_motion(&self, k: usize) -> Option<(f64, f64)> {
+        let (a, b) = (self.poses.get(k)?, self.poses.get(k + 1)?);
+        let dt = self.times_s.get(k + 1)? - self.times_s.get(k)?;
+        let inv = Pose2::new(
+            -(a.theta.cos() * a.x + a.theta.sin() * a.y),
+            a.theta.sin() * a.x - a.theta.cos() * a.y,
+            -a.theta,
+        );
+        let rel = compose(&inv, b);
+        Some((rel.x.hypot(rel.y) / dt, wrap_angle(rel.theta) / dt))
+    }
+
+    /// Odometry made from the ground truth with `errors`: samples at [`ODOMETRY_HZ`] from
+    /// half a scan before the first scan to the last, bicycle steering from the yaw rate.
+    pub fn odometry(&self, errors: &OdometryErrors) -> Vec<OdometrySample> {
+        let mut rng = ChaCha8Rng::seed_from_u64(errors.seed);
+        let speed_noise = Normal::new(0.0, errors.sigma_speed_mps.max(0.0)).ok();
+        let yaw_noise = Normal::new(0.0, errors.sigma_yaw_rate_rps.max(0.0)).ok();
+        let n = self.times_s.len();
+        let (Some(&first), Some(&last)) = (self.times_s.first(), self.times_s.last()) else {
+            return Vec::new();
+        };
+        let start = first - 0.5 * (self.times_s.get(1).copied().unwrap_or(first) - first);
+        let steps = ((last - start) * ODOMETRY_HZ).floor() as usize;
+        let mut out = Vec::with_capacity(steps + 1);
+        for i in 0..=steps {
+            let t = start + i as f64 / ODOMETRY_HZ;
+            let k = self
+                .times_s
+                .partition_point(|&s| s <= t)
+                .saturating_sub(1)
+                .min(n.saturating_sub(2));
+            let (v, w) = self.segment_motion(k).unwrap_or((0.0, 0.0));
+            let v = v * errors.speed_scale + speed_noise.map_or(0.0, |d| d.sample(&mut rng));
+            let w = w + errors.yaw_rate_bias_rps + yaw_noise.map_or(0.0, |d| d.sample(&mut rng));
+            let steer = if v.abs() > 0.1 {
+                (w * WHEELBASE_M / v).atan()
+            } else {
+                0.0
+            };
+            out.push(OdometrySample {
+                timestamp_s: t,
+                speed_mps: v,
+                steer_rad: steer,
+            });
+        }
+        out
+    }
+
+    /// Dead reckoning with `samples` from the true pose at the first sample: the position
+    /// error against the truth at every scan time (m).
+    pub fn dead_reckoning_errors(&self, samples: &[OdometrySample]) -> Vec<f64> {
+        let motion = MotionModel::Bicycle {
+            wheelbase_m: WHEELBASE_M,
+        };
+        let Some(first) = samples.first() else {
+            return Vec::new();
+        };
+        let Some(mut pose) = self.pose_at(first.timestamp_s) else {
+            return Vec::new();
+        };
+        let mut t = first.timestamp_s;
+        let mut held = *first;
+        let mut next = 1;
+        let mut errors = Vec::new();
+        for (&scan_t, truth) in self.times_s.iter().zip(&self.poses) {
+            if scan_t < t {
+                continue;
+            }
+            while t < scan_t {
+                let until = samples
+                    .get(next)
+                    .map_or(scan_t, |s| s.timestamp_s.min(scan_t));
+                if until > t {
+                    if let Ok(step) = motion.step(&pose, held.speed_mps, held.steer_rad, until - t)
+                    {
+                        pose = step.pose;
+                    }
+                    t = until;
+                }
+                if let Some(s) = samples.get(next).filter(|s| s.timestamp_s <= t) {
+                    held = *s;
+                    next += 1;
+                }
+            }
+            errors.push((pose.x - truth.x).hypot(pose.y - truth.y));
+        }
+        errors
+    }
+}
+
+impl TruthOracle for RecordedTruth {
+    fn pose_at(&self, t_s: f64) -> Option<Pose2> {
+        let n = self.times_s.len();
+        let (&first, &last) = (self.times_s.first()?, self.times_s.last()?);
+        // Extrapolate up to one mean scan interval beyond the ends (the odometry starts half
+        // an interval before the first scan).
+        let margin = (last - first) / (n.max(2) - 1) as f64;
+        if !t_s.is_finite() || t_s < first - margin || t_s > last + margin {
+            return None;
+        }
+        let k = self
+            .times_s
+            .partition_point(|&s| s <= t_s)
+            .saturating_sub(1)
+            .min(n.saturating_sub(2));
+        let (a, b) = (self.poses.get(k)?, self.poses.get(k + 1)?);
+        let (ta, tb) = (*self.times_s.get(k)?, *self.times_s.get(k + 1)?);
+        let f = (t_s - ta) / (tb - ta);
+        Some(Pose2::new(
+            a.x + f * (b.x - a.x),
+            a.y + f * (b.y - a.y),
+            wrap_angle(a.theta + f * wrap_angle(b.theta - a.theta)),
+        ))
+    }
+
+    fn features(&self) -> &[TrueFeature] {
+        &[]
+    }
+}
+
+/// Odometry handed to the daemon from memory, in time order.
+#[derive(Debug)]
+pub struct MemoryOdometry {
+    records: VecDeque<OdometrySample>,
+}
+
+impl MemoryOdometry {
+    /// A source giving `samples` in order, then ending.
+    pub fn new(samples: Vec<OdometrySample>) -> Self {
+        Self {
+            records: samples.into(),
+        }
+    }
+}
+
+impl OdometrySource for MemoryOdometry {
+    fn poll_next(&mut self, _timeout: Duration) -> Result<OdometryPoll, OdometryError> {
+        Ok(match self.records.pop_front() {
+            Some(s) => OdometryPoll::Record(OdometryRecord {
+                timestamp_s: s.timestamp_s,
+                speed_mps: s.speed_mps,
+                steer_rad: s.steer_rad,
+            }),
+            None => OdometryPoll::Ended,
+        })
+    }
+}
+
+/// What the replay adds to the summary.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReplayFigures {
+    /// The odometry's errors.
+    pub errors: OdometryErrors,
+    /// Distance driven (ground truth, m).
+    pub distance_m: f64,
+    /// Dead reckoning's RMS position error at the scan times (m).
+    pub dead_reckoning_rms_m: f64,
+    /// Dead reckoning's final position error (m).
+    pub dead_reckoning_final_m: f64,
+}
+
+impl ReplayFigures {
+    /// The figures of a replay of `truth` with `samples` made with `errors`.
+    pub fn new(truth: &RecordedTruth, samples: &[OdometrySample], errors: OdometryErrors) -> Self {
+        let e = truth.dead_reckoning_errors(samples);
+        let rms = if e.is_empty() {
+            0.0
+        } else {
+            (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt()
+        };
+        Self {
+            errors,
+            distance_m: truth.distance_m(),
+            dead_reckoning_rms_m: rms,
+            dead_reckoning_final_m: e.last().copied().unwrap_or(0.0),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const HEADER: &str = "source_timestamp,destination_timestamp,x,y,z,roll,pitch,yaw,source_radar_timestamp,destination_radar_timestamp\n";
+
+    fn folder(scans: &[i64], rows: &str) -> tempfile::TempDir {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("radar")).unwrap();
+        for us in scans {
+            std::fs::write(dir.path().join("radar").join(format!("{us}.png")), b"").unwrap();
+        }
+        std::fs::write(
+            dir.path().join("radar_odometry.csv"),
+            format!("{HEADER}{rows}"),
+        )
+        .unwrap();
+        dir
+    }
+
+    #[test]
+    fn a_straight_drive_gives_its_speed_and_dead_reckoning_follows_exact_odometry() {
+        // 2 m every 0.25 s: 8 m/s straight ahead.
+        let rows = "0,0,2.0,0,0,0,0,0,1250000,1000000\n0,0,2.0,0,0,0,0,0,1500000,1250000\n0,0,2.0,0,0,0,0,0,1750000,1500000\n";
+        let dir = folder(&[1_000_000, 1_250_000, 1_500_000, 1_750_000], rows);
+        let truth = RecordedTruth::read_oxford(dir.path()).unwrap();
+        assert!((truth.distance_m() - 6.0).abs() < 1e-9);
+        let exact = OdometryErrors {
+            sigma_speed_mps: 0.0,
+            sigma_yaw_rate_rps: 0.0,
+            ..OdometryErrors::default()
+        };
+        let samples = truth.odometry(&exact);
+        assert!(samples.iter().all(|s| (s.speed_mps - 8.0).abs() < 1e-9));
+        let errors = truth.dead_reckoning_errors(&samples);
+        assert_eq!(errors.len(), 4);
+        assert!(errors.iter().all(|e| *e < 1e-6), "{errors:?}");
+        let p = truth.pose_at(1.125).unwrap();
+        assert!((p.x - 1.0).abs() < 1e-9);
+        // 5 % fast odometry drifts 5 % of the distance, from the first sample half a scan
+        // before the first scan: 7 m by the last.
+        let fast = OdometryErrors {
+            speed_scale: 1.05,
+            ..exact
+        };
+        let errors = truth.dead_reckoning_errors(&truth.odometry(&fast));
+        assert!((errors[3] - 0.35).abs() < 1e-6, "{errors:?}");
+    }
+
+    #[test]
+    fn bad_folders_are_refused_naming_the_file() {
+        let empty = folder(&[], "");
+        let err = RecordedTruth::read_oxford(empty.path()).unwrap_err();
+        assert!(err.to_string().contains("0 scans"), "{err}");
+        let missing = folder(&[1_000_000, 1_250_000], "0,0,2.0,0,0,0,0,0,9,8\n");
+        let err = RecordedTruth::read_oxford(missing.path()).unwrap_err();
+        let text = format!("{err}: {}", std::error::Error::source(&err).unwrap());
+        assert!(
+            text.contains("radar_odometry.csv") && text.contains("1250000"),
+            "{text}"
+        );
+        let named = folder(&[1_000_000], "");
+        std::fs::write(named.path().join("radar").join("scan-a.png"), b"").unwrap();
+        let err = RecordedTruth::read_oxford(named.path()).unwrap_err();
+        assert!(err.to_string().contains("scan-a.png"), "{err}");
+    }
+}
