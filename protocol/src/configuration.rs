@@ -123,6 +123,9 @@ impl Configuration {
                 offset_m: self.range_offset_m,
             });
         }
+        if self.range_gain <= 0.0 {
+            return Err(GeometryError::NonPositiveRangeGain(self.range_gain));
+        }
         Ok(Geometry {
             azimuth_samples: self.azimuth_samples,
             range_in_bins: self.range_in_bins,
@@ -236,6 +239,26 @@ impl Geometry {
 mod azimuth_index_tests {
     use super::*;
     use crate::BinWidth;
+
+    #[test]
+    fn a_range_gain_of_zero_or_below_is_refused_at_the_configuration_message() {
+        let mut c = Configuration {
+            azimuth_samples: 400,
+            bin_size: 438,
+            range_in_bins: 3768,
+            encoder_size: 5600,
+            rotation_speed_millihertz: 4000,
+            packet_rate: 1600,
+            range_gain: 0.0,
+            range_offset_m: 0.0,
+            data: ConfigurationData::minimal(8, 0.0438),
+        };
+        assert_eq!(c.geometry(), Err(GeometryError::NonPositiveRangeGain(0.0)));
+        c.range_gain = -1.0;
+        assert_eq!(c.geometry(), Err(GeometryError::NonPositiveRangeGain(-1.0)));
+        c.range_gain = 1.0;
+        assert!(c.geometry().is_ok());
+    }
 
     fn cts350x() -> Geometry {
         Geometry {

@@ -126,4 +126,8 @@ pub enum GeometryError {
     /// Range gain or offset not finite.
     #[error("range gain {gain} or offset {offset_m} m is not finite")]
     NonFiniteRangeCalibration { gain: f32, offset_m: f32 },
+    /// A range gain of zero or below: every bin would map to the same range (or behind the
+    /// radar), and ranges could not be turned back into bins.
+    #[error("range gain {0} is not positive")]
+    NonPositiveRangeGain(f32),
 }

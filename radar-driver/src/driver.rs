@@ -53,6 +53,7 @@ impl Driver {
                 assembler: RotationAssembler::new(),
                 geometry: None,
                 configuration_tx: tokio::sync::watch::channel(None).0,
+                unusable_configurations: 0,
             },
         }
     }

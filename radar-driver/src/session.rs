@@ -79,6 +79,8 @@ pub struct SessionState {
     /// The last configuration received, published for anyone interested (the CLI prints
     /// it; a daemon may log it).
     pub(crate) configuration_tx: tokio::sync::watch::Sender<Option<Arc<Configuration>>>,
+    /// Configuration messages that did not describe a usable radar (logged 1st, 2nd, 4th...).
+    pub(crate) unusable_configurations: u64,
 }
 
 /// What handling one message asks of the connection.
@@ -217,15 +219,20 @@ impl SessionState {
                 self.metrics.add_configurations(1);
                 match configuration.geometry() {
                     Ok(geometry) => {
-                        tracing::info!(
-                            azimuths = geometry.azimuth_samples,
-                            bins = geometry.range_in_bins,
-                            bin_size_m = geometry.bin_size_m,
-                            encoder_size = geometry.encoder_size,
-                            rotation_hz = geometry.rotation_hz,
-                            width = geometry.data_width.bits(),
-                            "radar configuration"
-                        );
+                        // A radar may re-send its configuration: say so once per change.
+                        if self.geometry.as_deref() != Some(&geometry) {
+                            tracing::info!(
+                                azimuths = geometry.azimuth_samples,
+                                bins = geometry.range_in_bins,
+                                bin_size_m = geometry.bin_size_m,
+                                encoder_size = geometry.encoder_size,
+                                rotation_hz = geometry.rotation_hz,
+                                width = geometry.data_width.bits(),
+                                "radar configuration"
+                            );
+                        } else {
+                            tracing::debug!("radar configuration repeated, unchanged");
+                        }
                         let geometry = Arc::new(geometry);
                         if let Some(partial) = self.assembler.set_geometry(Arc::clone(&geometry)) {
                             self.deliver_rotation(partial);
@@ -240,7 +247,14 @@ impl SessionState {
                         // An unusable configuration costs that message; the previous
                         // geometry (if any) stays in force.
                         self.metrics.add_decode_error(DecodeErrorKind::Other);
-                        tracing::warn!(error = %e, "unusable radar configuration ignored");
+                        self.unusable_configurations += 1;
+                        if self.unusable_configurations.is_power_of_two() {
+                            tracing::warn!(
+                                error = %e,
+                                count = self.unusable_configurations,
+                                "unusable radar configuration ignored"
+                            );
+                        }
                         Reply::None
                     }
                 }
