@@ -11,6 +11,12 @@
 //!   counter is the radar's, so it is checked across reconnections too.
 //! - A changed geometry (a re-sent configuration that differs) closes the rotation in
 //!   progress as partial: encoder values of two geometries cannot be compared.
+//! - A rotation is held to at most [`MAX_ROTATION_FACTOR`] times the configured azimuths: a
+//!   radar whose encoder never wraps (stuck) gets its rotation closed as partial there
+//!   instead of growing without bound.
+//! - Rotations are held only when someone wants them ([`RotationAssembler::counting_only`]):
+//!   otherwise only the skip and gap counts are kept, and no azimuth (nor the read buffer it
+//!   was decoded from) is pinned.
 //!
 //! The assembler lives in the driver's session state and survives reconnections.
 
@@ -20,9 +26,15 @@ use protocol::Geometry;
 
 use crate::azimuth::{Azimuth, Rotation};
 
+/// A rotation holds at most this many times the configured azimuths per rotation.
+pub const MAX_ROTATION_FACTOR: usize = 2;
+
 /// What one [`RotationAssembler::push`] found.
 #[derive(Debug, Default)]
 pub struct PushReport {
+    /// The rotation in progress reached [`MAX_ROTATION_FACTOR`] times the configured
+    /// azimuths without its encoder wrapping, and was closed as partial.
+    pub overlong: bool,
     /// A rotation finished by this azimuth (or by a geometry change it carried).
     pub finished: Option<Rotation>,
     /// Azimuth slots found missing by this push.
@@ -44,15 +56,19 @@ pub struct RotationAssembler {
     sweep_gaps: u32,
     sweep_missing: u32,
     duplicates: u32,
+    /// Keep only the counts; hold no azimuth.
+    counting_only: bool,
+    /// Azimuths pushed into the rotation in progress (held or not).
+    in_rotation: usize,
 }
 
-/// The azimuth slot of an encoder value, in `[0, azimuth_samples)`.
+/// The azimuth slot of an encoder value: `protocol`'s azimuth index (the last slot for a
+/// value past the revolution, which the session has already refused).
 fn slot(geometry: &Geometry, encoder: u16) -> u32 {
-    let samples = u32::from(geometry.azimuth_samples);
-    let size = u32::from(geometry.encoder_size.max(1));
-    // u16 x u16 fits u32; round to nearest.
-    let s = (u32::from(encoder) * samples + size / 2) / size;
-    s.min(samples.saturating_sub(1))
+    geometry.azimuth_index(encoder).map_or_else(
+        || u32::from(geometry.azimuth_samples).saturating_sub(1),
+        u32::from,
+    )
 }
 
 impl RotationAssembler {
@@ -64,6 +80,15 @@ impl RotationAssembler {
     /// Azimuths held for the rotation in progress.
     pub fn pending(&self) -> usize {
         self.current.len()
+    }
+
+    /// When `true`, rotations are not assembled: only the skip and gap counts are kept and
+    /// no azimuth is held (nobody asked for rotations).
+    pub fn set_counting_only(&mut self, counting_only: bool) {
+        self.counting_only = counting_only;
+        if counting_only {
+            self.current = Vec::new();
+        }
     }
 
     /// Takes a (re-sent) geometry. If it differs from the one in force, the rotation in
@@ -121,6 +146,19 @@ impl RotationAssembler {
         }
         self.last_sweep = Some(azimuth.sweep_counter);
         self.last_encoder = Some(azimuth.encoder);
+        let limit = MAX_ROTATION_FACTOR * usize::from(geometry.azimuth_samples).max(1);
+        if self.in_rotation >= limit {
+            // The encoder has not wrapped in twice a rotation: stuck. Close what is held as
+            // partial and start again from this azimuth.
+            report.overlong = true;
+            let overlong = self.close(false);
+            report.finished = report.finished.or(overlong);
+            self.started_at_wrap = false;
+        }
+        self.in_rotation += 1;
+        if self.counting_only {
+            return report;
+        }
         if self.current.capacity() == 0 {
             self.current
                 .reserve(usize::from(geometry.azimuth_samples).max(1));
@@ -138,6 +176,7 @@ impl RotationAssembler {
     }
 
     fn close(&mut self, at_wrap: bool) -> Option<Rotation> {
+        self.in_rotation = 0;
         let geometry = self.geometry.clone();
         let azimuths = std::mem::take(&mut self.current);
         let skipped = std::mem::take(&mut self.skipped);
@@ -338,5 +377,40 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_stuck_encoder_never_holds_more_than_twice_a_rotation() {
+        let g = geometry(16, 64);
+        let mut a = RotationAssembler::new();
+        let mut closed = 0;
+        for sweep in 0..1000u16 {
+            // Valid frames whose encoder never decreases: stuck at slot 5.
+            let report = a.push(az(&g, 5, sweep));
+            assert!(a.pending() <= MAX_ROTATION_FACTOR * 16, "{}", a.pending());
+            if report.overlong {
+                closed += 1;
+                assert!(report.finished.is_some_and(|r| !r.complete));
+            }
+        }
+        assert!(
+            closed >= 1000 / 32 - 1,
+            "{closed} overlong rotations closed"
+        );
+    }
+
+    #[test]
+    fn counting_only_holds_no_azimuth_but_still_counts_skips() {
+        let g = geometry(16, 64);
+        let mut a = RotationAssembler::new();
+        a.set_counting_only(true);
+        let mut skipped = 0;
+        for (sweep, slot) in [0u16, 1, 2, 5, 6].into_iter().enumerate() {
+            let report = a.push(az(&g, slot, u16::try_from(sweep).unwrap()));
+            skipped += report.skipped_azimuths;
+            assert!(report.finished.is_none());
+        }
+        assert_eq!(a.pending(), 0);
+        assert_eq!(skipped, 2);
     }
 }

@@ -54,6 +54,7 @@ impl Driver {
                 geometry: None,
                 configuration_tx: tokio::sync::watch::channel(None).0,
                 unusable_configurations: 0,
+                overlong_rotations: 0,
             },
         }
     }

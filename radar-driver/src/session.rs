@@ -81,6 +81,8 @@ pub struct SessionState {
     pub(crate) configuration_tx: tokio::sync::watch::Sender<Option<Arc<Configuration>>>,
     /// Configuration messages that did not describe a usable radar (logged 1st, 2nd, 4th...).
     pub(crate) unusable_configurations: u64,
+    /// Rotations closed because the encoder did not wrap (logged 1st, 2nd, 4th...).
+    pub(crate) overlong_rotations: u64,
 }
 
 /// What handling one message asks of the connection.
@@ -288,7 +290,18 @@ impl SessionState {
             self.metrics
                 .record_latency_ns(sent_ns.saturating_sub(read_ns));
         }
+        self.assembler
+            .set_counting_only(!self.sink.wants_rotations());
         let report = self.assembler.push(azimuth);
+        if report.overlong {
+            self.overlong_rotations += 1;
+            if self.overlong_rotations.is_power_of_two() {
+                tracing::warn!(
+                    count = self.overlong_rotations,
+                    "the encoder has not wrapped in twice a rotation (stuck?): rotation closed as partial"
+                );
+            }
+        }
         self.metrics
             .add_skipped_azimuths(u64::from(report.skipped_azimuths));
         if report.sweep_missing > 0 {
