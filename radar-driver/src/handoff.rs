@@ -18,7 +18,15 @@ use crossbeam_channel::{bounded, Receiver, Sender, TryRecvError, TrySendError};
 
 use crate::azimuth::{Azimuth, Rotation};
 
-pub use config::radar::DropPolicy;
+/// What a full channel drops.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum DropPolicy {
+    /// Keep what is queued; drop the new item (counted).
+    #[default]
+    DropNewest,
+    /// Drop the oldest queued item to make room (counted).
+    DropOldest,
+}
 
 /// What happened to one item offered to a sink.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -14,6 +14,7 @@
 //! - [`assembly`]: azimuths into [`Rotation`]s, counting skipped azimuths and sweep-counter
 //!   gaps.
 //! - [`handoff`]: the [`Sink`] seam and bounded crossbeam channels with a counted drop policy.
+//! - [`stream`]: the same hand-off as async streams ([`Driver::with_streams`]).
 //! - [`metrics`]: lock-free counters and read-to-send latency (median, p99).
 //! - [`record`]: raw byte-stream recording.
 //! - [`odometry`]: the odometry stream client (TCP, file) behind [`OdometrySource`].
@@ -50,6 +51,7 @@ pub mod session;
 pub mod settings;
 pub mod shutdown;
 pub mod socket;
+pub mod stream;
 
 pub use assembly::RotationAssembler;
 pub use azimuth::{Azimuth, Rotation};
@@ -65,3 +67,4 @@ pub use odometry::{
 pub use protocol::{BinWidth, Geometry};
 pub use settings::DriverSettings;
 pub use shutdown::{shutdown_pair, Shutdown, ShutdownTrigger};
+pub use stream::{AzimuthStream, RotationStream, StreamSink, Streams};

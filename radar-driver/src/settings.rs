@@ -1,12 +1,16 @@
-//! The driver's settings, built from the `[radar]` section of the configuration in one
-//! place ([`DriverSettings::from_config`]) or directly (tests, the CLI).
+//! The driver's settings: plain values ([`DriverSettings::new`] gives the documented
+//! defaults), or, with the `config` feature, the `[radar]` section of the project's
+//! configuration in one place ([`DriverSettings::from_config`]). The library proper does not
+//! depend on the configuration crate.
 
 use std::net::SocketAddr;
 use std::num::NonZeroU32;
 use std::path::PathBuf;
 use std::time::Duration;
 
+#[cfg(feature = "config")]
 use config::radar::ReconnectAttempts;
+#[cfg(feature = "config")]
 use config::RadarSettings;
 
 use crate::backoff::BackoffPolicy;
@@ -42,15 +46,41 @@ pub struct DriverSettings {
 }
 
 impl DriverSettings {
-    /// Defaults for `address`, equal to the `[radar]` section's defaults.
+    /// Defaults for `address` (the `[radar]` section's defaults; a test keeps them equal):
+    /// 3 s connect timeout, TCP_NODELAY, 4 MiB receive buffer, 7 s watchdog, reconnection
+    /// from 100 ms to 5 s with 20 % jitter, forever, contoured data (21), 4096 azimuths and 8
+    /// rotations in flight, newest dropped when full.
     pub fn new(address: SocketAddr) -> Self {
         Self {
             address,
-            ..Self::from_config(&RadarSettings::default())
+            socket: SocketOptions {
+                connect_timeout: Duration::from_millis(3000),
+                tcp_nodelay: true,
+                tcp_keepalive: None,
+                recv_buffer_bytes: Some(4 << 20),
+            },
+            watchdog_timeout: Duration::from_millis(7000),
+            backoff: BackoffPolicy {
+                initial: Duration::from_millis(100),
+                max: Duration::from_millis(5000),
+                jitter: 0.2,
+            },
+            max_attempts: None,
+            non_contoured: false,
+            handoff: HandoffSettings {
+                azimuth_capacity: Some(4096),
+                rotation_capacity: Some(8),
+                drop_policy: crate::handoff::DropPolicy::DropNewest,
+            },
+            record_path: None,
+            max_consecutive_decode_errors: 64,
+            read_chunk_bytes: 64 * 1024,
+            stop_timeout: Duration::from_millis(500),
         }
     }
 
     /// The settings of the `[radar]` section.
+    #[cfg(feature = "config")]
     pub fn from_config(radar: &RadarSettings) -> Self {
         Self {
             address: radar.address,
@@ -74,7 +104,10 @@ impl DriverSettings {
             handoff: HandoffSettings {
                 azimuth_capacity: Some(radar.azimuth_channel_capacity.get()),
                 rotation_capacity: Some(radar.rotation_channel_capacity.get()),
-                drop_policy: radar.drop_policy,
+                drop_policy: match radar.drop_policy {
+                    config::radar::DropPolicy::DropNewest => crate::handoff::DropPolicy::DropNewest,
+                    config::radar::DropPolicy::DropOldest => crate::handoff::DropPolicy::DropOldest,
+                },
             },
             record_path: radar.record_path.clone(),
             max_consecutive_decode_errors: 64,
@@ -110,5 +143,16 @@ impl DriverSettings {
             return Err("reconnect initial backoff exceeds the maximum".into());
         }
         Ok(())
+    }
+}
+
+#[cfg(all(test, feature = "config"))]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_plain_defaults_are_the_configuration_defaults() {
+        let from_config = DriverSettings::from_config(&RadarSettings::default());
+        assert_eq!(DriverSettings::new(from_config.address), from_config);
     }
 }

@@ -69,6 +69,7 @@ pub trait OdometrySource: Send {
     fn poll_next(&mut self, timeout: Duration) -> Result<OdometryPoll, OdometryError>;
 }
 
+#[cfg(feature = "config")]
 /// Opens the source the `[odometry]` section names: a [`TcpOdometry`] (spawned on
 /// `runtime`, stopped by `shutdown`), a [`FileOdometry`], or `None` for `source = "none"`.
 pub fn open_configured(
