@@ -95,6 +95,7 @@ pub struct Tpp {
     linear: Vec<f64>,
     relative: Vec<f32>,
     noise: Vec<f64>,
+    minima: (Vec<f32>, Vec<f32>),
 }
 
 impl Tpp {
@@ -107,6 +108,7 @@ impl Tpp {
             linear: Vec::new(),
             relative: Vec::new(),
             noise: Vec::new(),
+            minima: (Vec::new(), Vec::new()),
         }
     }
 
@@ -161,18 +163,18 @@ impl Tpp {
             };
         }
         let a_s = s.time_smoothing.clamp(0.0, 0.999) as f32;
-        for (sm, &x) in state.smoothed.iter_mut().zip(&self.scratch) {
-            *sm = a_s * *sm + (1.0 - a_s) * x as f32;
-        }
-        // Windowed minimum: track min and a candidate; renew at the window's end.
-        for ((m, c), &sm) in state
-            .minimum
+        // Time smoothing and the windowed minimum (current and candidate), in one pass.
+        for (((sm, m), c), &x) in state
+            .smoothed
             .iter_mut()
+            .zip(state.minimum.iter_mut())
             .zip(state.candidate.iter_mut())
-            .zip(&state.smoothed)
+            .zip(&self.scratch)
         {
-            *m = m.min(sm);
-            *c = c.min(sm);
+            let v = a_s * *sm + (1.0 - a_s) * x as f32;
+            *sm = v;
+            *m = m.min(v);
+            *c = c.min(v);
         }
         state.scans = state.scans.saturating_add(1);
         if s.min_window_scans > 0 && state.scans % s.min_window_scans == 0 {
@@ -194,29 +196,29 @@ impl Tpp {
                         .zip(floor)
                         .map(|(&m, &f)| (f64::from(m) - f) as f32),
                 );
-                neighbourhood_min(&self.relative, s.noise_neighbourhood_bins, &mut self.noise);
+                neighbourhood_min(
+                    &self.relative,
+                    s.noise_neighbourhood_bins,
+                    &mut self.minima,
+                    &mut self.noise,
+                );
                 for (v, &f) in self.noise.iter_mut().zip(floor) {
                     *v += f;
                 }
             }
-            None => neighbourhood_min(&state.minimum, s.noise_neighbourhood_bins, &mut self.noise),
+            None => neighbourhood_min(
+                &state.minimum,
+                s.noise_neighbourhood_bins,
+                &mut self.minima,
+                &mut self.noise,
+            ),
         }
         detected.clear();
         snr_db.clear();
         let warm = state.scans > s.warmup_scans;
         let alpha = s.alpha.clamp(0.0, 1.0) as f32;
-        for (b, ((p, &sm), &noise)) in state
-            .probability
-            .iter_mut()
-            .zip(&state.smoothed)
-            .zip(&self.noise)
-            .enumerate()
-        {
+        let mut step = |p: &mut f32, sm: f32, noise: f64, above_tail: bool| {
             let snr = f64::from(sm) - noise;
-            let above_tail = floor.map_or(true, |f| match (f.mean_db.get(b), f.tail_db.get(b)) {
-                (Some(m), Some(t)) => f64::from(sm) - m > *t,
-                _ => true,
-            });
             let indicator = if snr > s.snr_threshold_db && above_tail {
                 1.0
             } else {
@@ -225,26 +227,104 @@ impl Tpp {
             *p = alpha * *p + (1.0 - alpha) * indicator;
             detected.push(warm && f64::from(*p) >= s.detect_probability);
             snr_db.push(snr);
+        };
+        let bins = state
+            .probability
+            .iter_mut()
+            .zip(&state.smoothed)
+            .zip(&self.noise);
+        match floor {
+            Some(f) => {
+                for (((p, &sm), &noise), (&m, &t)) in bins.zip(f.mean_db.iter().zip(f.tail_db)) {
+                    step(p, sm, noise, f64::from(sm) - m > t);
+                }
+            }
+            None => {
+                for ((p, &sm), &noise) in bins {
+                    step(p, sm, noise, true);
+                }
+            }
         }
     }
 }
 
-/// `ln(10) / 10`: `10^(x / 10) = exp(x * DB_TO_NEPER)` (exp is cheaper than powf).
-const DB_TO_NEPER: f64 = std::f64::consts::LN_10 / 10.0;
+/// `log2(10) / 10`: `10^(x / 10) = 2^(x * DB_TO_LOG2)`.
+const DB_TO_LOG2: f64 = std::f64::consts::LOG2_10 / 10.0;
+/// `10 log10(2)`: `10 log10(x) = log2(x) * LOG2_TO_DB`.
+const LOG2_TO_DB: f64 = 10.0 * std::f64::consts::LOG10_2;
+
+/// `10^(db / 10)` to about 1e-8 relative (1e-7 dB), without libm: the range detector
+/// converts every bin of every azimuth twice, and libm's exp and log10 were two thirds of its
+/// time. Non-finite input and results outside f64's normal range go to libm.
+#[inline]
+pub fn db_to_linear(db: f64) -> f64 {
+    let y = db * DB_TO_LOG2;
+    if !(-1000.0..1000.0).contains(&y) {
+        return 10f64.powf(db / 10.0);
+    }
+    // floor(y) without a libm call: y is in (-1000, 1000).
+    let t = y as i64;
+    let i = (if (t as f64) > y { t - 1 } else { t }) as f64;
+    // 2^f for f in [0, 1): 2^0.5 * 2^g with g in [-0.5, 0.5), Taylor series of exp(g ln 2)
+    // to degree 8 (remainder below 2e-10).
+    let g = (y - i - 0.5) * std::f64::consts::LN_2;
+    let p = 1.0
+        + g * (1.0
+            + g * (0.5
+                + g * (1.0 / 6.0
+                    + g * (1.0 / 24.0
+                        + g * (1.0 / 120.0
+                            + g * (1.0 / 720.0 + g * (1.0 / 5040.0 + g * (1.0 / 40320.0))))))));
+    // i is in (-1001, 1000): a normal exponent.
+    let scale = f64::from_bits(((i as i64 + 1023) as u64) << 52);
+    std::f64::consts::SQRT_2 * p * scale
+}
+
+/// `10 log10(x)` to about 1e-6 dB, without libm (see [`db_to_linear`]). Zero gives minus
+/// infinity; negative, non-finite and subnormal input go to libm.
+#[inline]
+pub fn linear_to_db(x: f64) -> f64 {
+    if !(x >= f64::MIN_POSITIVE && x.is_finite()) {
+        return 10.0 * x.log10();
+    }
+    let bits = x.to_bits();
+    let exponent = ((bits >> 52) & 0x7ff) as i64 - 1023;
+    // Mantissa in [1, 2); log2 of it by the atanh series in t = (m - 1) / (m + 1) <= 1/3.
+    let m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
+    let t = (m - 1.0) / (m + 1.0);
+    let t2 = t * t;
+    let series = t
+        * (1.0
+            + t2 * (1.0 / 3.0
+                + t2 * (1.0 / 5.0
+                    + t2 * (1.0 / 7.0
+                        + t2 * (1.0 / 9.0 + t2 * (1.0 / 11.0 + t2 * (1.0 / 13.0)))))));
+    let log2 = exponent as f64 + 2.0 * series * std::f64::consts::LOG2_E;
+    log2 * LOG2_TO_DB
+}
 
 /// Triangular smoothing in linear power across `half` bins each side, result in dB. Each
 /// bin is converted to linear power once; NaN bins count as zero power.
 fn smooth_in_range(power_db: &[f64], half: usize, linear: &mut Vec<f64>, out: &mut Vec<f64>) {
     linear.clear();
-    linear.extend(power_db.iter().map(|&p| {
-        if p.is_nan() {
-            0.0
-        } else {
-            (p * DB_TO_NEPER).exp()
-        }
-    }));
+    linear.extend(
+        power_db
+            .iter()
+            .map(|&p| if p.is_nan() { 0.0 } else { db_to_linear(p) }),
+    );
     out.clear();
     let n = linear.len();
+    if half == 1 && n >= 2 {
+        // The shipped kernel (1, 2, 1), edges (2, 1) / 3.
+        out.push(linear_to_db((2.0 * linear[0] + linear[1]) / 3.0));
+        out.extend(
+            linear
+                .windows(3)
+                .map(|w| linear_to_db((w[0] + 2.0 * w[1] + w[2]) / 4.0)),
+        );
+        out.push(linear_to_db((linear[n - 2] + 2.0 * linear[n - 1]) / 3.0));
+        return;
+    }
     for i in 0..n {
         let lo = i.saturating_sub(half);
         let hi = (i + half + 1).min(n);
@@ -255,23 +335,52 @@ fn smooth_in_range(power_db: &[f64], half: usize, linear: &mut Vec<f64>, out: &m
             acc += w * lin;
             wsum += w;
         }
-        out.push(10.0 * (acc / wsum).log10());
+        out.push(linear_to_db(acc / wsum));
     }
 }
 
-/// Minimum over a +-`half` bin neighbourhood (van Herk / Gil-Werman would be O(n); the
-/// neighbourhood is small, so the direct form is kept for clarity).
-fn neighbourhood_min(values: &[f32], half: usize, out: &mut Vec<f64>) {
+/// Minimum over a +-`half` bin neighbourhood (the window clipped at the ends), in O(n) by
+/// van Herk / Gil-Werman: prefix and suffix minima over blocks of the window's width.
+fn neighbourhood_min(
+    values: &[f32],
+    half: usize,
+    scratch: &mut (Vec<f32>, Vec<f32>),
+    out: &mut Vec<f64>,
+) {
     out.clear();
     let n = values.len();
-    for i in 0..n {
-        let lo = i.saturating_sub(half);
-        let hi = (i + half + 1).min(n);
-        let m = values.get(lo..hi).map_or(f32::INFINITY, |w| {
-            w.iter().copied().fold(f32::INFINITY, f32::min)
-        });
-        out.push(f64::from(m));
+    if n == 0 {
+        return;
     }
+    let w = 2 * half + 1;
+    // Pad by `half` on both sides with +inf so every window is whole.
+    let len = n + 2 * half;
+    let at = |i: usize| -> f32 {
+        if i < half || i >= half + n {
+            f32::INFINITY
+        } else {
+            values[i - half]
+        }
+    };
+    let (prefix, suffix) = scratch;
+    prefix.clear();
+    prefix.resize(len, f32::INFINITY);
+    suffix.clear();
+    suffix.resize(len, f32::INFINITY);
+    for i in 0..len {
+        let v = at(i);
+        prefix[i] = if i % w == 0 { v } else { prefix[i - 1].min(v) };
+    }
+    for i in (0..len).rev() {
+        let v = at(i);
+        suffix[i] = if i % w == w - 1 || i == len - 1 {
+            v
+        } else {
+            suffix[i + 1].min(v)
+        };
+    }
+    // Window of output i covers padded [i, i + w - 1].
+    out.extend((0..n).map(|i| f64::from(suffix[i].min(prefix[i + w - 1]))));
 }
 
 #[cfg(test)]
@@ -289,6 +398,39 @@ mod tests {
                 ((x >> 33) as f64 / (1u64 << 31) as f64) * 4.0 - 2.0
             })
             .collect()
+    }
+
+    #[test]
+    fn the_fast_decibel_conversions_agree_with_libm() {
+        let mut worst = (0.0f64, 0.0f64);
+        for k in -40_000..40_000 {
+            let db = f64::from(k) * 0.01 + 0.003;
+            let lin = db_to_linear(db);
+            let exact = 10f64.powf(db / 10.0);
+            worst.0 = worst.0.max(((lin - exact) / exact).abs());
+            worst.1 = worst.1.max((linear_to_db(exact) - db).abs());
+        }
+        assert!(worst.0 < 1e-9, "relative error of 10^(x/10): {}", worst.0);
+        assert!(worst.1 < 1e-6, "error of 10 log10(x): {} dB", worst.1);
+        assert_eq!(linear_to_db(0.0), f64::NEG_INFINITY);
+        assert!(linear_to_db(f64::NAN).is_nan());
+        assert!(db_to_linear(f64::NAN).is_nan());
+        assert_eq!(db_to_linear(f64::NEG_INFINITY), 0.0);
+    }
+
+    #[test]
+    fn the_neighbourhood_minimum_matches_the_direct_form() {
+        let values: Vec<f32> = noisy_floor(3, 101).iter().map(|&v| v as f32).collect();
+        for half in [0usize, 1, 4, 7] {
+            let mut out = Vec::new();
+            neighbourhood_min(&values, half, &mut (Vec::new(), Vec::new()), &mut out);
+            for (i, got) in out.iter().enumerate() {
+                let lo = i.saturating_sub(half);
+                let hi = (i + half + 1).min(values.len());
+                let want = values[lo..hi].iter().copied().fold(f32::INFINITY, f32::min);
+                assert_eq!(*got, f64::from(want), "half {half}, bin {i}");
+            }
+        }
     }
 
     #[test]
