@@ -25,6 +25,28 @@ pub fn shipped_settings() -> Result<PipelineSettings, EvalError> {
         .map_err(|e| EvalError::Setting(format!("shipped configuration: {e}")))
 }
 
+/// The settings the evaluation runs the daemon's pipeline with on `scene`: the daemon's own
+/// adjustment to a simulated scene (`embedded_settings`: motion model, the receiver's
+/// compensation, beam, bins, start pose), then the two things the evaluation sets on
+/// purpose: the filter's odometry noise matched to the simulator's odometry, and a small
+/// initial pose uncertainty. A test (`tests/settings.rs`) holds them to the daemon's.
+pub fn scene_settings(
+    settings: PipelineSettings,
+    scene: &Scene,
+    world: &World,
+    odometry: &OdometryNoise,
+) -> PipelineSettings {
+    let mut settings = slam_node::daemon::embedded::embedded_settings(settings, scene, false);
+    settings.motion = world.motion;
+    let start = world.start_pose();
+    settings.initial_pose = [start.x, start.y, start.theta];
+    settings.initial_pose_std = [1e-3, 1e-3, 1e-4];
+    settings.filter.speed_std_mps = odometry.sigma_speed_mps.max(1e-3);
+    settings.filter.steer_std_rad = odometry.sigma_steer_rad.max(1e-5);
+    settings.filter.input_noise_correlation_s = 1.0 / odometry.rate_hz;
+    settings
+}
+
 /// What a daemon run measured.
 #[derive(Debug, Clone)]
 pub struct DaemonOutcome {
@@ -66,13 +88,7 @@ pub fn run_daemon(
 ) -> Result<DaemonOutcome, EvalError> {
     let started = Instant::now();
     let world = World::new(scene.clone(), seed, seconds, odometry)?;
-    settings.motion = world.motion;
-    let start = world.start_pose();
-    settings.initial_pose = [start.x, start.y, start.theta];
-    settings.initial_pose_std = [1e-3, 1e-3, 1e-4];
-    settings.filter.speed_std_mps = odometry.sigma_speed_mps.max(1e-3);
-    settings.filter.steer_std_rad = odometry.sigma_steer_rad.max(1e-5);
-    settings.filter.input_noise_correlation_s = 1.0 / odometry.rate_hz;
+    settings = scene_settings(settings, scene, &world, &odometry);
     let truth = SceneTruth::new(scene, EPOCH_S, seconds + 2.0)?;
     let mut pipeline = Pipeline::new(settings, Some(EPOCH_S), Some(Box::new(truth)))
         .map_err(|e| EvalError::Setting(format!("pipeline: {e}")))?;

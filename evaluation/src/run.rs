@@ -6,7 +6,6 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 use nalgebra::Matrix3;
-use radar_model::compensation::Compensation;
 use radar_model::geometry::{wrap_angle, Pose2};
 use radar_model::power::PowerModel;
 use sim_sensor::scene::Scene;
@@ -15,35 +14,17 @@ use slam_filter::{
     BeamObservation, BeamReport, CovarianceHealth, Ekf, FeatureId, FilterSettings, FilterStats,
     RadarBeamModel,
 };
-use slam_node::detect::DetectorSettings;
 use slam_node::pipeline::{PipelineSettings, PipelineSummary};
 
 use crate::error::EvalError;
-use crate::source::{label_targets, AzimuthBeam, SpectrumSource, TargetSource};
+use crate::source::{AzimuthBeam, TargetSource};
 use crate::world::World;
-
-/// How the spectra pipeline detects and groups.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SpectraSettings {
-    /// The detector.
-    pub detector: DetectorSettings,
-    /// The receiver compensation the detector removes (the daemon's configured one).
-    pub compensation: Compensation,
-    /// Grouping range gate (m).
-    pub grouping_range_gate_m: f64,
-    /// Widest group, in beam widths.
-    pub grouping_max_width_beams: f64,
-    /// The noise model whose target-absent floor the detector is told (TPP uses it).
-    pub noise: radar_model::noise::NoiseModel,
-}
 
 /// Where observations come from (see [`crate::source`]).
 #[derive(Debug, Clone)]
 pub enum Mode {
     /// Every feature in the beam, with the filter's noise model.
     Targets,
-    /// Rendered spectra through the detector and grouper, one filter beam per azimuth.
-    Spectra(Box<SpectraSettings>),
     /// The daemon's own pipeline with these settings (wire bytes in; see [`crate::daemon`]).
     Daemon(Box<PipelineSettings>),
 }
@@ -69,8 +50,6 @@ pub struct RunSpec {
     pub filter_power: PowerModel,
     /// Process every `azimuth_stride`-th azimuth only.
     pub azimuth_stride: usize,
-    /// Keep the strongest of every `bin_stride` bins (spectra mode).
-    pub bin_stride: usize,
     /// Merge the targets of this many processed azimuths into one update.
     pub beam_batch: usize,
     /// The odometry's noise (the filter's input noise is set to match by [`matched_filter`]).
@@ -212,7 +191,7 @@ pub struct RunOutcome {
 
 /// Runs `spec` and measures it.
 pub fn run(spec: &RunSpec) -> Result<RunOutcome, EvalError> {
-    if spec.azimuth_stride == 0 || spec.bin_stride == 0 || spec.beam_batch == 0 {
+    if spec.azimuth_stride == 0 || spec.beam_batch == 0 {
         return Err(EvalError::Setting(
             "strides and batch must be at least 1".into(),
         ));
@@ -280,30 +259,6 @@ pub fn run(spec: &RunSpec) -> Result<RunOutcome, EvalError> {
             }
         }
         Mode::Daemon(_) => {}
-        Mode::Spectra(settings) => {
-            let mut source =
-                SpectrumSource::new(&world, settings, spec.bin_stride, spec.azimuth_stride)?;
-            let mut finals = Vec::new();
-            let mut index = 0;
-            while index < total {
-                source.render(&world, index)?;
-                let t = Instant::now();
-                source.detect(&world);
-                finals.clear();
-                source.take_final(index + stride >= total, &mut finals);
-                let detect_s = t.elapsed().as_secs_f64();
-                let share = detect_s / finals.len().max(1) as f64;
-                state.pending_work_s += if finals.is_empty() { detect_s } else { 0.0 };
-                for mut beam in finals.drain(..) {
-                    label_targets(&world, &mut beam, 1.0, 3.0_f64.to_radians());
-                    let t = Instant::now();
-                    state.feed_odometry(&world, &mut ekf, beam.timestamp_s);
-                    let odo_s = t.elapsed().as_secs_f64();
-                    state.offer(&world, &mut ekf, beam, spec.beam_batch, share + odo_s);
-                }
-                index += stride;
-            }
-        }
     }
     state.flush(&world, &mut ekf);
     let mut out = state.finish(&world, &ekf);

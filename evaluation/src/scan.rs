@@ -20,7 +20,6 @@ use slam_node::detect::{
 };
 
 use crate::error::EvalError;
-use crate::source::grouping_for;
 
 /// Absorbed share assumed for every target fitted from one scan (absorption is not
 /// observable from a single look; the filter's prior is 0.3, its own estimates vary).
@@ -232,7 +231,17 @@ pub fn detect_scan(
 ) -> Vec<Observation> {
     let azimuths = scan.rows.len().max(1);
     let mut det = BeamDetector::new(detector, azimuths);
-    let mut grouper = Grouper::new(grouping_for(azimuths as u64, beam_width_rad, axis.bin_m, 1));
+    // The daemon's grouping for this radar (one owner: the front end's settings).
+    let shipped = crate::daemon::shipped_settings().map(|s| s.front_end());
+    let grouping = match shipped {
+        Ok(fe) => slam_node::pipeline::FrontEndSettings {
+            beam_width_rad,
+            ..fe
+        }
+        .grouping(u16::try_from(azimuths).unwrap_or(u16::MAX)),
+        Err(_) => return Vec::new(),
+    };
+    let mut grouper = Grouper::new(grouping);
     let mut found = Vec::new();
     let mut handoff = Vec::new();
     let mut out = Vec::new();

@@ -10,7 +10,7 @@ use crate::metrics::{mean, nis_per_dof, quantile, rms};
 use crate::plot::{line_chart, Labels, Series};
 use crate::report::{num, table, Options, Section};
 use crate::run::{run_many, Mode, RunOutcome};
-use crate::sections::{shipped_daemon, shipped_spec, shipped_spectra};
+use crate::sections::{shipped_daemon, shipped_spec};
 
 /// Simulated seconds for a scene: its schedule's length (at least 10 s), capped by the budget.
 fn seconds_for(scene: &sim_sensor::scene::Scene, cap_s: f64) -> f64 {
@@ -119,13 +119,6 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
             shipped_daemon()?,
         )?);
         meta.push((name, "daemon", pipeline_s, n));
-        specs.push(shipped_spec(
-            scene.clone(),
-            7,
-            pipeline_s,
-            shipped_spectra()?,
-        )?);
-        meta.push((name, "spectra", pipeline_s, n));
         specs.push(shipped_spec(scene, 7, seconds, Mode::Targets)?);
         meta.push((name, "targets", seconds, n));
     }
@@ -169,10 +162,8 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
         body,
         "Every shipped scene, seed 7, for its control schedule's length (at least 10 s, at most \
          {} s). `daemon`: the daemon's own pipeline as shipped, fed the simulator's wire \
-         frames; `spectra`: the evaluation's reproduction of that pipeline with the same \
-         shipped detector, compensation, grouping and filter settings, but one filter beam \
-         per azimuth (so misses are counted on empty beams too) and its own labelled \
-         association scoring; `targets`: every feature in the beam observed with the \
+         frames (the only spectra path: the evaluation keeps no copy of its detection or \
+         grouping); `targets`: every feature in the beam observed with the \
          filter's own noise model (no detection). Errors are against the simulator's truth \
          at the end of each rotation. Map error: for `daemon`, the daemon's own score (each \
          final feature against the nearest scene feature within 2 m); otherwise each final \

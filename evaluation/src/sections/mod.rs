@@ -15,7 +15,7 @@ use slam_filter::FilterSettings;
 use slam_node::detect::DetectorSettings;
 
 use crate::error::EvalError;
-use crate::run::{matched_filter, Mode, RunSpec, SpectraSettings};
+use crate::run::{matched_filter, Mode, RunSpec};
 use crate::world::World;
 
 /// A run of `scene` with the settings the daemon ships with (`config::Config::default()`
@@ -51,25 +51,11 @@ pub fn shipped_spec(
         seconds,
         mode,
         azimuth_stride: 1,
-        bin_stride: 1,
         beam_batch: 1,
         odometry,
         initial_sigma: [1e-3, 1e-3, 1e-4],
         health_every_rotations: None,
     })
-}
-
-/// The shipped detector, compensation and grouping for the evaluation's own spectra
-/// pipeline.
-pub fn shipped_spectra() -> Result<Mode, EvalError> {
-    let s = crate::daemon::shipped_settings()?;
-    Ok(Mode::Spectra(Box::new(SpectraSettings {
-        detector: s.detector,
-        compensation: s.compensation.clone(),
-        grouping_range_gate_m: s.grouping_range_gate_m,
-        grouping_max_width_beams: s.grouping_max_width_beams,
-        noise: s.noise,
-    })))
 }
 
 /// The daemon's pipeline as shipped.

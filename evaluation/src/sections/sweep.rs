@@ -13,7 +13,7 @@ use crate::metrics::{quantile, rms};
 use crate::plot::{scatter_chart, LabelledPoint, Labels};
 use crate::report::{num, table, Options, Section};
 use crate::run::{run, Mode, RunSpec};
-use crate::sections::{shipped_daemon, shipped_spec, shipped_spectra};
+use crate::sections::{shipped_daemon, shipped_spec};
 
 /// One point of the sweep.
 #[derive(Debug, Clone)]
@@ -35,68 +35,58 @@ pub struct Point {
 }
 
 fn variants(base: &RunSpec) -> Vec<(String, bool, RunSpec)> {
-    let mut out = vec![("base (shipped settings)".to_string(), false, base.clone())];
+    let mut out = Vec::new();
     let with = |f: &dyn Fn(&mut RunSpec)| {
         let mut s = base.clone();
         f(&mut s);
         s
     };
-    for k in [2, 4] {
-        out.push((
-            format!("azimuths 1/{k}"),
-            false,
-            with(&|s| s.azimuth_stride = k),
-        ));
-    }
-    for k in [2, 4] {
-        out.push((format!("bins 1/{k}"), false, with(&|s| s.bin_stride = k)));
-    }
-    let Mode::Spectra(spectra) = &base.mode else {
+    let Mode::Daemon(daemon) = &base.mode else {
         return out;
     };
-    let spectra = spectra.clone();
+    let daemon = daemon.clone();
+    let detector = |f: &dyn Fn(&mut slam_node::detect::DetectorSettings)| {
+        let mut d = daemon.clone();
+        f(&mut d.detector);
+        Mode::Daemon(d)
+    };
     for thr in [9.0, 16.0] {
+        let mode = detector(&|d| {
+            d.kind = DetectorKind::OsCfar;
+            d.os_scale_db = thr;
+        });
         out.push((
             format!("OS-CFAR {thr} dB"),
             false,
-            with(&|s| {
-                let mut d = spectra.clone();
-                d.detector.kind = DetectorKind::OsCfar;
-                d.detector.os_scale_db = thr;
-                s.mode = Mode::Spectra(d);
-            }),
+            with(&|s| s.mode = mode.clone()),
         ));
     }
+    let ca = detector(&|d| {
+        d.kind = DetectorKind::CaCfar;
+        d.ca_scale_db = 12.0;
+    });
     out.push((
         "CA-CFAR 12 dB".into(),
         false,
-        with(&|s| {
-            let mut d = spectra.clone();
-            d.detector.kind = DetectorKind::CaCfar;
-            d.detector.ca_scale_db = 12.0;
-            s.mode = Mode::Spectra(d);
-        }),
+        with(&|s| s.mode = ca.clone()),
     ));
-    out.push((
-        "TPP".into(),
-        false,
-        with(&|s| {
-            let mut d = spectra.clone();
-            d.detector.kind = DetectorKind::Tpp;
-            s.mode = Mode::Spectra(d);
-        }),
-    ));
-    for k in [2, 4] {
+    for snr in [14.0, 26.0] {
+        let mode = detector(&|d| d.tpp.snr_threshold_db = snr);
         out.push((
-            format!("batch {k} azimuths"),
+            format!("TPP {snr} dB"),
             false,
-            with(&|s| s.beam_batch = k),
+            with(&|s| s.mode = mode.clone()),
         ));
     }
     out.push((
         "no power".into(),
         false,
         with(&|s| s.filter.use_power = false),
+    ));
+    out.push((
+        "standard EKF (no FEJ)".into(),
+        false,
+        with(&|s| s.filter.first_estimate_jacobians = false),
     ));
     for n in [40, 15] {
         out.push((
@@ -111,12 +101,8 @@ fn variants(base: &RunSpec) -> Vec<(String, bool, RunSpec)> {
 /// Runs the sweep on one scene (sequentially: timings are taken one run at a time).
 pub fn sweep(scene_name: &str, seconds: f64) -> Result<Vec<Point>, EvalError> {
     let scene = shipped::load(scene_name)?;
-    let base = shipped_spec(scene.clone(), 11, seconds, shipped_spectra()?)?;
-    let mut all = vec![(
-        "daemon as shipped".to_string(),
-        true,
-        shipped_spec(scene, 11, seconds, shipped_daemon()?)?,
-    )];
+    let base = shipped_spec(scene, 11, seconds, shipped_daemon()?)?;
+    let mut all = vec![("daemon as shipped".to_string(), true, base.clone())];
     all.extend(variants(&base));
     let mut points = Vec::new();
     for (label, shipped, spec) in all {

@@ -14,8 +14,7 @@ use sim_sensor::{SimHandle, SimOptions, SimServer};
 use tracing::info;
 
 use super::replay::{
-    MemoryOdometry, OdometryErrors, RecordedTruth, ReplayFigures, CTS350X_BEAM_WIDTH_RAD,
-    OXFORD_BIN_M, WHEELBASE_M,
+    recorded_settings, MemoryOdometry, OdometryErrors, RecordedTruth, ReplayFigures, OXFORD_BIN_M,
 };
 use super::{sink, DaemonError};
 use crate::output::figures::TruthOverlay;
@@ -28,7 +27,9 @@ pub struct EmbeddedSim {
     pub options: SimOptions,
 }
 
-fn embedded_settings(
+/// The daemon's settings for running against the simulator's `scene`: its motion model, its
+/// receiver's compensation (unless `keep_compensation`), its beam and bins, its start pose.
+pub fn embedded_settings(
     mut settings: PipelineSettings,
     scene: &sim_sensor::scene::Scene,
     keep_compensation: bool,
@@ -156,26 +157,6 @@ pub struct RecordedReplay {
     pub dir: std::path::PathBuf,
     /// The errors put on the ground truth's motion to make the odometry.
     pub errors: OdometryErrors,
-}
-
-/// The daemon's settings for a CTS350-X's recorded scans: the unit's beam and bins, the
-/// bicycle model the odometry was made with.
-fn recorded_settings(mut settings: PipelineSettings, max_range_m: f64) -> PipelineSettings {
-    settings.motion = radar_model::motion::MotionModel::Bicycle {
-        wheelbase_m: WHEELBASE_M,
-    };
-    settings.beam_width_rad = CTS350X_BEAM_WIDTH_RAD;
-    settings.filter.beam_half_width_rad = 0.5 * CTS350X_BEAM_WIDTH_RAD;
-    settings.noise.range.resolution_fwhm_m = OXFORD_BIN_M;
-    settings.power.range_resolution_m = OXFORD_BIN_M;
-    settings.filter.max_range_m = settings.filter.max_range_m.min(max_range_m);
-    settings.detector.max_range_m = settings.detector.max_range_m.min(max_range_m);
-    if settings.filter.repeat_look_range_m > 0.0 && settings.filter.repeat_look_bearing_rad > 0.0 {
-        settings.filter.repeat_look_range_m = OXFORD_BIN_M;
-        settings.filter.repeat_look_bearing_rad = CTS350X_BEAM_WIDTH_RAD;
-    }
-    settings.initial_pose_std = [1e-3, 1e-3, 1e-4];
-    settings
 }
 
 /// Replays recorded scans through the simulator's server, with odometry from their ground

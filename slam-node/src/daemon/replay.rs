@@ -18,7 +18,7 @@ use rand_distr::{Distribution, Normal};
 use sim_sensor::replay::truth::{chain_poses, compose, read_oxford_odometry, TruthError};
 use slam_filter::{OdometrySample, ProcessModel};
 
-use crate::pipeline::{TrueFeature, TruthOracle};
+use crate::pipeline::{PipelineSettings, TrueFeature, TruthOracle};
 
 /// Odometry samples a second made from the ground truth.
 pub const ODOMETRY_HZ: f64 = 20.0;
@@ -155,6 +155,15 @@ impl RecordedTruth {
             times_s: times_us.iter().map(|&us| us as f64 * 1e-6).collect(),
             poses,
         })
+    }
+
+    /// Ground truth from scan times (s, increasing) and poses; `None` unless there are at
+    /// least two scans, as many poses as times, and the times increase.
+    pub fn from_poses(times_s: Vec<f64>, poses: Vec<Pose2>) -> Option<Self> {
+        let ok = times_s.len() >= 2
+            && times_s.len() == poses.len()
+            && times_s.windows(2).all(|w| w[1] > w[0]);
+        ok.then_some(Self { times_s, poses })
     }
 
     /// The folder of scans to replay for `dir` (its `radar/` subfolder when there is one).
@@ -328,6 +337,26 @@ impl OdometrySource for MemoryOdometry {
             None => OdometryPoll::Ended,
         })
     }
+}
+
+/// The daemon's settings for a CTS350-X's recorded scans: the unit's beam and bins, the
+/// bicycle model the odometry was made with.
+pub fn recorded_settings(mut settings: PipelineSettings, max_range_m: f64) -> PipelineSettings {
+    settings.motion = MotionModel::Bicycle {
+        wheelbase_m: WHEELBASE_M,
+    };
+    settings.beam_width_rad = CTS350X_BEAM_WIDTH_RAD;
+    settings.filter.beam_half_width_rad = 0.5 * CTS350X_BEAM_WIDTH_RAD;
+    settings.noise.range.resolution_fwhm_m = OXFORD_BIN_M;
+    settings.power.range_resolution_m = OXFORD_BIN_M;
+    settings.filter.max_range_m = settings.filter.max_range_m.min(max_range_m);
+    settings.detector.max_range_m = settings.detector.max_range_m.min(max_range_m);
+    if settings.filter.repeat_look_range_m > 0.0 && settings.filter.repeat_look_bearing_rad > 0.0 {
+        settings.filter.repeat_look_range_m = OXFORD_BIN_M;
+        settings.filter.repeat_look_bearing_rad = CTS350X_BEAM_WIDTH_RAD;
+    }
+    settings.initial_pose_std = [1e-3, 1e-3, 1e-4];
+    settings
 }
 
 /// What the replay adds to the summary.

@@ -21,7 +21,7 @@ use crate::detect::{
 };
 
 /// Everything that shapes the front end besides the radar's own geometry.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct FrontEndSettings {
     /// Detection.
     pub detector: DetectorSettings,

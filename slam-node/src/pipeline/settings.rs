@@ -32,7 +32,7 @@ pub enum SettingsError {
 }
 
 /// Everything the pipeline needs besides the radar's own geometry.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct PipelineSettings {
     /// The EKF's settings.
     pub filter: FilterSettings,
