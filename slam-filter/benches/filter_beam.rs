@@ -2,7 +2,7 @@
 //! time, find the beam's candidates, predict, associate, update) against the number of
 //! features in the state, for an empty beam and for a beam with one mapped target.
 //!
-//! `cargo bench -p slam-node --bench filter_beam`. A rotation is 200 such beams (the paper's
+//! `cargo bench -p slam-filter --bench filter_beam`. A rotation is 200 such beams (the paper's
 //! radar); most are empty, and a beam with a target costs one batched update.
 
 use std::f64::consts::PI;

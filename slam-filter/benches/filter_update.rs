@@ -1,7 +1,7 @@
 //! One batched EKF update against the number of features in the state (20, 100, 500, 1000)
 //! and in the batch (1, 10, 50 features, 3 rows each: range, bearing, power).
 //!
-//! `cargo bench -p slam-node --bench filter_update`. The state is cloned before and dropped
+//! `cargo bench -p slam-filter --bench filter_update`. The state is cloned before and dropped
 //! after the timed region (criterion's `iter_batched`). Expected growth: O(n^2 m) for the covariance
 //! update, n the state dimension (4 + 4 N) and m the rows.
 

@@ -5,7 +5,7 @@
 //!
 //! The pose NEES averaged over Monte Carlo runs must lie in the chi-square band. The full
 //! 50-run figure is an ignored test, run in release:
-//! `cargo test --release -p slam-node --test filter_consistency -- --ignored --nocapture`.
+//! `cargo test --release -p slam-filter --test filter_consistency -- --ignored --nocapture`.
 
 use std::f64::consts::PI;
 
