@@ -16,7 +16,7 @@ use sim_sensor::OdometryNoise;
 use slam_node::pipeline::{Pipeline, PipelineSettings, PipelineSummary, SceneTruth};
 
 use crate::error::EvalError;
-use crate::run::RotationRecord;
+use crate::record::RotationRecord;
 use crate::world::{World, EPOCH_S};
 
 /// The settings the daemon ships with: the default configuration, converted by the daemon.

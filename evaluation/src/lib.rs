@@ -13,6 +13,7 @@ pub mod daemon;
 pub mod error;
 pub mod metrics;
 pub mod plot;
+pub mod record;
 pub mod report;
 pub mod run;
 pub mod scan;

@@ -16,7 +16,7 @@ use bytes::{BufMut, Bytes, BytesMut};
 
 use crate::error::{EncodeError, PayloadError};
 use crate::frame::{checked_payload_size, encode_header, HEADER_LEN};
-use crate::message::message_id;
+use crate::ids::message_id;
 use crate::reader::Reader;
 use crate::timestamp::Timestamp;
 use crate::units;

@@ -44,6 +44,7 @@ mod decoder;
 mod error;
 mod fft;
 mod frame;
+mod ids;
 mod message;
 mod navigation;
 mod proto;

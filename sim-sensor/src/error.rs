@@ -24,8 +24,13 @@ pub enum SceneError {
         reason: String,
     },
     /// No shipped scene of that name.
-    #[error("no shipped scene named {0:?} (shipped: {list})", list = crate::scene::shipped::NAMES.join(", "))]
-    UnknownShipped(String),
+    #[error("no shipped scene named {name:?} (shipped: {shipped})")]
+    UnknownShipped {
+        /// The name asked for.
+        name: String,
+        /// The shipped scenes' names, comma-separated.
+        shipped: String,
+    },
     /// A scene file that could not be read.
     #[error("reading scene {path}: {source}")]
     Io {

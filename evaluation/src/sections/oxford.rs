@@ -88,7 +88,7 @@ pub fn read_scans(dir: &Path) -> Result<Vec<TimedScan>, EvalError> {
                 bearing_rad: wrap_angle(
                     f64::from(r.encoder) * std::f64::consts::TAU / ENCODER_SIZE,
                 ),
-                measured_db: r.bins.iter().map(|&v| f64::from(v) * 0.5).collect(),
+                measured_db: r.bins.iter().map(|&v| protocol::bin8_to_db(v)).collect(),
             })
             .collect();
         out.push(TimedScan {
@@ -268,7 +268,7 @@ pub fn track(
             bins: Bytes::from(
                 row.measured_db
                     .iter()
-                    .map(|&db| (db * 2.0).round().clamp(0.0, 255.0) as u8)
+                    .map(|&db| protocol::db_to_bin8(db))
                     .collect::<Vec<u8>>(),
             ),
             geometry: Arc::clone(&geometry),

@@ -97,7 +97,7 @@ pub fn render_scans(world: &World, rotations: usize) -> Result<(Vec<Scan>, Vec<P
                 measured_db: cursor
                     .last_power_db()
                     .iter()
-                    .map(|&p| f64::from(quantize_8bit(p)) * 0.5)
+                    .map(|&p| protocol::bin8_to_db(quantize_8bit(p)))
                     .collect(),
             });
         }
@@ -154,7 +154,7 @@ fn from_truth(
         let measured: Vec<f64> = cursor
             .last_power_db()
             .iter()
-            .map(|&p| f64::from(quantize_8bit(p)) * 0.5)
+            .map(|&p| protocol::bin8_to_db(quantize_8bit(p)))
             .collect();
         targets.clear();
         targets.extend(inside.iter().filter_map(|&(range_m, id)| {

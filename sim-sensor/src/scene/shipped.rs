@@ -27,7 +27,10 @@ pub fn text(name: &str) -> Option<&'static str> {
 
 /// Parses a shipped scene.
 pub fn load(name: &str) -> Result<Scene, SceneError> {
-    let text = text(name).ok_or_else(|| SceneError::UnknownShipped(name.to_string()))?;
+    let text = text(name).ok_or_else(|| SceneError::UnknownShipped {
+        name: name.to_string(),
+        shipped: NAMES.join(", "),
+    })?;
     Scene::from_toml_str(name, text)
 }
 
