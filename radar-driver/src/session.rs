@@ -8,6 +8,10 @@
 //! configuration (10); only then does the client send start FFT data (21, or 140 for
 //! non-contoured data). A configuration re-sent while streaming replaces the geometry and,
 //! as Navtech's 2016 SDK does, is answered with the start message again.
+//!
+//! Watchdog: the link is declared dead when no whole frame (of any type) has been decoded
+//! for `watchdog_timeout`. Bytes alone do not count, so a peer trickling bytes that never
+//! complete a frame is reconnected like a silent one.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -143,34 +147,41 @@ impl SessionState {
         let mut record_pending = BytesMut::new();
         let mut decoder = FrameDecoder::new();
         let mut errors_in_a_row = 0u32;
+        // The watchdog counts whole decoded frames, not bytes: a peer that trickles bytes
+        // without ever completing a frame is as dead as a silent one.
+        let expiry = tokio::time::sleep(watchdog);
+        tokio::pin!(expiry);
         loop {
             buf.reserve(chunk);
             let before = buf.len();
             let read = tokio::select! {
                 biased;
                 () = shutdown.triggered() => return Ok(SessionEnd::Shutdown),
-                r = tokio::time::timeout(watchdog, stream.read_buf(&mut buf)) => r,
+                () = &mut expiry => None,
+                r = stream.read_buf(&mut buf) => Some(r),
             };
             let n = match read {
-                Err(_) => {
+                None => {
                     self.metrics.add_watchdog_timeouts(1);
                     return Err(SessionError::Watchdog(watchdog));
                 }
-                Ok(Err(e)) => return Err(SessionError::Read(e)),
-                Ok(Ok(0)) => return Err(SessionError::Closed),
-                Ok(Ok(n)) => n,
+                Some(Err(e)) => return Err(SessionError::Read(e)),
+                Some(Ok(0)) => return Err(SessionError::Closed),
+                Some(Ok(n)) => n,
             };
             let read_ns = self.clock.monotonic_ns();
             self.metrics.add_bytes(n as u64);
             if self.recorder.is_some() {
                 record_pending.extend_from_slice(buf.get(before..).unwrap_or_default());
             }
+            let mut frames_this_read = false;
             loop {
                 match decoder.decode(&mut buf) {
                     Ok(None) => break,
                     Ok(Some(message)) => {
                         errors_in_a_row = 0;
                         self.metrics.add_frames(1);
+                        frames_this_read = true;
                         match self.on_message(message, read_ns, configured) {
                             Reply::None => {}
                             Reply::StartData => {
@@ -195,6 +206,11 @@ impl SessionState {
                         }
                     }
                 }
+            }
+            if frames_this_read {
+                expiry
+                    .as_mut()
+                    .reset(tokio::time::Instant::now() + watchdog);
             }
             if let Some(recorder) = &self.recorder {
                 let consumed = record_pending.len().saturating_sub(buf.len());

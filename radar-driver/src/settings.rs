@@ -24,7 +24,8 @@ pub struct DriverSettings {
     pub address: SocketAddr,
     /// Socket options and connect timeout.
     pub socket: SocketOptions,
-    /// Nothing received for this long is a dead link (Navtech's client: 7 s).
+    /// No whole frame decoded for this long is a dead link (Navtech's client: 7 s). Bytes
+    /// that do not complete a frame do not count.
     pub watchdog_timeout: Duration,
     /// Reconnection delays.
     pub backoff: BackoffPolicy,

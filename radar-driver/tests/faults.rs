@@ -361,3 +361,39 @@ async fn a_link_that_carries_only_garbage_is_abandoned_politely_and_reconnected(
     .await
     .expect("bounded");
 }
+
+// Paused clock: virtual seconds pass at once whenever every task waits.
+#[tokio::test(start_paused = true)]
+async fn a_peer_trickling_bytes_that_never_complete_a_frame_is_declared_dead_and_reconnected() {
+    let radar = FakeRadar::bind().await;
+    let mut settings = test_settings(radar.addr);
+    settings.watchdog_timeout = Duration::from_secs(3);
+    let (driver, _rx) = Driver::new(settings);
+    let handle = driver.spawn();
+    let config = small_configuration();
+    let mut conn = radar.accept().await;
+    conn.handshake(&config).await;
+    let configured_at = tokio::time::Instant::now();
+    // One byte a second, forever: every frame takes longer than the watchdog to complete.
+    let trickle = tokio::spawn(async move {
+        for sweep in 0.. {
+            for b in fft_frame(&config, sweep) {
+                if conn.send(&[b]).await.is_err() {
+                    return;
+                }
+                tokio::time::sleep(Duration::from_secs(1)).await;
+            }
+        }
+    });
+    let _conn2 = radar.accept().await;
+    let dead_after = configured_at.elapsed();
+    assert!(
+        dead_after >= Duration::from_secs(3) && dead_after < Duration::from_millis(3200),
+        "declared dead after {dead_after:?}"
+    );
+    assert!(eventually(|| handle.metrics().connections == 2).await);
+    let m = handle.stop().await.unwrap().metrics;
+    assert_eq!((m.watchdog_timeouts, m.reconnects), (1, 1));
+    assert!(m.bytes > m.frames, "bytes kept arriving: {m:?}");
+    trickle.abort();
+}
