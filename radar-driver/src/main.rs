@@ -32,15 +32,43 @@ struct Args {
     /// Request non-contoured data (message 140) instead of 21.
     #[arg(long)]
     non_contoured: bool,
-    /// Stop after this many seconds (default: run until Ctrl-C).
-    #[arg(long)]
-    duration_s: Option<f64>,
-    /// Seconds between rate lines.
-    #[arg(long, default_value_t = 1.0)]
-    interval_s: f64,
-    /// Watchdog period in milliseconds (nothing received for this long: reconnect).
-    #[arg(long)]
+    /// Stop after this many seconds, in (0, 31536000] (default: run until Ctrl-C).
+    #[arg(long, value_parser = parse_duration_s)]
+    duration_s: Option<Duration>,
+    /// Seconds between rate lines, in (0, 3600].
+    #[arg(long, default_value = "1", value_parser = parse_interval_s)]
+    interval_s: Duration,
+    /// Watchdog period in milliseconds, in [1, 3600000] (no whole frame for this long:
+    /// reconnect).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=MAX_WATCHDOG_MS))]
     watchdog_ms: Option<u64>,
+}
+
+/// Longest `--duration-s`: a year.
+const MAX_DURATION_S: f64 = 365.0 * 24.0 * 3600.0;
+/// Longest `--interval-s`: an hour.
+const MAX_INTERVAL_S: f64 = 3600.0;
+/// Longest `--watchdog-ms`: an hour.
+const MAX_WATCHDOG_MS: u64 = 3_600_000;
+
+/// Seconds as a finite number in (0, `max`], as a `Duration`.
+fn parse_seconds(text: &str, max: f64) -> Result<Duration, String> {
+    let s: f64 = text
+        .trim()
+        .parse()
+        .map_err(|e| format!("not a number of seconds: {e}"))?;
+    if !(s.is_finite() && s > 0.0 && s <= max) {
+        return Err(format!("must be a finite number of seconds in (0, {max}]"));
+    }
+    Duration::try_from_secs_f64(s).map_err(|e| e.to_string())
+}
+
+fn parse_duration_s(text: &str) -> Result<Duration, String> {
+    parse_seconds(text, MAX_DURATION_S)
+}
+
+fn parse_interval_s(text: &str) -> Result<Duration, String> {
+    parse_seconds(text, MAX_INTERVAL_S)
 }
 
 fn settings(args: &Args) -> anyhow::Result<DriverSettings> {
@@ -65,15 +93,7 @@ fn settings(args: &Args) -> anyhow::Result<DriverSettings> {
     if let Some(ms) = args.watchdog_ms {
         s.watchdog_timeout = Duration::from_millis(ms);
     }
-    s.validate().map_err(anyhow::Error::msg)?;
-    if !(args.interval_s.is_finite() && args.interval_s > 0.0) {
-        anyhow::bail!("--interval-s must be > 0");
-    }
-    if let Some(d) = args.duration_s {
-        if !(d.is_finite() && d > 0.0) {
-            anyhow::bail!("--duration-s must be > 0");
-        }
-    }
+    s.validate()?;
     Ok(s)
 }
 
@@ -141,15 +161,22 @@ async fn run(args: Args) -> anyhow::Result<()> {
     }
 
     let mut configuration = handle.configuration();
-    let started = Instant::now();
-    let mut ticker = tokio::time::interval(Duration::from_secs_f64(args.interval_s));
+    let mut ticker = tokio::time::interval(args.interval_s);
     ticker.tick().await;
     let mut prev = handle.metrics();
     let mut prev_t = Instant::now();
-    let deadline = args.duration_s.map(Duration::from_secs_f64);
+    // The run ends at the deadline itself, not at the next rate line.
+    let deadline = async {
+        match args.duration_s {
+            Some(d) => tokio::time::sleep(d).await,
+            None => std::future::pending().await,
+        }
+    };
+    tokio::pin!(deadline);
     loop {
         tokio::select! {
             _ = tokio::signal::ctrl_c() => break,
+            () = &mut deadline => break,
             changed = configuration.changed() => {
                 if changed.is_err() {
                     break;
@@ -164,9 +191,6 @@ async fn run(args: Args) -> anyhow::Result<()> {
                 println!("{}", rate_line(&prev, &now, dt, consumed.load(Ordering::Relaxed)));
                 prev = now;
                 prev_t = Instant::now();
-                if deadline.is_some_and(|d| started.elapsed() >= d) {
-                    break;
-                }
             }
         }
     }

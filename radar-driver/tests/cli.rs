@@ -70,3 +70,67 @@ async fn bad_arguments_exit_with_an_error_and_a_message() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("interval"));
 }
+
+#[tokio::test]
+async fn out_of_range_values_are_refused_when_parsing_not_with_a_panic() {
+    let cases: [&[&str]; 8] = [
+        &["--duration-s", "1e20"],
+        &["--duration-s", "NaN"],
+        &["--duration-s", "inf"],
+        &["--duration-s", "0"],
+        &["--duration-s=-1"],
+        &["--interval-s", "1e9"],
+        &["--interval-s", "0"],
+        &["--watchdog-ms", "0"],
+    ];
+    for args in cases {
+        let out = Command::new(env!("CARGO_BIN_EXE_radar-driver"))
+            .args(["--address", "127.0.0.1:1"])
+            .args(args)
+            .output()
+            .await
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        let flag = args[0].split('=').next().unwrap_or_default();
+        assert!(stderr.contains(flag), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_cli_ends_at_its_duration_not_at_the_next_rate_line() {
+    use tokio::io::{AsyncBufReadExt, BufReader};
+    tokio::time::timeout(BOUND, async {
+        let radar = FakeRadar::bind().await;
+        let mut child = Command::new(env!("CARGO_BIN_EXE_radar-driver"))
+            .args(["--address", &radar.addr.to_string()])
+            .args(["--duration-s", "1", "--interval-s", "5"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .kill_on_drop(true)
+            .spawn()
+            .unwrap();
+        let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+        // Printed just before the driver starts (and the duration with it).
+        let first = lines.next_line().await.unwrap().unwrap();
+        let started = std::time::Instant::now();
+        assert!(first.starts_with("connecting to"), "{first}");
+        let config = small_configuration();
+        let mut conn = radar.accept().await;
+        assert_eq!(conn.handshake(&config).await, 21);
+        send_ffts(&mut conn, &config, 0..10).await;
+        assert_eq!(conn.recv().await.map(|m| m.id()), Some(22));
+        let status = child.wait().await.unwrap();
+        let took = started.elapsed();
+        assert!(status.success());
+        // 1 s, not the 5 s of the next rate line; the margin is for a loaded machine.
+        assert!(
+            took >= Duration::from_secs(1) && took < Duration::from_millis(1400),
+            "took {took:?}"
+        );
+        while let Ok(Some(_)) = lines.next_line().await {}
+    })
+    .await
+    .expect("bounded");
+}
