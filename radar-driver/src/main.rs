@@ -93,7 +93,7 @@ fn settings(args: &Args) -> anyhow::Result<DriverSettings> {
     if let Some(ms) = args.watchdog_ms {
         s.watchdog_timeout = Duration::from_millis(ms);
     }
-    s.validate()?;
+    s.validate().map_err(anyhow::Error::msg)?;
     Ok(s)
 }
 
