@@ -6,11 +6,11 @@ use std::sync::Arc;
 use crate::assembly::RotationAssembler;
 use crate::backoff::Backoff;
 use crate::clock::{Clock, SystemClock};
-use crate::error::{DriverError, SessionError};
+use crate::error::{DriverError, ErrorChain, SessionError};
 use crate::handoff::{ChannelSink, Receivers, Sink};
 use crate::metrics::{Metrics, MetricsSnapshot};
 use crate::record::{RecordSummary, Recorder};
-use crate::session::{SessionEnd, SessionState};
+use crate::session::{LogLimits, SessionEnd, SessionState};
 use crate::settings::DriverSettings;
 use crate::shutdown::{shutdown_pair, Shutdown, ShutdownTrigger};
 use crate::socket::connect;
@@ -43,6 +43,7 @@ impl Driver {
 
     /// A driver delivering into any [`Sink`].
     pub fn with_sink(settings: DriverSettings, sink: Box<dyn Sink>) -> Self {
+        let settings_log_interval = settings.log_interval;
         Self {
             state: SessionState {
                 settings,
@@ -53,8 +54,8 @@ impl Driver {
                 assembler: RotationAssembler::new(),
                 geometry: None,
                 configuration_tx: tokio::sync::watch::channel(None).0,
-                unusable_configurations: 0,
                 overlong_rotations: 0,
+                logs: LogLimits::new(settings_log_interval),
             },
         }
     }
@@ -92,10 +93,7 @@ impl Driver {
 
     /// Runs until `shutdown` fires (then `Ok`) or the attempts run out (then `Err`).
     pub async fn run(mut self, mut shutdown: Shutdown) -> Result<DriverExit, DriverError> {
-        self.state
-            .settings
-            .validate()
-            .map_err(DriverError::Settings)?;
+        self.state.settings.validate()?;
         if let Some(path) = self.state.settings.record_path.clone() {
             let recorder = Recorder::create(&path).map_err(|source| DriverError::Record {
                 path: path.clone(),
@@ -159,7 +157,7 @@ impl Driver {
             failures_in_a_row = failures_in_a_row.saturating_add(1);
             if let Some(max) = settings.max_attempts {
                 if failures_in_a_row >= max.get() {
-                    tracing::error!(attempts = failures_in_a_row, error = %error, "giving up on the radar");
+                    tracing::error!(attempts = failures_in_a_row, error = %ErrorChain(&error), "giving up on the radar");
                     return Err(DriverError::GaveUp {
                         attempts: failures_in_a_row,
                         last: error,
@@ -167,11 +165,12 @@ impl Driver {
                 }
             }
             let delay = backoff.next_delay();
-            tracing::warn!(
+            crate::warn_limited!(
+                self.state.logs.link_lost,
                 address = %settings.address,
                 failures_in_a_row,
                 delay_ms = u64::try_from(delay.as_millis()).unwrap_or(u64::MAX),
-                error = %error,
+                error = %ErrorChain(&error),
                 "radar link lost; reconnecting"
             );
             tokio::select! {
@@ -230,9 +229,7 @@ impl DriverHandle {
     pub async fn join(mut self) -> Result<DriverExit, DriverError> {
         match self.task.take() {
             Some(task) => task.await?,
-            None => Err(DriverError::Settings(
-                "the driver was already joined".into(),
-            )),
+            None => Err(DriverError::AlreadyJoined),
         }
     }
 

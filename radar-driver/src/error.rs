@@ -3,7 +3,11 @@
 //!
 //! A decode error costs one frame and is counted, not returned, unless the stream stays
 //! garbled; a session error costs a reconnect; only a [`DriverError`] ends the driver.
+//!
+//! Every variant that wraps a cause keeps it as its `source` and does not repeat it in its
+//! own message; [`ErrorChain`] prints the whole chain on one line (as the driver's logs do).
 
+use std::fmt;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -12,10 +16,10 @@ use std::time::Duration;
 #[derive(Debug, thiserror::Error)]
 pub enum SessionError {
     /// Creating the socket or setting an option failed.
-    #[error("socket setup failed: {0}")]
+    #[error("setting up the socket failed")]
     SocketOption(#[source] std::io::Error),
     /// The radar refused or the network failed while connecting.
-    #[error("connecting to {addr} failed: {source}")]
+    #[error("connecting to {addr} failed")]
     Connect {
         /// Where.
         addr: SocketAddr,
@@ -32,10 +36,19 @@ pub enum SessionError {
         timeout: Duration,
     },
     /// Reading from the socket failed.
-    #[error("reading from the radar failed: {0}")]
+    #[error("reading from the radar failed")]
     Read(#[source] std::io::Error),
-    /// Writing a command to the radar failed (or timed out).
-    #[error("sending message {message_id} to the radar failed: {source}")]
+    /// A command to the radar could not be encoded.
+    #[error("encoding message {message_id} for the radar failed")]
+    Encode {
+        /// The Colossus message id being sent.
+        message_id: u8,
+        /// Why.
+        #[source]
+        source: protocol::EncodeError,
+    },
+    /// Writing a command to the radar failed.
+    #[error("sending message {message_id} to the radar failed")]
     Write {
         /// The Colossus message id being sent.
         message_id: u8,
@@ -43,17 +56,27 @@ pub enum SessionError {
         #[source]
         source: std::io::Error,
     },
+    /// Writing a command to the radar did not finish in time.
+    #[error("sending message {message_id} to the radar timed out after {timeout:?}")]
+    WriteTimeout {
+        /// The Colossus message id being sent.
+        message_id: u8,
+        /// The time allowed.
+        timeout: Duration,
+    },
     /// The radar closed the connection.
     #[error("the radar closed the connection")]
     Closed,
-    /// Nothing at all was received for the watchdog period.
-    #[error("nothing received for {0:?}: link presumed dead")]
+    /// No whole frame was decoded for the watchdog period (bytes that never complete a
+    /// frame do not count).
+    #[error("no whole frame received for {0:?}: link presumed dead")]
     Watchdog(Duration),
-    /// The radar's configuration does not describe a usable geometry.
-    #[error("the radar's configuration is unusable: {0}")]
+    /// The radar's configuration does not describe a usable geometry: the driver refuses
+    /// it, asks for no data on that connection, and reconnects.
+    #[error("the radar's configuration is unusable")]
     BadConfiguration(#[from] protocol::GeometryError),
     /// The stream stayed garbled: this many decode errors in a row without one good frame.
-    #[error("{count} decode errors in a row without a good frame; last: {last}")]
+    #[error("{count} decode errors in a row without a good frame")]
     Garbled {
         /// Consecutive errors.
         count: u32,
@@ -75,11 +98,36 @@ impl SessionError {
     }
 }
 
+/// Settings that cannot work, found by [`crate::DriverSettings::validate`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SettingsError {
+    /// A zero watchdog period.
+    #[error("watchdog_timeout must be > 0")]
+    ZeroWatchdog,
+    /// A zero connect timeout.
+    #[error("connect_timeout must be > 0")]
+    ZeroConnectTimeout,
+    /// Zero bytes per socket read.
+    #[error("read_chunk_bytes must be > 0")]
+    ZeroReadChunk,
+    /// Zero decode errors allowed in a row.
+    #[error("max_consecutive_decode_errors must be > 0")]
+    ZeroMaxDecodeErrors,
+    /// The first reconnect delay exceeds the longest.
+    #[error("reconnect initial backoff {initial:?} exceeds the maximum {max:?}")]
+    BackoffInitialExceedsMax {
+        /// First delay.
+        initial: Duration,
+        /// Longest delay.
+        max: Duration,
+    },
+}
+
 /// Why the driver stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum DriverError {
     /// The configured number of reconnection attempts failed in a row.
-    #[error("gave up after {attempts} failed connection attempts; last: {last}")]
+    #[error("gave up after {attempts} failed connection attempts")]
     GaveUp {
         /// Failed attempts in a row.
         attempts: u32,
@@ -88,7 +136,7 @@ pub enum DriverError {
         last: SessionError,
     },
     /// The recording file could not be created.
-    #[error("cannot create the recording {path}: {source}")]
+    #[error("cannot create the recording {path}")]
     Record {
         /// The file.
         path: PathBuf,
@@ -97,9 +145,52 @@ pub enum DriverError {
         source: std::io::Error,
     },
     /// Settings that cannot work (for example a zero watchdog period).
-    #[error("invalid driver settings: {0}")]
-    Settings(String),
+    #[error("invalid driver settings")]
+    Settings(#[from] SettingsError),
+    /// [`crate::DriverHandle::join`] found no task to wait for.
+    #[error("the driver was already joined")]
+    AlreadyJoined,
     /// The driver task panicked or was aborted.
-    #[error("the driver task ended abnormally: {0}")]
+    #[error("the driver task ended abnormally")]
     Task(#[from] tokio::task::JoinError),
+}
+
+/// Displays an error and each of its sources, separated by `": "`, on one line.
+#[derive(Debug, Clone, Copy)]
+pub struct ErrorChain<'a>(pub &'a (dyn std::error::Error + 'static));
+
+impl fmt::Display for ErrorChain<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.0)?;
+        let mut next = self.0.source();
+        while let Some(e) = next {
+            write!(f, ": {e}")?;
+            next = e.source();
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_wrapping_error_does_not_repeat_its_cause_and_the_chain_names_it_once() {
+        let e = DriverError::GaveUp {
+            attempts: 3,
+            last: SessionError::Read(std::io::Error::other("boom")),
+        };
+        assert_eq!(e.to_string(), "gave up after 3 failed connection attempts");
+        assert_eq!(
+            ErrorChain(&e).to_string(),
+            "gave up after 3 failed connection attempts: reading from the radar failed: boom"
+        );
+        let bad =
+            SessionError::BadConfiguration(protocol::GeometryError::NonPositiveRangeGain(0.0));
+        assert_eq!(
+            ErrorChain(&bad).to_string(),
+            "the radar's configuration is unusable: range gain 0 is not positive"
+        );
+    }
 }

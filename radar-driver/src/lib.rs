@@ -46,6 +46,7 @@ pub mod error;
 pub mod handoff;
 pub mod metrics;
 pub mod odometry;
+pub mod ratelimit;
 pub mod record;
 pub mod session;
 pub mod settings;
@@ -57,7 +58,7 @@ pub use assembly::RotationAssembler;
 pub use azimuth::{Azimuth, Rotation};
 pub use clock::{Clock, SystemClock};
 pub use driver::{ConfigurationWatch, Driver, DriverExit, DriverHandle};
-pub use error::{DriverError, SessionError};
+pub use error::{DriverError, ErrorChain, SessionError, SettingsError};
 pub use handoff::{ChannelSink, Delivery, DropPolicy, HandoffSettings, Receivers, Sink};
 pub use metrics::{DecodeErrorCounts, DecodeErrorKind, LatencySummary, Metrics, MetricsSnapshot};
 pub use odometry::{
@@ -65,6 +66,7 @@ pub use odometry::{
     TcpOdometrySettings,
 };
 pub use protocol::{BinWidth, Geometry};
+pub use ratelimit::RateLimiter;
 pub use settings::DriverSettings;
 pub use shutdown::{shutdown_pair, Shutdown, ShutdownTrigger};
 pub use stream::{AzimuthStream, RotationStream, StreamSink, Streams};

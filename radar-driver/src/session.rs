@@ -26,9 +26,10 @@ use tokio::net::TcpStream;
 use crate::assembly::RotationAssembler;
 use crate::azimuth::{Azimuth, Rotation};
 use crate::clock::Clock;
-use crate::error::SessionError;
+use crate::error::{ErrorChain, SessionError};
 use crate::handoff::Sink;
 use crate::metrics::{DecodeErrorKind, Metrics};
+use crate::ratelimit::RateLimiter;
 use crate::record::Recorder;
 use crate::settings::DriverSettings;
 use crate::shutdown::Shutdown;
@@ -83,16 +84,48 @@ pub struct SessionState {
     /// The last configuration received, published for anyone interested (the CLI prints
     /// it; a daemon may log it).
     pub(crate) configuration_tx: tokio::sync::watch::Sender<Option<Arc<Configuration>>>,
-    /// Configuration messages that did not describe a usable radar (logged 1st, 2nd, 4th...).
-    pub(crate) unusable_configurations: u64,
     /// Rotations closed because the encoder did not wrap (logged 1st, 2nd, 4th...).
     pub(crate) overlong_rotations: u64,
+    /// Rate limits of the log lines the wire can cause.
+    pub(crate) logs: LogLimits,
+}
+
+/// One [`RateLimiter`] per kind of log line that what arrives on the wire can cause, so a
+/// misbehaving radar cannot flood the log. They outlive connections.
+#[derive(Debug, Clone)]
+pub struct LogLimits {
+    /// A configuration re-sent unchanged (INFO).
+    pub configuration_repeated: RateLimiter,
+    /// A configuration message that does not decode (WARN).
+    pub configuration_undecodable: RateLimiter,
+    /// A lost link, about to reconnect (WARN).
+    pub link_lost: RateLimiter,
+    /// Stop (22) could not be sent at the end of a connection (WARN).
+    pub stop_failed: RateLimiter,
+    /// A rotation in progress grew past its cap and was discarded (WARN).
+    pub rotation_oversized: RateLimiter,
+}
+
+impl LogLimits {
+    /// Every kind at most once per `interval`.
+    pub fn new(interval: Duration) -> Self {
+        let limiter = RateLimiter::new(interval);
+        Self {
+            configuration_repeated: limiter.clone(),
+            configuration_undecodable: limiter.clone(),
+            link_lost: limiter.clone(),
+            stop_failed: limiter.clone(),
+            rotation_oversized: limiter,
+        }
+    }
 }
 
 /// What handling one message asks of the connection.
 enum Reply {
     None,
     StartData,
+    /// The configuration is unusable: end the connection.
+    Refuse(protocol::GeometryError),
 }
 
 impl SessionState {
@@ -115,7 +148,8 @@ impl SessionState {
         if streaming
             && matches!(
                 end,
-                Ok(SessionEnd::Shutdown) | Err(SessionError::Garbled { .. })
+                Ok(SessionEnd::Shutdown)
+                    | Err(SessionError::Garbled { .. } | SessionError::BadConfiguration(_))
             )
         {
             // Best effort: the link is alive, so tell the radar to stop before closing.
@@ -127,7 +161,11 @@ impl SessionState {
             .await
             {
                 Ok(()) => tracing::debug!("sent stop FFT data (22)"),
-                Err(e) => tracing::warn!(error = %e, "could not send stop FFT data (22)"),
+                Err(e) => crate::warn_limited!(
+                    self.logs.stop_failed,
+                    error = %ErrorChain(&e),
+                    "could not send stop FFT data (22)"
+                ),
             }
             let _ = tokio::time::timeout(self.settings.stop_timeout, stream.shutdown()).await;
         }
@@ -192,11 +230,24 @@ impl SessionState {
                                 }
                                 *streaming = true;
                             }
+                            Reply::Refuse(e) => return Err(SessionError::BadConfiguration(e)),
                         }
                     }
                     Err(e) => {
                         self.metrics.add_decode_error(DecodeErrorKind::from(&e));
-                        tracing::debug!(error = %e, "decode error; frame skipped");
+                        if let DecodeError::Payload {
+                            message_id: protocol::message_id::CONFIGURATION,
+                            ..
+                        } = e
+                        {
+                            crate::warn_limited!(
+                                self.logs.configuration_undecodable,
+                                error = %ErrorChain(&e),
+                                "undecodable radar configuration message skipped"
+                            );
+                        } else {
+                            tracing::debug!(error = %ErrorChain(&e), "decode error; frame skipped");
+                        }
                         errors_in_a_row += 1;
                         if errors_in_a_row >= self.settings.max_consecutive_decode_errors {
                             return Err(SessionError::Garbled {
@@ -234,54 +285,61 @@ impl SessionState {
                 Reply::None
             }
             Message::Configuration(configuration) => {
-                self.metrics.add_configurations(1);
-                match configuration.geometry() {
-                    Ok(geometry) => {
-                        // A radar may re-send its configuration: say so once per change.
-                        if self.geometry.as_deref() != Some(&geometry) {
-                            tracing::info!(
-                                azimuths = geometry.azimuth_samples,
-                                bins = geometry.range_in_bins,
-                                bin_size_m = geometry.bin_size_m,
-                                encoder_size = geometry.encoder_size,
-                                rotation_hz = geometry.rotation_hz,
-                                width = geometry.data_width.bits(),
-                                "radar configuration"
-                            );
-                        } else {
-                            tracing::debug!("radar configuration repeated, unchanged");
-                        }
-                        let geometry = Arc::new(geometry);
-                        if let Some(partial) = self.assembler.set_geometry(Arc::clone(&geometry)) {
-                            self.deliver_rotation(partial);
-                        }
-                        self.geometry = Some(geometry);
-                        self.configuration_tx
-                            .send_replace(Some(Arc::new(*configuration)));
-                        *configured = true;
-                        Reply::StartData
-                    }
-                    Err(e) => {
-                        // An unusable configuration costs that message; the previous
-                        // geometry (if any) stays in force.
-                        self.metrics.add_decode_error(DecodeErrorKind::Other);
-                        self.unusable_configurations += 1;
-                        if self.unusable_configurations.is_power_of_two() {
-                            tracing::warn!(
-                                error = %e,
-                                count = self.unusable_configurations,
-                                "unusable radar configuration ignored"
-                            );
-                        }
-                        Reply::None
-                    }
-                }
+                self.on_configuration(*configuration, configured)
             }
             _ => {
                 self.metrics.add_other_messages(1);
                 Reply::None
             }
         }
+    }
+
+    /// A configuration: the first one or a changed one is logged at INFO and replaces the
+    /// geometry; one identical to the one in force is counted and logged at most once per
+    /// `log_interval`; an unusable one is refused (the connection ends). Any usable one is
+    /// answered with the start message (as Navtech's 2016 SDK does).
+    fn on_configuration(&mut self, configuration: Configuration, configured: &mut bool) -> Reply {
+        self.metrics.add_configurations(1);
+        let geometry = match configuration.geometry() {
+            Ok(g) => g,
+            Err(e) => {
+                self.metrics.add_configurations_refused(1);
+                return Reply::Refuse(e);
+            }
+        };
+        *configured = true;
+        let unchanged = self.configuration_tx.borrow().as_deref() == Some(&configuration);
+        if unchanged {
+            self.metrics.add_configurations_repeated(1);
+            if let Some(suppressed) = self
+                .logs
+                .configuration_repeated
+                .check(tokio::time::Instant::now())
+            {
+                tracing::info!(
+                    repeats = suppressed + 1,
+                    "radar re-sent its configuration, unchanged"
+                );
+            }
+            return Reply::StartData;
+        }
+        tracing::info!(
+            azimuths = geometry.azimuth_samples,
+            bins = geometry.range_in_bins,
+            bin_size_m = geometry.bin_size_m,
+            encoder_size = geometry.encoder_size,
+            rotation_hz = geometry.rotation_hz,
+            width = geometry.data_width.bits(),
+            "radar configuration"
+        );
+        let geometry = Arc::new(geometry);
+        if let Some(partial) = self.assembler.set_geometry(Arc::clone(&geometry)) {
+            self.deliver_rotation(partial);
+        }
+        self.geometry = Some(geometry);
+        self.configuration_tx
+            .send_replace(Some(Arc::new(configuration)));
+        Reply::StartData
     }
 
     fn on_fft(&mut self, fft: FftData, read_ns: u64) {
@@ -349,9 +407,9 @@ async fn send(
     timeout: Duration,
 ) -> Result<(), SessionError> {
     let id = message.id();
-    let bytes = message.to_bytes().map_err(|e| SessionError::Write {
+    let bytes = message.to_bytes().map_err(|source| SessionError::Encode {
         message_id: id,
-        source: std::io::Error::other(e),
+        source,
     })?;
     match tokio::time::timeout(timeout, stream.write_all(&bytes)).await {
         Ok(Ok(())) => Ok(()),
@@ -359,9 +417,9 @@ async fn send(
             message_id: id,
             source,
         }),
-        Err(_) => Err(SessionError::Write {
+        Err(_) => Err(SessionError::WriteTimeout {
             message_id: id,
-            source: std::io::Error::new(std::io::ErrorKind::TimedOut, "write timed out"),
+            timeout,
         }),
     }
 }

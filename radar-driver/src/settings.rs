@@ -14,6 +14,7 @@ use config::radar::ReconnectAttempts;
 use config::RadarSettings;
 
 use crate::backoff::BackoffPolicy;
+use crate::error::SettingsError;
 use crate::handoff::HandoffSettings;
 use crate::socket::SocketOptions;
 
@@ -44,6 +45,10 @@ pub struct DriverSettings {
     pub read_chunk_bytes: usize,
     /// Time allowed for sending stop (22) at shutdown.
     pub stop_timeout: Duration,
+    /// Log lines caused by the wire (a re-sent configuration, an undecodable one, a lost
+    /// link, an oversized rotation) repeat at most once per this period each, with a count
+    /// of those suppressed. Default 10 s.
+    pub log_interval: Duration,
 }
 
 impl DriverSettings {
@@ -77,6 +82,7 @@ impl DriverSettings {
             max_consecutive_decode_errors: 64,
             read_chunk_bytes: 64 * 1024,
             stop_timeout: Duration::from_millis(500),
+            log_interval: Duration::from_secs(10),
         }
     }
 
@@ -114,6 +120,7 @@ impl DriverSettings {
             max_consecutive_decode_errors: 64,
             read_chunk_bytes: 64 * 1024,
             stop_timeout: Duration::from_millis(500),
+            log_interval: Duration::from_secs(10),
         }
     }
 
@@ -127,21 +134,24 @@ impl DriverSettings {
     }
 
     /// Checks what the types cannot.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SettingsError> {
         if self.watchdog_timeout.is_zero() {
-            return Err("watchdog_timeout must be > 0".into());
+            return Err(SettingsError::ZeroWatchdog);
         }
         if self.socket.connect_timeout.is_zero() {
-            return Err("connect_timeout must be > 0".into());
+            return Err(SettingsError::ZeroConnectTimeout);
         }
         if self.read_chunk_bytes == 0 {
-            return Err("read_chunk_bytes must be > 0".into());
+            return Err(SettingsError::ZeroReadChunk);
         }
         if self.max_consecutive_decode_errors == 0 {
-            return Err("max_consecutive_decode_errors must be > 0".into());
+            return Err(SettingsError::ZeroMaxDecodeErrors);
         }
         if self.backoff.initial > self.backoff.max {
-            return Err("reconnect initial backoff exceeds the maximum".into());
+            return Err(SettingsError::BackoffInitialExceedsMax {
+                initial: self.backoff.initial,
+                max: self.backoff.max,
+            });
         }
         Ok(())
     }

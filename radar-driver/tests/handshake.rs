@@ -210,3 +210,44 @@ async fn dropping_the_handle_stops_the_driver_cleanly() {
     .await
     .expect("bounded");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_configuration_with_a_zero_range_gain_is_refused_with_a_clear_error() {
+    tokio::time::timeout(BOUND, async {
+        let radar = FakeRadar::bind().await;
+        let mut settings = test_settings(radar.addr);
+        settings.max_attempts = std::num::NonZeroU32::new(1);
+        let (driver, _receivers) = Driver::new(settings);
+        let metrics = driver.metrics();
+        let handle = driver.spawn();
+        let mut conn = radar.accept().await;
+        let mut config = small_configuration();
+        config.range_gain = 0.0;
+        conn.send_message(&protocol::Message::Configuration(Box::new(config)))
+            .await;
+        // No data is requested: the driver closes the connection instead.
+        assert_eq!(conn.recv().await.map(|m| m.id()), None);
+        let err = handle.join().await.unwrap_err();
+        assert!(
+            matches!(
+                &err,
+                radar_driver::DriverError::GaveUp {
+                    last: radar_driver::SessionError::BadConfiguration(
+                        protocol::GeometryError::NonPositiveRangeGain { .. }
+                    ),
+                    ..
+                }
+            ),
+            "{err:?}"
+        );
+        let text = radar_driver::ErrorChain(&err).to_string();
+        assert!(
+            text.ends_with("the radar's configuration is unusable: range gain 0 is not positive"),
+            "{text}"
+        );
+        let m = metrics.snapshot();
+        assert_eq!((m.configurations, m.configurations_refused), (1, 1));
+    })
+    .await
+    .expect("bounded");
+}

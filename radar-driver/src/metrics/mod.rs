@@ -89,6 +89,8 @@ pub struct Metrics {
     bytes: AtomicU64,
     keep_alives: AtomicU64,
     configurations: AtomicU64,
+    configurations_repeated: AtomicU64,
+    configurations_refused: AtomicU64,
     fft_frames: AtomicU64,
     other_messages: AtomicU64,
     fft_before_configuration: AtomicU64,
@@ -122,6 +124,10 @@ pub struct MetricsSnapshot {
     pub keep_alives: u64,
     /// Configuration messages (id 10).
     pub configurations: u64,
+    /// Configuration messages identical to the one in force (re-sent by the radar).
+    pub configurations_repeated: u64,
+    /// Configuration messages refused as unusable (each ended its connection).
+    pub configurations_refused: u64,
     /// FFT data messages (id 30 or 31).
     pub fft_frames: u64,
     /// Messages of any other type (including unknown ids), skipped.
@@ -186,6 +192,8 @@ impl Metrics {
         add_bytes => bytes,
         add_keep_alives => keep_alives,
         add_configurations => configurations,
+        add_configurations_repeated => configurations_repeated,
+        add_configurations_refused => configurations_refused,
         add_fft_frames => fft_frames,
         add_other_messages => other_messages,
         add_fft_before_configuration => fft_before_configuration,
@@ -233,6 +241,8 @@ impl Metrics {
             bytes: get(&self.bytes),
             keep_alives: get(&self.keep_alives),
             configurations: get(&self.configurations),
+            configurations_repeated: get(&self.configurations_repeated),
+            configurations_refused: get(&self.configurations_refused),
             fft_frames: get(&self.fft_frames),
             other_messages: get(&self.other_messages),
             fft_before_configuration: get(&self.fft_before_configuration),

@@ -33,7 +33,7 @@ pub enum OdometryPoll {
 #[derive(Debug, thiserror::Error)]
 pub enum OdometryError {
     /// One line was bad; the source carries on with the next one.
-    #[error("odometry line {line}: {source}")]
+    #[error("odometry line {line} is malformed")]
     Line {
         /// 1-based line number within the file or connection.
         line: u64,
@@ -42,7 +42,7 @@ pub enum OdometryError {
         source: LineError,
     },
     /// The odometry file cannot be opened.
-    #[error("cannot open odometry file {path}: {source}")]
+    #[error("cannot open odometry file {path}")]
     Open {
         /// The file.
         path: PathBuf,
@@ -51,7 +51,7 @@ pub enum OdometryError {
         source: std::io::Error,
     },
     /// Reading the file failed; the source has ended.
-    #[error("reading odometry failed: {0}")]
+    #[error("reading odometry failed")]
     Read(#[source] std::io::Error),
 }
 
