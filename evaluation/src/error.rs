@@ -8,20 +8,23 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 pub enum EvalError {
     /// A shipped scene did not load.
-    #[error("scene: {0}")]
+    #[error("scene")]
     Scene(#[from] sim_sensor::SceneError),
     /// The simulator failed to render.
-    #[error("simulator: {0}")]
+    #[error("simulator")]
     Sim(#[from] sim_sensor::SimError),
     /// radar-model rejected an input.
-    #[error("radar model: {0}")]
+    #[error("radar model")]
     Model(#[from] radar_model::ModelError),
     /// The filter rejected its settings or its initial state.
-    #[error("filter: {0}")]
+    #[error("filter")]
     Filter(#[from] slam_filter::FilterError),
     /// A recorded scan could not be read.
-    #[error("replay: {0}")]
+    #[error("replay")]
     Replay(#[from] sim_sensor::ReplayError),
+    /// Recorded ground truth could not be read.
+    #[error("ground truth")]
+    Truth(#[from] sim_sensor::replay::truth::TruthError),
     /// A data file held something unexpected.
     #[error("{path}: line {line}: {reason}")]
     Data {
@@ -33,7 +36,7 @@ pub enum EvalError {
         reason: String,
     },
     /// Reading or writing a file failed.
-    #[error("{path}: {source}")]
+    #[error("{path}")]
     Io {
         /// The file.
         path: PathBuf,

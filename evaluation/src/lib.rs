@@ -114,8 +114,9 @@ pub fn evaluate(opts: &Options) -> Result<Outcome, EvalError> {
                 );
             }
             Err(e) => {
-                let _ = writeln!(body, "## Section `{key}`: FAILED\n\n{e}\n");
-                failed.push((key.to_string(), e.to_string()));
+                let chain = error_chain(&e);
+                let _ = writeln!(body, "## Section `{key}`: FAILED\n\n{chain}\n");
+                failed.push((key.to_string(), chain));
             }
         }
     }
@@ -136,4 +137,17 @@ pub fn evaluate(opts: &Options) -> Result<Outcome, EvalError> {
         failed,
         timings,
     })
+}
+
+/// An error and its causes on one line, `outer: cause: root` (error texts do not repeat
+/// their causes, so this is where the whole story is told).
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        text.push_str(": ");
+        text.push_str(&s.to_string());
+        source = s.source();
+    }
+    text
 }

@@ -177,6 +177,23 @@ impl Geometry {
         f64::from(azimuth) * std::f64::consts::TAU / f64::from(self.encoder_size)
     }
 
+    /// A CTS350-X as the Oxford Radar RobotCar data set records it: 400 azimuths of 3768
+    /// 8-bit bins of 0.0438 m, 5600 encoder counts, 4 Hz. For tests, benchmarks and replays.
+    pub fn cts350x() -> Self {
+        Self {
+            azimuth_samples: 400,
+            range_in_bins: 3768,
+            bin_size_m: 0.0438,
+            encoder_size: 5600,
+            rotation_hz: 4.0,
+            packet_rate: 1600,
+            range_gain: 1.0,
+            range_offset_m: 0.0,
+            data_width: BinWidth::Eight,
+            range_resolution_m: None,
+        }
+    }
+
     /// Azimuth in encoder counts to the azimuth's index in the rotation,
     /// `encoder x azimuth_samples / encoder_size` rounded down, in `0..azimuth_samples` for
     /// encoder values inside the revolution (`None` past it, or for an empty geometry).
@@ -238,7 +255,6 @@ impl Geometry {
 #[cfg(test)]
 mod azimuth_index_tests {
     use super::*;
-    use crate::BinWidth;
 
     #[test]
     fn a_range_gain_of_zero_or_below_is_refused_at_the_configuration_message() {
@@ -261,18 +277,7 @@ mod azimuth_index_tests {
     }
 
     fn cts350x() -> Geometry {
-        Geometry {
-            azimuth_samples: 400,
-            range_in_bins: 3768,
-            bin_size_m: 0.0438,
-            encoder_size: 5600,
-            rotation_hz: 4.0,
-            packet_rate: 1600,
-            range_gain: 1.0,
-            range_offset_m: 0.0,
-            data_width: BinWidth::Eight,
-            range_resolution_m: None,
-        }
+        Geometry::cts350x()
     }
 
     #[test]

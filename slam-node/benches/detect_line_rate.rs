@@ -18,18 +18,7 @@ const AZIMUTHS: u16 = 400;
 const BINS: u16 = 3768;
 
 fn geometry() -> Geometry {
-    Geometry {
-        azimuth_samples: AZIMUTHS,
-        range_in_bins: BINS,
-        bin_size_m: 0.0438,
-        encoder_size: 5600,
-        rotation_hz: 4.0,
-        packet_rate: 1600,
-        range_gain: 1.0,
-        range_offset_m: 0.0,
-        data_width: BinWidth::Eight,
-        range_resolution_m: None,
-    }
+    Geometry::cts350x()
 }
 
 /// A deterministic rotation: a speckled floor falling with range, with a few dozen strong

@@ -9,47 +9,16 @@
 
 mod support;
 
+use support::{still, still_radar_settings as settings};
+
 use radar_driver::Azimuth;
-use sim_sensor::radar::RadarPreset;
 use slam_filter::OdometrySample;
-use slam_node::pipeline::{Pipeline, PipelineSettings, PipelineSummary};
-use support::SimRadar;
+use slam_node::pipeline::{Pipeline, PipelineSummary};
 
 const T0_NS: u64 = 1_700_000_000_000_000_000;
 const T0: f64 = 1.7e9;
 /// 2100-01-01 in Unix seconds.
 const YEAR_2100_S: f64 = 4_102_444_800.0;
-
-fn settings() -> PipelineSettings {
-    let mut s = PipelineSettings::from_config(&config::Config::default()).unwrap();
-    s.detector = slam_node::detect::DetectorSettings::default();
-    s.compensation = radar_model::compensation::Compensation::calibrated(
-        40.0,
-        &radar_model::power::RadarConstants::default(),
-    );
-    s.initial_pose_std = [0.0; 3];
-    s
-}
-
-/// A still radar (the paper's unit) looking at four reflectors.
-fn azimuths(rotations: u64) -> Vec<Azimuth> {
-    let mut scene = support::empty_scene("four-reflectors", RadarPreset::Paper200, 5);
-    for (x, y) in [(10.0, 5.0), (-8.0, 12.0), (20.0, -15.0), (-12.0, -9.0)] {
-        support::add_point(&mut scene, x, y, 0.5, 0.3);
-    }
-    let mut radar = SimRadar::new(&scene, None, rotations as f64 / 2.5 + 1.0, T0_NS);
-    (0..rotations * radar.azimuths())
-        .map(|k| radar.azimuth(k))
-        .collect()
-}
-
-fn still(t: f64) -> OdometrySample {
-    OdometrySample {
-        timestamp_s: t,
-        speed_mps: 0.0,
-        steer_rad: 0.0,
-    }
-}
 
 /// Runs `azimuths` with odometry every 50 ms up to each azimuth's true time `clock[i]`,
 /// letting `odometry` change the k-th record; returns the summary and the pipeline.
@@ -77,7 +46,7 @@ fn run(
 
 #[test]
 fn one_far_future_azimuth_timestamp_costs_that_azimuth_only() {
-    let mut az = azimuths(10);
+    let mut az = support::still_radar_azimuths(10, T0_NS);
     let clock: Vec<f64> = az.iter().map(|a| a.timestamp_s).collect();
     let n = az.len();
     let (baseline, b) = run(&az, &clock, |_, o| o);
@@ -98,7 +67,7 @@ fn one_far_future_azimuth_timestamp_costs_that_azimuth_only() {
 
 #[test]
 fn one_far_future_odometry_record_costs_that_record_only() {
-    let az = azimuths(10);
+    let az = support::still_radar_azimuths(10, T0_NS);
     let clock: Vec<f64> = az.iter().map(|a| a.timestamp_s).collect();
     let (_, b) = run(&az, &clock, |_, o| o);
     let (s, p) = run(&az, &clock, |k, o| {
@@ -118,7 +87,7 @@ fn one_far_future_odometry_record_costs_that_record_only() {
 
 #[test]
 fn absurd_but_finite_odometry_is_refused_at_the_gate() {
-    let az = azimuths(10);
+    let az = support::still_radar_azimuths(10, T0_NS);
     let clock: Vec<f64> = az.iter().map(|a| a.timestamp_s).collect();
     let (_, b) = run(&az, &clock, |_, o| o);
     let (s, p) = run(&az, &clock, |k, o| match k {
@@ -149,7 +118,7 @@ fn absurd_but_finite_odometry_is_refused_at_the_gate() {
 
 #[test]
 fn a_confirmed_radar_clock_jump_resynchronises_and_mapping_resumes() {
-    let mut az = azimuths(12);
+    let mut az = support::still_radar_azimuths(12, T0_NS);
     let n = az.len();
     // From a third of the way on, the radar's clock is an hour ahead (it was set).
     for a in az.iter_mut().skip(n / 3) {

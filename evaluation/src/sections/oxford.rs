@@ -19,6 +19,7 @@ use radar_model::noise::{NoiseModel, RangeSpread};
 use radar_model::power::PowerModel;
 use radar_model::spectrum::SpectrumGeometry;
 use sim_sensor::replay::png::read_polar_png;
+use sim_sensor::replay::truth::{chain_poses, read_oxford_odometry};
 use slam_node::daemon::replay::{recorded_settings, OdometryErrors, RecordedTruth};
 use slam_node::pipeline::Pipeline;
 
@@ -35,8 +36,6 @@ pub const BIN_SIZE_M: f64 = 0.0438;
 pub const BEAM_WIDTH_RAD: f64 = 1.8 * std::f64::consts::PI / 180.0;
 /// Wheelbase used to turn yaw rates into bicycle steering (m): the daemon's replay's.
 pub const WHEELBASE_M: f64 = slam_node::daemon::replay::WHEELBASE_M;
-/// Largest odometry file accepted (bytes).
-const MAX_CSV_BYTES: u64 = 1 << 24;
 
 /// The folder, relative to this crate: `../../shared/data/oxford-radar-robotcar`.
 pub fn default_dir() -> PathBuf {
@@ -100,79 +99,6 @@ pub fn read_scans(dir: &Path) -> Result<Vec<TimedScan>, EvalError> {
     Ok(out)
 }
 
-/// One ground-truth relative pose: the source scan in the destination scan's frame,
-/// converted from the data set's x-forward, y-right, yaw-clockwise to our x-forward,
-/// y-left, counter-clockwise heading.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RelativePose {
-    /// Later scan (µs).
-    pub source_us: i64,
-    /// Earlier scan (µs).
-    pub destination_us: i64,
-    /// The source's pose in the destination's frame.
-    pub pose: Pose2,
-}
-
-/// Parses `radar_odometry.csv`.
-pub fn read_odometry(path: &Path) -> Result<Vec<RelativePose>, EvalError> {
-    let io = |source| EvalError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let len = std::fs::metadata(path).map_err(io)?.len();
-    if len > MAX_CSV_BYTES {
-        return Err(EvalError::Data {
-            path: path.into(),
-            line: 0,
-            reason: format!("{len} bytes is too large"),
-        });
-    }
-    let text = std::fs::read_to_string(path).map_err(io)?;
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate().skip(1) {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let bad = |reason: String| EvalError::Data {
-            path: path.into(),
-            line: i + 1,
-            reason,
-        };
-        let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        if f.len() != 10 {
-            return Err(bad(format!("{} fields, expected 10", f.len())));
-        }
-        let num = |k: usize| -> Result<f64, EvalError> {
-            f.get(k)
-                .and_then(|s| s.parse::<f64>().ok())
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| bad(format!("field {} is not a finite number", k + 1)))
-        };
-        let int = |k: usize| -> Result<i64, EvalError> {
-            f.get(k)
-                .and_then(|s| s.parse::<i64>().ok())
-                .ok_or_else(|| bad(format!("field {} is not an integer", k + 1)))
-        };
-        out.push(RelativePose {
-            source_us: int(8)?,
-            destination_us: int(9)?,
-            pose: Pose2::new(num(2)?, -num(3)?, -num(7)?),
-        });
-    }
-    Ok(out)
-}
-
-/// `a` followed by `b` (b expressed in a's frame).
-pub fn compose(a: &Pose2, b: &Pose2) -> Pose2 {
-    let (s, c) = a.theta.sin_cos();
-    Pose2::new(
-        a.x + c * b.x - s * b.y,
-        a.y + s * b.x + c * b.y,
-        wrap_angle(a.theta + b.theta),
-    )
-}
-
-/// Bicycle controls that move from `a` to `b` (b in a's frame) in `dt_s`.
 /// Pose errors of the filter and of dead reckoning, per scan.
 #[derive(Debug, Clone, Default)]
 pub struct TrackResult {
@@ -214,18 +140,13 @@ pub fn track(
         .and_then(|s| s.scan.rows.first())
         .map_or(0, |r| r.measured_db.len());
     let settings = recorded_settings(crate::daemon::shipped_settings()?, bins as f64 * BIN_SIZE_M);
+    let cts = Geometry::cts350x();
     let geometry = Arc::new(Geometry {
         azimuth_samples: u16::try_from(scans.first().map_or(400, |s| s.scan.rows.len()))
-            .unwrap_or(400),
+            .unwrap_or(cts.azimuth_samples),
         range_in_bins: u16::try_from(bins).unwrap_or(u16::MAX),
         bin_size_m: BIN_SIZE_M,
-        encoder_size: ENCODER_SIZE as u16,
-        rotation_hz: 4.0,
-        packet_rate: 1600,
-        range_gain: 1.0,
-        range_offset_m: 0.0,
-        data_width: BinWidth::Eight,
-        range_resolution_m: None,
+        ..cts
     });
     let mut pipeline = Pipeline::new(settings, None, Some(Box::new(recorded.clone())))
         .map_err(|e| EvalError::Setting(format!("pipeline: {e}")))?;
@@ -309,28 +230,20 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
     };
     let mut scans = read_scans(&dir)?;
     scans.truncate(opts.budget.oxford_scans.max(2));
-    let odometry = read_odometry(&dir.join("radar_odometry.csv"))?;
-    // Relative pose of scan k+1 in scan k's frame, and the accumulated truth.
-    let mut rel = Vec::new();
-    for w in scans.windows(2) {
-        let found = odometry
-            .iter()
-            .find(|o| o.source_us == w[1].time_us && o.destination_us == w[0].time_us)
-            .ok_or_else(|| EvalError::Data {
-                path: dir.join("radar_odometry.csv"),
-                line: 0,
-                reason: format!(
-                    "no relative pose from scan {} to {}",
-                    w[0].time_us, w[1].time_us
-                ),
-            })?;
-        rel.push(found.pose);
-    }
-    let mut truth = vec![Pose2::default()];
-    for r in &rel {
-        let last = truth.last().copied().unwrap_or_default();
-        truth.push(compose(&last, r));
-    }
+    // Ground truth with sim-sensor's reader (the one `slam-node --replay-dir` uses).
+    let csv = dir.join("radar_odometry.csv");
+    let rows = read_oxford_odometry(&csv)?;
+    let times_us: Vec<i64> = scans.iter().map(|s| s.time_us).collect();
+    let truth = chain_poses(&csv, &rows, &times_us)?;
+    // Relative pose of scan k+1 in scan k's frame (chain_poses found every one).
+    let rel: Vec<Pose2> = times_us
+        .windows(2)
+        .filter_map(|w| {
+            rows.iter()
+                .find(|r| r.source_us == w[1] && r.destination_us == w[0])
+                .map(|r| r.pose)
+        })
+        .collect();
     let bins = scans
         .first()
         .and_then(|s| s.scan.rows.first())

@@ -66,6 +66,24 @@ pub fn embedded_settings(
     settings
 }
 
+/// A driver for the embedded simulator: as fast as possible, a blocking hand-off lets TCP
+/// back-pressure pace the simulator to the pipeline; in real time, the driver's own
+/// channel and drop policy, as against a radar.
+fn connect(
+    driver_settings: DriverSettings,
+    fast: bool,
+) -> Result<(Receiver<Azimuth>, Driver), DaemonError> {
+    if fast {
+        let capacity = driver_settings.handoff.azimuth_capacity.unwrap_or(4096);
+        let (sink, rx) = sink::BlockingSink::new(capacity);
+        Ok((rx, Driver::with_sink(driver_settings, Box::new(sink))))
+    } else {
+        let (driver, receivers) = Driver::new(driver_settings);
+        let rx = receivers.azimuths.ok_or(DaemonError::NoAzimuthChannel)?;
+        Ok((rx, driver))
+    }
+}
+
 /// What starting the embedded simulator gives the daemon.
 #[allow(missing_debug_implementations)] // holds a `dyn OdometrySource`
 pub(super) struct Started {
@@ -127,15 +145,7 @@ pub(super) async fn start(
             odo_shutdown,
         )) as Box<dyn OdometrySource>
     });
-    let (azimuths, driver) = if fast {
-        let capacity = driver_settings.handoff.azimuth_capacity.unwrap_or(4096);
-        let (sink, rx) = sink::BlockingSink::new(capacity);
-        (rx, Driver::with_sink(driver_settings, Box::new(sink)))
-    } else {
-        let (driver, receivers) = Driver::new(driver_settings);
-        let rx = receivers.azimuths.ok_or(DaemonError::NoAzimuthChannel)?;
-        (rx, driver)
-    };
+    let (azimuths, driver) = connect(driver_settings, fast)?;
     Ok(Started {
         settings,
         start_time_s: Some(start_s),
@@ -194,15 +204,7 @@ pub(super) async fn start_replay(
     let handle = SimServer::spawn(options).await?;
     info!(radar = %handle.local_addr(), scans = %scan_dir.display(), "replaying recorded scans");
     driver_settings.address = handle.local_addr();
-    let (azimuths, driver) = if fast {
-        let capacity = driver_settings.handoff.azimuth_capacity.unwrap_or(4096);
-        let (sink, rx) = sink::BlockingSink::new(capacity);
-        (rx, Driver::with_sink(driver_settings, Box::new(sink)))
-    } else {
-        let (driver, receivers) = Driver::new(driver_settings);
-        let rx = receivers.azimuths.ok_or(DaemonError::NoAzimuthChannel)?;
-        (rx, driver)
-    };
+    let (azimuths, driver) = connect(driver_settings, fast)?;
     Ok(Started {
         settings,
         start_time_s,

@@ -490,25 +490,13 @@ fn spectrum_due(index: u16, every: usize) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use protocol::BinWidth;
     use radar_model::geometry::range_bearing;
     use slam_filter::{BeamObservation, OdometrySample, Target};
 
     #[test]
     fn every_kth_azimuth_counts_azimuths_not_encoder_values() {
         // A CTS350-X: 5600 encoder counts, 400 azimuths (14 counts apart).
-        let g = protocol::Geometry {
-            azimuth_samples: 400,
-            range_in_bins: 3768,
-            bin_size_m: 0.0438,
-            encoder_size: 5600,
-            rotation_hz: 4.0,
-            packet_rate: 1600,
-            range_gain: 1.0,
-            range_offset_m: 0.0,
-            data_width: BinWidth::Eight,
-            range_resolution_m: None,
-        };
+        let g = protocol::Geometry::cts350x();
         let checked = (0..400u16)
             .filter_map(|a| g.azimuth_index(a * 14))
             .filter(|&i| spectrum_due(i, 4))

@@ -299,20 +299,12 @@ impl FrontEnd {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use protocol::BinWidth;
 
     fn geometry(azimuths: u16, bins: u16) -> protocol::Geometry {
         protocol::Geometry {
             azimuth_samples: azimuths,
             range_in_bins: bins,
-            bin_size_m: 0.0438,
-            encoder_size: 5600,
-            rotation_hz: 4.0,
-            packet_rate: 1600,
-            range_gain: 1.0,
-            range_offset_m: 0.0,
-            data_width: BinWidth::Eight,
-            range_resolution_m: None,
+            ..protocol::Geometry::cts350x()
         }
     }
 

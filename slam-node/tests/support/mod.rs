@@ -218,3 +218,42 @@ impl SimRadar {
         );
     }
 }
+
+/// The four reflectors the still radar of the pipeline tests looks at, world metres.
+pub const REFLECTORS: [(f64, f64); 4] = [(10.0, 5.0), (-8.0, 12.0), (20.0, -15.0), (-12.0, -9.0)];
+
+/// The daemon's shipped settings with slam-node's measured detector, the simulator's
+/// 40 dB/decade receiver, and an exactly known start pose.
+pub fn still_radar_settings() -> slam_node::pipeline::PipelineSettings {
+    let mut s = slam_node::pipeline::PipelineSettings::from_config(&config::Config::default())
+        .expect("the shipped configuration converts");
+    s.detector = slam_node::detect::DetectorSettings::default();
+    s.compensation = radar_model::compensation::Compensation::calibrated(
+        40.0,
+        &radar_model::power::RadarConstants::default(),
+    );
+    s.initial_pose_std = [0.0; 3];
+    s
+}
+
+/// A stationary radar (the paper's unit: 200 azimuths of 800 bins) looking at
+/// [`REFLECTORS`]; `rotations` rotations of azimuths from `t0_ns`, 8-bit as on the wire.
+pub fn still_radar_azimuths(rotations: u64, t0_ns: u64) -> Vec<Azimuth> {
+    let mut scene = empty_scene("four-reflectors", RadarPreset::Paper200, 5);
+    for (x, y) in REFLECTORS {
+        add_point(&mut scene, x, y, 0.5, 0.3);
+    }
+    let mut radar = SimRadar::new(&scene, None, rotations as f64 / 2.5 + 1.0, t0_ns);
+    (0..rotations * radar.azimuths())
+        .map(|k| radar.azimuth(k))
+        .collect()
+}
+
+/// Odometry of a parked vehicle at `t` (s).
+pub fn still(t: f64) -> slam_filter::OdometrySample {
+    slam_filter::OdometrySample {
+        timestamp_s: t,
+        speed_mps: 0.0,
+        steer_rad: 0.0,
+    }
+}
