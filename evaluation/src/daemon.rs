@@ -10,7 +10,6 @@ use std::time::Instant;
 use bytes::BytesMut;
 use protocol::{FrameDecoder, Geometry, Message};
 use radar_driver::Azimuth;
-use sim_sensor::render::bin_width;
 use sim_sensor::scene::Scene;
 use sim_sensor::OdometryNoise;
 use slam_node::pipeline::{Pipeline, PipelineSettings, PipelineSummary, SceneTruth};
@@ -61,20 +60,12 @@ pub struct DaemonOutcome {
 }
 
 /// The geometry a simulated radar announces.
-pub fn geometry_of(scene: &Scene) -> Geometry {
-    let r = &scene.radar;
-    Geometry {
-        azimuth_samples: r.azimuths,
-        range_in_bins: r.range_bins,
-        bin_size_m: r.bin_size_m(),
-        encoder_size: r.encoder_size,
-        rotation_hz: r.rotation_hz(),
-        packet_rate: r.packet_rate(),
-        range_gain: f64::from(r.range_gain),
-        range_offset_m: f64::from(r.range_offset_m),
-        data_width: bin_width(r.data_width),
-        range_resolution_m: Some(f64::from(r.range_gain) * r.bin_size_m()),
-    }
+pub fn geometry_of(scene: &Scene) -> Result<Geometry, EvalError> {
+    scene.radar.configuration().geometry().map_err(|e| {
+        EvalError::Setting(format!(
+            "the scene's radar announces no usable geometry: {e}"
+        ))
+    })
 }
 
 /// Runs the daemon's pipeline over `seconds` of `scene` with `settings`; the motion model
@@ -92,7 +83,7 @@ pub fn run_daemon(
     let truth = SceneTruth::new(scene, EPOCH_S, seconds + 2.0)?;
     let mut pipeline = Pipeline::new(settings, Some(EPOCH_S), Some(Box::new(truth)))
         .map_err(|e| EvalError::Setting(format!("pipeline: {e}")))?;
-    let geometry = Arc::new(geometry_of(scene));
+    let geometry = Arc::new(geometry_of(scene)?);
     let mut cursor = world.cursor();
     let mut frame = BytesMut::new();
     let mut decoder = FrameDecoder::new();

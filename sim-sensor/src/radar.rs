@@ -136,6 +136,25 @@ pub struct RadarParams {
 }
 
 impl RadarParams {
+    /// The configuration message (10) this radar announces; a client derives its geometry
+    /// from it (`Configuration::geometry`).
+    pub fn configuration(&self) -> protocol::Configuration {
+        protocol::Configuration {
+            azimuth_samples: self.azimuths,
+            bin_size: self.bin_size_tenth_mm,
+            range_in_bins: self.range_bins,
+            encoder_size: self.encoder_size,
+            rotation_speed_millihertz: self.rotation_mhz,
+            packet_rate: self.packet_rate(),
+            range_gain: self.range_gain,
+            range_offset_m: self.range_offset_m,
+            data: protocol::ConfigurationData::minimal(
+                i32::try_from(self.data_width.bits()).unwrap_or(8),
+                (f64::from(self.range_gain) * self.bin_size_m()) as f32,
+            ),
+        }
+    }
+
     /// Checks the parameters fit the wire and make a usable radar.
     pub fn validate(&self) -> Result<(), SceneError> {
         let bad = |field: &str, reason: String| {

@@ -11,7 +11,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
-use protocol::{Configuration, ConfigurationData};
+use protocol::Configuration;
 
 use crate::radar::RadarParams;
 use crate::render::{offset_ns, SceneRenderer};
@@ -46,20 +46,7 @@ pub(crate) struct World {
 
 /// The configuration message a simulated radar with `radar` announces.
 pub fn configuration_of(radar: &RadarParams) -> Configuration {
-    Configuration {
-        azimuth_samples: radar.azimuths,
-        bin_size: radar.bin_size_tenth_mm,
-        range_in_bins: radar.range_bins,
-        encoder_size: radar.encoder_size,
-        rotation_speed_millihertz: radar.rotation_mhz,
-        packet_rate: radar.packet_rate(),
-        range_gain: radar.range_gain,
-        range_offset_m: radar.range_offset_m,
-        data: ConfigurationData::minimal(
-            i32::try_from(radar.data_width.bits()).unwrap_or(8),
-            (f64::from(radar.range_gain) * radar.bin_size_m()) as f32,
-        ),
-    }
+    radar.configuration()
 }
 
 impl World {

@@ -15,7 +15,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use bytes::BytesMut;
-use protocol::{Configuration, ConfigurationData, FrameDecoder, Geometry, Message, Timestamp};
+use protocol::{FrameDecoder, Geometry, Message, Timestamp};
 use radar_driver::Azimuth;
 use radar_model::material::Material;
 use radar_model::power::{PowerModel, PowerTarget};
@@ -72,24 +72,12 @@ pub fn add_point(scene: &mut Scene, x_m: f64, y_m: f64, rho: f64, alpha: f64) {
 }
 
 /// The geometry a client derives from the configuration message a simulated radar with
-/// `radar` announces (the simulator's own `configuration_of` is not public).
+/// `radar` announces.
 pub fn client_geometry(radar: &RadarParams) -> Geometry {
-    Configuration {
-        azimuth_samples: radar.azimuths,
-        bin_size: radar.bin_size_tenth_mm,
-        range_in_bins: radar.range_bins,
-        encoder_size: radar.encoder_size,
-        rotation_speed_millihertz: radar.rotation_mhz,
-        packet_rate: radar.packet_rate(),
-        range_gain: radar.range_gain,
-        range_offset_m: radar.range_offset_m,
-        data: ConfigurationData::minimal(
-            i32::try_from(radar.data_width.bits()).unwrap_or(8),
-            (f64::from(radar.range_gain) * radar.bin_size_m()) as f32,
-        ),
-    }
-    .geometry()
-    .expect("a validated radar makes a valid geometry")
+    radar
+        .configuration()
+        .geometry()
+        .expect("a validated radar makes a valid geometry")
 }
 
 /// The simulator rendering one scene, azimuth by azimuth.
