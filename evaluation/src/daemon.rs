@@ -111,7 +111,11 @@ pub fn run_daemon(
                 "the simulator's frame was not FFT data".into(),
             ));
         };
-        let az = Azimuth::from_fft(fft, Arc::clone(&geometry));
+        let az = Azimuth {
+            // As the driver numbers rotations.
+            rotation: index / n,
+            ..Azimuth::from_fft(fft, Arc::clone(&geometry))
+        };
         let clock = Instant::now();
         events.clear();
         pipeline

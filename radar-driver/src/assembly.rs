@@ -32,6 +32,8 @@ pub const MAX_ROTATION_FACTOR: usize = 2;
 /// What one [`RotationAssembler::push`] found.
 #[derive(Debug, Default)]
 pub struct PushReport {
+    /// The rotation the pushed azimuth belongs to (see [`Azimuth::rotation`]).
+    pub rotation: u64,
     /// The rotation in progress reached [`MAX_ROTATION_FACTOR`] times the configured
     /// azimuths without its encoder wrapping, and was closed as partial.
     pub overlong: bool,
@@ -60,6 +62,8 @@ pub struct RotationAssembler {
     counting_only: bool,
     /// Azimuths pushed into the rotation in progress (held or not).
     in_rotation: usize,
+    /// Rotations begun: the number of the rotation in progress.
+    rotation: u64,
 }
 
 /// The azimuth slot of an encoder value: `protocol`'s azimuth index (the last slot for a
@@ -102,7 +106,7 @@ impl RotationAssembler {
 
     /// Adds one azimuth (its geometry must be the one set last; a different one is taken
     /// as a geometry change).
-    pub fn push(&mut self, azimuth: Azimuth) -> PushReport {
+    pub fn push(&mut self, mut azimuth: Azimuth) -> PushReport {
         let mut report = PushReport::default();
         if self.geometry.as_deref() != Some(&*azimuth.geometry) {
             report.finished = self.set_geometry(Arc::clone(&azimuth.geometry));
@@ -156,6 +160,8 @@ impl RotationAssembler {
             self.started_at_wrap = false;
         }
         self.in_rotation += 1;
+        report.rotation = self.rotation;
+        azimuth.rotation = self.rotation;
         if self.counting_only {
             return report;
         }
@@ -176,6 +182,9 @@ impl RotationAssembler {
     }
 
     fn close(&mut self, at_wrap: bool) -> Option<Rotation> {
+        if self.in_rotation > 0 {
+            self.rotation += 1;
+        }
         self.in_rotation = 0;
         let geometry = self.geometry.clone();
         let azimuths = std::mem::take(&mut self.current);
@@ -233,6 +242,7 @@ mod tests {
             width: BinWidth::Eight,
             bins: Bytes::from_static(&[1, 2, 3, 4]),
             geometry: Arc::clone(g),
+            rotation: 0,
         }
     }
 
@@ -397,6 +407,27 @@ mod tests {
             closed >= 1000 / 32 - 1,
             "{closed} overlong rotations closed"
         );
+    }
+
+    #[test]
+    fn every_azimuth_carries_the_number_of_its_rotation() {
+        let g = geometry(4, 16);
+        let mut a = RotationAssembler::new();
+        let numbers: Vec<u64> = [0u16, 1, 2, 3, 0, 1, 2, 3, 0]
+            .into_iter()
+            .enumerate()
+            .map(|(sweep, slot)| a.push(az(&g, slot, u16::try_from(sweep).unwrap())).rotation)
+            .collect();
+        assert_eq!(numbers, vec![0, 0, 0, 0, 1, 1, 1, 1, 2]);
+        // Counting only, the numbers are the same.
+        let mut c = RotationAssembler::new();
+        c.set_counting_only(true);
+        let counted: Vec<u64> = [0u16, 1, 2, 3, 0, 1]
+            .into_iter()
+            .enumerate()
+            .map(|(sweep, slot)| c.push(az(&g, slot, u16::try_from(sweep).unwrap())).rotation)
+            .collect();
+        assert_eq!(counted, vec![0, 0, 0, 0, 1, 1]);
     }
 
     #[test]

@@ -26,6 +26,11 @@ pub struct Azimuth {
     pub bins: Bytes,
     /// The radar geometry in force when this azimuth arrived.
     pub geometry: Arc<Geometry>,
+    /// The rotation this azimuth belongs to, as the driver's assembler counts them (it
+    /// rises by one whenever the encoder wraps, a rotation is closed as overlong, or the
+    /// geometry changes): rotation boundaries have one owner, and consumers compare this
+    /// instead of watching encoder values. 0 for azimuths built outside the driver.
+    pub rotation: u64,
 }
 
 impl Azimuth {
@@ -39,6 +44,7 @@ impl Azimuth {
             width: fft.width,
             bins: fft.bins,
             geometry,
+            rotation: 0,
         }
     }
 

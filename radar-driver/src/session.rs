@@ -352,9 +352,15 @@ impl SessionState {
             return;
         }
         self.metrics.add_fft_frames(1);
-        let azimuth = Azimuth::from_fft(fft, Arc::clone(geometry));
+        let mut azimuth = Azimuth::from_fft(fft, Arc::clone(geometry));
+        // The assembler numbers the rotations (one owner of rotation boundaries): push first,
+        // then hand the azimuth on with its rotation number.
+        self.assembler
+            .set_counting_only(!self.sink.wants_rotations());
+        let report = self.assembler.push(azimuth.clone());
+        azimuth.rotation = report.rotation;
         if self.sink.wants_azimuths() {
-            let delivery = self.sink.send_azimuth(azimuth.clone());
+            let delivery = self.sink.send_azimuth(azimuth);
             let sent_ns = self.clock.monotonic_ns();
             self.metrics.add_azimuths_sent(1);
             if delivery.queued() {
@@ -364,9 +370,6 @@ impl SessionState {
             self.metrics
                 .record_latency_ns(sent_ns.saturating_sub(read_ns));
         }
-        self.assembler
-            .set_counting_only(!self.sink.wants_rotations());
-        let report = self.assembler.push(azimuth);
         if report.overlong {
             self.overlong_rotations += 1;
             if self.overlong_rotations.is_power_of_two() {

@@ -48,6 +48,7 @@ fn rotation(rotation: u64) -> Vec<Azimuth> {
                 width: BinWidth::Eight,
                 bins: Bytes::from(bins),
                 geometry: Arc::clone(&g),
+                rotation,
             }
         })
         .collect()

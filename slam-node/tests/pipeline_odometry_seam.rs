@@ -56,6 +56,7 @@ fn azimuths() -> Vec<Azimuth> {
                 width: BinWidth::Eight,
                 bins: bins.clone(),
                 geometry: Arc::clone(&geometry),
+                rotation: k / AZIMUTHS,
             }
         })
         .collect()

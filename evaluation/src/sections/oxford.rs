@@ -166,7 +166,11 @@ pub fn track(
             ));
         }
     };
-    for (sweep, row) in scans.iter().flat_map(|s| &s.scan.rows).enumerate() {
+    let rows = scans
+        .iter()
+        .enumerate()
+        .flat_map(|(k, s)| s.scan.rows.iter().map(move |r| (k as u64, r)));
+    for (sweep, (scan, row)) in rows.enumerate() {
         while times.get(next_scan).is_some_and(|&t| t <= row.timestamp_s) {
             record(&pipeline, next_scan);
             next_scan += 1;
@@ -193,6 +197,7 @@ pub fn track(
                     .collect::<Vec<u8>>(),
             ),
             geometry: Arc::clone(&geometry),
+            rotation: scan,
         };
         pipeline
             .process_azimuth(&azimuth, &mut events)

@@ -61,7 +61,7 @@ pub struct Pipeline {
     beams: Vec<BeamObservation>,
     spectrum: SpectrumScratch,
     clock: WireClock,
-    last_index: Option<u16>,
+    last_rotation: Option<u64>,
     last_time_s: Option<f64>,
     summary: PipelineSummary,
     filter_started: bool,
@@ -113,7 +113,7 @@ impl Pipeline {
             truth: truth.map(TruthObserver::new),
             beams: Vec::new(),
             spectrum: SpectrumScratch::default(),
-            last_index: None,
+            last_rotation: None,
             last_time_s: None,
             summary: PipelineSummary::default(),
             filter_started: false,
@@ -232,7 +232,7 @@ impl Pipeline {
                 );
                 self.summary.clock_jumps += 1;
                 self.end_rotation(events);
-                self.last_index = None;
+                self.last_rotation = None;
                 if let Err(e) = self.ekf.resync_clock(to_s) {
                     warn!(error = %e, "could not move the filter to the new clock");
                 }
@@ -244,10 +244,11 @@ impl Pipeline {
             return Ok(());
         };
         self.front_end.configure(&az.geometry)?;
-        if self.last_index.is_some_and(|last| index < last) {
+        // Rotation boundaries are the driver's: it numbers every azimuth's rotation.
+        if self.last_rotation.is_some_and(|r| r != az.rotation) {
             self.end_rotation(events);
         }
-        self.last_index = Some(index);
+        self.last_rotation = Some(az.rotation);
         self.last_time_s = Some(az.timestamp_s);
         self.summary.first_time_s.get_or_insert(az.timestamp_s);
         self.summary.last_time_s = Some(az.timestamp_s);

@@ -154,7 +154,11 @@ impl SimRadar {
             .render(index, (index % 65_536) as u16, timestamp, &mut self.frame)
             .expect("render");
         match self.decoder.decode_eof(&mut self.frame) {
-            Ok(Some(Message::FftData(fft))) => Azimuth::from_fft(fft, Arc::clone(&self.geometry)),
+            Ok(Some(Message::FftData(fft))) => Azimuth {
+                // As the driver numbers rotations.
+                rotation: index / self.azimuths(),
+                ..Azimuth::from_fft(fft, Arc::clone(&self.geometry))
+            },
             other => panic!("azimuth {index}: the rendered frame decoded as {other:?}"),
         }
     }
