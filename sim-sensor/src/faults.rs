@@ -18,11 +18,64 @@
 //! [`FaultScope`] limits the faults to the first connections, so a client that reconnects
 //! after a dropped connection then sees a clean stream.
 
+use std::num::NonZeroU64;
 use std::time::Duration;
 
-pub use config::faults::Stall;
-pub use config::FaultSettings;
 use protocol::{HEADER_LEN, SIGNATURE};
+
+/// A stall: after `after_messages` messages, send nothing for `duration`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Stall {
+    /// Messages sent before the stall.
+    pub after_messages: NonZeroU64,
+    /// How long nothing is sent.
+    pub duration: Duration,
+}
+
+/// The faults to inject (the table above); `None` means the fault is off.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Hash)]
+pub struct FaultSettings {
+    /// Close after this many messages.
+    pub drop_after_messages: Option<NonZeroU64>,
+    /// Cut this message (1-based) in half, then close.
+    pub cut_frame_at_message: Option<NonZeroU64>,
+    /// Corrupt every N-th message.
+    pub corrupt_every_n: Option<NonZeroU64>,
+    /// Skip every N-th azimuth.
+    pub skip_azimuth_every_n: Option<NonZeroU64>,
+    /// Stall.
+    pub stall: Option<Stall>,
+    /// Send no keep-alives.
+    pub no_keepalive: bool,
+    /// Announce an oversized payload in this message (1-based).
+    pub oversized_at_message: Option<NonZeroU64>,
+}
+
+impl FaultSettings {
+    /// Whether any fault is on.
+    pub fn any(&self) -> bool {
+        *self != FaultSettings::default()
+    }
+}
+
+#[cfg(feature = "config")]
+impl From<&config::FaultSettings> for FaultSettings {
+    /// The `[sim.faults]` section, as validated by the configuration crate.
+    fn from(c: &config::FaultSettings) -> Self {
+        Self {
+            drop_after_messages: c.drop_after_messages,
+            cut_frame_at_message: c.cut_frame_at_message,
+            corrupt_every_n: c.corrupt_every_n,
+            skip_azimuth_every_n: c.skip_azimuth_every_n,
+            stall: c.stall.map(|s| Stall {
+                after_messages: s.after_messages,
+                duration: s.duration,
+            }),
+            no_keepalive: c.no_keepalive,
+            oversized_at_message: c.oversized_at_message,
+        }
+    }
+}
 
 /// The payload length announced by the oversized-payload fault (far above the protocol's
 /// 1,000,000-byte limit).

@@ -7,8 +7,11 @@ use std::time::Duration;
 
 use crate::error::SimError;
 use crate::faults::{FaultScope, FaultSettings};
+#[cfg(feature = "config")]
 use crate::radar::{DataWidth, RadarPreset};
-use crate::scene::{shipped, Scene};
+#[cfg(feature = "config")]
+use crate::scene::shipped;
+use crate::scene::Scene;
 
 /// How fast azimuths go out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -20,6 +23,7 @@ pub enum Pacing {
     AsFastAsPossible,
 }
 
+#[cfg(feature = "config")]
 impl From<config::sim::Pacing> for Pacing {
     fn from(p: config::sim::Pacing) -> Self {
         match p {
@@ -140,7 +144,8 @@ impl SimOptions {
     }
 
     /// Builds options from config's validated `[sim]` section (reading the scene file when
-    /// the section names one).
+    /// the section names one). With the `config` feature (on by default).
+    #[cfg(feature = "config")]
     pub fn from_config(sim: &config::SimSettings) -> Result<Self, SimError> {
         let scene = match &sim.scene {
             config::sim::SceneRef::Shipped(name) => shipped::load(name)?,
@@ -173,7 +178,7 @@ impl SimOptions {
         options.max_clients = sim.max_clients.get();
         options.pacing = sim.pacing.into();
         options.keepalive_interval = sim.keepalive_interval;
-        options.faults = sim.faults.clone();
+        options.faults = FaultSettings::from(&sim.faults);
         options.seed = Some(sim.seed);
         options.odometry = OdometryNoise {
             rate_hz: sim.odometry_rate_hz.get(),
@@ -226,6 +231,7 @@ impl SimOptions {
 mod tests {
     use super::*;
 
+    #[cfg(feature = "config")]
     #[test]
     fn a_config_sim_section_maps_onto_the_options() {
         let text = r#"
@@ -272,7 +278,7 @@ mod tests {
 
     #[test]
     fn hand_made_options_with_impossible_values_are_rejected() {
-        let scene = shipped::load("penetration-wood").expect("scene");
+        let scene = crate::scene::shipped::load("penetration-wood").expect("scene");
         let mut options = SimOptions::for_tests(scene);
         options.max_clients = 0;
         assert!(options.validate().is_err());
