@@ -4,7 +4,7 @@ use radar_model::material::{Material, MIN_SHARE};
 use radar_model::noise::{seeded_rng, NoiseModel};
 use radar_model::power::{beam_powers_with_jacobian, PowerModel, PowerTarget};
 use radar_model::spectrum::{
-    beam_spectrum_targets, quantize_8bit, SpectrumGeometry, SpectrumModel, SpectrumTarget,
+    beam_spectrum_targets, SpectrumGeometry, SpectrumModel, SpectrumTarget,
 };
 use radar_model::{
     features_in_beam, observe_beam, Beam, BeamFeature, BeamObservation, Compensation, ModelError,
@@ -259,7 +259,7 @@ fn extreme_loss_keeps_powers_and_spectra_finite_and_wire_values_clamped() {
                 })
                 .collect();
             spectrum_is_finite(&st);
-            let wire = quantize_8bit(obs.z[0].power_db + 86.0);
+            let wire = protocol::db_to_bin8(obs.z[0].power_db + 86.0);
             assert_eq!(wire, if loss < 0.0 { 255 } else { 0 });
         }
     }

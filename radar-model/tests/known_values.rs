@@ -4,7 +4,7 @@ use radar_model::material::Material;
 use radar_model::noise::{seeded_rng, NoiseModel};
 use radar_model::power::{beam_powers_db, PowerModel, PowerTarget};
 use radar_model::spectrum::{
-    beam_spectrum_targets, quantize_8bit, SpectrumGeometry, SpectrumModel, SpectrumTarget,
+    beam_spectrum_targets, SpectrumGeometry, SpectrumModel, SpectrumTarget,
 };
 use radar_model::{observe_beam, BeamFeature, Compensation, Pose2, SpreadingForm};
 
@@ -40,7 +40,7 @@ fn a_single_target_at_ten_metres_matches_the_hand_worked_value() {
     assert!((compensation.gain_db(10.0) - 86.167_003_938).abs() < 1e-8);
     let wire = -12.182_730_879 + compensation.gain_db(10.0);
     assert!((wire - 73.984_273_058).abs() < 1e-8);
-    assert_eq!(quantize_8bit(wire), 148);
+    assert_eq!(protocol::db_to_bin8(wire), 148);
 }
 
 /// The observation of that target from a pose: range 10 m, bearing 0.3 rad clockwise.

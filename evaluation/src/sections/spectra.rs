@@ -8,7 +8,7 @@ use std::fmt::Write as _;
 
 use radar_model::geometry::{wrap_angle, Pose2};
 use radar_model::power::{PowerModel, PowerTarget};
-use radar_model::spectrum::{beam_spectrum_targets, quantize_8bit, SpectrumModel};
+use radar_model::spectrum::{beam_spectrum_targets, SpectrumModel};
 use sim_sensor::scene::{shipped, Scene, Spreading};
 use sim_sensor::OdometryNoise;
 use slam_node::detect::{FloorProfile, RangeAxis};
@@ -97,7 +97,7 @@ pub fn render_scans(world: &World, rotations: usize) -> Result<(Vec<Scan>, Vec<P
                 measured_db: cursor
                     .last_power_db()
                     .iter()
-                    .map(|&p| protocol::bin8_to_db(quantize_8bit(p)))
+                    .map(|&p| protocol::bin8_to_db(protocol::db_to_bin8(p)))
                     .collect(),
             });
         }
@@ -154,7 +154,7 @@ fn from_truth(
         let measured: Vec<f64> = cursor
             .last_power_db()
             .iter()
-            .map(|&p| protocol::bin8_to_db(quantize_8bit(p)))
+            .map(|&p| protocol::bin8_to_db(protocol::db_to_bin8(p)))
             .collect();
         targets.clear();
         targets.extend(inside.iter().filter_map(|&(range_m, id)| {

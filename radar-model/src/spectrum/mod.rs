@@ -24,13 +24,8 @@
 //! Real FMCW peaks have windowed-sinc sidelobes; the Gaussian shape leaves them out.
 
 mod compare;
-mod quantize;
 
 pub use compare::{compare_spectra, difference_into, SpectrumComparison};
-pub use quantize::{
-    quantize_16bit, quantize_8bit, quantize_spectrum_16bit, quantize_spectrum_8bit,
-    wire_16bit_to_db, DB_PER_16BIT_COUNT,
-};
 
 use crate::compensation::Compensation;
 use crate::error::{finite, ModelError};
