@@ -5,6 +5,14 @@ use std::path::PathBuf;
 /// A scene file (or a preset override) that cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
+    /// A scene file larger than [`crate::scene::MAX_SCENE_BYTES`].
+    #[error("scene file {path} is larger than {limit} bytes")]
+    TooLarge {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The limit.
+        limit: u64,
+    },
     /// The TOML did not parse or had an unknown key; toml's message names the key, line and
     /// column.
     #[error("scene {name}: {source}")]

@@ -75,9 +75,9 @@ struct Args {
     /// Random seed (overrides the scene's).
     #[arg(long)]
     seed: Option<u64>,
-    /// Clients served at once.
-    #[arg(long)]
-    max_clients: Option<usize>,
+    /// Clients served at once, 1 to 64 (as `[sim] max_clients`).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=64))]
+    max_clients: Option<u16>,
     /// End the scene after this many azimuths.
     #[arg(long)]
     stop_after_azimuths: Option<u64>,
@@ -155,7 +155,7 @@ fn build_options(args: &Args) -> Result<SimOptions> {
         options.seed = args.seed;
     }
     if let Some(n) = args.max_clients {
-        options.max_clients = n;
+        options.max_clients = usize::from(n);
     }
     options.stop_after_azimuths = args.stop_after_azimuths.or(options.stop_after_azimuths);
     options.replay_loop |= args.replay_loop;

@@ -45,6 +45,9 @@ pub enum SourceSpec {
     RawStream(PathBuf),
 }
 
+/// Most clients a simulator serves at once (as `[sim] max_clients`).
+pub const MAX_CLIENTS: usize = 64;
+
 /// Odometry noise: each record is `v + bias_speed + N(0, sigma_speed^2)`,
 /// `steer + bias_steer + N(0, sigma_steer^2)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -199,8 +202,8 @@ impl SimOptions {
                 reason: reason.into(),
             })
         };
-        if self.max_clients == 0 {
-            return bad("max_clients", "must be >= 1");
+        if !(1..=MAX_CLIENTS).contains(&self.max_clients) {
+            return bad("max_clients", "must be in [1, 64]");
         }
         if self.keepalive_interval.is_zero() {
             return bad("keepalive_interval", "must be > 0");

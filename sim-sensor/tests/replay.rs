@@ -200,3 +200,39 @@ async fn a_raw_file_without_a_configuration_is_refused_with_a_typed_error() {
     let err = SimServer::spawn(options).await.expect_err("no scans");
     assert!(err.to_string().contains("no .png"), "{err}");
 }
+
+#[test]
+fn a_scene_file_past_the_size_limit_or_the_feature_limit_is_refused_without_reading_it_all() {
+    use sim_sensor::scene::{Scene, MAX_FEATURES};
+    // /dev/zero never ends: the reader stops one byte past the limit.
+    if std::path::Path::new("/dev/zero").exists() {
+        let err = Scene::load(std::path::Path::new("/dev/zero")).unwrap_err();
+        assert!(err.to_string().contains("larger than"), "{err}");
+    }
+    // More individual features than a scene may hold.
+    let mut text = String::from("[radar]\npreset = \"paper-200\"\n");
+    for k in 0..=MAX_FEATURES {
+        text.push_str(&format!(
+            "[[features]]\nkind = \"lamp-post\"\nx_m = {}\ny_m = 1.0\n",
+            k % 1000
+        ));
+    }
+    let err = Scene::from_toml_str("huge", &text).unwrap_err();
+    assert!(err.to_string().contains("at most"), "{err}");
+}
+
+#[tokio::test]
+async fn a_raw_replay_of_something_that_holds_no_frame_fails_instead_of_reading_for_ever() {
+    let zero = std::path::Path::new("/dev/zero");
+    if !zero.exists() {
+        return;
+    }
+    let err = tokio::time::timeout(
+        std::time::Duration::from_secs(60),
+        sim_sensor::replay::raw::RawRecording::open(zero),
+    )
+    .await
+    .expect("bounded")
+    .unwrap_err();
+    assert!(err.to_string().contains("no"), "{err}");
+}

@@ -90,9 +90,18 @@ impl RawReader {
         })
     }
 
-    /// The next decodable message, `None` at the end of the file.
+    /// The next decodable message, `None` at the end of the file. A stretch of more than
+    /// [`MAX_CONFIGURATION_SEARCH`] bytes without one (`/dev/zero`, a file that is not a
+    /// recording) is an error, so a replay never reads without end.
     pub async fn next_message(&mut self) -> Result<Option<Message>, ReplayError> {
+        let start = self.bytes_read;
         loop {
+            if self.bytes_read - start > MAX_CONFIGURATION_SEARCH {
+                return Err(ReplayError::RawStream {
+                    path: self.path.clone(),
+                    reason: format!("no decodable frame in {} bytes", self.bytes_read - start),
+                });
+            }
             // At the end of the file the decoder must give up any frame it holds back while
             // waiting to see whether a signature follows it.
             let decoded = if self.eof {

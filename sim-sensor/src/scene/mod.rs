@@ -157,6 +157,10 @@ pub struct Scene {
 /// Most point features one scene may hold (after line expansion).
 pub const MAX_FEATURES: usize = 200_000;
 
+/// Largest scene file read (bytes): far above any hand-written or generated scene of the
+/// feature limit, far below what would exhaust memory.
+pub const MAX_SCENE_BYTES: u64 = 16 << 20;
+
 impl Scene {
     /// Parses and validates a scene from TOML text; `name` is used in errors and when the
     /// file names none.
@@ -170,10 +174,25 @@ impl Scene {
 
     /// Reads and parses a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        use std::io::Read as _;
+        let io = |source| SceneError::Io {
             path: path.to_path_buf(),
             source,
-        })?;
+        };
+        // Read at most one byte past the limit: a larger file (or /dev/zero) is refused
+        // without reading it all.
+        let mut text = String::new();
+        std::fs::File::open(path)
+            .map_err(io)?
+            .take(MAX_SCENE_BYTES + 1)
+            .read_to_string(&mut text)
+            .map_err(io)?;
+        if text.len() as u64 > MAX_SCENE_BYTES {
+            return Err(SceneError::TooLarge {
+                path: path.to_path_buf(),
+                limit: MAX_SCENE_BYTES,
+            });
+        }
         let stem = path.file_stem().map_or_else(
             || path.display().to_string(),
             |s| s.to_string_lossy().into_owned(),

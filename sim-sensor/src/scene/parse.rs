@@ -278,6 +278,15 @@ impl RawScene {
         };
         let schedule = ControlSchedule::new(self.control, self.interpolation)?;
 
+        if self.features.len() > MAX_FEATURES {
+            return Err(invalid(
+                "features".into(),
+                format!(
+                    "{} features; a scene holds at most {MAX_FEATURES}",
+                    self.features.len()
+                ),
+            ));
+        }
         let mut features = Vec::with_capacity(self.features.len());
         for (i, f) in self.features.iter().enumerate() {
             let field = format!("features[{i}]");

@@ -1,0 +1,16 @@
+//! The binary refuses out-of-range values at parse time.
+
+#[test]
+fn max_clients_outside_one_to_sixty_four_is_refused_when_parsing() {
+    for bad in ["0", "65", "1000000", "-1"] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_sim-sensor"))
+            .arg(format!("--max-clients={bad}"))
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "--max-clients {bad}");
+        assert!(
+            String::from_utf8_lossy(&out.stderr).contains("--max-clients"),
+            "--max-clients {bad}"
+        );
+    }
+}
