@@ -302,6 +302,10 @@ async fn accept_loop(
                     match result {
                         Ok(()) => tracing::info!(%peer, "client session ended"),
                         Err(ClientError::Closed) => tracing::info!(%peer, "client disconnected"),
+                        // A client that leaves in the middle of a write is a normal disconnect.
+                        Err(ClientError::Io(error)) if client_went_away(&error) => {
+                            tracing::info!(%peer, %error, "client disconnected")
+                        }
                         Err(ClientError::Garbage(reason)) => {
                             stats.garbage_closes.fetch_add(1, Ordering::Relaxed);
                             tracing::warn!(%peer, %reason, "closing a client that sent garbage");
@@ -319,4 +323,32 @@ async fn accept_loop(
     }
     clients.shutdown().await;
     Ok(())
+}
+
+/// Whether a socket error only means the client went away (closed, reset, or the write
+/// found the pipe broken): a normal disconnect, not a failure of the session.
+fn client_went_away(error: &std::io::Error) -> bool {
+    use std::io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset, UnexpectedEof};
+    matches!(
+        error.kind(),
+        BrokenPipe | ConnectionReset | ConnectionAborted | UnexpectedEof
+    )
+}
+
+#[cfg(test)]
+mod disconnect_tests {
+    use super::client_went_away;
+    use std::io::{Error, ErrorKind};
+
+    #[test]
+    fn a_client_leaving_mid_write_is_a_disconnect_and_other_socket_errors_are_not() {
+        for kind in [
+            ErrorKind::BrokenPipe,
+            ErrorKind::ConnectionReset,
+            ErrorKind::ConnectionAborted,
+        ] {
+            assert!(client_went_away(&Error::from(kind)), "{kind:?}");
+        }
+        assert!(!client_went_away(&Error::from(ErrorKind::PermissionDenied)));
+    }
 }
