@@ -18,6 +18,7 @@ use tokio::sync::mpsc;
 use tokio::time::MissedTickBehavior;
 use tokio_util::sync::CancellationToken;
 
+use super::shaping::Shaping;
 use super::stream::AzimuthStream;
 use super::world::World;
 use super::SimStats;
@@ -30,7 +31,9 @@ pub const MAX_CLIENT_BUFFER: usize = 64 * 1024;
 /// What the reader tells the writer.
 #[derive(Debug)]
 enum Command {
-    Start,
+    Start { contoured: bool },
+    Contour(protocol::ContourUpdate),
+    Blanking(protocol::SectorBlanking),
     Stop,
     SendConfiguration,
     Closed,
@@ -73,7 +76,10 @@ async fn read_commands(mut socket: OwnedReadHalf, tx: mpsc::Sender<Command>, pee
         loop {
             let command = match decoder.decode(&mut buf) {
                 Ok(Some(message)) => match message {
-                    Message::StartFftData | Message::StartNonContourFftData => Command::Start,
+                    Message::StartFftData => Command::Start { contoured: true },
+                    Message::StartNonContourFftData => Command::Start { contoured: false },
+                    Message::ContourUpdate(update) => Command::Contour(update),
+                    Message::SectorBlankingUpdate(update) => Command::Blanking(update),
                     Message::StopFftData => Command::Stop,
                     Message::ConfigurationRequest => Command::SendConfiguration,
                     Message::KeepAlive => continue,
@@ -83,6 +89,14 @@ async fn read_commands(mut socket: OwnedReadHalf, tx: mpsc::Sender<Command>, pee
                     }
                 },
                 Ok(None) => break,
+                // A malformed contour or blanking update is refused; the session goes on.
+                Err(protocol::DecodeError::Payload { message_id, source })
+                    if message_id == protocol::message_id::CONTOUR_UPDATE
+                        || message_id == protocol::message_id::SECTOR_BLANKING_UPDATE =>
+                {
+                    tracing::warn!(%peer, message_id, error = %source, "malformed update refused");
+                    continue;
+                }
                 Err(error) => Command::Garbage(error.to_string()),
             };
             let stop = matches!(command, Command::Garbage(_));
@@ -149,6 +163,10 @@ impl Writer {
         // (the skip fault) instead of written.
         let mut pending: Option<(Option<tokio::time::Instant>, bool)> = None;
         let mut azimuth = BytesMut::with_capacity(8192);
+        // This client's contour and blanked sectors, and whether its stream is contoured.
+        let mut shaping = Shaping::default();
+        let mut contoured = true;
+        let encoder_size = self.world.configuration.encoder_size;
         loop {
             // Skipped azimuths and fast clients may never make the socket wait: spend the
             // task's cooperative budget so other connections are not starved.
@@ -170,9 +188,16 @@ impl Writer {
                 biased;
                 () = self.cancel.cancelled() => return Ok(()),
                 command = commands.recv() => match command {
-                    Some(Command::Start) => {
+                    Some(Command::Start { contoured: c }) => {
+                        contoured = c;
                         if stream.is_none() {
                             stream = Some(AzimuthStream::open(&self.world).await?);
+                        }
+                    }
+                    Some(Command::Contour(update)) => shaping.set_contour(update),
+                    Some(Command::Blanking(update)) => {
+                        if let Err(error) = shaping.set_blanking(&update) {
+                            tracing::warn!(%error, "sector blanking refused");
                         }
                     }
                     Some(Command::Stop) => {
@@ -201,6 +226,7 @@ impl Writer {
                         self.stats.azimuths_skipped.fetch_add(1, Ordering::Relaxed);
                         continue;
                     }
+                    shaping.apply(&mut azimuth, encoder_size, contoured);
                     std::mem::swap(&mut self.frame, &mut azimuth);
                     let flow = self.write_frame().await?;
                     std::mem::swap(&mut self.frame, &mut azimuth);

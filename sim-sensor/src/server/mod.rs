@@ -6,6 +6,7 @@
 //! the counters, and the way to stop it.
 
 mod client;
+pub mod shaping;
 mod stream;
 pub(crate) mod world;
 

@@ -1,0 +1,124 @@
+//! Contours (50) and sector blanking (51) take effect on the next azimuths for that client
+//! only, as on a radar; a malformed update is refused and costs nothing else; a contoured
+//! stream (21) and a non-contoured one (140) differ exactly there.
+
+mod common;
+
+use std::time::Duration;
+
+use common::TestClient;
+use protocol::{BlankingSector, ContourUpdate, Message, SectorBlanking};
+use sim_sensor::scene::shipped;
+use sim_sensor::{SimOptions, SimServer};
+use tokio::io::AsyncWriteExt;
+
+const BOUND: Duration = Duration::from_secs(30);
+
+/// Bins and azimuth (degrees) of the next `n` FFT frames.
+async fn azimuths(client: &mut TestClient, n: usize, encoder_size: u16) -> Vec<(f64, usize)> {
+    let mut out = Vec::new();
+    while out.len() < n {
+        if let Message::FftData(fft) = client.next().await {
+            let deg = f64::from(fft.azimuth) * 360.0 / f64::from(encoder_size);
+            out.push((deg, fft.bins.len()));
+        }
+    }
+    out
+}
+
+fn contour_of(max_bin: u16) -> ContourUpdate {
+    ContourUpdate::MaxBinPerDegree(Box::new([max_bin; 360]))
+}
+
+#[tokio::test]
+async fn a_contour_shortens_a_contoured_stream_for_that_client_only() {
+    tokio::time::timeout(BOUND, async {
+        let scene = shipped::load("outdoor-field").expect("scene");
+        let handle = SimServer::spawn(SimOptions::for_tests(scene))
+            .await
+            .expect("spawn");
+        let mut shaped = TestClient::connect(handle.local_addr()).await;
+        let mut plain = TestClient::connect(handle.local_addr()).await;
+        let config = shaped.configuration().await;
+        plain.configuration().await;
+        let (encoder, bins) = (config.encoder_size, usize::from(config.range_in_bins));
+        shaped.send(Message::ContourUpdate(contour_of(99))).await;
+        shaped.send(Message::StartFftData).await;
+        plain.send(Message::StartFftData).await;
+        // The contour arrived before the start: every azimuth is cut to bins 0..=99.
+        let cut = azimuths(&mut shaped, 50, encoder).await;
+        assert!(cut.iter().all(|&(_, n)| n == 100), "{cut:?}");
+        // The other client on the same simulator is unaffected.
+        let full = azimuths(&mut plain, 50, encoder).await;
+        assert!(full.iter().all(|&(_, n)| n == bins), "{full:?}");
+        // An empty contour resets: full length again on the next azimuths.
+        shaped
+            .send(Message::ContourUpdate(ContourUpdate::Reset))
+            .await;
+        let mut later = azimuths(&mut shaped, 400, encoder).await;
+        later.retain(|&(_, n)| n == bins);
+        assert!(!later.is_empty(), "the reset never took effect");
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test]
+async fn a_non_contoured_stream_ignores_the_contour_and_a_blanked_sector_sends_no_bins() {
+    tokio::time::timeout(BOUND, async {
+        let scene = shipped::load("outdoor-field").expect("scene");
+        let handle = SimServer::spawn(SimOptions::for_tests(scene))
+            .await
+            .expect("spawn");
+        let mut client = TestClient::connect(handle.local_addr()).await;
+        let config = client.configuration().await;
+        let (encoder, bins) = (config.encoder_size, usize::from(config.range_in_bins));
+        client.send(Message::ContourUpdate(contour_of(99))).await;
+        client
+            .send(Message::SectorBlankingUpdate(SectorBlanking {
+                sectors: vec![BlankingSector::from_degrees(90.0, 180.0)],
+            }))
+            .await;
+        client.send(Message::StartNonContourFftData).await;
+        let got = azimuths(&mut client, 250, encoder).await;
+        for (deg, n) in &got {
+            if (90.0..180.0).contains(deg) {
+                assert_eq!(*n, 0, "blanked at {deg} degrees");
+            } else {
+                assert_eq!(*n, bins, "140 keeps full length at {deg} degrees");
+            }
+        }
+        assert!(got.iter().any(|(d, _)| (90.0..180.0).contains(d)));
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test]
+async fn a_malformed_contour_or_blanking_update_is_refused_and_the_session_goes_on() {
+    tokio::time::timeout(BOUND, async {
+        let scene = shipped::load("outdoor-field").expect("scene");
+        let handle = SimServer::spawn(SimOptions::for_tests(scene))
+            .await
+            .expect("spawn");
+        let mut client = TestClient::connect(handle.local_addr()).await;
+        let config = client.configuration().await;
+        let (encoder, bins) = (config.encoder_size, usize::from(config.range_in_bins));
+        // A contour payload of the wrong length (10 bytes instead of 720).
+        let mut frame = bytes::BytesMut::new();
+        protocol::encode_raw_frame(&mut frame, protocol::message_id::CONTOUR_UPDATE, &[0u8; 10])
+            .expect("frame");
+        client.stream.write_all(&frame).await.expect("send");
+        // Blanking angles out of range.
+        client
+            .send(Message::SectorBlankingUpdate(SectorBlanking {
+                sectors: vec![BlankingSector::from_degrees(10.0, 720.0)],
+            }))
+            .await;
+        client.send(Message::StartFftData).await;
+        let got = azimuths(&mut client, 100, encoder).await;
+        assert!(got.iter().all(|&(_, n)| n == bins), "{got:?}");
+    })
+    .await
+    .expect("bounded");
+}
