@@ -9,7 +9,7 @@
 mod init;
 
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3};
-use radar_model::geometry::Pose2;
+use radar_model::geometry::{range_bearing, Pose2};
 use radar_model::layout::ObservationRow;
 use radar_model::material::Material;
 
@@ -371,6 +371,16 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// has been associated with for [`FilterSettings::retire_unseen_after_s`] (see there);
     /// returns their ids. Call once a rotation. O(N).
     pub fn retire_unseen(&mut self) -> Result<Vec<FeatureId>, FilterError> {
+        self.retire_unseen_in_view(|_, _| true)
+    }
+
+    /// As [`Self::retire_unseen`], for a radar whose view is limited (contours, blanked
+    /// sectors): only features for which `in_view(bearing_rad, range_m)` (in the radar's
+    /// frame, eq. 4's bearing) holds can be retired for going unseen.
+    pub fn retire_unseen_in_view(
+        &mut self,
+        in_view: impl Fn(f64, f64) -> bool,
+    ) -> Result<Vec<FeatureId>, FilterError> {
         let limit = self.settings.retire_unseen_after_s;
         if limit <= 0.0 {
             return Ok(Vec::new());
@@ -382,9 +392,10 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             .filter_map(|slot| {
                 let p = self.state.params(slot)?;
                 let track = self.state.tracks().get(slot)?;
-                let range = (p.x_m - pose.x).hypot(p.y_m - pose.y);
+                let rb = range_bearing(&pose, [p.x_m, p.y_m]);
                 let unseen = now - track.last_seen_s > limit;
-                (unseen && (near..=far).contains(&range)).then_some(track.id)
+                let in_range = (near..=far).contains(&rb.range_m);
+                (unseen && in_range && in_view(rb.bearing_rad, rb.range_m)).then_some(track.id)
             })
             .collect();
         for &id in &stale {
@@ -402,6 +413,24 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// The candidate features of a beam at `bearing_rad` (see [`candidates_in_beam`]).
     pub fn features_in_beam(&self, bearing_rad: f64) -> Vec<BeamCandidate> {
         candidates_in_beam(&self.state, &self.settings, &self.pose(), bearing_rad)
+    }
+
+    /// [`Self::process_beam`] for a beam the radar covered only out to `max_range_m` (a
+    /// contoured azimuth): features beyond it are neither candidates nor missed there.
+    pub fn process_beam_within(
+        &mut self,
+        beam: &BeamObservation,
+        max_range_m: f64,
+    ) -> Result<BeamReport, FilterError> {
+        let full = self.settings.max_range_m;
+        // Not finite, or not nearer than the full range: nothing to limit.
+        if max_range_m.is_nan() || max_range_m >= full {
+            return self.process_beam(beam);
+        }
+        self.settings.max_range_m = max_range_m.max(self.settings.min_range_m);
+        let report = self.process_beam(beam);
+        self.settings.max_range_m = full;
+        report
     }
 
     /// Processes every target detected down one beam, in the paper's steps:

@@ -133,3 +133,32 @@ fn a_confirmed_radar_clock_jump_resynchronises_and_mapping_resumes() {
     assert!(p.ekf().state().time_s() > T0 + 3600.0);
     assert!(p.ekf().feature_count() >= 4);
 }
+
+#[test]
+fn contoured_azimuths_are_not_taken_for_empty_range() {
+    let all = support::still_radar_azimuths(30, T0_NS);
+    let per_rotation = all.len() / 30;
+    let clock: Vec<f64> = all.iter().map(|a| a.timestamp_s).collect();
+    // Ten whole rotations, then twenty (8 s) cut by a contour to their first 50 bins
+    // (12.5 m): the reflector 11 m out is still seen (the filter's clock goes on), the three
+    // 14 to 25 m out are beyond what the radar now looks at.
+    let mut cut = all.clone();
+    for a in cut.iter_mut().skip(10 * per_rotation) {
+        a.bins = a.bins.slice(..50);
+    }
+    let (_, whole) = run(
+        &all[..10 * per_rotation],
+        &clock[..10 * per_rotation],
+        |_, o| o,
+    );
+    let mapped = whole.ekf().feature_count();
+    assert!(mapped >= 4, "{mapped} features mapped");
+    let (s, p) = run(&cut, &clock, |_, o| o);
+    assert_eq!(
+        p.ekf().feature_count(),
+        mapped,
+        "features beyond the contour were retired as unseen ({} retired)",
+        p.ekf().stats().retired
+    );
+    assert_eq!(s.filter_errors, 0);
+}

@@ -292,7 +292,11 @@ impl Pipeline {
         {
             return;
         }
-        match self.ekf.process_beam(beam) {
+        let processed = match self.front_end.covered_range_m(beam.bearing_rad) {
+            Some(covered) => self.ekf.process_beam_within(beam, covered),
+            None => self.ekf.process_beam(beam),
+        };
+        match processed {
             Ok(report) => {
                 self.summary.beams += 1;
                 let associated = self.stats.on_beam(beam, &report);
@@ -415,7 +419,11 @@ impl Pipeline {
         if self.stats.is_empty() {
             return;
         }
-        match self.ekf.retire_unseen() {
+        let front_end = &self.front_end;
+        match self
+            .ekf
+            .retire_unseen_in_view(|bearing, range| front_end.covers(bearing, range))
+        {
             Ok(gone) => self.stats.on_retired(gone.len()),
             Err(e) => warn!(error = %e, "retiring unseen features failed"),
         }

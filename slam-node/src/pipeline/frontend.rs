@@ -113,6 +113,9 @@ pub struct FrontEnd {
     detections: Vec<Detection>,
     beam_detections: Vec<BeamDetection>,
     released: Vec<Observation>,
+    /// Per azimuth index, the range the last azimuth there covered when it was shorter than
+    /// the radar's full range (a contour, a blanked sector); `None`: full range.
+    short: Vec<Option<f64>>,
 }
 
 impl FrontEnd {
@@ -127,6 +130,7 @@ impl FrontEnd {
             detections: Vec::new(),
             beam_detections: Vec::new(),
             released: Vec::new(),
+            short: Vec::new(),
         }
     }
 
@@ -219,6 +223,22 @@ impl FrontEnd {
         };
         self.measured.clear();
         self.measured.extend(az.bins_db());
+        // A contoured or blanked azimuth is shorter: remember how far it reached, so that
+        // missing range is not taken for empty range.
+        let full = usize::from(radar.geometry.range_in_bins);
+        let covered = (self.measured.len() < full).then(|| {
+            radar
+                .axis
+                .range_m(self.measured.len() as f64 - 0.5)
+                .max(0.0)
+        });
+        let slots = usize::from(radar.geometry.azimuth_samples);
+        if self.short.len() != slots {
+            self.short = vec![None; slots];
+        }
+        if let Some(slot) = self.short.get_mut(usize::from(index)) {
+            *slot = covered;
+        }
         let gain = radar.spectrum.gain_db();
         let n = self.measured.len().min(gain.len());
         self.measured.truncate(n);
@@ -255,6 +275,24 @@ impl FrontEnd {
             detections: self.detections.len(),
             observations: self.released.len(),
         }
+    }
+
+    /// How far the radar's last look along `bearing_rad` reached, when it was cut short (a
+    /// contour or a blanked sector); `None` when it covered the full range.
+    pub fn covered_range_m(&self, bearing_rad: f64) -> Option<f64> {
+        let n = self.short.len();
+        if n == 0 {
+            return None;
+        }
+        let step = std::f64::consts::TAU / n as f64;
+        let index = (bearing_rad.rem_euclid(std::f64::consts::TAU) / step).round() as usize % n;
+        self.short.get(index).copied().flatten()
+    }
+
+    /// Whether the radar's last look along `bearing_rad` reached `range_m`.
+    pub fn covers(&self, bearing_rad: f64, range_m: f64) -> bool {
+        self.covered_range_m(bearing_rad)
+            .map_or(true, |covered| range_m <= covered)
     }
 
     /// Releases everything still held (end of stream) into `beams`.
