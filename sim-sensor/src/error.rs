@@ -149,6 +149,12 @@ pub enum ClientError {
     /// The client closed its end.
     #[error("client closed the connection")]
     Closed,
+    /// The client's socket took no data within the write timeout (it is not reading).
+    #[error("client took no data for {0:?}")]
+    NotReading(std::time::Duration),
+    /// The client did not ask for data within the idle timeout.
+    #[error("client asked for no data within {0:?}")]
+    Idle(std::time::Duration),
     /// A fault injection closed the connection on purpose.
     #[error("fault injection: {0}")]
     Fault(&'static str),

@@ -89,6 +89,12 @@ pub struct SimOptions {
     pub pacing: Pacing,
     /// Keep-alive interval (1 s like a real radar).
     pub keepalive_interval: Duration,
+    /// A client whose socket takes no data for this long is dropped, freeing its slot
+    /// (default 5 s).
+    pub write_timeout: Duration,
+    /// A client that has not asked for data this long after connecting is dropped, freeing
+    /// its slot (default 60 s).
+    pub idle_timeout: Duration,
     /// What to stream.
     pub source: SourceSpec,
     /// Faults to inject.
@@ -122,6 +128,8 @@ impl SimOptions {
             max_clients: 3,
             pacing: Pacing::Realtime,
             keepalive_interval: Duration::from_secs(1),
+            write_timeout: Duration::from_secs(5),
+            idle_timeout: Duration::from_secs(60),
             source,
             faults: FaultSettings::default(),
             fault_scope: FaultScope::EveryConnection,
@@ -204,6 +212,9 @@ impl SimOptions {
         };
         if !(1..=MAX_CLIENTS).contains(&self.max_clients) {
             return bad("max_clients", "must be in [1, 64]");
+        }
+        if self.write_timeout.is_zero() || self.idle_timeout.is_zero() {
+            return bad("write_timeout / idle_timeout", "must be > 0");
         }
         if self.keepalive_interval.is_zero() {
             return bad("keepalive_interval", "must be > 0");

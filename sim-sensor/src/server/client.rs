@@ -41,12 +41,21 @@ enum Command {
     Failed(std::io::Error),
 }
 
+/// How long a client may keep its slot without reading, or without asking for data.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Timeouts {
+    pub write: Duration,
+    pub idle: Duration,
+}
+
 /// Serves one connection until it ends; returns why it ended.
+#[allow(clippy::too_many_arguments)]
 pub(crate) async fn serve(
     socket: TcpStream,
     peer: SocketAddr,
     world: Arc<World>,
     keepalive_interval: Duration,
+    timeouts: Timeouts,
     injector: FaultInjector,
     stats: Arc<SimStats>,
     cancel: CancellationToken,
@@ -62,6 +71,7 @@ pub(crate) async fn serve(
         cancel,
         frame: BytesMut::with_capacity(8192),
         keepalive_interval,
+        timeouts,
     }
     .run(rx)
     .await;
@@ -137,6 +147,7 @@ struct Writer {
     cancel: CancellationToken,
     frame: BytesMut,
     keepalive_interval: Duration,
+    timeouts: Timeouts,
 }
 
 /// Whether the loop goes on after a write.
@@ -167,6 +178,9 @@ impl Writer {
         let mut shaping = Shaping::default();
         let mut contoured = true;
         let encoder_size = self.world.configuration.encoder_size;
+        // A client that never asks for data gives its slot back after the idle timeout.
+        let idle_deadline = tokio::time::Instant::now() + self.timeouts.idle;
+        let mut started = false;
         loop {
             // Skipped azimuths and fast clients may never make the socket wait: spend the
             // task's cooperative budget so other connections are not starved.
@@ -190,6 +204,7 @@ impl Writer {
                 command = commands.recv() => match command {
                     Some(Command::Start { contoured: c }) => {
                         contoured = c;
+                        started = true;
                         if stream.is_none() {
                             stream = Some(AzimuthStream::open(&self.world).await?);
                         }
@@ -214,6 +229,9 @@ impl Writer {
                     Some(Command::Garbage(reason)) => return Err(ClientError::Garbage(reason)),
                     Some(Command::Failed(error)) => return Err(ClientError::Io(error)),
                 },
+                () = tokio::time::sleep_until(idle_deadline), if !started => {
+                    return Err(ClientError::Idle(self.timeouts.idle));
+                }
                 _ = keepalive.tick(), if self.injector.keepalives_enabled() => {
                     if let Flow::Close(why) = self.send_message(&Message::KeepAlive).await? {
                         return Err(ClientError::Fault(why));
@@ -258,7 +276,9 @@ impl Writer {
         tokio::select! {
             biased;
             () = self.cancel.cancelled() => return Ok(Flow::Close("server shutting down")),
-            written = self.out.write_all(bytes) => written?,
+            written = tokio::time::timeout(self.timeouts.write, self.out.write_all(bytes)) => {
+                written.map_err(|_| ClientError::NotReading(self.timeouts.write))??
+            }
         }
         self.stats
             .bytes_sent

@@ -297,12 +297,19 @@ async fn accept_loop(
                 let injector = FaultInjector::new(&options.faults, active);
                 let (world, stats, cancel) = (Arc::clone(&world), Arc::clone(&stats), cancel.clone());
                 let keepalive = options.keepalive_interval;
+                let timeouts = client::Timeouts {
+                    write: options.write_timeout,
+                    idle: options.idle_timeout,
+                };
                 tracing::info!(%peer, connection = connections, faults = active, "client connected");
                 clients.spawn(async move {
-                    let result = client::serve(socket, peer, world, keepalive, injector, Arc::clone(&stats), cancel).await;
+                    let result = client::serve(socket, peer, world, keepalive, timeouts, injector, Arc::clone(&stats), cancel).await;
                     match result {
                         Ok(()) => tracing::info!(%peer, "client session ended"),
                         Err(ClientError::Closed) => tracing::info!(%peer, "client disconnected"),
+                        Err(error @ (ClientError::NotReading(_) | ClientError::Idle(_))) => {
+                            tracing::info!(%peer, %error, "client dropped, its slot freed")
+                        }
                         // A client that leaves in the middle of a write is a normal disconnect.
                         Err(ClientError::Io(error)) if client_went_away(&error) => {
                             tracing::info!(%peer, %error, "client disconnected")
