@@ -9,7 +9,7 @@ use std::time::Duration;
 use common::TestClient;
 use protocol::{BlankingSector, ContourUpdate, Message, SectorBlanking};
 use sim_sensor::scene::shipped;
-use sim_sensor::{SimOptions, SimServer};
+use sim_sensor::{SimHandle, SimOptions, SimServer};
 use tokio::io::AsyncWriteExt;
 
 const BOUND: Duration = Duration::from_secs(30);
@@ -26,6 +26,19 @@ async fn azimuths(client: &mut TestClient, n: usize, encoder_size: u16) -> Vec<(
     out
 }
 
+/// A simulator of the outdoor field and one client past the handshake, with the encoder
+/// size and bins per azimuth its configuration announced.
+async fn connected() -> (SimHandle, TestClient, u16, usize) {
+    let scene = shipped::load("outdoor-field").expect("scene");
+    let handle = SimServer::spawn(SimOptions::for_tests(scene))
+        .await
+        .expect("spawn");
+    let mut client = TestClient::connect(handle.local_addr()).await;
+    let config = client.configuration().await;
+    let (encoder, bins) = (config.encoder_size, usize::from(config.range_in_bins));
+    (handle, client, encoder, bins)
+}
+
 fn contour_of(max_bin: u16) -> ContourUpdate {
     ContourUpdate::MaxBinPerDegree(Box::new([max_bin; 360]))
 }
@@ -33,15 +46,9 @@ fn contour_of(max_bin: u16) -> ContourUpdate {
 #[tokio::test]
 async fn a_contour_shortens_a_contoured_stream_for_that_client_only() {
     tokio::time::timeout(BOUND, async {
-        let scene = shipped::load("outdoor-field").expect("scene");
-        let handle = SimServer::spawn(SimOptions::for_tests(scene))
-            .await
-            .expect("spawn");
-        let mut shaped = TestClient::connect(handle.local_addr()).await;
+        let (handle, mut shaped, encoder, bins) = connected().await;
         let mut plain = TestClient::connect(handle.local_addr()).await;
-        let config = shaped.configuration().await;
         plain.configuration().await;
-        let (encoder, bins) = (config.encoder_size, usize::from(config.range_in_bins));
         shaped.send(Message::ContourUpdate(contour_of(99))).await;
         shaped.send(Message::StartFftData).await;
         plain.send(Message::StartFftData).await;
@@ -66,13 +73,7 @@ async fn a_contour_shortens_a_contoured_stream_for_that_client_only() {
 #[tokio::test]
 async fn a_non_contoured_stream_ignores_the_contour_and_a_blanked_sector_sends_no_bins() {
     tokio::time::timeout(BOUND, async {
-        let scene = shipped::load("outdoor-field").expect("scene");
-        let handle = SimServer::spawn(SimOptions::for_tests(scene))
-            .await
-            .expect("spawn");
-        let mut client = TestClient::connect(handle.local_addr()).await;
-        let config = client.configuration().await;
-        let (encoder, bins) = (config.encoder_size, usize::from(config.range_in_bins));
+        let (_handle, mut client, encoder, bins) = connected().await;
         client.send(Message::ContourUpdate(contour_of(99))).await;
         client
             .send(Message::SectorBlankingUpdate(SectorBlanking {
@@ -97,13 +98,7 @@ async fn a_non_contoured_stream_ignores_the_contour_and_a_blanked_sector_sends_n
 #[tokio::test]
 async fn a_malformed_contour_or_blanking_update_is_refused_and_the_session_goes_on() {
     tokio::time::timeout(BOUND, async {
-        let scene = shipped::load("outdoor-field").expect("scene");
-        let handle = SimServer::spawn(SimOptions::for_tests(scene))
-            .await
-            .expect("spawn");
-        let mut client = TestClient::connect(handle.local_addr()).await;
-        let config = client.configuration().await;
-        let (encoder, bins) = (config.encoder_size, usize::from(config.range_in_bins));
+        let (_handle, mut client, encoder, bins) = connected().await;
         // A contour payload of the wrong length (10 bytes instead of 720).
         let mut frame = bytes::BytesMut::new();
         protocol::encode_raw_frame(&mut frame, protocol::message_id::CONTOUR_UPDATE, &[0u8; 10])
