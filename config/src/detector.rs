@@ -29,6 +29,10 @@ pub enum DetectorKind {
     OsCfar,
     /// The authors' target presence probability.
     Tpp,
+    /// For current units: detection at line rate on the wire's 8-bit bins against a noise
+    /// floor and receiver gain learned from the stream (robust statistics over recent
+    /// azimuths) instead of the paper unit's measured noise and compensation.
+    Learned,
 }
 
 /// How the detection threshold is set: by a false-alarm probability or a fixed margin.
@@ -74,6 +78,21 @@ pub struct RawDetector {
     pub min_range_m: f64,
     /// Farthest range searched, m > `min_range_m`. Default 200.
     pub max_range_m: f64,
+    /// `learned`: a bin is detected `floor_sigma` learned standard deviations above the
+    /// learned floor's median, > 0. Default 4.
+    pub floor_sigma: f64,
+    /// `learned`: and at least this many dB above it, >= 0. Default 12.
+    pub floor_min_snr_db: f64,
+    /// Keep extended returns (walls, fences, hedges, parked cars) out of the map: only
+    /// point-like returns may become features. Default false (the paper's unit and the
+    /// point-target simulator); true in `config/examples/vehicle.toml` for current units.
+    pub points_only: bool,
+    /// Longest run over the threshold down one beam that is still point-like, m > 0.
+    /// Default 1.0.
+    pub point_max_extent_m: f64,
+    /// Widest group across neighbouring azimuths that is still point-like, in beam widths,
+    /// > 0. Default 2.5.
+    pub point_max_width_beams: f64,
 }
 
 impl Default for RawDetector {
@@ -91,6 +110,11 @@ impl Default for RawDetector {
             max_state_mib: 256,
             min_range_m: 1.0,
             max_range_m: 200.0,
+            floor_sigma: 4.0,
+            floor_min_snr_db: 12.0,
+            points_only: false,
+            point_max_extent_m: 1.0,
+            point_max_width_beams: 2.5,
         }
     }
 }
@@ -146,6 +170,16 @@ pub struct DetectorSettings {
     pub max_state_mib: Capacity,
     /// Ranges searched.
     pub range: RangeWindow,
+    /// Learned floor: sigmas above the median for a detection.
+    pub floor_sigma: PositiveF64,
+    /// Learned floor: least SNR for a detection, dB.
+    pub floor_min_snr_db: NonNegativeF64,
+    /// Only point-like returns become features.
+    pub points_only: bool,
+    /// Longest point-like run in range, m.
+    pub point_max_extent_m: PositiveF64,
+    /// Widest point-like group, beam widths.
+    pub point_max_width_beams: PositiveF64,
 }
 
 impl Default for DetectorSettings {
@@ -235,6 +269,20 @@ impl RawDetector {
                 Capacity::new(self.max_state_mib, MAX_STATE_MIB),
             ),
             range,
+            floor_sigma: c.check("detector.floor_sigma", PositiveF64::new(self.floor_sigma)),
+            floor_min_snr_db: c.check(
+                "detector.floor_min_snr_db",
+                NonNegativeF64::new(self.floor_min_snr_db),
+            ),
+            points_only: self.points_only,
+            point_max_extent_m: c.check(
+                "detector.point_max_extent_m",
+                PositiveF64::new(self.point_max_extent_m),
+            ),
+            point_max_width_beams: c.check(
+                "detector.point_max_width_beams",
+                PositiveF64::new(self.point_max_width_beams),
+            ),
         }
     }
 }
@@ -259,6 +307,11 @@ impl From<&DetectorSettings> for RawDetector {
             max_state_mib: crate::values::as_i64(s.max_state_mib.get()),
             min_range_m: s.range.min_m(),
             max_range_m: s.range.max_m(),
+            floor_sigma: s.floor_sigma.get(),
+            floor_min_snr_db: s.floor_min_snr_db.get(),
+            points_only: s.points_only,
+            point_max_extent_m: s.point_max_extent_m.get(),
+            point_max_width_beams: s.point_max_width_beams.get(),
         }
     }
 }

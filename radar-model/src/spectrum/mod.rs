@@ -251,6 +251,33 @@ impl SpectrumModel {
         &self.floor_mean_db
     }
 
+    /// Replaces the compensation gain and the mean floor per bin with tables measured on
+    /// the radar (learned from its stream) in place of the configured curves; predictions
+    /// use them from now on (the synthesis keeps the configured floor distribution).
+    ///
+    /// # Errors
+    /// A table of the wrong length or with a non-finite value; nothing is changed then.
+    pub fn set_tables(&mut self, gain_db: &[f64], floor_mean_db: &[f64]) -> Result<(), ModelError> {
+        let bins = self.geometry.bins;
+        for table in [gain_db, floor_mean_db] {
+            if table.len() != bins {
+                return Err(ModelError::BufferTooSmall {
+                    needed: bins,
+                    got: table.len(),
+                });
+            }
+            if !table.iter().all(|x| x.is_finite()) {
+                return Err(ModelError::InvalidSetting {
+                    what: "learned tables",
+                    reason: "hold a non-finite gain or floor",
+                });
+            }
+        }
+        self.gain_db.copy_from_slice(gain_db);
+        self.floor_mean_db.copy_from_slice(floor_mean_db);
+        Ok(())
+    }
+
     fn check_buffer(&self, out: &[f64]) -> Result<(), ModelError> {
         if out.len() != self.geometry.bins {
             return Err(ModelError::BufferTooSmall {

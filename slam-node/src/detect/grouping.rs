@@ -12,7 +12,10 @@
 //! not split. Completed observations are released in timestamp order, and only once no open
 //! group could still produce an earlier one, so the filter sees non-decreasing time.
 //! A group wider than `max_width_rad` (a wall seen along its length) is closed and a new one
-//! started, so an extended target becomes a row of observations, not one smeared point.
+//! started, so an extended target becomes a row of observations, not one smeared point;
+//! both pieces are marked [`Observation::cut`], and each observation carries its width
+//! across azimuths and its longest extent in range, so that the front end can tell
+//! point-like returns from extended ones.
 
 use radar_model::geometry::wrap_angle;
 
@@ -32,6 +35,15 @@ pub struct Observation {
     /// Range of the strongest single detection in the group (used to order targets
     /// down one beam), metres.
     pub peak_range_m: f64,
+    /// Longest extent in range of any of its detections, metres.
+    pub extent_m: f64,
+    /// Strongest of its detections over the floor, dB.
+    pub snr_db: f64,
+    /// Angle between its first and last azimuth, radians.
+    pub width_rad: f64,
+    /// Part of a return wider than the widest group (a wall seen along its length, cut
+    /// into pieces).
+    pub cut: bool,
 }
 
 /// One detection handed to the grouper.
@@ -41,6 +53,10 @@ pub struct BeamDetection {
     pub range_m: f64,
     /// Uncompensated power, dB.
     pub power_db: f64,
+    /// Extent of the return in range, metres.
+    pub extent_m: f64,
+    /// Peak over the floor, dB.
+    pub snr_db: f64,
 }
 
 /// Grouping settings.
@@ -71,6 +87,9 @@ struct OpenGroup {
     best_timestamp_s: f64,
     best_range_m: f64,
     azimuths: u32,
+    max_extent_m: f64,
+    max_snr_db: f64,
+    cut: bool,
 }
 
 impl OpenGroup {
@@ -89,6 +108,9 @@ impl OpenGroup {
             best_timestamp_s: timestamp_s,
             best_range_m: d.range_m,
             azimuths: 0,
+            max_extent_m: 0.0,
+            max_snr_db: f64::NEG_INFINITY,
+            cut: false,
         };
         g.add(d, bearing_rad, timestamp_s);
         g
@@ -106,6 +128,12 @@ impl OpenGroup {
         self.last_bearing_rad = bearing_rad;
         self.last_range_m = d.range_m;
         self.azimuths += 1;
+        if d.extent_m > self.max_extent_m {
+            self.max_extent_m = d.extent_m;
+        }
+        if d.snr_db > self.max_snr_db {
+            self.max_snr_db = d.snr_db;
+        }
         if d.power_db > self.best_power_db {
             self.best_power_db = d.power_db;
             self.best_timestamp_s = timestamp_s;
@@ -121,6 +149,10 @@ impl OpenGroup {
             timestamp_s: self.best_timestamp_s,
             azimuths: self.azimuths,
             peak_range_m: self.best_range_m,
+            extent_m: self.max_extent_m,
+            snr_db: self.max_snr_db,
+            width_rad: wrap_angle(self.last_bearing_rad - self.first_bearing_rad).abs(),
+            cut: self.cut,
         }
     }
 }
@@ -140,6 +172,8 @@ pub struct Grouper {
     open: Vec<OpenGroup>,
     done: Vec<Observation>,
     scratch: Vec<OpenGroup>,
+    extended: Vec<bool>,
+    still_open: Vec<OpenGroup>,
 }
 
 impl Grouper {
@@ -150,6 +184,8 @@ impl Grouper {
             open: Vec::new(),
             done: Vec::new(),
             scratch: Vec::new(),
+            extended: Vec::new(),
+            still_open: Vec::new(),
         }
     }
 
@@ -163,26 +199,29 @@ impl Grouper {
         ready: &mut Vec<Observation>,
     ) {
         let s = self.settings;
-        let mut extended = vec![false; self.open.len()];
+        let mut extended = std::mem::take(&mut self.extended);
+        extended.clear();
+        extended.resize(self.open.len(), false);
         self.scratch.clear();
         for d in detections {
             if !(d.range_m.is_finite() && d.power_db.is_finite()) {
                 continue;
             }
-            // The open group from the previous azimuth nearest in range, if within the gate.
+            // The open group from the previous azimuth nearest in range, if within the gate;
+            // and whether one would have taken it but for its width.
             let mut best: Option<(usize, f64)> = None;
+            let mut too_wide: Option<usize> = None;
             for (k, g) in self.open.iter().enumerate() {
                 let step = wrap_angle(bearing_rad - g.last_bearing_rad).abs();
                 let width = wrap_angle(bearing_rad - g.first_bearing_rad).abs();
                 let dr = (d.range_m - g.last_range_m).abs();
                 let free = !extended.get(k).copied().unwrap_or(true);
-                if free
-                    && step <= s.max_step_rad
-                    && width <= s.max_width_rad
-                    && dr <= s.range_gate_m
-                    && closer_than(best, dr)
-                {
-                    best = Some((k, dr));
+                if free && step <= s.max_step_rad && dr <= s.range_gate_m {
+                    if width > s.max_width_rad {
+                        too_wide = Some(k);
+                    } else if closer_than(best, dr) {
+                        best = Some((k, dr));
+                    }
                 }
             }
             match best.and_then(|(k, _)| self.open.get_mut(k).map(|g| (k, g))) {
@@ -192,14 +231,24 @@ impl Grouper {
                         *e = true;
                     }
                 }
-                None => self
-                    .scratch
-                    .push(OpenGroup::start(d, bearing_rad, timestamp_s)),
+                None => {
+                    let mut g = OpenGroup::start(d, bearing_rad, timestamp_s);
+                    // The continuation of a group cut at its widest: both are pieces of
+                    // one extended return.
+                    if let Some(k) = too_wide {
+                        g.cut = true;
+                        if let Some(o) = self.open.get_mut(k) {
+                            o.cut = true;
+                        }
+                    }
+                    self.scratch.push(g)
+                }
             }
         }
         // Close every group that this azimuth did not extend.
-        let mut still_open = Vec::with_capacity(self.open.len() + self.scratch.len());
-        for (g, ext) in self.open.drain(..).zip(extended) {
+        let mut still_open = std::mem::take(&mut self.still_open);
+        still_open.clear();
+        for (g, &ext) in self.open.drain(..).zip(extended.iter()) {
             if ext {
                 still_open.push(g);
             } else {
@@ -207,7 +256,9 @@ impl Grouper {
             }
         }
         still_open.append(&mut self.scratch);
-        self.open = still_open;
+        std::mem::swap(&mut self.open, &mut still_open);
+        self.still_open = still_open;
+        self.extended = extended;
         self.release(ready, false);
     }
 
@@ -255,7 +306,12 @@ mod tests {
     }
 
     fn det(range_m: f64, power_db: f64) -> BeamDetection {
-        BeamDetection { range_m, power_db }
+        BeamDetection {
+            range_m,
+            power_db,
+            extent_m: 0.1,
+            snr_db: 30.0,
+        }
     }
 
     #[test]

@@ -24,10 +24,14 @@
 
 pub mod cfar;
 pub mod grouping;
+pub mod learned;
+pub mod line;
 pub mod peaks;
 pub mod tpp;
 
 pub use grouping::{BeamDetection, Grouper, GroupingSettings, Observation};
+pub use learned::{FloorSettings, GainLearner, GainSettings, LearnedFloor};
+pub use line::{LineDetector, LinePeak, LineSettings};
 pub use peaks::{Peak, PeakSettings};
 pub use tpp::{Floor, Tpp, TppSettings};
 
@@ -42,6 +46,9 @@ pub enum DetectorKind {
     OsCfar,
     /// Target presence probability.
     Tpp,
+    /// Line rate on the wire's 8-bit bins against the floor learned from the stream
+    /// ([`learned`], [`line`]): for current units.
+    Learned,
 }
 
 /// Which spectrum the per-bin detector looks at.
@@ -78,6 +85,39 @@ pub struct DetectorSettings {
     pub min_range_m: f64,
     /// Detections farther than this are ignored (receiver roll-off), metres.
     pub max_range_m: f64,
+    /// The learned floor ([`DetectorKind::Learned`]).
+    pub floor: FloorSettings,
+    /// The learned receiver gain ([`DetectorKind::Learned`]).
+    pub gain: GainSettings,
+    /// Which observations are landmarks.
+    pub landmarks: LandmarkSettings,
+}
+
+/// Which observations may become point features: point-like returns only. A return
+/// longer in range than `max_extent_m` down one beam (a wall or fence seen along it), or
+/// wider than `max_width_beams` beam widths across azimuths (a wall seen face on), or the
+/// continuation of such a group, is extended structure and is kept out of the map.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LandmarkSettings {
+    /// Whether extended returns are kept out of the map (`false`: everything is offered).
+    pub points_only: bool,
+    /// Longest run in range down one beam that is still a point, metres.
+    pub max_extent_m: f64,
+    /// Widest group across azimuths that is still a point, beam widths.
+    pub max_width_beams: f64,
+    /// Weakest return over the floor that may become a point feature, dB.
+    pub min_snr_db: f64,
+}
+
+impl Default for LandmarkSettings {
+    fn default() -> Self {
+        Self {
+            points_only: false,
+            max_extent_m: f64::INFINITY,
+            max_width_beams: f64::INFINITY,
+            min_snr_db: f64::NEG_INFINITY,
+        }
+    }
 }
 
 impl Default for DetectorSettings {
@@ -102,6 +142,9 @@ impl Default for DetectorSettings {
             floor_tail_pfa: 1e-3,
             min_range_m: 2.0,
             max_range_m: 1.0e4,
+            floor: FloorSettings::default(),
+            gain: GainSettings::default(),
+            landmarks: LandmarkSettings::default(),
         }
     }
 }
@@ -132,6 +175,11 @@ pub struct Detection {
     pub power_db: f64,
     /// Interpolated bin position.
     pub bin: f64,
+    /// Extent of the return in range down the beam (first to last bin over the
+    /// detection threshold), metres.
+    pub extent_m: f64,
+    /// Peak over the floor's level there, dB (what the detector measured it against).
+    pub snr_db: f64,
 }
 
 /// Runs the configured detector and peak extraction on one spectrum at a time, keeping
@@ -226,12 +274,14 @@ impl BeamDetector {
                 s.os_scale_db,
                 &mut self.thresholds_db,
             ),
-            DetectorKind::Tpp => {
+            // The learned detector runs in the front end on the wire's bins; handed f64
+            // spectra here it falls back to TPP.
+            DetectorKind::Tpp | DetectorKind::Learned => {
                 self.tpp
                     .process(slot, work, floor_work, &mut self.flags, &mut self.snr_db);
             }
         }
-        if s.kind != DetectorKind::Tpp {
+        if !matches!(s.kind, DetectorKind::Tpp | DetectorKind::Learned) {
             self.flags.clear();
             self.flags
                 .extend(work.iter().zip(&self.thresholds_db).map(|(p, t)| p > t));
@@ -254,6 +304,8 @@ impl BeamDetector {
                 range_m: axis.range_m(p.bin),
                 power_db,
                 bin: p.bin,
+                extent_m: (p.last_bin + 1 - p.first_bin.min(p.last_bin)) as f64 * axis.bin_m,
+                snr_db: f64::INFINITY,
             }
         }));
     }

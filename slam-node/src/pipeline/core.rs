@@ -341,6 +341,9 @@ impl Pipeline {
             return;
         };
         let measured = self.front_end.measured_db();
+        if measured.is_empty() {
+            return;
+        }
         let found = compare_beam(
             self.ekf.state(),
             &pose,
@@ -350,6 +353,7 @@ impl Pipeline {
             spectrum,
             measured,
             self.settings.spectrum_bound_db,
+            self.front_end.spectrum_bound_db(),
             &mut self.spectrum,
         );
         let Some((features, tally)) = found else {

@@ -16,8 +16,9 @@ use tracing::info;
 
 use super::beams::BeamAssembler;
 use crate::detect::{
-    BeamDetection, BeamDetector, Detection, DetectorSettings, FloorProfile, Grouper,
-    GroupingSettings, Observation, RangeAxis,
+    BeamDetection, BeamDetector, Detection, DetectorKind, DetectorSettings, FloorProfile,
+    GainLearner, Grouper, GroupingSettings, LearnedFloor, LineDetector, LinePeak, LineSettings,
+    Observation, RangeAxis,
 };
 
 /// Everything that shapes the front end besides the radar's own geometry.
@@ -37,9 +38,25 @@ pub struct FrontEndSettings {
     pub noise: NoiseModel,
     /// Bytes the detector may keep across rotations; a geometry needing more is refused.
     pub max_detector_state_bytes: usize,
+    /// The learned detector converts the measured spectrum to dB only for every this-many-th
+    /// azimuth (the spectrum comparison's); 0: never.
+    pub keep_spectrum_every: usize,
+    /// The spectrum comparison's constant bound (dB), where none is learned.
+    pub spectrum_bound_db: f64,
 }
 
 impl FrontEndSettings {
+    /// Whether an observation may become a point feature (see
+    /// [`crate::detect::LandmarkSettings`]).
+    pub fn is_landmark(&self, o: &Observation) -> bool {
+        let l = &self.detector.landmarks;
+        !l.points_only
+            || (!o.cut
+                && o.extent_m <= l.max_extent_m
+                && o.snr_db >= l.min_snr_db
+                && o.width_rad <= l.max_width_beams * self.beam_width_rad)
+    }
+
     /// Grouping settings for a radar with `azimuths` spectra per rotation.
     pub fn grouping(&self, azimuths: u16) -> GroupingSettings {
         let step = std::f64::consts::TAU / f64::from(azimuths.max(1));
@@ -91,6 +108,26 @@ struct RadarState {
     spectrum: SpectrumModel,
     floor: FloorProfile,
     detector: BeamDetector,
+    learned: Option<Box<Learned>>,
+}
+
+/// The learned front end's state ([`DetectorKind::Learned`]).
+#[derive(Debug)]
+struct Learned {
+    floor: LearnedFloor,
+    gain: GainLearner,
+    line: LineDetector,
+    peaks: Vec<LinePeak>,
+    /// The configured compensation per bin (where no gain is learned yet).
+    configured_gain_db: Vec<f64>,
+    /// The gain in force per bin.
+    gain_db: Vec<f64>,
+    /// 16-bit bins brought to the 8-bit scale.
+    eight: Vec<u8>,
+    /// Three sigma of the learned floor per bin: the spectrum comparison's bound.
+    bound_db: Vec<f64>,
+    /// Floor refreshes seen (the spectrum model follows them).
+    refreshes: u64,
 }
 
 /// What the front end did with one azimuth.
@@ -100,6 +137,8 @@ pub struct FrontEndCounts {
     pub detections: usize,
     /// Observations (grouped across azimuths) released by this azimuth.
     pub observations: usize,
+    /// Of those, extended returns kept out of the map.
+    pub extended: usize,
 }
 
 /// The front end's state.
@@ -181,7 +220,22 @@ impl FrontEnd {
             &self.settings.noise.absent,
             self.settings.detector.floor_tail_pfa,
         );
+        let learned = (self.settings.detector.kind == DetectorKind::Learned).then(|| {
+            let bins = usize::from(geometry.range_in_bins);
+            Box::new(Learned {
+                floor: LearnedFloor::new(self.settings.detector.floor, bins),
+                gain: GainLearner::new(self.settings.detector.gain),
+                line: LineDetector::new(),
+                peaks: Vec::with_capacity(self.settings.detector.peaks.max_peaks + 1),
+                configured_gain_db: spectrum.gain_db().to_vec(),
+                gain_db: spectrum.gain_db().to_vec(),
+                eight: Vec::new(),
+                bound_db: vec![self.settings.spectrum_bound_db; bins],
+                refreshes: 0,
+            })
+        });
         self.radar = Some(RadarState {
+            learned,
             floor,
             geometry: geometry.clone(),
             axis: RangeAxis {
@@ -200,7 +254,14 @@ impl FrontEnd {
     /// Bytes the detector keeps across rotations for `geometry` (TPP: every bin of every
     /// azimuth; the CFAR detectors keep none).
     pub fn detector_state_bytes(&self, geometry: &protocol::Geometry) -> usize {
-        if self.settings.detector.kind != crate::detect::DetectorKind::Tpp {
+        if self.settings.detector.kind == DetectorKind::Learned {
+            // Histograms per block of bins and per-bin tables: no per-azimuth state.
+            return LearnedFloor::state_bytes(
+                usize::from(geometry.range_in_bins),
+                self.settings.detector.floor.block_bins,
+            );
+        }
+        if self.settings.detector.kind != DetectorKind::Tpp {
             return 0;
         }
         usize::from(geometry.azimuth_samples)
@@ -221,17 +282,11 @@ impl FrontEnd {
         let Some(radar) = self.radar.as_mut() else {
             return FrontEndCounts::default();
         };
-        self.measured.clear();
-        self.measured.extend(az.bins_db());
         // A contoured or blanked azimuth is shorter: remember how far it reached, so that
         // missing range is not taken for empty range.
         let full = usize::from(radar.geometry.range_in_bins);
-        let covered = (self.measured.len() < full).then(|| {
-            radar
-                .axis
-                .range_m(self.measured.len() as f64 - 0.5)
-                .max(0.0)
-        });
+        let bins = az.bin_count();
+        let covered = (bins < full).then(|| radar.axis.range_m(bins as f64 - 0.5).max(0.0));
         let slots = usize::from(radar.geometry.azimuth_samples);
         if self.short.len() != slots {
             self.short = vec![None; slots];
@@ -239,25 +294,48 @@ impl FrontEnd {
         if let Some(slot) = self.short.get_mut(usize::from(index)) {
             *slot = covered;
         }
-        let gain = radar.spectrum.gain_db();
-        let n = self.measured.len().min(gain.len());
-        self.measured.truncate(n);
         self.detections.clear();
-        if n > 0 {
-            radar.detector.detect(
-                usize::from(index),
-                &self.measured,
-                gain.get(..n).unwrap_or_default(),
-                radar.floor.floor(n),
-                &radar.axis,
-                &mut self.detections,
-            );
+        self.measured.clear();
+        match radar.learned.as_deref_mut() {
+            Some(learned) => {
+                // The measured spectrum in dB is wanted only for the spectrum comparison.
+                let every = self.settings.keep_spectrum_every;
+                if every > 0 && usize::from(index) % every == 0 {
+                    self.measured.extend(az.bins_db().take(full));
+                }
+                detect_learned(
+                    learned,
+                    az,
+                    &radar.axis,
+                    &mut radar.spectrum,
+                    &self.settings.detector,
+                    &mut self.detections,
+                );
+            }
+            None => {
+                self.measured.extend(az.bins_db());
+                let gain = radar.spectrum.gain_db();
+                let n = self.measured.len().min(gain.len());
+                self.measured.truncate(n);
+                if n > 0 {
+                    radar.detector.detect(
+                        usize::from(index),
+                        &self.measured,
+                        gain.get(..n).unwrap_or_default(),
+                        radar.floor.floor(n),
+                        &radar.axis,
+                        &mut self.detections,
+                    );
+                }
+            }
         }
         self.beam_detections.clear();
         self.beam_detections
             .extend(self.detections.iter().map(|d| BeamDetection {
                 range_m: d.range_m,
                 power_db: d.power_db,
+                extent_m: d.extent_m,
+                snr_db: d.snr_db,
             }));
         self.released.clear();
         if let Some(g) = self.grouper.as_mut() {
@@ -268,12 +346,18 @@ impl FrontEnd {
                 &mut self.released,
             );
         }
+        let mut extended = 0;
         for o in &self.released {
-            self.assembler.push(*o, beams);
+            if self.settings.is_landmark(o) {
+                self.assembler.push(*o, beams);
+            } else {
+                extended += 1;
+            }
         }
         FrontEndCounts {
             detections: self.detections.len(),
             observations: self.released.len(),
+            extended,
         }
     }
 
@@ -302,15 +386,43 @@ impl FrontEnd {
             g.flush(&mut released);
         }
         for o in released {
-            self.assembler.push(o, beams);
+            if self.settings.is_landmark(&o) {
+                self.assembler.push(o, beams);
+            }
         }
         self.assembler.flush(beams);
     }
 
     /// The last azimuth's spectrum in dB as measured (compensation not removed), cut to the
-    /// spectrum model's bins.
+    /// spectrum model's bins. With the learned detector it is kept only for every
+    /// `keep_spectrum_every`-th azimuth and is empty otherwise.
     pub fn measured_db(&self) -> &[f64] {
         &self.measured
+    }
+
+    /// The spectrum comparison's bound per bin, dB, when it is learned (three sigma of the
+    /// learned floor); `None`: the configured constant bound.
+    pub fn spectrum_bound_db(&self) -> Option<&[f64]> {
+        let learned = self.radar.as_ref()?.learned.as_deref()?;
+        learned
+            .floor
+            .is_ready()
+            .then_some(learned.bound_db.as_slice())
+    }
+
+    /// The learned floor, when the learned detector runs.
+    pub fn learned_floor(&self) -> Option<&LearnedFloor> {
+        Some(&self.radar.as_ref()?.learned.as_deref()?.floor)
+    }
+
+    /// The learned compensation slope (dB per decade), once there is one.
+    pub fn learned_gain_slope(&self) -> Option<f64> {
+        self.radar
+            .as_ref()?
+            .learned
+            .as_deref()?
+            .gain
+            .slope_db_per_decade()
     }
 
     /// The last azimuth's detections.
@@ -331,6 +443,88 @@ impl FrontEnd {
     /// The geometry in force.
     pub fn geometry(&self) -> Option<&protocol::Geometry> {
         self.radar.as_ref().map(|r| &r.geometry)
+    }
+}
+
+/// One azimuth through the learned front end: 8-bit bins, smoothing, the learned floor,
+/// the line-rate detector, the learned gain; detections with their uncompensated powers.
+fn detect_learned(
+    learned: &mut Learned,
+    az: &Azimuth,
+    axis: &RangeAxis,
+    spectrum: &mut SpectrumModel,
+    settings: &DetectorSettings,
+    out: &mut Vec<Detection>,
+) {
+    let full = learned.gain_db.len();
+    let bins: &[u8] = match az.width {
+        protocol::BinWidth::Eight => az.bins.get(..full.min(az.bins.len())).unwrap_or_default(),
+        protocol::BinWidth::Sixteen => {
+            learned.eight.clear();
+            learned
+                .eight
+                .extend(az.bins_db().take(full).map(protocol::db_to_bin8));
+            &learned.eight
+        }
+    };
+    let line = LineSettings {
+        merge_gap_bins: settings.peaks.merge_gap_bins,
+        max_peaks: settings.peaks.max_peaks,
+        min_range_m: settings.min_range_m,
+        max_range_m: settings.max_range_m,
+    };
+    learned
+        .line
+        .detect(bins, &mut learned.floor, axis, &line, &mut learned.peaks);
+    let l = &settings.landmarks;
+    for p in &learned.peaks {
+        let range_m = axis.range_m(p.bin);
+        let extent_m = p.extent_bins as f64 * axis.bin_m;
+        if extent_m <= l.max_extent_m {
+            learned.gain.add(range_m, p.measured_db);
+        }
+        let gain = interpolate_table(&learned.gain_db, p.bin);
+        out.push(Detection {
+            range_m,
+            power_db: p.measured_db - gain,
+            bin: p.bin,
+            extent_m,
+            snr_db: p.snr_db,
+        });
+    }
+    // After a floor refresh: refit the gain, and hand both to the spectrum model.
+    if learned.floor.refreshes() != learned.refreshes {
+        learned.refreshes = learned.floor.refreshes();
+        learned.gain.refit();
+        let axis = *axis;
+        learned.gain.gain_into(
+            &learned.configured_gain_db,
+            |b| axis.range_m(b as f64),
+            &mut learned.gain_db,
+        );
+        for (b, s) in learned.bound_db.iter_mut().zip(learned.floor.sigma_db()) {
+            *b = 3.0 * s;
+        }
+        if let Err(e) = spectrum.set_tables(&learned.gain_db, learned.floor.level_db()) {
+            tracing::warn!(error = %e, "the learned floor and gain were refused by the spectrum model");
+        }
+    }
+}
+
+/// Linear interpolation of a per-bin table at a fractional bin (clamped to the table).
+fn interpolate_table(table: &[f64], bin: f64) -> f64 {
+    let last = table.len().saturating_sub(1);
+    let b = if bin.is_finite() {
+        bin.clamp(0.0, last as f64)
+    } else {
+        0.0
+    };
+    let lo = b.floor() as usize;
+    let hi = (lo + 1).min(last);
+    let f = b - lo as f64;
+    match (table.get(lo), table.get(hi)) {
+        (Some(a), Some(c)) => a + f * (c - a),
+        _ => 0.0,
     }
 }
 

@@ -268,6 +268,8 @@ impl PipelineSettings {
             compensation: self.compensation.clone(),
             noise: self.noise,
             max_detector_state_bytes: self.max_detector_state_bytes,
+            keep_spectrum_every: self.spectrum_every_azimuths,
+            spectrum_bound_db: self.spectrum_bound_db,
         }
     }
 }
@@ -318,6 +320,7 @@ pub fn detector_from_config(
         ConfigKind::CaCfar => DetectorKind::CaCfar,
         ConfigKind::OsCfar => DetectorKind::OsCfar,
         ConfigKind::Tpp => DetectorKind::Tpp,
+        ConfigKind::Learned => DetectorKind::Learned,
     };
     match d.threshold {
         Threshold::Db(db) => {
@@ -336,6 +339,14 @@ pub fn detector_from_config(
     s.peaks.max_peaks = d.max_targets_per_beam.get();
     s.min_range_m = d.range.min_m();
     s.max_range_m = d.range.max_m();
+    s.floor.detect_sigma = d.floor_sigma.get();
+    s.floor.min_snr_db = d.floor_min_snr_db.get();
+    s.landmarks = crate::detect::LandmarkSettings {
+        points_only: d.points_only,
+        max_extent_m: d.point_max_extent_m.get(),
+        max_width_beams: d.point_max_width_beams.get(),
+        min_snr_db: f64::NEG_INFINITY,
+    };
     s
 }
 

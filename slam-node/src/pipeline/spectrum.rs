@@ -1,7 +1,9 @@
 //! Whole-spectrum prediction against measurement (the paper's figures 8-10): for a beam,
 //! the mapped features inside it seen from the pose predicted to the beam's own time, their
 //! eq. 13 powers with the estimated materials and loss, radar-model's expected spectrum,
-//! and the bin-by-bin difference with the measured spectrum against the +-16.35 dB bound.
+//! and the bin-by-bin difference with the measured spectrum against the +-16.35 dB bound
+//! (the paper's unit) or, with the learned front end, three sigma of the floor learned per
+//! bin.
 
 use radar_model::geometry::{range_bearing, wrap_angle, Pose2};
 use radar_model::material::Material;
@@ -69,6 +71,7 @@ pub fn compare_beam(
     model: &SpectrumModel,
     measured_db: &[f64],
     bound_db: f64,
+    bound_table_db: Option<&[f64]>,
     scratch: &mut SpectrumScratch,
 ) -> Option<(usize, SpectrumTally)> {
     let g = model.geometry();
@@ -111,6 +114,31 @@ pub fn compare_beam(
         .predict_into(&scratch.spectrum_targets, &mut scratch.predicted)
         .ok()?;
     let n = measured_db.len().min(g.bins);
+    if let Some(bound) = bound_table_db {
+        // A bound per bin (learned from the radar's floor).
+        let mut tally = SpectrumTally {
+            beams: 1,
+            ..SpectrumTally::default()
+        };
+        for ((p, m), b) in scratch
+            .predicted
+            .get(..n)?
+            .iter()
+            .zip(measured_db.get(..n)?)
+            .zip(bound.get(..n)?)
+        {
+            if !(p.is_finite() && m.is_finite()) {
+                continue;
+            }
+            let d = p - m;
+            tally.bins += 1;
+            tally.sum_db += d;
+            if d.abs() <= *b {
+                tally.inside += 1;
+            }
+        }
+        return Some((scratch.ranges.len(), tally));
+    }
     let cmp = compare_spectra(scratch.predicted.get(..n)?, measured_db.get(..n)?, bound_db).ok()?;
     // fraction_inside * bins is an exact count up to rounding.
     let inside = (cmp.fraction_inside * cmp.bins as f64).round() as u64;
