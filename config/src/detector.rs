@@ -93,6 +93,11 @@ pub struct RawDetector {
     /// Widest group across neighbouring azimuths that is still point-like, in beam widths,
     /// > 0. Default 2.5.
     pub point_max_width_beams: f64,
+    /// Weakest point-like return over the learned floor that may start a new feature, dB
+    /// >= 0; weaker point-like returns near a mapped feature only re-observe it. Default 0
+    /// (every point-like return may start one); 35 for current units (the replay of real
+    /// scans and `config/examples/vehicle.toml`).
+    pub point_min_snr_db: f64,
 }
 
 impl Default for RawDetector {
@@ -115,6 +120,7 @@ impl Default for RawDetector {
             points_only: false,
             point_max_extent_m: 1.0,
             point_max_width_beams: 2.5,
+            point_min_snr_db: 0.0,
         }
     }
 }
@@ -180,6 +186,8 @@ pub struct DetectorSettings {
     pub point_max_extent_m: PositiveF64,
     /// Widest point-like group, beam widths.
     pub point_max_width_beams: PositiveF64,
+    /// Weakest point-like return that may start a feature, dB.
+    pub point_min_snr_db: NonNegativeF64,
 }
 
 impl Default for DetectorSettings {
@@ -283,6 +291,10 @@ impl RawDetector {
                 "detector.point_max_width_beams",
                 PositiveF64::new(self.point_max_width_beams),
             ),
+            point_min_snr_db: c.check(
+                "detector.point_min_snr_db",
+                NonNegativeF64::new(self.point_min_snr_db),
+            ),
         }
     }
 }
@@ -312,6 +324,7 @@ impl From<&DetectorSettings> for RawDetector {
             points_only: s.points_only,
             point_max_extent_m: s.point_max_extent_m.get(),
             point_max_width_beams: s.point_max_width_beams.get(),
+            point_min_snr_db: s.point_min_snr_db.get(),
         }
     }
 }

@@ -259,6 +259,8 @@ pub fn detect_scan(
         handoff.extend(found.iter().map(|d| BeamDetection {
             range_m: d.range_m,
             power_db: d.power_db,
+            extent_m: d.extent_m,
+            snr_db: d.snr_db,
         }));
         grouper.push(row.bearing_rad, row.timestamp_s, &handoff, &mut out);
     }
@@ -523,6 +525,11 @@ mod tests {
             timestamp_s: 0.0,
             azimuths: 2,
             peak_range_m: 20.0,
+            extent_m: 0.2,
+            snr_db: 30.0,
+            width_rad: 0.01,
+            cut: false,
+            may_start: true,
         };
         let fitted = fit_targets(&[obs], &power, 0.9_f64.to_radians()).expect("fit");
         let t = [PowerTarget {

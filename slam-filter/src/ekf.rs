@@ -451,6 +451,34 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// beam's time but not updated. If initialising a confirmed target fails, the updates
     /// before it stand and the remaining unclaimed targets of the beam are not processed.
     pub fn process_beam(&mut self, beam: &BeamObservation) -> Result<BeamReport, FilterError> {
+        self.process_beam_inner(beam, None)
+    }
+
+    /// [`Self::process_beam`] where only the targets with `may_start[j]` true may start (or
+    /// confirm) a tentative feature; the others may only re-observe mapped features (a
+    /// front end's weaker, less certain landmarks). `max_range_m` limits the beam as
+    /// [`Self::process_beam_within`] does. A mask shorter than the beam lets the rest start.
+    pub fn process_beam_offered(
+        &mut self,
+        beam: &BeamObservation,
+        max_range_m: Option<f64>,
+        may_start: &[bool],
+    ) -> Result<BeamReport, FilterError> {
+        let full = self.settings.max_range_m;
+        let limit = max_range_m.filter(|m| !m.is_nan() && *m < full);
+        if let Some(m) = limit {
+            self.settings.max_range_m = m.max(self.settings.min_range_m);
+        }
+        let report = self.process_beam_inner(beam, Some(may_start));
+        self.settings.max_range_m = full;
+        report
+    }
+
+    fn process_beam_inner(
+        &mut self,
+        beam: &BeamObservation,
+        may_start: Option<&[bool]>,
+    ) -> Result<BeamReport, FilterError> {
         self.check_beam(beam)?;
         if beam.targets.is_empty() && self.settings.defer_empty_beams {
             return self.empty_beam(beam);
@@ -479,7 +507,10 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 &mut report,
             )?;
         }
-        // 6. Augmentation.
+        // 6. Augmentation (of the targets allowed to start features).
+        if let Some(mask) = may_start {
+            unclaimed.retain(|&j| mask.get(j).copied().unwrap_or(true));
+        }
         self.handle_unclaimed(beam, &unclaimed, &mut report)?;
         self.tentatives
             .expire(beam.timestamp_s, self.settings.tentative_timeout_s);

@@ -1,6 +1,7 @@
 //! The front end at line rate: one CTS350-X rotation (400 azimuths x 3768 bins, 8-bit) through
-//! the daemon's front end (bins to dB, compensation removed, detection, grouping, beams),
-//! against a memcpy of the same bins in the same run.
+//! the daemon's front end for current units (the learned floor and gain, detection on the
+//! wire's bins, grouping, landmark test, beams; every 4th azimuth's spectrum kept in dB for
+//! the spectrum comparison), against a memcpy of the same bins in the same run.
 //!
 //! `cargo bench -p slam-node --bench detect_line_rate`: prints ms per rotation and ns per bin
 //! for both, and their ratio.
@@ -57,21 +58,27 @@ fn rotation(rotation: u64) -> Vec<Azimuth> {
 fn front_end_rotation(
     fe: &mut FrontEnd,
     azimuths: &[Azimuth],
-    beams: &mut Vec<slam_filter::BeamObservation>,
+    beams: &mut Vec<slam_node::pipeline::beams::OfferedBeam>,
 ) -> usize {
     let mut detections = 0;
     for az in azimuths {
         let index = az.geometry.azimuth_index(az.encoder).unwrap_or(0);
-        detections += fe.process(az, index, az.angle_rad, beams).detections;
+        detections += fe
+            .process(az, index, az.angle_rad, beams, |_| false)
+            .detections;
         beams.clear();
     }
     detections
 }
 
 fn bench(c: &mut Criterion) {
-    let settings = PipelineSettings::from_config(&config::Config::default())
+    // The front end a current unit runs: the learned floor and gain, detection at line rate.
+    let mut settings = PipelineSettings::from_config(&config::Config::default())
         .expect("shipped settings")
         .front_end();
+    settings.detector.kind = slam_node::detect::DetectorKind::Learned;
+    settings.detector.landmarks.points_only = true;
+    settings.keep_spectrum_every = 4;
     let mut fe = FrontEnd::new(settings);
     fe.configure(&geometry()).expect("geometry");
     let rotations: Vec<Vec<Azimuth>> = (0..4).map(rotation).collect();

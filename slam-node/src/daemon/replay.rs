@@ -360,17 +360,11 @@ pub fn recorded_settings(mut settings: PipelineSettings, max_range_m: f64) -> Pi
     // only point-like returns mapped.
     settings.detector.kind = crate::detect::DetectorKind::Learned;
     settings.detector.landmarks.points_only = true;
-    let knob = |name: &str, default: f64| {
-        std::env::var(name)
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(default)
-    };
-    settings.detector.landmarks.min_snr_db = knob("K_SNR", 25.0);
-    settings.detector.landmarks.max_extent_m = knob("K_EXT", 0.5);
-    settings.detector.landmarks.max_width_beams = knob("K_WID", 2.5);
-    settings.filter.confirm_after = knob("K_CONF", 3.0) as u32;
-    settings.filter.confirm_min_separation_s = knob("K_SEP", 0.2);
+    // Only strong returns start features, and only after three looks in different
+    // rotations; weaker point-like ones may re-observe them.
+    settings.detector.landmarks.min_snr_db = settings.detector.landmarks.min_snr_db.max(35.0);
+    settings.filter.confirm_after = settings.filter.confirm_after.max(3);
+    settings.filter.confirm_min_separation_s = settings.filter.confirm_min_separation_s.max(0.2);
     settings.spectrum_every_azimuths = settings.spectrum_every_azimuths.max(4);
     settings
 }

@@ -128,15 +128,21 @@ pub fn summary_text(r: &DaemonReport) -> String {
             s.map_size, s.associations
         );
     }
+    let bound = match s.spectrum_bound_db {
+        Some((lo, hi)) => format!("the learned floor's 3-sigma bound ({lo:.1}-{hi:.1} dB)"),
+        None => "+-16.35 dB".to_string(),
+    };
     match (s.spectrum.in_bound_fraction(), s.spectrum.bias_db()) {
         (Some(f), Some(b)) => {
             let _ = writeln!(
                 t,
-                "  spectrum prediction: {:.1}% of {} bins inside +-16.35 dB over {} beams with mapped features; bias (predicted - measured) {:+.2} dB",
+                "  spectrum prediction: {:.1}% of {} bins inside {bound} over {} beams with mapped features; bias (predicted - measured) {:+.2} dB{}",
                 100.0 * f,
                 s.spectrum.bins,
                 s.spectrum.beams,
-                b
+                b,
+                s.learned_gain_db_per_decade
+                    .map_or(String::new(), |g| format!("; learned compensation {g:.1} dB/decade"))
             );
         }
         _ => {
@@ -145,6 +151,17 @@ pub fn summary_text(r: &DaemonReport) -> String {
                 "  spectrum prediction: no beam with a mapped feature compared"
             );
         }
+    }
+    if s.features_in_view > 0 || s.extended_returns > 0 {
+        let _ = writeln!(
+            t,
+            "  landmarks: {} extended returns kept out of the map ({:.1} per rotation); mapped features re-observed in {:.1}% of the later rotations with them in view ({} of {})",
+            s.extended_returns,
+            s.extended_returns as f64 / s.rotations.max(1) as f64,
+            100.0 * s.features_reobserved as f64 / s.features_in_view.max(1) as f64,
+            s.features_reobserved,
+            s.features_in_view
+        );
     }
     let n = s.rotations.max(1) as f64;
     let _ = writeln!(

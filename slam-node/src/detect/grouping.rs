@@ -44,6 +44,9 @@ pub struct Observation {
     /// Part of a return wider than the widest group (a wall seen along its length, cut
     /// into pieces).
     pub cut: bool,
+    /// Whether it may start a new feature (the front end's landmark test decides; true
+    /// as grouped).
+    pub may_start: bool,
 }
 
 /// One detection handed to the grouper.
@@ -153,6 +156,7 @@ impl OpenGroup {
             snr_db: self.max_snr_db,
             width_rad: wrap_angle(self.last_bearing_rad - self.first_bearing_rad).abs(),
             cut: self.cut,
+            may_start: true,
         }
     }
 }

@@ -105,8 +105,12 @@ pub struct LandmarkSettings {
     pub max_extent_m: f64,
     /// Widest group across azimuths that is still a point, beam widths.
     pub max_width_beams: f64,
-    /// Weakest return over the floor that may become a point feature, dB.
+    /// Weakest return over the floor that may become a point feature, dB; a weaker
+    /// point-like return may still re-observe a mapped feature.
     pub min_snr_db: f64,
+    /// A weaker point-like return is offered to the filter when it lies within this
+    /// distance of a mapped feature (placed from the predicted pose), metres.
+    pub reobserve_radius_m: f64,
 }
 
 impl Default for LandmarkSettings {
@@ -116,6 +120,7 @@ impl Default for LandmarkSettings {
             max_extent_m: f64::INFINITY,
             max_width_beams: f64::INFINITY,
             min_snr_db: f64::NEG_INFINITY,
+            reobserve_radius_m: 2.0,
         }
     }
 }

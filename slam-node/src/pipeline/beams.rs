@@ -9,6 +9,15 @@ use crate::detect::Observation;
 use radar_model::geometry::wrap_angle;
 use slam_filter::{BeamObservation, Target};
 
+/// One beam's targets for the filter, with which of them may start a new feature.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OfferedBeam {
+    /// The targets.
+    pub beam: BeamObservation,
+    /// Per target, whether it may start a feature (or only re-observe one).
+    pub may_start: Vec<bool>,
+}
+
 /// Gathers observations into beams.
 #[derive(Debug)]
 pub struct BeamAssembler {
@@ -29,7 +38,7 @@ impl BeamAssembler {
     }
 
     /// Adds one observation; completed beams go to `out`.
-    pub fn push(&mut self, obs: Observation, out: &mut Vec<BeamObservation>) {
+    pub fn push(&mut self, obs: Observation, out: &mut Vec<OfferedBeam>) {
         if let Some(first) = self.pending.first() {
             let same_beam = wrap_angle(obs.bearing_rad - first.bearing_rad).abs()
                 <= self.half_width_rad
@@ -42,7 +51,7 @@ impl BeamAssembler {
     }
 
     /// Emits the pending beam, if any.
-    pub fn flush(&mut self, out: &mut Vec<BeamObservation>) {
+    pub fn flush(&mut self, out: &mut Vec<OfferedBeam>) {
         let Some(first) = self.pending.first().copied() else {
             return;
         };
@@ -52,18 +61,22 @@ impl BeamAssembler {
             .max_by(|a, b| a.power_db.total_cmp(&b.power_db))
             .copied()
             .unwrap_or(first);
-        out.push(BeamObservation {
-            timestamp_s: first.timestamp_s,
-            bearing_rad: strongest.bearing_rad,
-            targets: self
-                .pending
-                .drain(..)
-                .map(|o| Target {
-                    range_m: o.range_m,
-                    bearing_rad: o.bearing_rad,
-                    power_db: o.power_db,
-                })
-                .collect(),
+        let may_start = self.pending.iter().map(|o| o.may_start).collect();
+        out.push(OfferedBeam {
+            beam: BeamObservation {
+                timestamp_s: first.timestamp_s,
+                bearing_rad: strongest.bearing_rad,
+                targets: self
+                    .pending
+                    .drain(..)
+                    .map(|o| Target {
+                        range_m: o.range_m,
+                        bearing_rad: o.bearing_rad,
+                        power_db: o.power_db,
+                    })
+                    .collect(),
+            },
+            may_start,
         });
     }
 }
@@ -80,6 +93,11 @@ mod tests {
             timestamp_s: t,
             azimuths: 1,
             peak_range_m: range_m,
+            extent_m: 0.1,
+            snr_db: 30.0,
+            width_rad: 0.0,
+            cut: false,
+            may_start: true,
         }
     }
 
@@ -92,8 +110,9 @@ mod tests {
         a.push(obs(20.0, 10.0, 1.010), &mut out);
         a.flush(&mut out);
         assert_eq!(out.len(), 2);
-        assert_eq!(out[0].targets.len(), 2);
-        assert_eq!(out[1].targets.len(), 1);
-        assert!(out[0].timestamp_s <= out[1].timestamp_s);
+        assert_eq!(out[0].beam.targets.len(), 2);
+        assert_eq!(out[1].beam.targets.len(), 1);
+        assert_eq!(out[0].may_start, vec![true, true]);
+        assert!(out[0].beam.timestamp_s <= out[1].beam.timestamp_s);
     }
 }

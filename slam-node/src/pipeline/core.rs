@@ -17,6 +17,7 @@ use radar_driver::Azimuth;
 use radar_model::geometry::{wrap_angle, Pose2};
 use tracing::{info, warn};
 
+use super::beams::OfferedBeam;
 use super::clock::{Verdict, WireClock};
 use super::frontend::{FrontEnd, GeometryError};
 use super::gate::{worth_logging, OdometryGate};
@@ -26,7 +27,7 @@ use super::stats::{RotationStats, StageTimes};
 use super::summary::PipelineSummary;
 use super::truth::{TruthObserver, TruthOracle};
 use crate::output::{MapSnapshot, OutputEvent, PoseSample, SpectrumComparison};
-use slam_filter::{BeamObservation, Ekf, FilterError, OdometrySample, RadarBeamModel, RadarEkf};
+use slam_filter::{Ekf, FilterError, OdometrySample, RadarBeamModel, RadarEkf};
 
 /// The filter the daemon runs.
 pub type DaemonEkf = RadarEkf;
@@ -58,11 +59,12 @@ pub struct Pipeline {
     ekf: DaemonEkf,
     stats: RotationStats,
     truth: Option<TruthObserver>,
-    beams: Vec<BeamObservation>,
+    beams: Vec<OfferedBeam>,
     spectrum: SpectrumScratch,
     clock: WireClock,
     last_rotation: Option<u64>,
     last_time_s: Option<f64>,
+    rotation_start_s: Option<f64>,
     summary: PipelineSummary,
     filter_started: bool,
 }
@@ -115,6 +117,7 @@ impl Pipeline {
             spectrum: SpectrumScratch::default(),
             last_rotation: None,
             last_time_s: None,
+            rotation_start_s: None,
             summary: PipelineSummary::default(),
             filter_started: false,
             settings,
@@ -250,11 +253,18 @@ impl Pipeline {
         }
         self.last_rotation = Some(az.rotation);
         self.last_time_s = Some(az.timestamp_s);
+        self.rotation_start_s.get_or_insert(az.timestamp_s);
         self.summary.first_time_s.get_or_insert(az.timestamp_s);
         self.summary.last_time_s = Some(az.timestamp_s);
         let started = Instant::now();
         let bearing = wrap_angle(az.angle_rad);
-        let counts = self.front_end.process(az, index, bearing, &mut self.beams);
+        let ekf = &self.ekf;
+        let radius = self.settings.detector.landmarks.reobserve_radius_m;
+        let near_map = |o: &crate::detect::Observation| near_a_feature(ekf, o, radius);
+        let counts = self
+            .front_end
+            .process(az, index, bearing, &mut self.beams, near_map);
+        self.summary.extended_returns += counts.extended as u64;
         let detected = Instant::now();
         self.run_beams();
         let filtered = Instant::now();
@@ -281,7 +291,8 @@ impl Pipeline {
     }
 
     /// One beam through the odometry gate into the filter.
-    fn run_beam(&mut self, beam: &BeamObservation) {
+    fn run_beam(&mut self, offered: &OfferedBeam) {
+        let beam = &offered.beam;
         while let Some(s) = self.gate.next_until(beam.timestamp_s) {
             self.apply_odometry(s);
         }
@@ -292,10 +303,10 @@ impl Pipeline {
         {
             return;
         }
-        let processed = match self.front_end.covered_range_m(beam.bearing_rad) {
-            Some(covered) => self.ekf.process_beam_within(beam, covered),
-            None => self.ekf.process_beam(beam),
-        };
+        let covered = self.front_end.covered_range_m(beam.bearing_rad);
+        let processed = self
+            .ekf
+            .process_beam_offered(beam, covered, &offered.may_start);
         match processed {
             Ok(report) => {
                 self.summary.beams += 1;
@@ -423,6 +434,7 @@ impl Pipeline {
         if self.stats.is_empty() {
             return;
         }
+        self.count_reobservations();
         let front_end = &self.front_end;
         match self
             .ekf
@@ -468,6 +480,36 @@ impl Pipeline {
         events.push(OutputEvent::Rotation(Box::new(d)));
     }
 
+    /// Counts, for every feature mapped before this rotation began and in the radar's view
+    /// during it, whether it was associated again (the map's repeatability).
+    fn count_reobservations(&mut self) {
+        let Some(start_s) = self.rotation_start_s.take() else {
+            return;
+        };
+        let pose = self.ekf.pose();
+        let f = &self.settings.filter;
+        let state = self.ekf.state();
+        for (slot, track) in state.tracks().iter().enumerate() {
+            if track.created_s >= start_s {
+                continue;
+            }
+            let Some(p) = state.params(slot) else {
+                continue;
+            };
+            let rb = radar_model::geometry::range_bearing(&pose, [p.x_m, p.y_m]);
+            if rb.range_m < f.min_range_m
+                || rb.range_m > f.max_range_m
+                || !self.front_end.covers(rb.bearing_rad, rb.range_m)
+            {
+                continue;
+            }
+            self.summary.features_in_view += 1;
+            if track.last_seen_s >= start_s {
+                self.summary.features_reobserved += 1;
+            }
+        }
+    }
+
     /// Flushes everything still pending (end of stream), closes the last rotation, and
     /// returns the summary with the truth comparison.
     pub fn finish(&mut self, events: &mut Vec<OutputEvent>) -> PipelineSummary {
@@ -478,6 +520,13 @@ impl Pipeline {
         events.push(OutputEvent::Map(map));
         let mut s = self.summary.clone();
         s.map_size = self.ekf.feature_count();
+        s.spectrum_bound_db = self.front_end.spectrum_bound_db().map(|b| {
+            b.iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
+                    (lo.min(x), hi.max(x))
+                })
+        });
+        s.learned_gain_db_per_decade = self.front_end.learned_gain_slope();
         s.odometry_out_of_order = self.gate.out_of_order();
         if let Some(truth) = self.truth.as_ref() {
             truth.score(
@@ -489,6 +538,21 @@ impl Pipeline {
         }
         s
     }
+}
+
+/// Whether observation `o`, placed from the pose predicted to its time, lies within
+/// `radius_m` of a mapped feature.
+fn near_a_feature(ekf: &DaemonEkf, o: &crate::detect::Observation, radius_m: f64) -> bool {
+    let Some(pose) = ekf.pose_at(o.timestamp_s) else {
+        return false;
+    };
+    let [x, y] = pose.point_at(o.range_m, o.bearing_rad);
+    let state = ekf.state();
+    (0..state.feature_count()).any(|slot| {
+        state
+            .params(slot)
+            .is_some_and(|p| (p.x_m - x).hypot(p.y_m - y) <= radius_m)
+    })
 }
 
 fn ms(a: Instant, b: Instant) -> f64 {

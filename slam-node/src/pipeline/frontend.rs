@@ -11,10 +11,9 @@ use radar_driver::Azimuth;
 use radar_model::compensation::Compensation;
 use radar_model::noise::NoiseModel;
 use radar_model::spectrum::{SpectrumGeometry, SpectrumModel};
-use slam_filter::BeamObservation;
 use tracing::info;
 
-use super::beams::BeamAssembler;
+use super::beams::{BeamAssembler, OfferedBeam};
 use crate::detect::{
     BeamDetection, BeamDetector, Detection, DetectorKind, DetectorSettings, FloorProfile,
     GainLearner, Grouper, GroupingSettings, LearnedFloor, LineDetector, LinePeak, LineSettings,
@@ -46,15 +45,27 @@ pub struct FrontEndSettings {
 }
 
 impl FrontEndSettings {
-    /// Whether an observation may become a point feature (see
-    /// [`crate::detect::LandmarkSettings`]).
-    pub fn is_landmark(&self, o: &Observation) -> bool {
+    /// What an observation may do (see [`crate::detect::LandmarkSettings`]): a strong
+    /// point-like return may become a feature; a weaker point-like one may only re-observe
+    /// a mapped feature (the landmark test is strict for entering the map and lenient for
+    /// staying in it, so a landmark whose return hovers near the SNR limit is not lost);
+    /// extended returns do neither.
+    pub fn landmark_class(&self, o: &Observation) -> LandmarkClass {
         let l = &self.detector.landmarks;
-        !l.points_only
-            || (!o.cut
-                && o.extent_m <= l.max_extent_m
-                && o.snr_db >= l.min_snr_db
-                && o.width_rad <= l.max_width_beams * self.beam_width_rad)
+        if !l.points_only {
+            return LandmarkClass::New;
+        }
+        if o.cut
+            || o.extent_m > l.max_extent_m
+            || o.width_rad > l.max_width_beams * self.beam_width_rad
+        {
+            return LandmarkClass::Extended;
+        }
+        if o.snr_db >= l.min_snr_db {
+            LandmarkClass::New
+        } else {
+            LandmarkClass::Reobserve
+        }
     }
 
     /// Grouping settings for a radar with `azimuths` spectra per rotation.
@@ -66,6 +77,17 @@ impl FrontEndSettings {
             max_width_rad: (self.grouping_max_width_beams * self.beam_width_rad).max(step),
         }
     }
+}
+
+/// What an observation may do in the map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LandmarkClass {
+    /// A point-like return strong enough to become a feature.
+    New,
+    /// Point-like but weaker: it may only re-observe a mapped feature.
+    Reobserve,
+    /// Extended structure: kept out of the map.
+    Extended,
 }
 
 /// The radar's announced geometry cannot be processed.
@@ -272,12 +294,16 @@ impl FrontEnd {
     /// Detects and groups one azimuth (its geometry must have been [`Self::configure`]d):
     /// beams the grouping completes go to `beams`. `index` is the azimuth's index in the
     /// rotation ([`protocol::Geometry::azimuth_index`]), `bearing_rad` its bearing.
+    ///
+    /// `near_map` tells whether an observation lies near a mapped feature: a point-like
+    /// return too weak to start a feature is offered to the filter only then.
     pub fn process(
         &mut self,
         az: &Azimuth,
         index: u16,
         bearing_rad: f64,
-        beams: &mut Vec<BeamObservation>,
+        beams: &mut Vec<OfferedBeam>,
+        near_map: impl Fn(&Observation) -> bool,
     ) -> FrontEndCounts {
         let Some(radar) = self.radar.as_mut() else {
             return FrontEndCounts::default();
@@ -348,10 +374,16 @@ impl FrontEnd {
         }
         let mut extended = 0;
         for o in &self.released {
-            if self.settings.is_landmark(o) {
-                self.assembler.push(*o, beams);
-            } else {
+            let class = self.settings.landmark_class(o);
+            if class == LandmarkClass::Extended {
                 extended += 1;
+            }
+            // Anything but a strong point-like return only re-observes, and only near the map.
+            let offer = class == LandmarkClass::New || near_map(o);
+            if offer {
+                let mut o = *o;
+                o.may_start = class == LandmarkClass::New;
+                self.assembler.push(o, beams);
             }
         }
         FrontEndCounts {
@@ -380,13 +412,13 @@ impl FrontEnd {
     }
 
     /// Releases everything still held (end of stream) into `beams`.
-    pub fn flush(&mut self, beams: &mut Vec<BeamObservation>) {
+    pub fn flush(&mut self, beams: &mut Vec<OfferedBeam>) {
         let mut released = Vec::new();
         if let Some(g) = self.grouper.as_mut() {
             g.flush(&mut released);
         }
         for o in released {
-            if self.settings.is_landmark(&o) {
+            if self.settings.landmark_class(&o) == LandmarkClass::New {
                 self.assembler.push(o, beams);
             }
         }

@@ -345,7 +345,8 @@ pub fn detector_from_config(
         points_only: d.points_only,
         max_extent_m: d.point_max_extent_m.get(),
         max_width_beams: d.point_max_width_beams.get(),
-        min_snr_db: f64::NEG_INFINITY,
+        min_snr_db: d.point_min_snr_db.get(),
+        reobserve_radius_m: 2.0,
     };
     s
 }

@@ -80,6 +80,18 @@ pub struct PipelineSummary {
     /// Spectrum comparison over the run.
     #[serde(skip)]
     pub spectrum: SpectrumTally,
+    /// The spectrum comparison's bound when it is learned per bin (three sigma of the
+    /// learned floor): its smallest and largest value, dB. `None`: the configured constant.
+    pub spectrum_bound_db: Option<(f64, f64)>,
+    /// The learned receiver compensation slope, dB per decade.
+    pub learned_gain_db_per_decade: Option<f64>,
+    /// Observations kept out of the map as extended returns (walls, fences, cars).
+    pub extended_returns: u64,
+    /// Feature-rotations in which a mapped feature (mapped before the rotation began) was in
+    /// the radar's view.
+    pub features_in_view: u64,
+    /// Of those, the ones in which it was associated again.
+    pub features_reobserved: u64,
     /// Pose error against truth.
     pub pose: Option<PoseErrorStats>,
     /// Associated observations against the true geometry (truth known only).
