@@ -166,9 +166,9 @@ fn radiate_ground_truth_follows_the_gps_fixes_and_the_course_over_ground() {
     let (dir, drive) = radiate();
     let scans = ScanSet::open(dir.path(), None).unwrap();
     let poses = radiate_poses(dir.path(), &scans.times_us()).unwrap();
-    let first = drive.pose_at(drive.azimuth_time_us(0, 0));
+    let first = drive.pose_at(drive.radiate_scan_time_us(0));
     for (k, p) in poses.iter().enumerate() {
-        let want = between(&first, &drive.pose_at(drive.azimuth_time_us(k, 0)));
+        let want = between(&first, &drive.pose_at(drive.radiate_scan_time_us(k)));
         // Linear interpolation between 20 Hz fixes on a 80 m radius arc.
         assert!(
             close(p, &want, 0.01, 1e-3),

@@ -4,11 +4,13 @@
 //! Scans: `Navtech_Polar/<frame:06>.png`, 8-bit, **576 range rows x 400 azimuth columns**
 //! (transposed against Oxford's azimuth rows), bins of 0.173611 m (`radar_calib.range_res`),
 //! no metadata: column `a` is the azimuth `a * 360 / 400` degrees clockwise from forward
-//! (encoder `a * 5600 / 400`), and its time is interpolated across the scan from the scan's
-//! time to the next's ([`super::scans::ScanFile::period_us`]). Scan times:
-//! `Navtech_Polar.txt`, one `Frame: 000001 Time: 1574859771.744660272` line per scan
-//! (seconds since the epoch; the SDK calls them the data's time of arrival and replays them
-//! as each scan's start).
+//! (encoder `a * 5600 / 400`; the SDK's README says column 399 "represents 360 degrees",
+//! which 400 columns of 0.9 degrees cannot mean literally). Scan times: `Navtech_Polar.txt`,
+//! one `Frame: 000001 Time: 1574859771.744660272` line per scan, seconds since the epoch,
+//! which the SDK's README calls each sensor's "time of arrival": the scan has been received,
+//! so the time is its last azimuth's, and azimuth `a` of `M` is put `(M - 1 - a) / M` of a
+//! rotation before it ([`super::scans::ScanFile::period_us`], the interval from the previous
+//! scan).
 //!
 //! Ground truth: `GPS_IMU_Twist.txt` (the same `Frame: N Time: s` index, about 20 Hz, each
 //! time written twice) and `GPS_IMU_Twist/<frame:06>.txt`, 18 lines of which this reads
@@ -132,7 +134,8 @@ pub fn read_scan_index(index: &Path, scan_dir: &Path) -> Result<Vec<ScanFile>, R
 
 /// Decodes a RADIATE polar PNG: 8 bits a sample, range rows by azimuth columns (a colour
 /// image is read by its first channel). Row `a` of the result is column `a`, with its time
-/// `time_us + a * period_us / azimuths` and encoder `a * 5600 / azimuths`.
+/// `time_us - (azimuths - 1 - a) * period_us / azimuths` (the scan's time is its last
+/// azimuth's) and encoder `a * 5600 / azimuths`.
 ///
 /// # Errors
 /// Bytes that do not decode, a bit depth other than 8, a palette image, more than 65535
@@ -196,11 +199,11 @@ pub fn decode_radiate_png(
             row_bins.push(line.get(a * samples).copied().unwrap_or(0));
         }
         let a_i = a as i64;
-        let offset = i64::try_from(i128::from(a_i) * i128::from(period_us) / i128::from(m))
+        let before = i64::try_from(i128::from(m - 1 - a_i) * i128::from(period_us) / i128::from(m))
             .map_err(|_| layout("scan period out of range".into()))?;
         let encoder = (a_i * i64::from(ENCODER_SIZE) + m / 2) / m;
         rows.push(PolarRow {
-            timestamp_us: time_us.saturating_add(offset),
+            timestamp_us: time_us.saturating_sub(before),
             encoder: u16::try_from(encoder).unwrap_or(0),
             valid: true,
             bins: row_bins,
@@ -468,7 +471,7 @@ mod tests {
             let mut wr = enc.write_header().unwrap();
             wr.write_image_data(&data).unwrap();
         }
-        let scan = decode_radiate_png(&bytes, Path::new("000001.png"), 1_000_000, 250_000).unwrap();
+        let scan = decode_radiate_png(&bytes, Path::new("000001.png"), 1_187_500, 250_000).unwrap();
         assert_eq!((scan.rows.len(), scan.bins), (4, 3));
         assert_eq!(scan.rows[1].bins, vec![1, 11, 21]);
         let times: Vec<i64> = scan.rows.iter().map(|r| r.timestamp_us).collect();

@@ -44,9 +44,10 @@ pub struct ScanFile {
     /// The scan's time, µs since the epoch (Oxford, Boreas: the file name; RADIATE: its row
     /// of `Navtech_Polar.txt`).
     pub time_us: i64,
-    /// How long its rotation took (µs): the time to the next scan when that is within half
-    /// and one and a half median intervals, the median interval otherwise. RADIATE's
-    /// per-azimuth times are spread over it.
+    /// How long its rotation took (µs): the interval to the next scan (Oxford, Boreas) or
+    /// from the previous one (RADIATE, whose times mark a scan's arrival, its end) when that
+    /// is within half and one and a half median intervals, the median interval otherwise.
+    /// RADIATE's per-azimuth times are spread over it.
     pub period_us: i64,
 }
 
@@ -99,7 +100,7 @@ impl ScanSet {
         if files.is_empty() {
             return Err(ReplayError::Empty(scan_dir));
         }
-        set_periods(&mut files);
+        set_periods(&mut files, format == ReplayFormat::Radiate);
         Ok(ScanSet {
             format,
             dir: dir.to_path_buf(),
@@ -131,15 +132,29 @@ fn median_interval_us(files: &[ScanFile]) -> Option<i64> {
     d.get(d.len() / 2).copied()
 }
 
-fn set_periods(files: &mut [ScanFile]) {
+/// Sets each scan's period from its neighbour: the previous scan when `from_previous`, the
+/// next otherwise.
+fn set_periods(files: &mut [ScanFile], from_previous: bool) {
     let median = median_interval_us(files)
         .unwrap_or(1_000_000_000 / i64::from(NOMINAL_ROTATION_MHZ))
         .max(1);
-    let next: Vec<Option<i64>> = (0..files.len())
-        .map(|i| files.get(i + 1).map(|n| n.time_us))
+    let neighbour: Vec<Option<i64>> = (0..files.len())
+        .map(|i| {
+            let (Some(this), other) = (
+                files.get(i),
+                if from_previous {
+                    i.checked_sub(1).and_then(|j| files.get(j))
+                } else {
+                    files.get(i + 1)
+                },
+            ) else {
+                return None;
+            };
+            other.map(|o| (o.time_us - this.time_us).abs())
+        })
         .collect();
-    for (file, next) in files.iter_mut().zip(next) {
-        file.period_us = match next.map(|n| n - file.time_us) {
+    for (file, interval) in files.iter_mut().zip(neighbour) {
+        file.period_us = match interval {
             Some(d) if 2 * d >= median && 2 * d <= 3 * median => d,
             _ => median,
         };
@@ -422,10 +437,13 @@ mod tests {
             .into_iter()
             .map(file)
             .collect();
-        set_periods(&mut files);
+        set_periods(&mut files, false);
         let periods: Vec<i64> = files.iter().map(|f| f.period_us).collect();
         // Intervals 250000, 248000, 1002000, 251000: median 251000; the gap takes it.
         assert_eq!(periods, vec![250_000, 248_000, 251_000, 251_000, 251_000]);
+        set_periods(&mut files, true);
+        let periods: Vec<i64> = files.iter().map(|f| f.period_us).collect();
+        assert_eq!(periods, vec![251_000, 250_000, 248_000, 251_000, 251_000]);
     }
 
     #[test]

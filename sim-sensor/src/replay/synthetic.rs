@@ -163,13 +163,19 @@ impl SyntheticDrive {
         std::fs::write(dir.join("applanix").join("radar_poses.csv"), csv)
     }
 
+    /// The RADIATE index time (µs) of scan `k`: its last azimuth's.
+    pub fn radiate_scan_time_us(&self, k: usize) -> i64 {
+        self.azimuth_time_us(k, self.azimuths.saturating_sub(1))
+    }
+
     /// The Boreas file name (µs) of scan `k`.
     pub fn boreas_scan_time_us(&self, k: usize) -> i64 {
         self.azimuth_time_us(k, (self.azimuths / 2).saturating_sub(1))
     }
 
     /// Writes a RADIATE sequence folder: `Navtech_Polar/<frame:06>.png` (range rows x
-    /// azimuth columns), `Navtech_Polar.txt` (each scan's start), `GPS_IMU_Twist.txt` and
+    /// azimuth columns), `Navtech_Polar.txt` (each scan's arrival: its last azimuth's time,
+    /// [`SyntheticDrive::radiate_scan_time_us`]), `GPS_IMU_Twist.txt` and
     /// `GPS_IMU_Twist/<frame:06>.txt` at 20 Hz from half a second before the first scan to
     /// half a second after the last, each time written twice as RADIATE does (latitude and
     /// longitude about 55.9 N 3.3 W on line 1; north, east, down velocity on line 17).
@@ -193,7 +199,7 @@ impl SyntheticDrive {
             index.push_str(&format!(
                 "Frame: {:06} Time: {}\n",
                 k + 1,
-                seconds_text(self.azimuth_time_us(k, 0))
+                seconds_text(self.radiate_scan_time_us(k))
             ));
         }
         std::fs::write(dir.join("Navtech_Polar.txt"), index)?;
