@@ -31,6 +31,31 @@ pub struct EnuPose {
     pub time_us: i64,
     /// The pose.
     pub pose: Pose2,
+    /// East and north velocity (m/s).
+    pub velocity_en_mps: (f64, f64),
+}
+
+/// Speed above which a row's heading is compared with its direction of travel (m/s).
+pub const HEADING_CHECK_SPEED_MPS: f64 = 2.0;
+
+/// Of the rows faster than [`HEADING_CHECK_SPEED_MPS`], how many have a heading within 45
+/// degrees of their direction of travel, and how many there are. A forward-driving car's
+/// radar should agree in nearly all: when it does not, the heading convention read from
+/// the file is not the one pyboreas documents.
+pub fn heading_agreement(rows: &[EnuPose]) -> (usize, usize) {
+    let moving: Vec<&EnuPose> = rows
+        .iter()
+        .filter(|r| r.velocity_en_mps.0.hypot(r.velocity_en_mps.1) > HEADING_CHECK_SPEED_MPS)
+        .collect();
+    let agree = moving
+        .iter()
+        .filter(|r| {
+            let travel = r.velocity_en_mps.1.atan2(r.velocity_en_mps.0);
+            radar_model::geometry::wrap_angle(r.pose.theta - travel).abs()
+                < std::f64::consts::FRAC_PI_4
+        })
+        .count();
+    (agree, moving.len())
 }
 
 /// Heading (counter-clockwise from east) of the x axis of `roll(r) pitch(p) yaw(y)` in
@@ -96,6 +121,7 @@ pub fn read_radar_poses(path: &Path) -> Result<Vec<EnuPose>, TruthError> {
         out.push(EnuPose {
             time_us,
             pose: Pose2::new(num(1)?, num(2)?, heading),
+            velocity_en_mps: (num(4)?, num(5)?),
         });
     }
     Ok(out)
@@ -112,6 +138,15 @@ pub fn boreas_poses(
     scan_times_us: &[i64],
 ) -> Result<Vec<Pose2>, TruthError> {
     let mut world = Vec::with_capacity(scan_times_us.len());
+    let (agree, moving) = heading_agreement(rows);
+    if moving > 0 && 2 * agree < moving {
+        tracing::warn!(
+            file = %path.display(),
+            agree,
+            moving,
+            "the heading disagrees with the direction of travel in most moving rows: the radar's x axis may not point forward as assumed; the ground truth's heading is suspect"
+        );
+    }
     for &t in scan_times_us {
         let k = rows
             .binary_search_by(|r| r.time_us.cmp(&t))
@@ -152,11 +187,13 @@ mod tests {
             &path,
             "GPSTime,easting,northing,altitude,vel_east,vel_north,vel_up,roll,pitch,heading,angvel_z,angvel_y,angvel_x\n\
              1000000,100.0,50.0,0,10,0,0,3.141592653589793,0,0,0,0,0\n\
-             1250000,110.0,50.0,0,10,0,0,3.141592653589793,0,0.7853981633974483,0,0,0\n\
-             1500000,110.0,60.0,0,10,0,0,3.141592653589793,0,1.5707963267948966,0,0,0\n",
+             1250000,110.0,50.0,0,7,7,0,3.141592653589793,0,0.7853981633974483,0,0,0\n\
+             1500000,110.0,60.0,0,0,10,0,3.141592653589793,0,1.5707963267948966,0,0,0\n",
         )
         .unwrap();
         let rows = read_radar_poses(&path).unwrap();
+        // Every row drives along its heading.
+        assert_eq!(heading_agreement(&rows), (3, 3));
         let poses = boreas_poses(&path, &rows, &[1_000_000, 1_500_000]).unwrap();
         assert_eq!(poses.len(), 2);
         assert!((poses[1].x - 10.0).abs() < 1e-9 && (poses[1].y - 10.0).abs() < 1e-9);

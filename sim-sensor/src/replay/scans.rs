@@ -447,6 +447,18 @@ mod tests {
     }
 
     #[test]
+    fn damaged_scans_are_all_counted_but_warned_about_at_most_once_a_second() {
+        let damaged = DamagedScans::default();
+        let error = ReplayError::Empty(PathBuf::from("x"));
+        for _ in 0..5 {
+            damaged.record(&error);
+        }
+        assert_eq!(damaged.count(), 5);
+        let s = damaged.state.lock().unwrap();
+        assert_eq!(s.unreported, 4, "one WARN, four held back");
+    }
+
+    #[test]
     fn the_geometry_announces_its_bin_size_and_rate() {
         let g = ScanGeometry {
             azimuths: 400,
