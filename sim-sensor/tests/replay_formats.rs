@@ -186,9 +186,26 @@ fn a_folder_without_scans_or_with_a_scan_named_otherwise_is_refused_by_name() {
     let err = ScanSet::open(dir.path(), None).unwrap_err();
     assert!(matches!(err, ReplayError::Empty(_)), "{err}");
     assert!(err.to_string().contains("radar"), "{err}");
+    // Two names for the same time: out of order, naming the later file.
+    std::fs::write(dir.path().join("radar/1000000.png"), b"").unwrap();
+    std::fs::write(dir.path().join("radar/01000000.png"), b"").unwrap();
+    let err = ScanSet::open(dir.path(), None).unwrap_err();
+    assert!(
+        matches!(err, ReplayError::OutOfOrder { row: None, .. })
+            && err.to_string().contains("1000000.png"),
+        "{err}"
+    );
     std::fs::write(dir.path().join("radar/first.png"), b"").unwrap();
     let err = ScanSet::open(dir.path(), None).unwrap_err();
     assert!(err.to_string().contains("first.png"), "{err}");
+    // A RADIATE index without rows.
+    let radiate = tempfile::tempdir().unwrap();
+    std::fs::write(radiate.path().join("Navtech_Polar.txt"), "\n").unwrap();
+    let err = ScanSet::open(radiate.path(), None).unwrap_err();
+    assert!(
+        matches!(err, ReplayError::Empty(_)) && err.to_string().contains("Navtech_Polar"),
+        "{err}"
+    );
     let err = ScanSet::open(&dir.path().join("nothing"), Some(ReplayFormat::Radiate)).unwrap_err();
     assert!(err.to_string().contains("Navtech_Polar.txt"), "{err}");
 }
