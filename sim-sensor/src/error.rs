@@ -71,8 +71,9 @@ pub enum ReplayError {
         #[source]
         source: png::DecodingError,
     },
-    /// A PNG that is not in the Oxford/Boreas polar layout.
-    #[error("PNG {path} is not an Oxford/Boreas polar scan: {reason}")]
+    /// A PNG that is not a polar scan of the expected layout (Oxford/Boreas rows with
+    /// metadata columns, or RADIATE's range rows by azimuth columns).
+    #[error("PNG {path} is not a polar scan of the expected layout: {reason}")]
     Layout {
         /// The file.
         path: PathBuf,
@@ -82,6 +83,63 @@ pub enum ReplayError {
     /// A directory with no scans in it.
     #[error("no .png scans in {0}")]
     Empty(PathBuf),
+    /// A folder whose layout is none of the known data sets'.
+    #[error("{dir}: not a recording of a known layout ({looked_for}); name it with --replay-format oxford|boreas|radiate")]
+    UnknownFormat {
+        /// The folder.
+        dir: PathBuf,
+        /// What was looked for.
+        looked_for: String,
+    },
+    /// A folder that looks like more than one data set's layout.
+    #[error(
+        "{dir}: ambiguous layout, it looks like {candidates}; choose one with --replay-format"
+    )]
+    AmbiguousFormat {
+        /// The folder.
+        dir: PathBuf,
+        /// The layouts it matches.
+        candidates: String,
+    },
+    /// A scan whose file name is not its timestamp (Oxford, Boreas: microseconds).
+    #[error("{path}: a scan's file name must be its timestamp in microseconds")]
+    BadName {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A row of a scan index (RADIATE's `Navtech_Polar.txt`) that does not parse, or names
+    /// a scan that is not there.
+    #[error("{path}, row {row}: {reason}")]
+    IndexRow {
+        /// The index file.
+        path: PathBuf,
+        /// 1-based line number.
+        row: usize,
+        /// What is wrong.
+        reason: String,
+    },
+    /// Scan times that do not increase.
+    #[error("{path}{}: scan time {later_us} us comes after {earlier_us} us but is not later", row.map(|r| format!(", row {r}")).unwrap_or_default())]
+    OutOfOrder {
+        /// The scan (Oxford, Boreas) or index file (RADIATE).
+        path: PathBuf,
+        /// The index's 1-based line number, where there is one.
+        row: Option<usize>,
+        /// The earlier time (µs since the epoch).
+        earlier_us: i64,
+        /// The later time (µs since the epoch).
+        later_us: i64,
+    },
+    /// A file too large to be an index of scans.
+    #[error("{path}: {bytes} bytes is larger than the {limit} read")]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size.
+        bytes: u64,
+        /// The limit.
+        limit: u64,
+    },
     /// A raw Colossus stream without a configuration message before its first FFT frame.
     #[error("raw stream {path}: {reason}")]
     RawStream {

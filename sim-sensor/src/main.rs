@@ -60,9 +60,14 @@ struct Args {
     /// Serve no odometry.
     #[arg(long)]
     no_odometry: bool,
-    /// Replay a directory of Oxford/Boreas polar PNG scans instead of a scene.
+    /// Replay a recorded data set's polar PNG scans instead of a scene (Oxford, Boreas or
+    /// RADIATE layout; a folder of Oxford scans alone works too).
     #[arg(long, conflicts_with_all = ["scene", "replay_raw"])]
     replay_dir: Option<PathBuf>,
+    /// With --replay-dir: the layout, oxford, boreas or radiate (default: detected from the
+    /// folder's contents; a folder without a data set's marker file is read as Oxford scans).
+    #[arg(long, requires = "replay_dir", value_name = "oxford|boreas|radiate")]
+    replay_format: Option<sim_sensor::replay::ReplayFormat>,
     /// Replay a raw Colossus byte stream (e.g. from `radar-driver --record`).
     #[arg(long, conflicts_with = "scene")]
     replay_raw: Option<PathBuf>,
@@ -128,7 +133,16 @@ fn build_options(args: &Args) -> Result<SimOptions> {
         }
     }
     if let Some(dir) = &args.replay_dir {
-        options.source = SourceSpec::OxfordPng(dir.clone());
+        let format = args
+            .replay_format
+            .or_else(|| sim_sensor::replay::ReplayFormat::detect(dir).ok());
+        options.source = match format {
+            Some(format) => SourceSpec::PolarScans {
+                dir: dir.clone(),
+                format: Some(format),
+            },
+            None => SourceSpec::OxfordPng(dir.clone()),
+        };
     }
     if let Some(path) = &args.replay_raw {
         options.source = SourceSpec::RawStream(path.clone());

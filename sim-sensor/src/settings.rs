@@ -38,8 +38,17 @@ impl From<config::sim::Pacing> for Pacing {
 pub enum SourceSpec {
     /// Spectra rendered from a scene.
     Scene(Box<Scene>),
-    /// A directory of Oxford/Boreas polar PNG scans, served in file-name order.
+    /// A directory of Oxford polar PNG scans (or a data set folder with a `radar/` of
+    /// them), served in time order: as `PolarScans` with the Oxford layout.
     OxfordPng(PathBuf),
+    /// A recorded data set's polar scans in its own layout (`None`: detected from the
+    /// folder's contents, see [`crate::replay::ReplayFormat::detect`]).
+    PolarScans {
+        /// The data set's folder.
+        dir: PathBuf,
+        /// Its layout.
+        format: Option<crate::replay::ReplayFormat>,
+    },
     /// A raw Colossus byte stream recorded from a radar (or by the driver): its first
     /// configuration is announced and its FFT frames re-served.
     RawStream(PathBuf),

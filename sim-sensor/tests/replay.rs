@@ -77,9 +77,21 @@ async fn replaying_the_oxford_scans_reproduces_every_bin_encoder_and_timestamp()
         ),
         (400, 438, 3768, 5600)
     );
+    // The rotation rate is the recording's own: its median interval between scans.
+    let mut intervals: Vec<i64> = files
+        .windows(2)
+        .map(|w| {
+            let us =
+                |p: &PathBuf| -> i64 { p.file_stem().unwrap().to_str().unwrap().parse().unwrap() };
+            us(&w[1]) - us(&w[0])
+        })
+        .collect();
+    intervals.sort_unstable();
+    let rotation_mhz = (1e9 / intervals[intervals.len() / 2] as f64).round() as u16;
+    assert!((3900..4100).contains(&rotation_mhz), "{rotation_mhz}");
     assert_eq!(
         (config.rotation_speed_millihertz, config.packet_rate),
-        (4000, 1600)
+        (rotation_mhz, (400 * u32::from(rotation_mhz) / 1000) as u16)
     );
     client.send(Message::StartFftData).await;
     let mut served = 0usize;

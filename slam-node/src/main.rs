@@ -54,12 +54,19 @@ struct Args {
     /// (repeatable); default: the beam with the most mapped features, every 25 rotations.
     #[arg(long = "spectrum-bearing")]
     spectrum_bearings: Vec<f64>,
-    /// Replay a folder of recorded Oxford Radar RobotCar polar scans (its `radar/*.png` and
-    /// `radar_odometry.csv`) through the simulator's server, the driver and the daemon, with
-    /// odometry made from the ground truth (see the --odometry-* options).
+    /// Replay a folder of recorded polar scans (Oxford Radar RobotCar: `radar/*.png` and
+    /// `radar_odometry.csv`; Boreas: `radar/*.png` and `applanix/radar_poses.csv`; RADIATE:
+    /// `Navtech_Polar/`, `Navtech_Polar.txt` and `GPS_IMU_Twist*`) through the simulator's
+    /// server, the driver and the daemon, with odometry made from the ground truth (see the
+    /// --odometry-* options).
     #[cfg(feature = "sim")]
     #[arg(long, conflicts_with = "scene")]
     replay_dir: Option<PathBuf>,
+    /// With --replay-dir: the folder's layout, oxford, boreas or radiate (default: detected
+    /// from its contents).
+    #[cfg(feature = "sim")]
+    #[arg(long, requires = "replay_dir", value_name = "oxford|boreas|radiate")]
+    replay_format: Option<sim_sensor::replay::ReplayFormat>,
     /// With --replay-dir: the odometry reads this factor times the true speed.
     #[cfg(feature = "sim")]
     #[arg(long, default_value_t = 1.0, requires = "replay_dir")]
@@ -257,7 +264,7 @@ fn recorded(args: &Args) -> anyhow::Result<Option<slam_node::daemon::RecordedRep
     };
     if !dir.is_dir() {
         anyhow::bail!(
-            "--replay-dir {}: no such folder (the Oxford scans are read from ../shared/data/oxford-radar-robotcar)",
+            "--replay-dir {}: no such folder (the Oxford scans are at ../shared/data/oxford-radar-robotcar)",
             dir.display()
         );
     }
@@ -286,6 +293,7 @@ fn recorded(args: &Args) -> anyhow::Result<Option<slam_node::daemon::RecordedRep
     }
     Ok(Some(slam_node::daemon::RecordedReplay {
         dir: dir.clone(),
+        format: args.replay_format,
         errors,
     }))
 }

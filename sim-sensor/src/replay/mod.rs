@@ -1,7 +1,17 @@
-//! Replaying recordings over the protocol: Oxford/Boreas polar PNG scans ([`png`]) and raw
-//! Colossus byte streams ([`raw`]). Both keep the recording's own encoder values and
-//! timestamps.
+//! Replaying recordings over the protocol: polar PNG scans of the Oxford Radar RobotCar,
+//! Boreas and RADIATE data sets ([`format`], [`scans`], [`png`], [`radiate`]) and raw
+//! Colossus byte streams ([`raw`]), with the data sets' ground truth ([`truth`],
+//! [`boreas`], [`radiate`]). Oxford and Boreas scans keep their recorded encoder values and
+//! timestamps; RADIATE's are made from the azimuth column and the scan times.
 
+pub mod boreas;
+pub mod format;
 pub mod png;
+pub mod radiate;
 pub mod raw;
+pub mod scans;
+pub mod synthetic;
 pub mod truth;
+
+pub use format::ReplayFormat;
+pub use scans::{ScanGeometry, ScanRecording, ScanSet};

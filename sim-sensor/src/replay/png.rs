@@ -1,6 +1,7 @@
 //! Oxford Radar RobotCar / Boreas polar scans stored as PNG images.
 //!
-//! Layout (8-bit grayscale, one row per azimuth):
+//! Layout (8-bit grayscale, one row per azimuth; pyboreas' `load_radar` reads Boreas' the
+//! same way, and Boreas leaves column 10 unused):
 //!
 //! | columns | content |
 //! |---|---|
@@ -11,9 +12,9 @@
 //!
 //! Reading is blocking file IO (call it from `spawn_blocking` in async code).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use protocol::{Configuration, ConfigurationData, Timestamp};
+use protocol::Timestamp;
 
 use crate::error::ReplayError;
 
@@ -140,79 +141,6 @@ pub fn read_polar_png(path: &Path) -> Result<PolarScan, ReplayError> {
         source,
     })?;
     decode_polar_png(&bytes, path)
-}
-
-/// A directory of polar scans, in file-name order (Oxford names files by timestamp).
-#[derive(Debug, Clone)]
-pub struct PngRecording {
-    /// The scans.
-    pub files: Vec<PathBuf>,
-    /// Azimuth rows per scan (from the first file).
-    pub azimuths: u16,
-    /// Bins per row (from the first file).
-    pub bins: u16,
-}
-
-impl PngRecording {
-    /// Bin size of a CTS350-X as the Oxford data set states it, in tenths of a millimetre.
-    pub const BIN_SIZE_TENTH_MM: u16 = 438;
-    /// Encoder counts per revolution of a CTS350-X.
-    pub const ENCODER_SIZE: u16 = 5600;
-    /// Rotation rate of a CTS350-X, millihertz.
-    pub const ROTATION_MHZ: u16 = 4000;
-
-    /// Lists `dir`'s `.png` files and reads the first to learn the dimensions.
-    pub fn open(dir: &Path) -> Result<PngRecording, ReplayError> {
-        let io = |source| ReplayError::Io {
-            path: dir.to_path_buf(),
-            source,
-        };
-        let mut files = Vec::new();
-        for entry in std::fs::read_dir(dir).map_err(io)? {
-            let path = entry.map_err(io)?.path();
-            if path
-                .extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("png"))
-            {
-                files.push(path);
-            }
-        }
-        files.sort();
-        let first = files
-            .first()
-            .ok_or_else(|| ReplayError::Empty(dir.to_path_buf()))?;
-        let scan = read_polar_png(first)?;
-        let azimuths = u16::try_from(scan.rows.len()).map_err(|_| ReplayError::Layout {
-            path: first.clone(),
-            reason: "too many rows".into(),
-        })?;
-        let bins = u16::try_from(scan.bins).map_err(|_| ReplayError::Layout {
-            path: first.clone(),
-            reason: "too many bins".into(),
-        })?;
-        Ok(PngRecording {
-            files,
-            azimuths,
-            bins,
-        })
-    }
-
-    /// The configuration a CTS350-X with these dimensions announces: `azimuths` per
-    /// rotation, `bins` of 0.0438 m, encoder 5600, 4 Hz, 8-bit data.
-    pub fn configuration(&self) -> Configuration {
-        let rate = u32::from(self.azimuths) * u32::from(Self::ROTATION_MHZ) / 1000;
-        Configuration {
-            azimuth_samples: self.azimuths,
-            bin_size: Self::BIN_SIZE_TENTH_MM,
-            range_in_bins: self.bins,
-            encoder_size: Self::ENCODER_SIZE,
-            rotation_speed_millihertz: Self::ROTATION_MHZ,
-            packet_rate: u16::try_from(rate).unwrap_or(u16::MAX),
-            range_gain: 1.0,
-            range_offset_m: 0.0,
-            data: ConfigurationData::minimal(8, f32::from(Self::BIN_SIZE_TENTH_MM) / 10_000.0),
-        }
-    }
 }
 
 #[cfg(test)]

@@ -1,8 +1,9 @@
-//! Ground truth that comes with recorded scans: the Oxford Radar RobotCar's
-//! `radar_odometry.csv` (each row: the pose of the scan at `source_radar_timestamp` in the
-//! frame of the scan at `destination_radar_timestamp`; x forward, y right, yaw clockwise),
-//! chained into poses in the first scan's frame (x forward, y left, heading
-//! counter-clockwise), one per scan. No IO beyond reading the one file.
+//! Ground truth that comes with recorded scans. Oxford Radar RobotCar: `radar_odometry.csv`
+//! (each row: the pose of the scan at `source_radar_timestamp` in the frame of the scan at
+//! `destination_radar_timestamp`; x forward, y right, yaw clockwise), chained into poses in
+//! the first scan's frame (x forward, y left, heading counter-clockwise), one per scan.
+//! Boreas ([`super::boreas`]) and RADIATE ([`super::radiate`]) give absolute poses, which
+//! [`relative_to_first`] puts in the same frame. No IO beyond reading the files named.
 
 use std::path::{Path, PathBuf};
 
@@ -41,6 +42,28 @@ pub enum TruthError {
         /// What is wrong.
         reason: String,
     },
+    /// Rows whose times do not increase.
+    #[error("{path}, row {row}: time {later_us} us comes after {earlier_us} us but is not later")]
+    OutOfOrder {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number of the later row.
+        row: usize,
+        /// The earlier row's time (µs).
+        earlier_us: i64,
+        /// The later row's time (µs).
+        later_us: i64,
+    },
+    /// No pose for a scan.
+    #[error("{path}: no pose for the scan at {scan_us} us: {reason}")]
+    NoPose {
+        /// The ground-truth file.
+        path: PathBuf,
+        /// The scan's time (µs).
+        scan_us: i64,
+        /// Why.
+        reason: String,
+    },
     /// No row links a scan to the one before it.
     #[error("{path}: no row gives scan {to_us} relative to scan {from_us}")]
     Missing {
@@ -74,8 +97,28 @@ pub fn compose(a: &Pose2, b: &Pose2) -> Pose2 {
     )
 }
 
-/// Parses `radar_odometry.csv` (header line first; ten comma-separated fields a row).
-pub fn read_oxford_odometry(path: &Path) -> Result<Vec<RelativePose>, TruthError> {
+/// `b` in the frame of `a` (both in the same world frame).
+pub fn between(a: &Pose2, b: &Pose2) -> Pose2 {
+    let (s, c) = a.theta.sin_cos();
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    Pose2::new(
+        c * dx + s * dy,
+        -s * dx + c * dy,
+        wrap_angle(b.theta - a.theta),
+    )
+}
+
+/// World poses (x east, y north, heading counter-clockwise from east) put in the frame of
+/// the first: x forward, y left, heading counter-clockwise, as the chained Oxford poses.
+pub fn relative_to_first(world: &[Pose2]) -> Vec<Pose2> {
+    let Some(first) = world.first().copied() else {
+        return Vec::new();
+    };
+    world.iter().map(|p| between(&first, p)).collect()
+}
+
+/// Reads a ground-truth file of at most [`MAX_TRUTH_BYTES`].
+pub(crate) fn read_text(path: &Path) -> Result<String, TruthError> {
     let io = |source| TruthError::Io {
         path: path.to_path_buf(),
         source,
@@ -87,7 +130,12 @@ pub fn read_oxford_odometry(path: &Path) -> Result<Vec<RelativePose>, TruthError
             bytes,
         });
     }
-    let text = std::fs::read_to_string(path).map_err(io)?;
+    std::fs::read_to_string(path).map_err(io)
+}
+
+/// Parses `radar_odometry.csv` (header line first; ten comma-separated fields a row).
+pub fn read_oxford_odometry(path: &Path) -> Result<Vec<RelativePose>, TruthError> {
+    let text = read_text(path)?;
     let mut out = Vec::new();
     for (i, line) in text.lines().enumerate().skip(1) {
         if line.trim().is_empty() {

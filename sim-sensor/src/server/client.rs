@@ -206,7 +206,7 @@ impl Writer {
                         contoured = c;
                         started = true;
                         if stream.is_none() {
-                            stream = Some(AzimuthStream::open(&self.world).await?);
+                            stream = Some(AzimuthStream::open(&self.world, &self.stats).await?);
                         }
                     }
                     Some(Command::Contour(update)) => shaping.set_contour(update),

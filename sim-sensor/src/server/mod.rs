@@ -25,8 +25,8 @@ use world::{configuration_of, Source, World};
 use crate::error::{ClientError, SimError};
 use crate::faults::FaultInjector;
 use crate::render::SceneRenderer;
-use crate::replay::png::PngRecording;
 use crate::replay::raw::RawRecording;
+use crate::replay::{ReplayFormat, ScanRecording};
 use crate::settings::{SimOptions, SourceSpec};
 use crate::{odometry, truth};
 
@@ -47,6 +47,8 @@ pub struct SimStats {
     pub azimuths_skipped: AtomicU64,
     /// Bytes written to radar clients.
     pub bytes_sent: AtomicU64,
+    /// Recorded scans skipped because they could not be read or had the wrong shape.
+    pub scans_skipped: AtomicU64,
 }
 
 /// A copy of [`SimStats`] at one moment.
@@ -66,6 +68,8 @@ pub struct SimStatsSnapshot {
     pub azimuths_skipped: u64,
     /// See [`SimStats::bytes_sent`].
     pub bytes_sent: u64,
+    /// See [`SimStats::scans_skipped`].
+    pub scans_skipped: u64,
 }
 
 impl SimStats {
@@ -80,6 +84,7 @@ impl SimStats {
             azimuths_sent: get(&self.azimuths_sent),
             azimuths_skipped: get(&self.azimuths_skipped),
             bytes_sent: get(&self.bytes_sent),
+            scans_skipped: get(&self.scans_skipped),
         }
     }
 }
@@ -120,11 +125,16 @@ impl SimServer {
                 let configuration = configuration_of(&scene.radar);
                 (Source::Scene(Arc::new(renderer)), configuration, start)
             }
-            SourceSpec::OxfordPng(dir) => {
+            SourceSpec::OxfordPng(dir) | SourceSpec::PolarScans { dir, .. } => {
+                let format = match &options.source {
+                    SourceSpec::PolarScans { format, .. } => *format,
+                    _ => Some(ReplayFormat::Oxford),
+                };
                 let dir = dir.clone();
-                let recording = tokio::task::spawn_blocking(move || PngRecording::open(&dir))
-                    .await
-                    .map_err(|e| SimError::Task(e.to_string()))??;
+                let recording =
+                    tokio::task::spawn_blocking(move || ScanRecording::open(&dir, format))
+                        .await
+                        .map_err(|e| SimError::Task(e.to_string()))??;
                 let configuration = recording.configuration();
                 (Source::Png(Arc::new(recording)), configuration, None)
             }

@@ -8,10 +8,12 @@ use bytes::BytesMut;
 use protocol::{encode_fft_frame, BinWidth, Message, Timestamp};
 
 use super::world::{Source, World};
-use crate::error::{ClientError, ReplayError};
+use super::SimStats;
+use crate::error::ClientError;
 use crate::render::RenderCursor;
-use crate::replay::png::{read_polar_png, PngRecording, PolarScan};
+use crate::replay::png::PolarScan;
 use crate::replay::raw::{RawReader, RawRecording};
+use crate::replay::ScanRecording;
 use crate::settings::Pacing;
 
 /// Largest gap between two recorded timestamps that a real-time replay waits out.
@@ -50,11 +52,15 @@ pub(crate) struct SceneStream {
 
 pub(crate) struct PngStream {
     world: Arc<World>,
-    recording: Arc<PngRecording>,
+    stats: Arc<SimStats>,
+    recording: Arc<ScanRecording>,
     file: usize,
     scan: Option<PolarScan>,
     row: usize,
     produced: u64,
+    /// Azimuths produced since the recording last started over (a looping replay whose
+    /// every scan is damaged ends instead of spinning).
+    produced_this_pass: u64,
     sweep: u16,
     pacer: ReplayPacer,
 }
@@ -109,7 +115,10 @@ pub(crate) fn wire_timestamp(unix_ns: u64) -> Timestamp {
 
 impl AzimuthStream {
     /// A new stream positioned at "now" (scenes) or at the start (recordings).
-    pub(crate) async fn open(world: &Arc<World>) -> Result<AzimuthStream, ClientError> {
+    pub(crate) async fn open(
+        world: &Arc<World>,
+        stats: &Arc<SimStats>,
+    ) -> Result<AzimuthStream, ClientError> {
         Ok(match &world.source {
             Source::Scene(renderer) => AzimuthStream::Scene(SceneStream {
                 world: Arc::clone(world),
@@ -118,11 +127,13 @@ impl AzimuthStream {
             }),
             Source::Png(recording) => AzimuthStream::Png(PngStream {
                 world: Arc::clone(world),
+                stats: Arc::clone(stats),
                 recording: Arc::clone(recording),
                 file: 0,
                 scan: None,
                 row: 0,
                 produced: 0,
+                produced_this_pass: 0,
                 sweep: 0,
                 pacer: ReplayPacer::default(),
             }),
@@ -207,20 +218,33 @@ impl PngStream {
     ) -> Result<Option<Produced>, ClientError> {
         loop {
             if self.scan.is_none() {
-                if self.file >= self.recording.files.len() {
-                    if !self.world.replay_loop || self.recording.files.is_empty() {
+                if self.file >= self.recording.scans.files.len() {
+                    if !self.world.replay_loop || self.produced_this_pass == 0 {
                         return Ok(None);
                     }
                     self.file = 0;
+                    self.produced_this_pass = 0;
                 }
-                let Some(path) = self.recording.files.get(self.file).cloned() else {
-                    return Ok(None);
-                };
-                let scan = tokio::task::spawn_blocking(move || read_polar_png(&path))
+                let recording = Arc::clone(&self.recording);
+                let index = self.file;
+                let read = tokio::task::spawn_blocking(move || recording.read(index))
                     .await
-                    .map_err(|e| ClientError::Internal(format!("PNG reader task: {e}")))??;
-                self.scan = Some(scan);
-                self.row = 0;
+                    .map_err(|e| ClientError::Internal(format!("scan reader task: {e}")))?;
+                match read {
+                    Ok(scan) => {
+                        self.scan = Some(scan);
+                        self.row = 0;
+                    }
+                    Err(error) => {
+                        // A damaged scan costs that scan only.
+                        self.stats
+                            .scans_skipped
+                            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        self.recording.damaged.record(&error);
+                        self.file += 1;
+                        continue;
+                    }
+                }
             }
             let Some(scan) = &self.scan else { continue };
             let Some(row) = scan.rows.get(self.row) else {
@@ -232,17 +256,13 @@ impl PngStream {
             if !row.valid {
                 continue;
             }
-            let path = self
-                .recording
-                .files
-                .get(self.file)
-                .cloned()
-                .unwrap_or_default();
-            let timestamp = row
-                .wire_timestamp()
-                .map_err(|reason| ReplayError::Layout { path, reason })?;
+            // Checked by `ScanRecording::read`.
+            let Ok(timestamp) = row.wire_timestamp() else {
+                continue;
+            };
             let due = self.pacer.due(self.world.pacing, timestamp_ns(timestamp));
             self.produced += 1;
+            self.produced_this_pass += 1;
             let sweep = self.sweep;
             self.sweep = self.sweep.wrapping_add(1);
             if !skip {

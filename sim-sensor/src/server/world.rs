@@ -15,15 +15,15 @@ use protocol::Configuration;
 
 use crate::radar::RadarParams;
 use crate::render::{offset_ns, SceneRenderer};
-use crate::replay::png::PngRecording;
 use crate::replay::raw::RawRecording;
+use crate::replay::ScanRecording;
 use crate::settings::Pacing;
 
 /// What the world streams.
 #[derive(Debug)]
 pub(crate) enum Source {
     Scene(Arc<SceneRenderer>),
-    Png(Arc<PngRecording>),
+    Png(Arc<ScanRecording>),
     Raw(Arc<RawRecording>),
 }
 

@@ -14,7 +14,8 @@ use sim_sensor::{SimHandle, SimOptions, SimServer};
 use tracing::info;
 
 use super::replay::{
-    recorded_settings, MemoryOdometry, OdometryErrors, RecordedTruth, ReplayFigures, OXFORD_BIN_M,
+    recorded_settings_for, MemoryOdometry, OdometryErrors, RecordedTruth, ReplayError,
+    ReplayFigures,
 };
 use super::{sink, DaemonError};
 use crate::output::figures::TruthOverlay;
@@ -163,8 +164,12 @@ pub(super) async fn start(
 /// Recorded scans to replay through the simulator, with their ground truth.
 #[derive(Debug, Clone)]
 pub struct RecordedReplay {
-    /// The data set's folder (its `radar/` scans and `radar_odometry.csv`).
+    /// The data set's folder (Oxford: `radar/` and `radar_odometry.csv`; Boreas: `radar/`
+    /// and `applanix/radar_poses.csv`; RADIATE: `Navtech_Polar/`, `Navtech_Polar.txt` and
+    /// `GPS_IMU_Twist*`).
     pub dir: std::path::PathBuf,
+    /// Its layout (`None`: detected from the folder's contents).
+    pub format: Option<sim_sensor::replay::ReplayFormat>,
     /// The errors put on the ground truth's motion to make the odometry.
     pub errors: OdometryErrors,
 }
@@ -177,18 +182,33 @@ pub(super) async fn start_replay(
     settings: PipelineSettings,
     mut driver_settings: DriverSettings,
 ) -> Result<Started, DaemonError> {
-    let truth = RecordedTruth::read_oxford(&recorded.dir)?;
-    let scan_dir = RecordedTruth::scan_dir(&recorded.dir);
-    let recording = sim_sensor::replay::png::PngRecording::open(&scan_dir)
-        .map_err(sim_sensor::SimError::from)?;
-    let max_range_m = f64::from(recording.bins) * OXFORD_BIN_M;
-    options.source = sim_sensor::settings::SourceSpec::OxfordPng(scan_dir.clone());
+    let scans = sim_sensor::replay::ScanSet::open(&recorded.dir, recorded.format)
+        .map_err(ReplayError::from)?;
+    let truth = RecordedTruth::read(&scans)?;
+    let (format, scan_dir) = (scans.format, scans.scan_dir.clone());
+    let recording =
+        sim_sensor::replay::ScanRecording::from_scans(scans).map_err(ReplayError::from)?;
+    let geometry = recording.geometry;
+    info!(
+        %format,
+        scans = recording.scans.files.len(),
+        azimuths = geometry.azimuths,
+        bins = geometry.bins,
+        bin_m = geometry.bin_size_m,
+        rotation_mhz = geometry.rotation_mhz,
+        "recorded scans"
+    );
+    options.source = sim_sensor::settings::SourceSpec::PolarScans {
+        dir: recorded.dir.clone(),
+        format: Some(format),
+    };
     options.odometry_bind = None;
     options.ground_truth_path = None;
     options.start_time_ns = None;
-    let settings = recorded_settings(settings, max_range_m);
+    let settings = recorded_settings_for(settings, geometry.max_range_m(), geometry.bin_size_m);
     let samples = truth.odometry(&recorded.errors);
-    let figures = ReplayFigures::new(&truth, &samples, recorded.errors);
+    let mut figures = ReplayFigures::new(&truth, &samples, recorded.errors);
+    figures.format = Some(format);
     let start_time_s = truth.times_s().first().copied();
     let truth_overlay = TruthOverlay {
         features: Vec::new(),
@@ -209,7 +229,7 @@ pub(super) async fn start_replay(
         settings,
         start_time_s,
         truth_overlay,
-        scene_name: format!("recorded scans in {}", scan_dir.display()),
+        scene_name: format!("recorded {format} scans in {}", scan_dir.display()),
         pipeline,
         handle,
         azimuths,

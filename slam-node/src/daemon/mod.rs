@@ -259,6 +259,9 @@ pub async fn run_daemon(
     odo_trigger.trigger();
     #[cfg(feature = "sim")]
     if let Some(h) = sim_handle {
+        if let Some(figures) = replay_figures.as_mut() {
+            figures.scans_skipped = h.stats().scans_skipped;
+        }
         if let Err(e) = h.shutdown().await {
             warn!(error = %e, "simulator shutdown");
         }

@@ -1,8 +1,9 @@
 //! Real recorded scans through the real path (the `sim` feature): the simulator replays a
-//! folder of Oxford Radar RobotCar polar scans over TCP on 127.0.0.1, the radar driver reads
-//! them, the daemon maps; its odometry is made from the data set's ground truth with a
-//! stated, seeded noise and bias, and its pose is scored against the ground truth and
-//! against dead reckoning with the same odometry.
+//! folder of polar scans (Oxford Radar RobotCar, Boreas or RADIATE, see
+//! `sim_sensor::replay::format`) over TCP on 127.0.0.1, the radar driver reads them, the
+//! daemon maps; its odometry is made from the data set's ground truth with a stated, seeded
+//! noise and bias, and its pose is scored against the ground truth and against dead
+//! reckoning with the same odometry.
 
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -15,7 +16,10 @@ use radar_model::motion::MotionModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
+use sim_sensor::replay::boreas::{boreas_poses, read_radar_poses};
+use sim_sensor::replay::radiate::radiate_poses;
 use sim_sensor::replay::truth::{chain_poses, compose, read_oxford_odometry, TruthError};
+use sim_sensor::replay::{ReplayFormat, ScanSet};
 use slam_filter::{OdometrySample, ProcessModel};
 
 use crate::pipeline::{PipelineSettings, TrueFeature, TruthOracle};
@@ -59,21 +63,10 @@ impl Default for OdometryErrors {
 /// Why a replay could not be set up.
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
-    /// The folder's scans could not be listed.
-    #[error("listing the scans in {path}")]
-    List {
-        /// The folder.
-        path: PathBuf,
-        /// The OS error.
-        #[source]
-        source: std::io::Error,
-    },
-    /// A scan's file name is not its timestamp in microseconds.
-    #[error("{path}: a scan's file name must be its timestamp in microseconds")]
-    BadName {
-        /// The file.
-        path: PathBuf,
-    },
+    /// The scans could not be listed or read (unknown layout, no scans, bad names, times
+    /// out of order, a first scan of the wrong shape).
+    #[error(transparent)]
+    Scans(#[from] sim_sensor::ReplayError),
     /// Fewer than two scans.
     #[error("{path}: {count} scans; a replay needs at least two")]
     TooFew {
@@ -81,16 +74,6 @@ pub enum ReplayError {
         path: PathBuf,
         /// How many.
         count: usize,
-    },
-    /// Scans out of time order.
-    #[error("{path}: scan {later_us} comes after {earlier_us} but is not later")]
-    OutOfOrder {
-        /// The folder.
-        path: PathBuf,
-        /// The earlier file's timestamp.
-        earlier_us: i64,
-        /// The later file's timestamp.
-        later_us: i64,
     },
     /// The ground truth could not be read.
     #[error("ground truth")]
@@ -106,51 +89,36 @@ pub struct RecordedTruth {
 }
 
 impl RecordedTruth {
-    /// Reads `dir`'s scan names (`<µs>.png`) and `radar_odometry.csv`.
+    /// Reads an Oxford folder's scan names (`radar/<µs>.png`) and `radar_odometry.csv`.
     pub fn read_oxford(dir: &Path) -> Result<Self, ReplayError> {
-        let list = |source| ReplayError::List {
-            path: dir.to_path_buf(),
-            source,
-        };
-        let scans = dir.join("radar");
-        let scan_dir = if scans.is_dir() {
-            scans
-        } else {
-            dir.to_path_buf()
-        };
-        let mut times_us = Vec::new();
-        for entry in std::fs::read_dir(&scan_dir).map_err(list)? {
-            let path = entry.map_err(list)?.path();
-            if !path
-                .extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("png"))
-            {
-                continue;
-            }
-            let us = path
-                .file_stem()
-                .and_then(|s| s.to_str())
-                .and_then(|s| s.parse::<i64>().ok())
-                .ok_or_else(|| ReplayError::BadName { path: path.clone() })?;
-            times_us.push(us);
-        }
-        times_us.sort_unstable();
+        Self::read(&ScanSet::open(dir, Some(ReplayFormat::Oxford))?)
+    }
+
+    /// The ground truth of `scans`, one pose per scan in the first scan's frame. Oxford:
+    /// `radar_odometry.csv` chained; Boreas: `applanix/radar_poses.csv`, the row of each
+    /// scan's time; RADIATE: GPS fixes and course over ground from `GPS_IMU_Twist`,
+    /// interpolated to the scan times.
+    pub fn read(scans: &ScanSet) -> Result<Self, ReplayError> {
+        let times_us = scans.times_us();
         if times_us.len() < 2 {
             return Err(ReplayError::TooFew {
-                path: scan_dir,
+                path: scans.scan_dir.clone(),
                 count: times_us.len(),
             });
         }
-        if let Some(w) = times_us.windows(2).find(|w| w[1] <= w[0]) {
-            return Err(ReplayError::OutOfOrder {
-                path: scan_dir,
-                earlier_us: w[0],
-                later_us: w[1],
-            });
-        }
-        let csv = dir.join("radar_odometry.csv");
-        let rows = read_oxford_odometry(&csv)?;
-        let poses = chain_poses(&csv, &rows, &times_us)?;
+        let poses = match scans.format {
+            ReplayFormat::Oxford => {
+                let csv = scans.dir.join("radar_odometry.csv");
+                let rows = read_oxford_odometry(&csv)?;
+                chain_poses(&csv, &rows, &times_us)?
+            }
+            ReplayFormat::Boreas => {
+                let csv = scans.dir.join("applanix").join("radar_poses.csv");
+                let rows = read_radar_poses(&csv)?;
+                boreas_poses(&csv, &rows, &times_us)?
+            }
+            ReplayFormat::Radiate => radiate_poses(&scans.dir, &times_us)?,
+        };
         Ok(Self {
             times_s: times_us.iter().map(|&us| us as f64 * 1e-6).collect(),
             poses,
@@ -166,14 +134,9 @@ impl RecordedTruth {
         ok.then_some(Self { times_s, poses })
     }
 
-    /// The folder of scans to replay for `dir` (its `radar/` subfolder when there is one).
-    pub fn scan_dir(dir: &Path) -> PathBuf {
-        let scans = dir.join("radar");
-        if scans.is_dir() {
-            scans
-        } else {
-            dir.to_path_buf()
-        }
+    /// Poses at the scan times (the first scan's frame).
+    pub fn poses(&self) -> &[Pose2] {
+        &self.poses
     }
 
     /// Scan times (s).
@@ -339,20 +302,31 @@ impl OdometrySource for MemoryOdometry {
     }
 }
 
-/// The daemon's settings for a CTS350-X's recorded scans: the unit's beam and bins, the
-/// bicycle model the odometry was made with.
-pub fn recorded_settings(mut settings: PipelineSettings, max_range_m: f64) -> PipelineSettings {
+/// The daemon's settings for a CTS350-X's recorded Oxford scans ([`recorded_settings_for`]
+/// with [`OXFORD_BIN_M`]).
+pub fn recorded_settings(settings: PipelineSettings, max_range_m: f64) -> PipelineSettings {
+    recorded_settings_for(settings, max_range_m, OXFORD_BIN_M)
+}
+
+/// The daemon's settings for a Navtech unit's recorded scans: its 1.8-degree beam (the
+/// CTS350-X of Oxford and RADIATE, the CIR204-H of Boreas), bins of `bin_m`, the bicycle
+/// model the odometry was made with.
+pub fn recorded_settings_for(
+    mut settings: PipelineSettings,
+    max_range_m: f64,
+    bin_m: f64,
+) -> PipelineSettings {
     settings.motion = MotionModel::Bicycle {
         wheelbase_m: WHEELBASE_M,
     };
     settings.beam_width_rad = CTS350X_BEAM_WIDTH_RAD;
     settings.filter.beam_half_width_rad = 0.5 * CTS350X_BEAM_WIDTH_RAD;
-    settings.noise.range.resolution_fwhm_m = OXFORD_BIN_M;
-    settings.power.range_resolution_m = OXFORD_BIN_M;
+    settings.noise.range.resolution_fwhm_m = bin_m;
+    settings.power.range_resolution_m = bin_m;
     settings.filter.max_range_m = settings.filter.max_range_m.min(max_range_m);
     settings.detector.max_range_m = settings.detector.max_range_m.min(max_range_m);
     if settings.filter.repeat_look_range_m > 0.0 && settings.filter.repeat_look_bearing_rad > 0.0 {
-        settings.filter.repeat_look_range_m = OXFORD_BIN_M;
+        settings.filter.repeat_look_range_m = bin_m;
         settings.filter.repeat_look_bearing_rad = CTS350X_BEAM_WIDTH_RAD;
     }
     settings.initial_pose_std = [1e-3, 1e-3, 1e-4];
@@ -380,6 +354,12 @@ pub struct ReplayFigures {
     pub dead_reckoning_rms_m: f64,
     /// Dead reckoning's final position error (m).
     pub dead_reckoning_final_m: f64,
+    /// The data set's layout.
+    pub format: Option<ReplayFormat>,
+    /// Scans in the recording.
+    pub scans: usize,
+    /// Scans the simulator skipped as damaged.
+    pub scans_skipped: u64,
 }
 
 impl ReplayFigures {
@@ -396,6 +376,9 @@ impl ReplayFigures {
             distance_m: truth.distance_m(),
             dead_reckoning_rms_m: rms,
             dead_reckoning_final_m: e.last().copied().unwrap_or(0.0),
+            format: None,
+            scans: truth.times_s().len(),
+            scans_skipped: 0,
         }
     }
 }
@@ -453,7 +436,10 @@ mod tests {
     fn bad_folders_are_refused_naming_the_file() {
         let empty = folder(&[], "");
         let err = RecordedTruth::read_oxford(empty.path()).unwrap_err();
-        assert!(err.to_string().contains("0 scans"), "{err}");
+        assert!(err.to_string().contains("no .png scans"), "{err}");
+        let one = folder(&[1_000_000], "");
+        let err = RecordedTruth::read_oxford(one.path()).unwrap_err();
+        assert!(err.to_string().contains("1 scans"), "{err}");
         let missing = folder(&[1_000_000, 1_250_000], "0,0,2.0,0,0,0,0,0,9,8\n");
         let err = RecordedTruth::read_oxford(missing.path()).unwrap_err();
         let text = format!("{err}: {}", std::error::Error::source(&err).unwrap());

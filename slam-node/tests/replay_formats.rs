@@ -1,0 +1,164 @@
+//! Boreas and RADIATE folders through the real path: small synthetic folders laid out as the
+//! real data sets are (no such data is on this machine) replayed by the daemon binary (the
+//! simulator's replay over TCP, the radar driver, the daemon) to its summary; their ground
+//! truth read into the replay's trajectory; the layout chosen, detected, or refused.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use sim_sensor::replay::synthetic::SyntheticDrive;
+use sim_sensor::replay::ScanSet;
+use slam_node::daemon::replay::{OdometryErrors, RecordedTruth};
+use slam_node::pipeline::TruthOracle;
+
+fn boreas() -> (tempfile::TempDir, SyntheticDrive) {
+    let dir = tempfile::tempdir().unwrap();
+    let drive = SyntheticDrive::new(400, 0.0596);
+    drive.write_boreas(dir.path()).unwrap();
+    (dir, drive)
+}
+
+fn radiate() -> (tempfile::TempDir, SyntheticDrive) {
+    let dir = tempfile::tempdir().unwrap();
+    let drive = SyntheticDrive::new(576, 0.173611);
+    drive.write_radiate(dir.path()).unwrap();
+    (dir, drive)
+}
+
+fn replay(dir: &Path, extra: &[&str]) -> (Output, String, String) {
+    let out = tempfile::tempdir().unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_slam-node"))
+        .args([
+            "--replay-dir",
+            dir.to_str().unwrap(),
+            "--fast",
+            "--no-figures",
+        ])
+        .args([
+            "--out",
+            out.path().to_str().unwrap(),
+            "--progress-every",
+            "0",
+        ])
+        .args(extra)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout).to_string();
+    let stderr = String::from_utf8_lossy(&run.stderr).to_string();
+    (run, stdout, stderr)
+}
+
+fn assert_summary(stdout: &str, stderr: &str, expected: &[&str]) {
+    for e in expected {
+        assert!(
+            stdout.contains(e),
+            "{e:?} missing from\n{stdout}\nstderr:\n{stderr}"
+        );
+    }
+}
+
+#[test]
+fn synthetic_boreas_and_radiate_folders_replay_through_the_daemon_to_a_summary() {
+    for (name, (dir, _drive)) in [("boreas", boreas()), ("radiate", radiate())] {
+        let (run, stdout, stderr) = replay(dir.path(), &[]);
+        assert!(run.status.success(), "{name}: {stdout}\n{stderr}");
+        println!("{stdout}");
+        assert_summary(
+            &stdout,
+            &stderr,
+            &[
+                &format!("recorded {name} scans in"),
+                &format!("recorded drive ({name}, 6 scans, 0 skipped as damaged): 10.0 m"),
+                "azimuths 2400 (0 malformed)",
+                "against the ground truth: filter RMS",
+                "dead reckoning with the same odometry RMS",
+                "per 100 m driven",
+                "real-time factor",
+            ],
+        );
+    }
+}
+
+#[test]
+fn a_damaged_scan_in_the_middle_of_a_replay_is_skipped_and_counted() {
+    let (dir, _) = boreas();
+    let files = ScanSet::open(dir.path(), None).unwrap().files;
+    std::fs::write(&files[3].path, b"\x89PNG\r\n\x1a\n cut short").unwrap();
+    let (run, stdout, stderr) = replay(dir.path(), &[]);
+    assert!(run.status.success(), "{stdout}\n{stderr}");
+    assert_summary(
+        &stdout,
+        &stderr,
+        &[
+            "(boreas, 6 scans, 1 skipped as damaged)",
+            "azimuths 2000 (0 malformed)",
+        ],
+    );
+    let name = files[3]
+        .path
+        .file_name()
+        .unwrap()
+        .to_string_lossy()
+        .to_string();
+    assert!(
+        stderr.contains("skipping a damaged scan") && stderr.contains(&name),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn the_layout_is_detected_chosen_or_refused_by_name() {
+    let (dir, _) = radiate();
+    // An Oxford marker as well: ambiguous unless the layout is named.
+    std::fs::write(dir.path().join("radar_odometry.csv"), "header\n").unwrap();
+    let (run, stdout, stderr) = replay(dir.path(), &[]);
+    assert_eq!(run.status.code(), Some(1), "{stdout}\n{stderr}");
+    assert!(
+        stderr.contains("ambiguous") && stderr.contains("oxford") && stderr.contains("radiate"),
+        "{stderr}"
+    );
+    let (run, stdout, stderr) = replay(dir.path(), &["--replay-format", "radiate"]);
+    assert!(run.status.success(), "{stdout}\n{stderr}");
+    assert!(stdout.contains("recorded radiate scans"), "{stdout}");
+    let empty = tempfile::tempdir().unwrap();
+    let (run, _, stderr) = replay(empty.path(), &[]);
+    assert_eq!(run.status.code(), Some(1));
+    assert!(
+        stderr.contains("not a recording of a known layout"),
+        "{stderr}"
+    );
+    let (run, _, stderr) = replay(empty.path(), &["--replay-format", "kitti"]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(stderr.contains("--replay-format"), "{stderr}");
+}
+
+#[test]
+fn boreas_and_radiate_ground_truth_drive_the_same_arc_and_dead_reckoning_follows_it() {
+    let exact = OdometryErrors {
+        sigma_speed_mps: 0.0,
+        sigma_yaw_rate_rps: 0.0,
+        ..OdometryErrors::default()
+    };
+    for (name, (dir, drive)) in [("boreas", boreas()), ("radiate", radiate())] {
+        let truth = RecordedTruth::read(&ScanSet::open(dir.path(), None).unwrap()).unwrap();
+        assert_eq!(truth.times_s().len(), 6, "{name}");
+        // Five 0.25 s steps at 8 m/s on a 80 m radius: 10 m of chords.
+        assert!(
+            (truth.distance_m() - 10.0).abs() < 0.01,
+            "{name}: {}",
+            truth.distance_m()
+        );
+        let last = truth.poses().last().copied().unwrap();
+        assert!((last.theta - 0.125).abs() < 2e-3, "{name}: {last:?}");
+        let errors = truth.dead_reckoning_errors(&truth.odometry(&exact));
+        assert!(
+            errors.iter().all(|e| *e < 0.05),
+            "{name}: dead reckoning with exact odometry {errors:?}"
+        );
+        let mid = truth.pose_at(truth.times_s()[2] + 0.125).unwrap();
+        assert!(
+            mid.x > 0.0 && (drive.speed_mps - 8.0).abs() < 1e-12,
+            "{name}"
+        );
+    }
+}
