@@ -90,11 +90,11 @@ pub struct RawDetector {
     /// Longest run over the threshold down one beam that is still point-like, m > 0.
     /// Default 1.0.
     pub point_max_extent_m: f64,
-    /// Widest group across neighbouring azimuths that is still point-like, in beam widths,
-    /// > 0. Default 2.5.
+    /// Widest group across neighbouring azimuths that is still point-like, in beam widths
+    /// (positive). Default 2.5.
     pub point_max_width_beams: f64,
-    /// Weakest point-like return over the learned floor that may start a new feature, dB
-    /// >= 0; weaker point-like returns near a mapped feature only re-observe it. Default 0
+    /// Weakest point-like return over the learned floor that may start a new feature, dB,
+    /// at least 0; weaker point-like returns near a mapped feature only re-observe it. Default 0
     /// (every point-like return may start one); 35 for current units (the replay of real
     /// scans and `config/examples/vehicle.toml`).
     pub point_min_snr_db: f64,

@@ -387,9 +387,10 @@ impl GainLearner {
 
     /// Adds one detected peak: its range and its measured (compensated) power.
     pub fn add(&mut self, range_m: f64, measured_db: f64) {
-        if !(range_m >= self.settings.min_range_m && range_m <= self.settings.max_range_m)
-            || !measured_db.is_finite()
-        {
+        let usable = range_m >= self.settings.min_range_m
+            && range_m <= self.settings.max_range_m
+            && measured_db.is_finite();
+        if !usable {
             return;
         }
         let cell = ((range_m.log10() - self.log_min) * CELLS_PER_DECADE) as usize;

@@ -160,7 +160,7 @@ fn close(first: usize, last: usize, sm: &[u16], median: &[f64], peaks: &mut Vec<
 
 /// The bin nearest range `range_m` (0 below the first bin).
 fn axis_bin(axis: &RangeAxis, range_m: f64) -> usize {
-    if !(axis.bin_m > 0.0) {
+    if axis.bin_m.is_nan() || axis.bin_m <= 0.0 {
         return 0;
     }
     let b = ((range_m - axis.first_bin_m) / axis.bin_m).round();
