@@ -88,14 +88,14 @@ pub struct RawDetector {
     /// point-target simulator); true in `config/examples/vehicle.toml` for current units.
     pub points_only: bool,
     /// Longest run over the threshold down one beam that is still point-like, m > 0.
-    /// Default 1.0.
+    /// Default 0.5.
     pub point_max_extent_m: f64,
     /// Widest group across neighbouring azimuths that is still point-like, in beam widths
     /// (positive). Default 2.5.
     pub point_max_width_beams: f64,
     /// Weakest point-like return over the learned floor that may start a new feature, dB,
     /// at least 0; weaker point-like returns near a mapped feature only re-observe it. Default 0
-    /// (every point-like return may start one); 35 for current units (the replay of real
+    /// (every point-like return may start one); 32 for current units (the replay of real
     /// scans and `config/examples/vehicle.toml`).
     pub point_min_snr_db: f64,
 }
@@ -118,7 +118,7 @@ impl Default for RawDetector {
             floor_sigma: 4.0,
             floor_min_snr_db: 12.0,
             points_only: false,
-            point_max_extent_m: 1.0,
+            point_max_extent_m: 0.5,
             point_max_width_beams: 2.5,
             point_min_snr_db: 0.0,
         }

@@ -336,7 +336,7 @@ pub fn recorded_settings_for(
     settings.detector.landmarks.points_only = true;
     // Only strong returns start features, and only after three looks in different
     // rotations; weaker point-like ones may re-observe them.
-    settings.detector.landmarks.min_snr_db = settings.detector.landmarks.min_snr_db.max(35.0);
+    settings.detector.landmarks.min_snr_db = settings.detector.landmarks.min_snr_db.max(32.0);
     settings.filter.confirm_after = settings.filter.confirm_after.max(3);
     settings.filter.confirm_min_separation_s = settings.filter.confirm_min_separation_s.max(0.2);
     settings.spectrum_every_azimuths = settings.spectrum_every_azimuths.max(4);

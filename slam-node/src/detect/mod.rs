@@ -115,11 +115,13 @@ pub struct LandmarkSettings {
 
 impl Default for LandmarkSettings {
     fn default() -> Self {
+        // As `[detector]`'s defaults: off, and when turned on, the limits measured on the
+        // real scans (see slam-node/README.md, "Landmarks").
         Self {
             points_only: false,
-            max_extent_m: f64::INFINITY,
-            max_width_beams: f64::INFINITY,
-            min_snr_db: f64::NEG_INFINITY,
+            max_extent_m: 0.5,
+            max_width_beams: 2.5,
+            min_snr_db: 0.0,
             reobserve_radius_m: 2.0,
         }
     }
