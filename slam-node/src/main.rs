@@ -44,6 +44,11 @@ struct Args {
     /// Do not draw SVG figures.
     #[arg(long)]
     no_figures: bool,
+    /// Record the run as MCAP (ROS 2 messages in CDR: radar B-scans, odometry, pose, tf,
+    /// map, detections), a file name inside the output folder or an absolute path
+    /// (default: [output] mcap, none).
+    #[arg(long, value_parser = mcap_path)]
+    mcap: Option<PathBuf>,
     #[cfg(feature = "sim")]
     /// With the embedded simulator, model the receiver by [model] compensation (60 dB per
     /// decade by default, as the paper did) instead of the scene's (40): shows the paper's
@@ -100,12 +105,15 @@ fn main() -> ExitCode {
 }
 
 fn run(args: Args) -> anyhow::Result<()> {
-    let config = match &args.config {
+    let mut config = match &args.config {
         Some(path) => {
             config::Config::load(path).with_context(|| format!("loading {}", path.display()))?
         }
         None => config::Config::default(),
     };
+    if let Some(mcap) = &args.mcap {
+        config.output.mcap = Some(mcap.clone());
+    }
     #[cfg(feature = "sim")]
     let embedded = args.config.is_none() || args.embedded_sim;
     #[cfg(not(feature = "sim"))]
@@ -204,6 +212,18 @@ fn positive_seconds(text: &str) -> Result<f64, String> {
         return Err(format!("must be in (0, {MAX_DURATION_S}] s, got {text}"));
     }
     Ok(v)
+}
+
+/// An MCAP file to record to: not empty, ending in `.mcap`.
+fn mcap_path(text: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(text);
+    let is_mcap = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
+    if text.is_empty() || !is_mcap {
+        return Err(format!("must be a file name ending in .mcap, got {text:?}"));
+    }
+    Ok(path)
 }
 
 /// The simulator to start in this process, from `[sim]` and the command line.

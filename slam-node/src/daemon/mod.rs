@@ -22,7 +22,7 @@ use tracing::{info, warn};
 
 use crate::output::figures::TruthOverlay;
 use crate::output::writer::WriterSummary;
-use crate::output::{OutputEvent, OutputFiles, OutputHandle};
+use crate::output::{OutputEvent, OutputFiles, OutputHandle, RecordingFile};
 use crate::pipeline::run::ProgressFn;
 use crate::pipeline::{
     run_pipeline, Pipeline, PipelineInputs, PipelineSettings, RunControl, RunReport,
@@ -147,6 +147,10 @@ pub async fn run_daemon(
         trajectory: o.trajectory.clone(),
         map: o.map.clone(),
         diagnostics: o.diagnostics.clone(),
+        recording: o.mcap.as_ref().map(|file| RecordingFile {
+            path: opts.out_dir.join(file),
+            motion: settings.motion,
+        }),
         ..OutputFiles::in_dir(opts.out_dir.clone())
     })?;
     let (odo_trigger, odo_shutdown) = shutdown_pair();
