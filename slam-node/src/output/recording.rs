@@ -22,7 +22,9 @@
 //! column per bin, `8UC1`; `16UC1` little-endian for 16-bit radars; rows never received are
 //! zero with timestamp 0).
 //!
-//! Each rotation closes a chunk (lz4) and flushes it to the file, so a crash loses at most
+//! Each rotation closes a chunk (zstd level 1, single-threaded: on simulated CTS350-X
+//! B-scans 0.72 of their size at 2.7 ms a rotation, against lz4's 0.975 at 2 ms) and
+//! flushes it to the file, so a crash loses at most
 //! the rotation in progress: a reader that reads records in order (`mcap` crate's
 //! `MessageStream`, Python's `StreamReader`) gets every complete chunk before the cut.
 //!
@@ -327,7 +329,10 @@ impl<W: Write + Seek> McapRecorder<W> {
         let mut writer = mcap::WriteOptions::new()
             .profile("ros2")
             .library(concat!("slam-node ", env!("CARGO_PKG_VERSION")))
-            .compression(Some(mcap::Compression::Lz4))
+            .compression(Some(mcap::Compression::Zstd))
+            .compression_level(1)
+            // On the writer thread: no compression threads competing with the pipeline.
+            .compression_threads(0)
             .chunk_size(None)
             .create(sink)?;
         let channels = Channels {
