@@ -81,11 +81,12 @@ pub struct RadarConfigurationMsg {
     pub encoder_size: u16,
     /// User azimuth offset (rows the B-scan is rotated by).
     pub azimuth_offset: u16,
-    /// Bin size, metres (Navtech's driver publishes the radar's value).
+    /// Bin size as the radar sends it: tenths of a millimetre (438 is 0.0438 m; Navtech's
+    /// driver copies the wire's integer).
     pub bin_size: f32,
     /// Bins per azimuth.
     pub range_in_bins: u16,
-    /// Rotation rate, the radar's units.
+    /// Rotation rate as the radar sends it: millihertz (4000 is 4 Hz).
     pub expected_rotation_rate: u16,
     /// Range gain.
     pub range_gain: f32,

@@ -49,6 +49,15 @@ struct Args {
     /// (default: [output] mcap, none).
     #[arg(long, value_parser = mcap_path)]
     mcap: Option<PathBuf>,
+    /// Run on a rosbag2 MCAP file instead of a radar: Navtech's ROS 2 radar messages
+    /// (RadarBScanMsg or RadarFftDataMsg, with RadarConfigurationMsg) and an odometry topic,
+    /// as fast as possible (a recording made with --mcap replays to the same trajectory).
+    #[arg(long, conflicts_with = "embedded_sim")]
+    replay_mcap: Option<PathBuf>,
+    /// With --replay-mcap: the odometry topic (geometry_msgs/TwistStamped or
+    /// nav_msgs/Odometry; the yaw rate becomes the motion model's steering input).
+    #[arg(long, requires = "replay_mcap", default_value = "/odom/twist")]
+    mcap_odometry_topic: String,
     #[cfg(feature = "sim")]
     /// With the embedded simulator, model the receiver by [model] compensation (60 dB per
     /// decade by default, as the paper did) instead of the scene's (40): shows the paper's
@@ -115,11 +124,11 @@ fn run(args: Args) -> anyhow::Result<()> {
         config.output.mcap = Some(mcap.clone());
     }
     #[cfg(feature = "sim")]
-    let embedded = args.config.is_none() || args.embedded_sim;
+    let embedded = (args.config.is_none() || args.embedded_sim) && args.replay_mcap.is_none();
     #[cfg(not(feature = "sim"))]
     let embedded = false;
     #[cfg(not(feature = "sim"))]
-    if args.config.is_none() {
+    if args.config.is_none() && args.replay_mcap.is_none() {
         anyhow::bail!(
             "this is a vehicle build, without the simulator: pass --config with the radar's and the odometry's addresses (see config/examples/vehicle.toml)"
         );
@@ -176,6 +185,30 @@ fn run(args: Args) -> anyhow::Result<()> {
             },
         ) as slam_node::pipeline::run::ProgressFn
     });
+    if let Some(path) = args.replay_mcap.clone() {
+        let ctrl_c = Arc::clone(&stop);
+        // Ctrl-C on a plain thread: the replay needs no runtime.
+        std::thread::spawn(move || {
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build();
+            if let Ok(rt) = rt {
+                if rt.block_on(tokio::signal::ctrl_c()).is_ok() {
+                    eprintln!("slam-node: stopping (Ctrl-C)");
+                    ctrl_c.store(true, Ordering::Relaxed);
+                }
+            }
+        });
+        let report = slam_node::daemon::run_mcap_replay(
+            opts,
+            path,
+            Some(args.mcap_odometry_topic.clone()),
+            progress,
+        )
+        .context("replaying the MCAP file")?;
+        print!("{}", report::summary_text(&report));
+        return Ok(());
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()

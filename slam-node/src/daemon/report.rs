@@ -232,6 +232,26 @@ pub fn summary_text(r: &DaemonReport) -> String {
             )
         }
     );
+    if let Some(c) = &r.mcap_replay {
+        let _ = writeln!(
+            t,
+            "  MCAP replay: {} messages, {} configurations, {} rotations, {} azimuths, {} odometry samples; {} on other topics; refused {} (unknown schema {}, wrong encoding {}, malformed {}, before a configuration {}){}",
+            c.messages,
+            c.configurations,
+            c.rotations,
+            c.azimuths,
+            c.odometry,
+            c.ignored,
+            c.refused(),
+            c.unknown_schema,
+            c.wrong_encoding,
+            c.malformed,
+            c.before_configuration,
+            c.file_error
+                .as_ref()
+                .map_or(String::new(), |e| format!("; the file ended early: {e}"))
+        );
+    }
     if let Some(rec) = &r.writer.recording {
         let _ = writeln!(t, "{}", recording_line(rec));
     }

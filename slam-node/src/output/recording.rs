@@ -288,13 +288,42 @@ fn channel<W: Write + Seek, M: RosMessage>(
     Ok(Channel { id, topic })
 }
 
-fn yaw_rate(motion: &MotionModel, s: &OdometrySample) -> f64 {
+/// The yaw rate (rad/s) an odometry sample stands for under `motion`. With the paper's
+/// model the value is chosen among the nearest floats so that [`steer_from_yaw_rate`] gives
+/// the sample's steering back bit for bit (a recording replays to the same trajectory).
+pub fn yaw_rate(motion: &MotionModel, s: &OdometrySample) -> f64 {
     match *motion {
-        MotionModel::Paper { step_s } if step_s > 0.0 => s.steer_rad / step_s,
+        MotionModel::Paper { step_s } if step_s > 0.0 => {
+            let guess = s.steer_rad / step_s;
+            if !guess.is_finite() {
+                return guess;
+            }
+            (0..=8i64)
+                .flat_map(|d| [d, -d])
+                .map(|d| f64::from_bits(guess.to_bits().wrapping_add_signed(d)))
+                .find(|y| y.is_finite() && y * step_s == s.steer_rad)
+                .unwrap_or(guess)
+        }
         MotionModel::Bicycle { wheelbase_m } if wheelbase_m > 0.0 => {
             s.speed_mps * s.steer_rad.tan() / wheelbase_m
         }
         _ => 0.0,
+    }
+}
+
+/// The steering input a yaw rate stands for under `motion` (the inverse of [`yaw_rate`]):
+/// `yaw_rate * step_s` for the paper's model, `atan(yaw_rate * wheelbase / speed)` for the
+/// bicycle (0 when the speed is below 1 mm/s).
+pub fn steer_from_yaw_rate(motion: &MotionModel, speed_mps: f64, yaw_rate_rps: f64) -> f64 {
+    match *motion {
+        MotionModel::Paper { step_s } => yaw_rate_rps * step_s,
+        MotionModel::Bicycle { wheelbase_m } => {
+            if speed_mps.abs() < 1e-3 {
+                0.0
+            } else {
+                (yaw_rate_rps * wheelbase_m / speed_mps).atan()
+            }
+        }
     }
 }
 
@@ -467,7 +496,8 @@ impl<W: Write + Seek> McapRecorder<W> {
                 azimuth_samples: g.azimuth_samples,
                 encoder_size: g.encoder_size,
                 azimuth_offset: 0,
-                bin_size: g.bin_size_m as f32,
+                // As Navtech's driver fills it: the wire's tenths of a millimetre.
+                bin_size: (g.bin_size_m * 1e4).round() as f32,
                 range_in_bins: g.range_in_bins,
                 expected_rotation_rate: (g.rotation_hz * 1000.0).round().clamp(0.0, 65535.0) as u16,
                 range_gain: g.range_gain as f32,
