@@ -25,6 +25,9 @@ pub struct RawOutput {
     pub pictures: bool,
     /// Show progress while running. Default true.
     pub progress: bool,
+    /// Record the run as an MCAP file (ROS 2 messages, CDR), relative to `directory`,
+    /// ending in `.mcap`. Default: none.
+    pub mcap: Option<PathBuf>,
 }
 
 impl Default for RawOutput {
@@ -36,6 +39,7 @@ impl Default for RawOutput {
             diagnostics: "diagnostics.csv".into(),
             pictures: true,
             progress: true,
+            mcap: None,
         }
     }
 }
@@ -55,6 +59,8 @@ pub struct OutputSettings {
     pub pictures: bool,
     /// Show progress.
     pub progress: bool,
+    /// MCAP recording file name, if the run is recorded.
+    pub mcap: Option<PathBuf>,
 }
 
 impl OutputSettings {
@@ -69,6 +75,10 @@ impl OutputSettings {
     /// `directory/diagnostics`.
     pub fn diagnostics_path(&self) -> PathBuf {
         self.directory.join(&self.diagnostics)
+    }
+    /// `directory/mcap`, when the run is recorded.
+    pub fn mcap_path(&self) -> Option<PathBuf> {
+        self.mcap.as_ref().map(|m| self.directory.join(m))
     }
 }
 
@@ -100,6 +110,22 @@ fn relative_file(path: &Path) -> Result<PathBuf, ValueError> {
     }
 }
 
+/// An MCAP file name inside the output directory, ending in `.mcap`.
+fn mcap_file(path: &Path) -> Result<PathBuf, ValueError> {
+    let path = relative_file(path)?;
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"))
+    {
+        Ok(path)
+    } else {
+        Err(ValueError::Rule(format!(
+            "must end in .mcap, got {:?}",
+            path.display().to_string()
+        )))
+    }
+}
+
 impl RawOutput {
     /// Validates this section alone; errors name `output.<field>`.
     pub fn validate(&self) -> Result<OutputSettings, FieldErrors> {
@@ -119,6 +145,7 @@ impl RawOutput {
             diagnostics: c.check("output.diagnostics", relative_file(&self.diagnostics)),
             pictures: self.pictures,
             progress: self.progress,
+            mcap: c.check_opt("output.mcap", self.mcap.as_deref(), mcap_file),
         }
     }
 }
@@ -133,6 +160,7 @@ impl From<&OutputSettings> for RawOutput {
             diagnostics: s.diagnostics.clone(),
             pictures: s.pictures,
             progress: s.progress,
+            mcap: s.mcap.clone(),
         }
     }
 }

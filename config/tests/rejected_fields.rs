@@ -136,6 +136,8 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[output]\ntrajectory = \"\"", "output.trajectory", "must not be empty"),
     ("[output]\nmap = \"/etc/map.csv\"", "output.map", "must be a relative path inside output.directory"),
     ("[output]\ndiagnostics = \"../diagnostics.csv\"", "output.diagnostics", "must be a relative path inside output.directory"),
+    ("[output]\nmcap = \"/tmp/run.mcap\"", "output.mcap", "must be a relative path inside output.directory"),
+    ("[output]\nmcap = \"run.bag\"", "output.mcap", "must end in .mcap"),
 ];
 
 /// Keys whose every parseable value is valid (booleans and choices; a misspelt choice is a

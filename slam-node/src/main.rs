@@ -44,6 +44,20 @@ struct Args {
     /// Do not draw SVG figures.
     #[arg(long)]
     no_figures: bool,
+    /// Record the run as MCAP (ROS 2 messages in CDR: radar B-scans, odometry, pose, tf,
+    /// map, detections), a file name inside the output folder or an absolute path
+    /// (default: [output] mcap, none).
+    #[arg(long, value_parser = mcap_path)]
+    mcap: Option<PathBuf>,
+    /// Run on a rosbag2 MCAP file instead of a radar: Navtech's ROS 2 radar messages
+    /// (RadarBScanMsg or RadarFftDataMsg, with RadarConfigurationMsg) and an odometry topic,
+    /// as fast as possible (a recording made with --mcap replays to the same trajectory).
+    #[arg(long, conflicts_with = "embedded_sim")]
+    replay_mcap: Option<PathBuf>,
+    /// With --replay-mcap: the odometry topic (geometry_msgs/TwistStamped or
+    /// nav_msgs/Odometry; the yaw rate becomes the motion model's steering input).
+    #[arg(long, requires = "replay_mcap", default_value = "/odom/twist")]
+    mcap_odometry_topic: String,
     #[cfg(feature = "sim")]
     /// With the embedded simulator, model the receiver by [model] compensation (60 dB per
     /// decade by default, as the paper did) instead of the scene's (40): shows the paper's
@@ -107,18 +121,21 @@ fn main() -> ExitCode {
 }
 
 fn run(args: Args) -> anyhow::Result<()> {
-    let config = match &args.config {
+    let mut config = match &args.config {
         Some(path) => {
             config::Config::load(path).with_context(|| format!("loading {}", path.display()))?
         }
         None => config::Config::default(),
     };
+    if let Some(mcap) = &args.mcap {
+        config.output.mcap = Some(mcap.clone());
+    }
     #[cfg(feature = "sim")]
-    let embedded = args.config.is_none() || args.embedded_sim;
+    let embedded = (args.config.is_none() || args.embedded_sim) && args.replay_mcap.is_none();
     #[cfg(not(feature = "sim"))]
     let embedded = false;
     #[cfg(not(feature = "sim"))]
-    if args.config.is_none() {
+    if args.config.is_none() && args.replay_mcap.is_none() {
         anyhow::bail!(
             "this is a vehicle build, without the simulator: pass --config with the radar's and the odometry's addresses (see config/examples/vehicle.toml)"
         );
@@ -175,6 +192,30 @@ fn run(args: Args) -> anyhow::Result<()> {
             },
         ) as slam_node::pipeline::run::ProgressFn
     });
+    if let Some(path) = args.replay_mcap.clone() {
+        let ctrl_c = Arc::clone(&stop);
+        // Ctrl-C on a plain thread: the replay needs no runtime.
+        std::thread::spawn(move || {
+            let rt = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build();
+            if let Ok(rt) = rt {
+                if rt.block_on(tokio::signal::ctrl_c()).is_ok() {
+                    eprintln!("slam-node: stopping (Ctrl-C)");
+                    ctrl_c.store(true, Ordering::Relaxed);
+                }
+            }
+        });
+        let report = slam_node::daemon::run_mcap_replay(
+            opts,
+            path,
+            Some(args.mcap_odometry_topic.clone()),
+            progress,
+        )
+        .context("replaying the MCAP file")?;
+        print!("{}", report::summary_text(&report));
+        return Ok(());
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
@@ -211,6 +252,18 @@ fn positive_seconds(text: &str) -> Result<f64, String> {
         return Err(format!("must be in (0, {MAX_DURATION_S}] s, got {text}"));
     }
     Ok(v)
+}
+
+/// An MCAP file to record to: not empty, ending in `.mcap`.
+fn mcap_path(text: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(text);
+    let is_mcap = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
+    if text.is_empty() || !is_mcap {
+        return Err(format!("must be a file name ending in .mcap, got {text:?}"));
+    }
+    Ok(path)
 }
 
 /// The simulator to start in this process, from `[sim]` and the command line.

@@ -114,3 +114,68 @@ fn a_replay_folder_that_is_not_there_is_refused_by_name() {
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/scans"));
 }
+
+#[test]
+fn an_mcap_name_that_does_not_end_in_mcap_is_refused_at_parse_time() {
+    for bad in ["run.bag", "", "mcap"] {
+        let out = slam_node()
+            .args([&format!("--mcap={bad}"), "--no-figures"])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "--mcap {bad:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("--mcap"), "--mcap {bad:?}: {err}");
+    }
+}
+
+#[test]
+fn a_missing_mcap_file_to_replay_makes_the_process_exit_non_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = slam_node()
+        .args([
+            "--replay-mcap",
+            "/nonexistent/run.mcap",
+            "--no-figures",
+            "--out",
+        ])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "stderr: {err}");
+    assert!(err.contains("replaying the MCAP file"), "stderr: {err}");
+}
+
+#[test]
+fn a_run_recorded_with_mcap_replays_through_the_binary_with_nothing_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let recorded = slam_node()
+        .args([
+            "--fast",
+            "--duration",
+            "3",
+            "--no-figures",
+            "--progress-every",
+            "0",
+        ])
+        .args(["--mcap", "run.mcap", "--out"])
+        .arg(dir.path().join("live"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&recorded.stdout);
+    assert!(recorded.status.success(), "{text}");
+    assert!(text.contains("MCAP "), "{text}");
+    let replayed = slam_node()
+        .arg("--replay-mcap")
+        .arg(dir.path().join("live").join("run.mcap"))
+        .args(["--no-figures", "--progress-every", "0", "--out"])
+        .arg(dir.path().join("replayed"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&replayed.stdout);
+    assert!(replayed.status.success(), "{text}");
+    assert!(text.contains("MCAP replay: "), "{text}");
+    assert!(text.contains("refused 0 "), "{text}");
+    let tum = std::fs::read_to_string(dir.path().join("replayed").join("trajectory.tum")).unwrap();
+    assert!(tum.lines().count() > 3, "{tum}");
+}

@@ -7,6 +7,7 @@
 
 #[cfg(feature = "sim")]
 pub mod embedded;
+pub mod mcap_replay;
 #[cfg(feature = "sim")]
 pub mod replay;
 pub mod report;
@@ -22,7 +23,7 @@ use tracing::{info, warn};
 
 use crate::output::figures::TruthOverlay;
 use crate::output::writer::WriterSummary;
-use crate::output::{OutputEvent, OutputFiles, OutputHandle};
+use crate::output::{OutputEvent, OutputFiles, OutputHandle, RecordingFile};
 use crate::pipeline::run::ProgressFn;
 use crate::pipeline::{
     run_pipeline, Pipeline, PipelineInputs, PipelineSettings, RunControl, RunReport,
@@ -70,6 +71,9 @@ pub enum DaemonError {
     /// The driver was built without an azimuth channel.
     #[error("the radar driver has no azimuth channel")]
     NoAzimuthChannel,
+    /// An MCAP replay could not start.
+    #[error("MCAP replay")]
+    McapReplay(#[from] mcap_replay::McapReplayError),
 }
 
 /// Everything a daemon run needs.
@@ -124,6 +128,8 @@ pub struct DaemonReport {
     /// Why the radar driver failed, if it did (it gave up reconnecting, or its recording
     /// could not be written): the run's job failed even though a summary exists.
     pub driver_failure: Option<radar_driver::DriverError>,
+    /// A replay of an MCAP file: what it read and refused.
+    pub mcap_replay: Option<mcap_replay::McapReplayCounts>,
 }
 
 /// Runs the daemon to the end of the stream, the duration limit or a stop request.
@@ -147,6 +153,10 @@ pub async fn run_daemon(
         trajectory: o.trajectory.clone(),
         map: o.map.clone(),
         diagnostics: o.diagnostics.clone(),
+        recording: o.mcap.as_ref().map(|file| RecordingFile {
+            path: opts.out_dir.join(file),
+            motion: settings.motion,
+        }),
         ..OutputFiles::in_dir(opts.out_dir.clone())
     })?;
     let (odo_trigger, odo_shutdown) = shutdown_pair();
@@ -281,5 +291,68 @@ pub async fn run_daemon(
         #[cfg(feature = "sim")]
         replay: replay_figures,
         driver_failure,
+        mcap_replay: None,
+    })
+}
+
+/// Runs the daemon on a rosbag2 MCAP file (Navtech's radar messages and an odometry topic,
+/// see [`mcap_replay`]) as fast as the pipeline goes, to the end of the file, the duration
+/// limit or a stop request. `odometry_topic` defaults to the daemon's own `/odom/twist`.
+pub fn run_mcap_replay(
+    opts: DaemonOptions,
+    path: PathBuf,
+    odometry_topic: Option<String>,
+    progress: Option<ProgressFn>,
+) -> Result<DaemonReport, DaemonError> {
+    let mut settings = PipelineSettings::from_config(&opts.config)?;
+    if let Some(d) = opts.detector {
+        settings.detector = d;
+    }
+    settings.spectrum_bearings_rad = opts
+        .spectrum_bearings_deg
+        .iter()
+        .map(|d| radar_model::geometry::wrap_angle(d.to_radians()))
+        .collect();
+    let o = &opts.config.output;
+    let output = OutputHandle::spawn(OutputFiles {
+        figures: opts.figures,
+        trajectory: o.trajectory.clone(),
+        map: o.map.clone(),
+        diagnostics: o.diagnostics.clone(),
+        recording: o.mcap.as_ref().map(|file| RecordingFile {
+            path: opts.out_dir.join(file),
+            motion: settings.motion,
+        }),
+        ..OutputFiles::in_dir(opts.out_dir.clone())
+    })?;
+    let mut replay = mcap_replay::McapReplaySettings::new(path, settings.motion);
+    if let Some(topic) = odometry_topic {
+        replay.odometry_topic = topic;
+    }
+    let (azimuths, odometry, reader) = mcap_replay::start(replay)?;
+    let pipeline = Pipeline::new(settings, None, None)?;
+    let control = RunControl {
+        end_after_silence: None,
+        stop: Arc::clone(&opts.stop),
+        max_stream_s: opts.max_stream_s,
+        progress,
+    };
+    let inputs = PipelineInputs {
+        azimuths,
+        odometry: Some(Box::new(odometry)),
+    };
+    let run = run_pipeline(pipeline, inputs, &output, control);
+    let counts = reader.finish();
+    let writer = output.finish()?;
+    Ok(DaemonReport {
+        run,
+        driver: None,
+        writer,
+        out_dir: opts.out_dir,
+        scene: None,
+        #[cfg(feature = "sim")]
+        replay: None,
+        driver_failure: None,
+        mcap_replay: Some(counts),
     })
 }

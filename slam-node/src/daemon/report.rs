@@ -250,5 +250,61 @@ pub fn summary_text(r: &DaemonReport) -> String {
             )
         }
     );
+    if let Some(c) = &r.mcap_replay {
+        let _ = writeln!(
+            t,
+            "  MCAP replay: {} messages, {} configurations, {} rotations, {} azimuths, {} odometry samples; {} on other topics; refused {} (unknown schema {}, wrong encoding {}, malformed {}, before a configuration {}){}",
+            c.messages,
+            c.configurations,
+            c.rotations,
+            c.azimuths,
+            c.odometry,
+            c.ignored,
+            c.refused(),
+            c.unknown_schema,
+            c.wrong_encoding,
+            c.malformed,
+            c.before_configuration,
+            c.file_error
+                .as_ref()
+                .map_or(String::new(), |e| format!("; the file ended early: {e}"))
+        );
+    }
+    if let Some(rec) = &r.writer.recording {
+        let _ = writeln!(t, "{}", recording_line(rec));
+    }
+    if let Some(e) = &r.writer.recording_error {
+        let _ = writeln!(t, "  MCAP recording stopped early: {e}");
+    }
     t
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len().max(1) as f64
+}
+
+fn quantile(v: &[f64], q: f64) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let at = ((s.len() as f64 - 1.0) * q).round().max(0.0) as usize;
+    s.get(at).copied().unwrap_or(0.0)
+}
+
+/// The recording's size and cost: messages, MB per minute of stream, write time per
+/// rotation against the rotation's processing time.
+pub fn recording_line(rec: &crate::output::RecordingSummary) -> String {
+    format!(
+        "  MCAP {}: {} messages on {} topics, {} rotations, {:.2} MB ({} MB per minute of stream); write {:.2} ms per rotation (p95 {:.2}, max {:.2}) against {:.2} ms processing",
+        rec.path.display(),
+        rec.total_messages(),
+        rec.messages.len(),
+        rec.rotations,
+        rec.bytes as f64 / 1e6,
+        rec.mb_per_minute()
+            .map_or("-".into(), |m| format!("{m:.1}")),
+        mean(&rec.write_ms),
+        quantile(&rec.write_ms, 0.95),
+        rec.write_ms.iter().copied().fold(0.0, f64::max),
+        mean(&rec.processing_ms),
+    )
 }

@@ -1,18 +1,23 @@
 //! The daemon's outputs: trajectory (TUM), map (JSON), per-rotation diagnostics (JSONL),
-//! spectrum comparisons (CSV) and SVG figures. The formats are documented in
+//! spectrum comparisons (CSV), SVG figures, and on request an MCAP recording in ROS 2
+//! encodings ([`recording`]). The formats are documented in
 //! `slam-node/README.md`.
 //!
 //! The file writers are generic over `std::io::Write`; [`writer`] runs them on their own
 //! thread behind a channel so the filter never waits for a disk.
 
 pub mod csv;
+pub mod detections;
 pub mod diagnostics;
 pub mod figures;
 pub mod map;
+pub mod recording;
 pub mod trajectory;
 pub mod writer;
 
+pub use detections::{Detection, RotationDetections};
 pub use diagnostics::{RotationDiagnostics, SpectrumComparison};
 pub use map::{MapFeature, MapSnapshot};
+pub use recording::{McapRecorder, RecordingError, RecordingSummary};
 pub use trajectory::{PoseSample, TumWriter};
-pub use writer::{OutputEvent, OutputFiles, OutputHandle, WriterError};
+pub use writer::{OutputEvent, OutputFiles, OutputHandle, RecordingFile, WriterError};

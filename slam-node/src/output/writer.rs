@@ -10,10 +10,16 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
+use radar_driver::Azimuth;
+use radar_model::motion::MotionModel;
+use slam_filter::OdometrySample;
+use tracing::{info, warn};
 
+use super::detections::RotationDetections;
 use super::diagnostics::{RotationDiagnostics, SpectrumComparison};
 use super::figures::{draw_map, draw_spectrum, FigureError, TruthOverlay};
 use super::map::MapSnapshot;
+use super::recording::{McapRecorder, RecordingError, RecordingSummary};
 use super::trajectory::{PoseSample, TumWriter};
 
 /// Something for the writer.
@@ -29,6 +35,21 @@ pub enum OutputEvent {
     Spectrum(SpectrumComparison),
     /// Ground truth for the final figure.
     Truth(TruthOverlay),
+    /// One radar azimuth as received (sent only when a recording wants it).
+    Azimuth(Azimuth),
+    /// One odometry sample the pipeline received (sent only when a recording wants it).
+    Odometry(OdometrySample),
+    /// The detections of one rotation that reached the filter.
+    Detections(RotationDetections),
+}
+
+/// The MCAP recording of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordingFile {
+    /// The file (created, or truncated).
+    pub path: PathBuf,
+    /// The motion model, to turn the odometry's steering into a yaw rate.
+    pub motion: MotionModel,
 }
 
 /// Where and what to write.
@@ -48,6 +69,8 @@ pub struct OutputFiles {
     pub map: PathBuf,
     /// Diagnostics file name inside `dir`: CSV when it ends in `.csv`, JSON Lines otherwise.
     pub diagnostics: PathBuf,
+    /// Record the run as MCAP (ROS 2 messages) too.
+    pub recording: Option<RecordingFile>,
 }
 
 impl OutputFiles {
@@ -61,6 +84,7 @@ impl OutputFiles {
             trajectory: "trajectory.tum".into(),
             map: "map.json".into(),
             diagnostics: "diagnostics.jsonl".into(),
+            recording: None,
         }
     }
 }
@@ -85,6 +109,9 @@ pub enum WriterError {
     /// A figure failed.
     #[error(transparent)]
     Figure(#[from] FigureError),
+    /// The MCAP recording could not start.
+    #[error("starting the MCAP recording")]
+    Recording(#[from] RecordingError),
     /// The writer thread panicked.
     #[error("the writer thread panicked")]
     Panicked,
@@ -105,6 +132,10 @@ pub struct WriterSummary {
     pub figures: Vec<PathBuf>,
     /// The data files written.
     pub files: Vec<PathBuf>,
+    /// The MCAP recording, when one was made.
+    pub recording: Option<RecordingSummary>,
+    /// Why the recording stopped early, if it did (the other outputs went on).
+    pub recording_error: Option<String>,
 }
 
 /// The filter's end of the output channel.
@@ -113,6 +144,7 @@ pub struct OutputHandle {
     sender: Option<Sender<OutputEvent>>,
     dropped: Arc<AtomicU64>,
     join: Option<JoinHandle<Result<WriterSummary, WriterError>>>,
+    wants_inputs: bool,
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> WriterError + '_ {
@@ -140,15 +172,39 @@ impl OutputHandle {
         }
         let spec_path = files.dir.join("spectra.jsonl");
         let spec = create(&spec_path)?;
+        let recorder = match &files.recording {
+            Some(r) => {
+                if let Some(parent) = r.path.parent().filter(|p| !p.as_os_str().is_empty()) {
+                    std::fs::create_dir_all(parent).map_err(io_err(parent))?;
+                }
+                let sink = File::create(&r.path).map_err(|source| RecordingError::Create {
+                    path: r.path.display().to_string(),
+                    source,
+                })?;
+                Some(McapRecorder::new(
+                    BufWriter::with_capacity(1 << 20, sink),
+                    r.path.clone(),
+                    r.motion,
+                )?)
+            }
+            None => None,
+        };
+        let wants_inputs = recorder.is_some();
         let join = std::thread::Builder::new()
             .name("slam-writer".into())
-            .spawn(move || run(files, rx, traj, diag, spec))
+            .spawn(move || run(files, rx, traj, diag, spec, recorder))
             .map_err(io_err(Path::new("<writer thread>")))?;
         Ok(Self {
             sender: Some(tx),
             dropped: Arc::new(AtomicU64::new(0)),
             join: Some(join),
+            wants_inputs,
         })
+    }
+
+    /// Whether the writer records the inputs (azimuths, odometry): only then are they sent.
+    pub fn wants_inputs(&self) -> bool {
+        self.wants_inputs
     }
 
     /// Hands an event to the writer without ever blocking; returns false (and counts a
@@ -184,12 +240,25 @@ impl OutputHandle {
     }
 }
 
+/// An error and its causes on one line.
+fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        text.push_str(": ");
+        text.push_str(&s.to_string());
+        source = s.source();
+    }
+    text
+}
+
 fn run(
     files: OutputFiles,
     rx: Receiver<OutputEvent>,
     mut traj: TumWriter<BufWriter<File>>,
     mut diag: BufWriter<File>,
     mut spec: BufWriter<File>,
+    mut recorder: Option<McapRecorder<BufWriter<File>>>,
 ) -> Result<WriterSummary, WriterError> {
     let mut summary = WriterSummary {
         files: vec![
@@ -210,6 +279,14 @@ fn run(
     let diag_csv = is_csv(&diag_path);
     let map_csv = is_csv(&map_path);
     for event in rx {
+        if let Some(r) = recorder.as_mut() {
+            if let Err(e) = r.on_event(&event) {
+                // The recording stops; the daemon and the other files go on.
+                warn!(error = %error_chain(&e), "MCAP recording stopped");
+                summary.recording_error = Some(error_chain(&e));
+                recorder = None;
+            }
+        }
         match event {
             OutputEvent::Pose(p) => {
                 traj.write(&p).map_err(io_err(&traj_path))?;
@@ -261,6 +338,25 @@ fn run(
                 summary.spectra += 1;
             }
             OutputEvent::Truth(t) => truth = t,
+            OutputEvent::Azimuth(_) | OutputEvent::Odometry(_) | OutputEvent::Detections(_) => {}
+        }
+    }
+    if let Some(r) = recorder {
+        match r.finish() {
+            Ok((_, rec)) => {
+                info!(
+                    path = %rec.path.display(),
+                    messages = rec.total_messages(),
+                    bytes = rec.bytes,
+                    "MCAP recording written"
+                );
+                summary.files.push(rec.path.clone());
+                summary.recording = Some(rec);
+            }
+            Err(e) => {
+                warn!(error = %error_chain(&e), "MCAP recording could not be finished");
+                summary.recording_error = Some(error_chain(&e));
+            }
         }
     }
     traj.flush().map_err(io_err(&traj_path))?;

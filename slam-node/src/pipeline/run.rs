@@ -13,7 +13,7 @@ use tracing::{error, info, warn};
 
 use super::core::{DaemonEkf, Pipeline};
 use super::summary::PipelineSummary;
-use crate::output::OutputHandle;
+use crate::output::{OutputEvent, OutputHandle};
 use slam_filter::OdometrySample;
 
 /// What the pipeline thread reads.
@@ -82,16 +82,21 @@ fn to_sample(r: radar_driver::OdometryRecord) -> OdometrySample {
     }
 }
 
-/// Polls the source once; false when it has ended.
+/// Polls the source once; false when it has ended. A recording gets each sample too.
 fn poll_odometry(
     pipeline: &mut Pipeline,
     source: &mut dyn OdometrySource,
     timeout: Duration,
     errors: &mut u64,
+    output: &OutputHandle,
 ) -> bool {
     match source.poll_next(timeout) {
         Ok(OdometryPoll::Record(r)) => {
-            pipeline.push_odometry(to_sample(r));
+            let sample = to_sample(r);
+            pipeline.push_odometry(sample);
+            if output.wants_inputs() {
+                output.send(OutputEvent::Odometry(sample));
+            }
             true
         }
         Ok(OdometryPoll::Pending) => true,
@@ -139,6 +144,7 @@ pub fn run_pipeline(
                     src.as_mut(),
                     Duration::ZERO,
                     &mut report.odometry_errors,
+                    output,
                 ) {
                     info!("odometry source ended");
                     inputs.odometry = None;
@@ -200,6 +206,7 @@ pub fn run_pipeline(
                     src.as_mut(),
                     wait,
                     &mut report.odometry_errors,
+                    output,
                 ) {
                     info!("odometry source ended");
                     inputs.odometry = None;
@@ -216,6 +223,11 @@ pub fn run_pipeline(
         }
         for ev in events.drain(..) {
             output.send(ev);
+        }
+        // After the events of a rotation this azimuth closed: a recording sees each
+        // rotation's azimuths before its end.
+        if output.wants_inputs() {
+            output.send(OutputEvent::Azimuth(az));
         }
         if pipeline.summary().rotations > rotations {
             if let Some(p) = control.progress.as_mut() {

@@ -7,7 +7,9 @@ use slam_filter::{BeamObservation, BeamReport};
 use super::frontend::FrontEndCounts;
 use super::spectrum::SpectrumTally;
 use super::summary::PipelineSummary;
-use crate::output::{OutputEvent, RotationDiagnostics, SpectrumComparison};
+use crate::output::{
+    Detection, OutputEvent, RotationDetections, RotationDiagnostics, SpectrumComparison,
+};
 
 /// Saturating count conversion for the diagnostics' 32-bit fields.
 fn count(n: usize) -> u32 {
@@ -22,6 +24,7 @@ pub struct RotationStats {
     nis: (f64, u64),
     sample: Option<(usize, SpectrumComparison)>,
     chosen: Vec<SpectrumComparison>,
+    detections: Vec<Detection>,
 }
 
 /// Wall time spent in each stage on one azimuth (ms).
@@ -49,6 +52,13 @@ impl RotationStats {
 
     /// Counts one beam the filter processed; returns its associations.
     pub fn on_beam(&mut self, beam: &BeamObservation, report: &BeamReport) -> u32 {
+        self.detections
+            .extend(beam.targets.iter().map(|t| Detection {
+                timestamp_s: beam.timestamp_s,
+                range_m: t.range_m,
+                bearing_rad: t.bearing_rad,
+                power_db: t.power_db,
+            }));
         let associated = count(report.associated.len());
         self.rot.associated += associated;
         self.rot.new_features += count(report.initialised.len());
@@ -128,6 +138,11 @@ impl RotationStats {
             events.push(OutputEvent::Spectrum(sample));
         }
         events.extend(self.chosen.drain(..).map(OutputEvent::Spectrum));
+        events.push(OutputEvent::Detections(RotationDetections {
+            rotation,
+            timestamp_s,
+            detections: std::mem::take(&mut self.detections),
+        }));
         d
     }
 }
