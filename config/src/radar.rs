@@ -15,6 +15,12 @@ use crate::values::{self, Capacity, Probability, ValueError};
 pub const MAX_RECV_BUFFER_BYTES: usize = 256 << 20;
 /// Largest channel capacity accepted (azimuths or rotations in flight).
 pub const MAX_CHANNEL_CAPACITY: usize = 1 << 20;
+/// Largest byte budget accepted for the radar data the driver holds, MiB.
+pub const MAX_HELD_MIB: usize = 16_384;
+/// Bytes counted per channel slot (azimuth or rotation) against `max_held_mib` when
+/// checking that the channels fit: an upper bound of the driver's slot size, which the
+/// driver's tests check.
+pub const SLOT_BYTES_BOUND: usize = 128;
 
 /// What the driver does when the consumer is slower than the radar and a channel is full.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, Serialize)]
@@ -61,6 +67,14 @@ pub struct RawRadar {
     pub rotation_channel_capacity: i64,
     /// `"drop-newest"` or `"drop-oldest"`. Default `"drop-newest"`.
     pub drop_policy: DropPolicy,
+    /// The most radar data the driver holds at once, MiB in `[1, 16384]`: every azimuth
+    /// alive (queued, in a rotation being assembled or queued, or with the consumer; its
+    /// bins plus a fixed overhead of a few hundred bytes), the channels' slots (about 80
+    /// bytes per slot of `azimuth_channel_capacity` and `rotation_channel_capacity`) and the
+    /// recording queue. An azimuth that would exceed it is dropped, counted and logged
+    /// (rate-limited); under drop-oldest the oldest queued items go first. The capacities'
+    /// slots must fit well inside it. Default 64 (a CTS350-X sends about 6 MB/s).
+    pub max_held_mib: i64,
     /// Record the raw byte stream to this file. Default absent (no recording).
     pub record_path: Option<PathBuf>,
 }
@@ -82,6 +96,7 @@ impl Default for RawRadar {
             azimuth_channel_capacity: 4096,
             rotation_channel_capacity: 8,
             drop_policy: DropPolicy::DropNewest,
+            max_held_mib: 64,
             record_path: None,
         }
     }
@@ -159,6 +174,8 @@ pub struct RadarSettings {
     pub rotation_channel_capacity: Capacity,
     /// What to drop when a channel is full.
     pub drop_policy: DropPolicy,
+    /// The byte budget of the radar data held, MiB.
+    pub max_held_mib: Capacity,
     /// Raw stream recording file.
     pub record_path: Option<PathBuf>,
 }
@@ -232,7 +249,39 @@ impl RawRadar {
             .ok()
             .and_then(std::num::NonZeroU32::new)
             .map_or(ReconnectAttempts::Forever, ReconnectAttempts::AtMost);
-        RadarSettings {
+        let azimuth_channel_capacity = c.check_ok(
+            "radar.azimuth_channel_capacity",
+            Capacity::new(self.azimuth_channel_capacity, MAX_CHANNEL_CAPACITY),
+        );
+        let rotation_channel_capacity = c.check_ok(
+            "radar.rotation_channel_capacity",
+            Capacity::new(self.rotation_channel_capacity, MAX_CHANNEL_CAPACITY),
+        );
+        let max_held_mib = c.check_ok(
+            "radar.max_held_mib",
+            Capacity::new(self.max_held_mib, MAX_HELD_MIB),
+        );
+        // The channels' slots are part of the budget; they must leave most of it for data.
+        if let (Some(az), Some(rot), Some(held)) = (
+            azimuth_channel_capacity,
+            rotation_channel_capacity,
+            max_held_mib,
+        ) {
+            let slots = az.get().saturating_add(rot.get());
+            let slot_bytes = slots.saturating_mul(SLOT_BYTES_BOUND);
+            let budget = held.get().saturating_mul(1 << 20);
+            if slot_bytes > budget / 2 {
+                c.fail(
+                    "radar.max_held_mib",
+                    ValueError::Rule(format!(
+                        "must be at least twice the channels' slots (radar.azimuth_channel_capacity + \
+                         radar.rotation_channel_capacity = {slots} slots of up to {SLOT_BYTES_BOUND} \
+                         bytes = {slot_bytes} bytes), got {budget} bytes"
+                    )),
+                );
+            }
+        }
+        let settings = RadarSettings {
             address: c.check("radar.address", values::socket_addr(&self.address)),
             connect_timeout: c.check(
                 "radar.connect_timeout_ms",
@@ -255,21 +304,17 @@ impl RawRadar {
             reconnect_backoff,
             reconnect_max_attempts,
             non_contoured: self.non_contoured,
-            azimuth_channel_capacity: c.check(
-                "radar.azimuth_channel_capacity",
-                Capacity::new(self.azimuth_channel_capacity, MAX_CHANNEL_CAPACITY),
-            ),
-            rotation_channel_capacity: c.check(
-                "radar.rotation_channel_capacity",
-                Capacity::new(self.rotation_channel_capacity, MAX_CHANNEL_CAPACITY),
-            ),
+            azimuth_channel_capacity: azimuth_channel_capacity.unwrap_or(Capacity::ONE),
+            rotation_channel_capacity: rotation_channel_capacity.unwrap_or(Capacity::ONE),
             drop_policy: self.drop_policy,
+            max_held_mib: max_held_mib.unwrap_or(Capacity::ONE),
             record_path: c.check_opt(
                 "radar.record_path",
                 self.record_path.as_deref(),
                 values::non_empty_path,
             ),
-        }
+        };
+        settings
     }
 }
 
@@ -294,6 +339,7 @@ impl From<&RadarSettings> for RawRadar {
             azimuth_channel_capacity: values::as_i64(s.azimuth_channel_capacity.get()),
             rotation_channel_capacity: values::as_i64(s.rotation_channel_capacity.get()),
             drop_policy: s.drop_policy,
+            max_held_mib: values::as_i64(s.max_held_mib.get()),
             record_path: s.record_path.clone(),
         }
     }

@@ -95,6 +95,23 @@ impl SceneRef {
     }
 }
 
+/// Longest `write_timeout_ms`: an hour.
+pub const MAX_WRITE_TIMEOUT: Duration = Duration::from_secs(3600);
+/// Longest `idle_timeout_ms`: a day.
+pub const MAX_IDLE_TIMEOUT: Duration = Duration::from_secs(86_400);
+
+/// A duration of `ms` milliseconds in `(0, max]`.
+fn bounded_ms(ms: i64, max: Duration) -> Result<Duration, ValueError> {
+    let d = values::duration_from_ms(ms)?;
+    if d > max {
+        return Err(ValueError::OutOfRange {
+            range: format!("[1, {}] ms", values::whole_ms(max)),
+            got: ms.to_string(),
+        });
+    }
+    Ok(d)
+}
+
 /// `[sim]` as written in the file.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
@@ -109,6 +126,12 @@ pub struct RawSim {
     pub pacing: Pacing,
     /// Keep-alive interval, ms > 0. Default 1000.
     pub keepalive_interval_ms: i64,
+    /// A client whose socket takes no data for this long (it stopped reading) is dropped
+    /// and its slot freed, ms in `(0, 1 hour]`. Default 5000.
+    pub write_timeout_ms: i64,
+    /// A client that has not asked for data (start 21 or 140) for this long is dropped and
+    /// its slot freed, ms in `(0, 1 day]`. Default 60000.
+    pub idle_timeout_ms: i64,
     /// A shipped scene name or a scene file path. Default `"outdoor-field"`.
     pub scene: String,
     /// `"paper-200"` or `"cts350x-400"`. Default `"paper-200"`.
@@ -141,6 +164,8 @@ impl Default for RawSim {
             max_clients: 3,
             pacing: Pacing::Realtime,
             keepalive_interval_ms: 1000,
+            write_timeout_ms: 5000,
+            idle_timeout_ms: 60_000,
             scene: DEFAULT_SCENE.into(),
             radar_preset: RadarPreset::Paper200,
             data_width: 8,
@@ -169,6 +194,10 @@ pub struct SimSettings {
     pub pacing: Pacing,
     /// Keep-alive interval.
     pub keepalive_interval: Duration,
+    /// A client whose socket takes no data this long is dropped.
+    pub write_timeout: Duration,
+    /// A client that asks for no data this long is dropped.
+    pub idle_timeout: Duration,
     /// Scene.
     pub scene: SceneRef,
     /// Radar preset.
@@ -256,6 +285,14 @@ impl RawSim {
                 "sim.keepalive_interval_ms",
                 values::duration_from_ms(self.keepalive_interval_ms),
             ),
+            write_timeout: c.check(
+                "sim.write_timeout_ms",
+                bounded_ms(self.write_timeout_ms, MAX_WRITE_TIMEOUT),
+            ),
+            idle_timeout: c.check(
+                "sim.idle_timeout_ms",
+                bounded_ms(self.idle_timeout_ms, MAX_IDLE_TIMEOUT),
+            ),
             scene,
             radar_preset: self.radar_preset,
             data_width,
@@ -308,6 +345,8 @@ impl From<&SimSettings> for RawSim {
             max_clients: values::as_i64(s.max_clients.get()),
             pacing: s.pacing,
             keepalive_interval_ms: values::whole_ms(s.keepalive_interval),
+            write_timeout_ms: values::whole_ms(s.write_timeout),
+            idle_timeout_ms: values::whole_ms(s.idle_timeout),
             scene: s.scene.to_text(),
             radar_preset: s.radar_preset,
             data_width: i64::from(s.data_width.bits()),

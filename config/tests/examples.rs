@@ -75,6 +75,7 @@ fn the_defaults_are_the_documented_values() {
     assert_eq!(c.radar.azimuth_channel_capacity.get(), 4096);
     assert_eq!(c.radar.rotation_channel_capacity.get(), 8);
     assert_eq!(c.radar.drop_policy, DropPolicy::DropNewest);
+    assert_eq!(c.radar.max_held_mib.get(), 64);
     assert_eq!(
         c.odometry.source,
         OdometrySource::Tcp {

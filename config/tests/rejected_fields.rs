@@ -131,6 +131,13 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[filter]\nretire_unseen_after_s = -1.0", "filter.retire_unseen_after_s", "must be >= 0, got -1"),
     ("[filter]\nmax_features = 0", "filter.max_features", "must be in [1, 100000], got 0"),
     ("[filter]\nmax_features = 100001", "filter.max_features", "got 100001"),
+    ("[radar]\nmax_held_mib = 0", "radar.max_held_mib", "must be in [1, 16384], got 0"),
+    ("[radar]\nmax_held_mib = 16385", "radar.max_held_mib", "got 16385"),
+    ("[radar]\nmax_held_mib = 1\nazimuth_channel_capacity = 8192", "radar.max_held_mib", "must be at least twice the channels' slots"),
+    ("[sim]\nwrite_timeout_ms = 0", "sim.write_timeout_ms", "must be > 0, got 0"),
+    ("[sim]\nwrite_timeout_ms = 3600001", "sim.write_timeout_ms", "got 3600001"),
+    ("[sim]\nidle_timeout_ms = -5", "sim.idle_timeout_ms", "must be > 0, got -5"),
+    ("[sim]\nidle_timeout_ms = 86400001", "sim.idle_timeout_ms", "got 86400001"),
     // [output]
     ("[output]\ndirectory = \"\"", "output.directory", "must not be empty"),
     ("[output]\ntrajectory = \"\"", "output.trajectory", "must not be empty"),

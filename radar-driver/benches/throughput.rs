@@ -156,7 +156,9 @@ fn through_driver(rt: &Runtime, addr: SocketAddr, n: u64) -> (Duration, MetricsS
             }
             Err(crossbeam_channel::RecvTimeoutError::Timeout) => {
                 // Only when idle: were the missing azimuths dropped?
-                if received + metrics.snapshot().azimuth_drops >= n {
+                if received + metrics.snapshot().azimuth_drops + metrics.snapshot().budget_drops
+                    >= n
+                {
                     break;
                 }
                 assert!(

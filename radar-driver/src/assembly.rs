@@ -18,6 +18,9 @@
 //!   otherwise only the skip and gap counts are kept, and no azimuth (nor the read buffer it
 //!   was decoded from) is pinned.
 //!
+//! - Azimuths the driver's byte budget refused are counted and numbered but not held
+//!   ([`RotationAssembler::push_unheld`], [`Rotation::dropped_azimuths`]).
+//!
 //! The assembler lives in the driver's session state and survives reconnections.
 
 use std::sync::Arc;
@@ -58,6 +61,8 @@ pub struct RotationAssembler {
     sweep_gaps: u32,
     sweep_missing: u32,
     duplicates: u32,
+    /// Azimuths of the rotation in progress not held (refused by the byte budget).
+    dropped: u32,
     /// Keep only the counts; hold no azimuth.
     counting_only: bool,
     /// Azimuths pushed into the rotation in progress (held or not).
@@ -107,6 +112,26 @@ impl RotationAssembler {
     /// Adds one azimuth (its geometry must be the one set last; a different one is taken
     /// as a geometry change).
     pub fn push(&mut self, mut azimuth: Azimuth) -> PushReport {
+        let report = self.count(&azimuth);
+        azimuth.rotation = report.rotation;
+        if !self.counting_only {
+            // No reservation from the wire's azimuth count: the vector grows with what
+            // arrives (each azimuth's budget charge covers twice its struct).
+            self.current.push(azimuth);
+        }
+        report
+    }
+
+    /// Counts an azimuth that is not held (the driver's byte budget refused it): numbered
+    /// and counted as [`RotationAssembler::push`] does, but missing from its rotation
+    /// ([`Rotation::dropped_azimuths`]).
+    pub fn push_unheld(&mut self, azimuth: &Azimuth) -> PushReport {
+        let report = self.count(azimuth);
+        self.dropped = self.dropped.saturating_add(1);
+        report
+    }
+
+    fn count(&mut self, azimuth: &Azimuth) -> PushReport {
         let mut report = PushReport::default();
         if self.geometry.as_deref() != Some(&*azimuth.geometry) {
             report.finished = self.set_geometry(Arc::clone(&azimuth.geometry));
@@ -161,15 +186,6 @@ impl RotationAssembler {
         }
         self.in_rotation += 1;
         report.rotation = self.rotation;
-        azimuth.rotation = self.rotation;
-        if self.counting_only {
-            return report;
-        }
-        if self.current.capacity() == 0 {
-            self.current
-                .reserve(usize::from(geometry.azimuth_samples).max(1));
-        }
-        self.current.push(azimuth);
         report
     }
 
@@ -192,6 +208,7 @@ impl RotationAssembler {
         let sweep_gaps = std::mem::take(&mut self.sweep_gaps);
         let sweep_missing = std::mem::take(&mut self.sweep_missing);
         let duplicates = std::mem::take(&mut self.duplicates);
+        let dropped = std::mem::take(&mut self.dropped);
         let geometry = geometry?;
         if azimuths.is_empty() {
             return None;
@@ -204,6 +221,7 @@ impl RotationAssembler {
             sweep_gaps,
             sweep_missing,
             duplicate_azimuths: duplicates,
+            dropped_azimuths: dropped,
             complete: at_wrap && self.started_at_wrap,
         };
         self.next_sequence += 1;

@@ -1,7 +1,9 @@
 //! The driver's output types: one [`Azimuth`] per FFT message, whole [`Rotation`]s.
 //!
-//! Bins stay as the wire's bytes ([`Bytes`], shared with the receive buffer, no copy) plus
-//! their width; [`Azimuth::power_db`] and [`Azimuth::bins_db`] convert on demand.
+//! Bins stay as the wire's bytes ([`Bytes`]) plus their width; [`Azimuth::power_db`] and
+//! [`Azimuth::bins_db`] convert on demand. The driver copies them out of its read buffer
+//! into an allocation charged to its byte budget ([`crate::budget`]), so an azimuth never
+//! pins a read buffer and its bytes are counted until its last copy is dropped.
 
 use std::sync::Arc;
 
@@ -114,6 +116,8 @@ pub struct Rotation {
     pub sweep_missing: u32,
     /// Azimuths whose encoder value repeated the previous one.
     pub duplicate_azimuths: u32,
+    /// Azimuths received but not in `azimuths`: the driver's byte budget was full.
+    pub dropped_azimuths: u32,
     /// True when the rotation began at an encoder wrap (or, the very first one, at slot 0)
     /// and ended at the next wrap. A first rotation starting mid-way, and one cut short by
     /// a geometry change or shutdown, is partial.

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use crate::assembly::RotationAssembler;
 use crate::backoff::Backoff;
 use crate::clock::{Clock, SystemClock};
-use crate::error::{DriverError, ErrorChain, SessionError};
+use crate::error::{DriverError, ErrorChain, SessionError, SettingsError};
 use crate::handoff::{ChannelSink, Receivers, Sink};
 use crate::metrics::{Metrics, MetricsSnapshot};
 use crate::record::{RecordSummary, Recorder};
@@ -44,12 +44,13 @@ impl Driver {
     /// A driver delivering into any [`Sink`].
     pub fn with_sink(settings: DriverSettings, sink: Box<dyn Sink>) -> Self {
         let settings_log_interval = settings.log_interval;
+        let max_held_bytes = settings.max_held_bytes;
         Self {
             state: SessionState {
                 settings,
                 sink,
                 clock: Arc::new(SystemClock::new()),
-                metrics: Arc::new(Metrics::new()),
+                metrics: Arc::new(Metrics::with_budget(max_held_bytes)),
                 recorder: None,
                 assembler: RotationAssembler::new(),
                 geometry: None,
@@ -94,6 +95,14 @@ impl Driver {
     /// Runs until `shutdown` fires (then `Ok`) or the attempts run out (then `Err`).
     pub async fn run(mut self, mut shutdown: Shutdown) -> Result<DriverExit, DriverError> {
         self.state.settings.validate()?;
+        // The sink's slot arrays are held for the whole run: charged once.
+        let slot_bytes = self.state.sink.fixed_bytes();
+        let _slots = self.state.metrics.budget().try_charge(slot_bytes).ok_or(
+            SettingsError::BudgetBelowChannels {
+                slot_bytes,
+                max_held_bytes: self.state.settings.max_held_bytes,
+            },
+        )?;
         if let Some(path) = self.state.settings.record_path.clone() {
             let recorder = Recorder::create(&path).map_err(|source| DriverError::Record {
                 path: path.clone(),

@@ -113,6 +113,14 @@ pub enum SettingsError {
     /// Zero decode errors allowed in a row.
     #[error("max_consecutive_decode_errors must be > 0")]
     ZeroMaxDecodeErrors,
+    /// The channels' slot arrays alone would take the whole byte budget.
+    #[error("the channels' slots take {slot_bytes} bytes, not below the byte budget max_held_bytes = {max_held_bytes}: raise the budget or lower the capacities")]
+    BudgetBelowChannels {
+        /// Bytes of the channels' slot arrays.
+        slot_bytes: usize,
+        /// The budget.
+        max_held_bytes: usize,
+    },
     /// The first reconnect delay exceeds the longest.
     #[error("reconnect initial backoff {initial:?} exceeds the maximum {max:?}")]
     BackoffInitialExceedsMax {

@@ -13,6 +13,10 @@
 //!
 //! Every drop is counted, so `sent = delivered_to_consumer + dropped` holds exactly once
 //! the consumer has drained the channel.
+//!
+//! Capacities are counts; what bounds the bytes is the driver's [`crate::ByteBudget`]
+//! (every queued azimuth carries a charge on it, and under drop-oldest a full budget sheds
+//! the oldest queued items first).
 
 use crossbeam_channel::{bounded, Receiver, Sender, TryRecvError, TrySendError};
 
@@ -74,6 +78,26 @@ pub trait Sink: Send + std::fmt::Debug {
     fn wants_rotations(&self) -> bool;
     /// Whether single azimuths are wanted.
     fn wants_azimuths(&self) -> bool;
+    /// Drops the oldest queued item to give its bytes back to the driver's
+    /// [`crate::ByteBudget`], if this sink's policy is drop-oldest (an azimuth first, else
+    /// a rotation); `None` when nothing was dropped. The default drops nothing.
+    fn shed_oldest(&mut self) -> Option<Shed> {
+        None
+    }
+    /// Bytes this sink holds whatever flows through it (its queues' slot arrays), charged
+    /// once to the driver's budget. The default is nothing.
+    fn fixed_bytes(&self) -> usize {
+        0
+    }
+}
+
+/// What [`Sink::shed_oldest`] dropped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Shed {
+    /// The oldest queued azimuth.
+    Azimuth,
+    /// The oldest queued rotation.
+    Rotation,
 }
 
 /// Channel capacities and drop policy.
@@ -85,6 +109,21 @@ pub struct HandoffSettings {
     pub rotation_capacity: Option<usize>,
     /// What to drop when a channel is full.
     pub drop_policy: DropPolicy,
+}
+
+impl HandoffSettings {
+    /// The bytes of the channels' slot arrays, allocated up front whatever flows: per slot
+    /// the item's size and a stamp. Charged once to the driver's byte budget.
+    pub fn slot_bytes(&self) -> usize {
+        fn slots<T>(capacity: Option<usize>) -> usize {
+            capacity.map_or(0, |c| {
+                c.max(1)
+                    .saturating_mul(std::mem::size_of::<T>() + std::mem::size_of::<usize>())
+            })
+        }
+        slots::<Azimuth>(self.azimuth_capacity)
+            .saturating_add(slots::<Rotation>(self.rotation_capacity))
+    }
 }
 
 impl Default for HandoffSettings {
@@ -123,6 +162,11 @@ impl<T> Lane<T> {
         (Self { tx, rx: own }, rx)
     }
 
+    /// Drops the oldest queued item (drop-oldest only): whether one was dropped.
+    fn shed(&self) -> bool {
+        self.rx.as_ref().is_some_and(|rx| rx.try_recv().is_ok())
+    }
+
     fn offer(&self, item: T) -> Delivery {
         match self.tx.try_send(item) {
             Ok(()) => Delivery::Delivered,
@@ -158,6 +202,7 @@ impl<T> Lane<T> {
 pub struct ChannelSink {
     azimuths: Option<Lane<Azimuth>>,
     rotations: Option<Lane<Rotation>>,
+    slot_bytes: usize,
 }
 
 impl ChannelSink {
@@ -182,6 +227,7 @@ impl ChannelSink {
             Self {
                 azimuths: az_lane,
                 rotations: rot_lane,
+                slot_bytes: settings.slot_bytes(),
             },
             Receivers {
                 azimuths: az_rx,
@@ -211,6 +257,20 @@ impl Sink for ChannelSink {
     fn wants_azimuths(&self) -> bool {
         self.azimuths.is_some()
     }
+
+    fn shed_oldest(&mut self) -> Option<Shed> {
+        if self.azimuths.as_ref().is_some_and(Lane::shed) {
+            return Some(Shed::Azimuth);
+        }
+        self.rotations
+            .as_ref()
+            .is_some_and(Lane::shed)
+            .then_some(Shed::Rotation)
+    }
+
+    fn fixed_bytes(&self) -> usize {
+        self.slot_bytes
+    }
 }
 
 #[cfg(test)]
@@ -234,6 +294,20 @@ mod tests {
         assert_eq!(lane.offer(3), Delivery::DeliveredDroppingOldest);
         assert_eq!(lane.offer(4), Delivery::DeliveredDroppingOldest);
         assert_eq!(rx.try_iter().collect::<Vec<_>>(), vec![3, 4]);
+    }
+
+    #[test]
+    fn only_drop_oldest_sheds_the_oldest_queued_item_for_the_byte_budget() {
+        let (oldest, rx) = Lane::new(4, DropPolicy::DropOldest);
+        oldest.offer(1);
+        oldest.offer(2);
+        assert!(oldest.shed());
+        assert_eq!(rx.try_iter().collect::<Vec<_>>(), vec![2]);
+        assert!(!oldest.shed(), "nothing left to shed");
+        let (newest, rx) = Lane::new(4, DropPolicy::DropNewest);
+        newest.offer(1);
+        assert!(!newest.shed());
+        assert_eq!(rx.len(), 1);
     }
 
     #[test]

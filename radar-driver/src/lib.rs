@@ -14,6 +14,8 @@
 //! - [`assembly`]: azimuths into [`Rotation`]s, counting skipped azimuths and sweep-counter
 //!   gaps.
 //! - [`handoff`]: the [`Sink`] seam and bounded crossbeam channels with a counted drop policy.
+//! - [`budget`]: the memory bound in bytes: every azimuth's bins are copied out of the read
+//!   buffer into an allocation charged to one [`ByteBudget`] until its last copy is dropped.
 //! - [`stream`]: the same hand-off as async streams ([`Driver::with_streams`]).
 //! - [`metrics`]: lock-free counters and read-to-send latency (median, p99).
 //! - [`record`]: raw byte-stream recording.
@@ -40,6 +42,7 @@
 pub mod assembly;
 pub mod azimuth;
 pub mod backoff;
+pub mod budget;
 pub mod clock;
 pub mod driver;
 pub mod error;
@@ -56,10 +59,11 @@ pub mod stream;
 
 pub use assembly::RotationAssembler;
 pub use azimuth::{Azimuth, Rotation};
+pub use budget::{ByteBudget, Charge, AZIMUTH_OVERHEAD_BYTES};
 pub use clock::{Clock, SystemClock};
 pub use driver::{ConfigurationWatch, Driver, DriverExit, DriverHandle};
 pub use error::{DriverError, ErrorChain, SessionError, SettingsError};
-pub use handoff::{ChannelSink, Delivery, DropPolicy, HandoffSettings, Receivers, Sink};
+pub use handoff::{ChannelSink, Delivery, DropPolicy, HandoffSettings, Receivers, Shed, Sink};
 pub use metrics::{DecodeErrorCounts, DecodeErrorKind, LatencySummary, Metrics, MetricsSnapshot};
 pub use odometry::{
     FileOdometry, OdometryError, OdometryPoll, OdometryRecord, OdometrySource, TcpOdometry,
@@ -67,6 +71,6 @@ pub use odometry::{
 };
 pub use protocol::{BinWidth, Geometry};
 pub use ratelimit::RateLimiter;
-pub use settings::DriverSettings;
+pub use settings::{DriverSettings, DEFAULT_MAX_HELD_BYTES};
 pub use shutdown::{shutdown_pair, Shutdown, ShutdownTrigger};
 pub use stream::{AzimuthStream, RotationStream, StreamSink, Streams};

@@ -12,7 +12,8 @@
 //! FFT messages' own timestamps; a replay paces itself by those. Commands the client sent
 //! (21, 22, ...) are not recorded.
 //!
-//! If the writer falls behind by more than [`RECORD_QUEUE_CHUNKS`] chunks, chunks are
+//! If the writer falls behind by more than [`RECORD_QUEUE_CHUNKS`] chunks, or the queued
+//! chunks (each charged to the driver's byte budget) would exceed that budget, chunks are
 //! dropped and counted (the decoder resynchronises over such a hole on replay); the
 //! socket task is never slowed.
 
@@ -97,6 +98,11 @@ impl Recorder {
                 false
             }
         }
+    }
+
+    /// Counts a chunk dropped before reaching the queue (the driver's byte budget was full).
+    pub fn count_dropped(&self) {
+        self.counters.dropped.fetch_add(1, Ordering::Relaxed);
     }
 
     /// Bytes written so far.

@@ -23,11 +23,12 @@ use protocol::{
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
-use crate::assembly::RotationAssembler;
+use crate::assembly::{PushReport, RotationAssembler};
 use crate::azimuth::{Azimuth, Rotation};
+use crate::budget::AZIMUTH_OVERHEAD_BYTES;
 use crate::clock::Clock;
 use crate::error::{ErrorChain, SessionError};
-use crate::handoff::Sink;
+use crate::handoff::{Shed, Sink};
 use crate::metrics::{DecodeErrorKind, Metrics};
 use crate::ratelimit::RateLimiter;
 use crate::record::Recorder;
@@ -104,6 +105,8 @@ pub struct LogLimits {
     pub stop_failed: RateLimiter,
     /// A rotation in progress grew past its cap and was discarded (WARN).
     pub rotation_oversized: RateLimiter,
+    /// The byte budget was full: an azimuth or a recording chunk dropped (WARN).
+    pub budget_full: RateLimiter,
 }
 
 impl LogLimits {
@@ -115,7 +118,8 @@ impl LogLimits {
             configuration_undecodable: limiter.clone(),
             link_lost: limiter.clone(),
             stop_failed: limiter.clone(),
-            rotation_oversized: limiter,
+            rotation_oversized: limiter.clone(),
+            budget_full: limiter,
         }
     }
 }
@@ -266,9 +270,25 @@ impl SessionState {
             if let Some(recorder) = &self.recorder {
                 let consumed = record_pending.len().saturating_sub(buf.len());
                 if consumed > 0 {
-                    let bytes = record_pending.split_to(consumed).freeze();
-                    self.metrics.add_record_bytes(bytes.len() as u64);
-                    recorder.write(bytes);
+                    // Copied into a charged allocation of its own: a queued chunk neither
+                    // pins the pending buffer nor escapes the byte budget.
+                    let chunk = record_pending.split_to(consumed);
+                    match self.metrics.budget().copy(&chunk, 0) {
+                        Some(bytes) => {
+                            self.metrics.add_record_bytes(bytes.len() as u64);
+                            recorder.write(bytes);
+                        }
+                        None => {
+                            self.metrics.add_record_budget_drops(1);
+                            recorder.count_dropped();
+                            crate::warn_limited!(
+                                self.logs.budget_full,
+                                held_bytes = self.metrics.budget().held(),
+                                max_held_bytes = self.metrics.budget().limit(),
+                                "the driver's byte budget is full: recording chunk dropped"
+                            );
+                        }
+                    }
                 }
             }
         }
@@ -352,11 +372,30 @@ impl SessionState {
             return;
         }
         self.metrics.add_fft_frames(1);
-        let mut azimuth = Azimuth::from_fft(fft, Arc::clone(geometry));
+        let geometry = Arc::clone(geometry);
+        // The bins are copied out of the read buffer into an allocation charged to the byte
+        // budget; when it is full the azimuth is dropped (after shedding the oldest queued
+        // items under drop-oldest).
+        let bins = self.charge_bins(&fft.bins);
+        let mut azimuth = Azimuth::from_fft(fft, geometry);
         // The assembler numbers the rotations (one owner of rotation boundaries): push first,
         // then hand the azimuth on with its rotation number.
         self.assembler
             .set_counting_only(!self.sink.wants_rotations());
+        let Some(bins) = bins else {
+            let report = self.assembler.push_unheld(&azimuth);
+            self.metrics.add_budget_drops(1);
+            crate::warn_limited!(
+                self.logs.budget_full,
+                held_bytes = self.metrics.budget().held(),
+                max_held_bytes = self.metrics.budget().limit(),
+                azimuth_bytes = azimuth.bins.len(),
+                "the driver's byte budget is full (consumer too slow?): azimuth dropped"
+            );
+            self.after_push(report);
+            return;
+        };
+        azimuth.bins = bins;
         let report = self.assembler.push(azimuth.clone());
         azimuth.rotation = report.rotation;
         if self.sink.wants_azimuths() {
@@ -370,6 +409,27 @@ impl SessionState {
             self.metrics
                 .record_latency_ns(sent_ns.saturating_sub(read_ns));
         }
+        self.after_push(report);
+    }
+
+    /// The bins copied into an allocation charged to the byte budget; `None` when they do
+    /// not fit even after shedding what the sink can shed (drop-oldest).
+    fn charge_bins(&mut self, bins: &bytes::Bytes) -> Option<bytes::Bytes> {
+        let budget = Arc::clone(self.metrics.budget());
+        loop {
+            if let Some(charged) = budget.copy(bins, AZIMUTH_OVERHEAD_BYTES) {
+                return Some(charged);
+            }
+            match self.sink.shed_oldest() {
+                Some(Shed::Azimuth) => self.metrics.add_azimuth_drops(1),
+                Some(Shed::Rotation) => self.metrics.add_rotation_drops(1),
+                None => return None,
+            }
+        }
+    }
+
+    /// Counts and logs what pushing one azimuth found, and hands on a finished rotation.
+    fn after_push(&mut self, report: PushReport) {
         if report.overlong {
             self.overlong_rotations += 1;
             if self.overlong_rotations.is_power_of_two() {

@@ -49,13 +49,21 @@ pub struct DriverSettings {
     /// link, an oversized rotation) repeat at most once per this period each, with a count
     /// of those suppressed. Default 10 s.
     pub log_interval: Duration,
+    /// The most bytes of radar data held at once: every azimuth alive (queued, in a
+    /// rotation, or with a consumer), the channels' slots and the recording queue (see
+    /// [`crate::budget`]). An azimuth that would exceed it is dropped and counted.
+    /// Default 64 MiB.
+    pub max_held_bytes: usize,
 }
+
+/// The default of [`DriverSettings::max_held_bytes`]: 64 MiB.
+pub const DEFAULT_MAX_HELD_BYTES: usize = 64 << 20;
 
 impl DriverSettings {
     /// Defaults for `address` (the `[radar]` section's defaults; a test keeps them equal):
     /// 3 s connect timeout, TCP_NODELAY, 4 MiB receive buffer, 7 s watchdog, reconnection
     /// from 100 ms to 5 s with 20 % jitter, forever, contoured data (21), 4096 azimuths and 8
-    /// rotations in flight, newest dropped when full.
+    /// rotations in flight, newest dropped when full, at most 64 MiB of radar data held.
     pub fn new(address: SocketAddr) -> Self {
         Self {
             address,
@@ -83,6 +91,7 @@ impl DriverSettings {
             read_chunk_bytes: 64 * 1024,
             stop_timeout: Duration::from_millis(500),
             log_interval: Duration::from_secs(10),
+            max_held_bytes: DEFAULT_MAX_HELD_BYTES,
         }
     }
 
@@ -121,6 +130,7 @@ impl DriverSettings {
             read_chunk_bytes: 64 * 1024,
             stop_timeout: Duration::from_millis(500),
             log_interval: Duration::from_secs(10),
+            max_held_bytes: radar.max_held_mib.get().saturating_mul(1 << 20),
         }
     }
 
@@ -147,6 +157,13 @@ impl DriverSettings {
         if self.max_consecutive_decode_errors == 0 {
             return Err(SettingsError::ZeroMaxDecodeErrors);
         }
+        let slot_bytes = self.handoff.slot_bytes();
+        if slot_bytes >= self.max_held_bytes {
+            return Err(SettingsError::BudgetBelowChannels {
+                slot_bytes,
+                max_held_bytes: self.max_held_bytes,
+            });
+        }
         if self.backoff.initial > self.backoff.max {
             return Err(SettingsError::BackoffInitialExceedsMax {
                 initial: self.backoff.initial,
@@ -157,10 +174,35 @@ impl DriverSettings {
     }
 }
 
-#[cfg(all(test, feature = "config"))]
+#[cfg(test)]
 mod tests {
     use super::*;
 
+    #[test]
+    fn a_budget_the_channels_slots_alone_would_fill_is_refused() {
+        let mut s = DriverSettings::new(SocketAddr::from(([127, 0, 0, 1], 1)));
+        assert_eq!(s.validate(), Ok(()));
+        s.handoff.azimuth_capacity = Some(1 << 20);
+        s.max_held_bytes = 1 << 20;
+        assert!(matches!(
+            s.validate(),
+            Err(SettingsError::BudgetBelowChannels { .. })
+        ));
+    }
+
+    #[cfg(feature = "config")]
+    #[test]
+    fn the_configuration_bounds_a_channel_slot_from_above() {
+        let word = std::mem::size_of::<usize>();
+        for slot in [
+            std::mem::size_of::<crate::Azimuth>() + word,
+            std::mem::size_of::<crate::Rotation>() + word,
+        ] {
+            assert!(slot <= config::radar::SLOT_BYTES_BOUND, "{slot}");
+        }
+    }
+
+    #[cfg(feature = "config")]
     #[test]
     fn the_plain_defaults_are_the_configuration_defaults() {
         let from_config = DriverSettings::from_config(&RadarSettings::default());

@@ -2,7 +2,8 @@
 //! `tokio::sync::mpsc` queues behind the same [`Sink`] seam as the crossbeam channels, each
 //! end a [`futures_core::Stream`]. A full queue drops the newest item and the driver counts
 //! it, as the crossbeam channels' drop-newest policy does (the driver never waits for a
-//! consumer).
+//! consumer). Under the driver's byte budget (every azimuth carries a charge) a full
+//! budget drops the new azimuth too: these queues cannot shed their oldest item.
 
 use std::pin::Pin;
 use std::task::{Context, Poll};
@@ -19,6 +20,7 @@ use crate::settings::DriverSettings;
 pub struct StreamSink {
     azimuths: Option<mpsc::Sender<Azimuth>>,
     rotations: Option<mpsc::Sender<Rotation>>,
+    slot_bytes: usize,
 }
 
 fn offer<T>(tx: &mpsc::Sender<T>, item: T) -> Delivery {
@@ -48,6 +50,11 @@ impl Sink for StreamSink {
 
     fn wants_azimuths(&self) -> bool {
         self.azimuths.is_some()
+    }
+
+    /// The queues' items at full capacity (tokio allocates them as they come, up to that).
+    fn fixed_bytes(&self) -> usize {
+        self.slot_bytes
     }
 }
 
@@ -121,6 +128,7 @@ impl StreamSink {
             Self {
                 azimuths: az_tx,
                 rotations: rot_tx,
+                slot_bytes: handoff.slot_bytes(),
             },
             Streams {
                 azimuths: az_rx,

@@ -99,10 +99,10 @@ pub struct SimOptions {
     /// Keep-alive interval (1 s like a real radar).
     pub keepalive_interval: Duration,
     /// A client whose socket takes no data for this long is dropped, freeing its slot
-    /// (default 5 s).
+    /// (default 5 s; `[sim] write_timeout_ms`).
     pub write_timeout: Duration,
     /// A client that has not asked for data this long after connecting is dropped, freeing
-    /// its slot (default 60 s).
+    /// its slot (default 60 s; `[sim] idle_timeout_ms`).
     pub idle_timeout: Duration,
     /// What to stream.
     pub source: SourceSpec,
@@ -198,6 +198,8 @@ impl SimOptions {
         options.max_clients = sim.max_clients.get();
         options.pacing = sim.pacing.into();
         options.keepalive_interval = sim.keepalive_interval;
+        options.write_timeout = sim.write_timeout;
+        options.idle_timeout = sim.idle_timeout;
         options.faults = FaultSettings::from(&sim.faults);
         options.seed = Some(sim.seed);
         options.odometry = OdometryNoise {
@@ -264,6 +266,8 @@ mod tests {
             max_clients = 2
             pacing = "as-fast-as-possible"
             keepalive_interval_ms = 250
+            write_timeout_ms = 1500
+            idle_timeout_ms = 20000
             scene = "long-loop"
             data_width = 16
             seed = 42
@@ -280,6 +284,8 @@ mod tests {
         assert_eq!(options.max_clients, 2);
         assert_eq!(options.pacing, Pacing::AsFastAsPossible);
         assert_eq!(options.keepalive_interval, Duration::from_millis(250));
+        assert_eq!(options.write_timeout, Duration::from_millis(1500));
+        assert_eq!(options.idle_timeout, Duration::from_secs(20));
         assert_eq!(options.seed, Some(42));
         assert_eq!(options.odometry.rate_hz, 50.0);
         assert_eq!(options.odometry.sigma_speed_mps, 0.2);
@@ -297,6 +303,16 @@ mod tests {
         // config's 16-bit width applies.
         assert_eq!(scene.preset, RadarPreset::Cts350x400);
         assert_eq!(scene.radar.data_width, DataWidth::Bits16);
+    }
+
+    #[cfg(feature = "config")]
+    #[test]
+    fn the_plain_timeouts_are_the_sim_section_defaults() {
+        let scene = crate::scene::shipped::load("penetration-wood").expect("scene");
+        let plain = SimOptions::new(SourceSpec::Scene(Box::new(scene)));
+        let section = config::sim::SimSettings::default();
+        assert_eq!(plain.write_timeout, section.write_timeout);
+        assert_eq!(plain.idle_timeout, section.idle_timeout);
     }
 
     #[test]

@@ -230,6 +230,11 @@ fn run(args: Args) -> anyhow::Result<()> {
         });
         run_daemon(opts, progress).await
     });
+    if matches!(result, Err(slam_node::daemon::DaemonError::Stopped)) {
+        // Ctrl-C during the scene's build: do not wait for the abandoned build.
+        runtime.shutdown_background();
+        anyhow::bail!("stopped (Ctrl-C) while building the scene, before the run began");
+    }
     // The simulator's ground-truth writer may still be flushing on the blocking pool.
     runtime.shutdown_timeout(std::time::Duration::from_secs(2));
     let report = result.context("running the daemon")?;

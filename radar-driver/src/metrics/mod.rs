@@ -6,6 +6,9 @@ mod latency;
 pub use latency::{LatencyHistogram, LatencySummary};
 
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use crate::budget::ByteBudget;
 
 /// What kind of malformed input the frame decoder rejected.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -110,7 +113,10 @@ pub struct Metrics {
     reconnects: AtomicU64,
     watchdog_timeouts: AtomicU64,
     record_bytes: AtomicU64,
+    budget_drops: AtomicU64,
+    record_budget_drops: AtomicU64,
     latency: LatencyHistogram,
+    budget: Arc<ByteBudget>,
 }
 
 /// A point-in-time copy of every counter.
@@ -166,6 +172,17 @@ pub struct MetricsSnapshot {
     pub watchdog_timeouts: u64,
     /// Bytes written to the recording.
     pub record_bytes: u64,
+    /// Azimuths dropped because the byte budget was full (before any channel: not in
+    /// `azimuths_sent`).
+    pub budget_drops: u64,
+    /// Recording chunks dropped because the byte budget was full.
+    pub record_budget_drops: u64,
+    /// Bytes of radar data held now (see [`crate::budget`]).
+    pub held_bytes: usize,
+    /// The most bytes of radar data ever held at once.
+    pub held_bytes_peak: usize,
+    /// The byte budget (`max_held_bytes`).
+    pub max_held_bytes: usize,
     /// Latency from the socket read that completed a frame to its channel send.
     pub latency: LatencySummary,
 }
@@ -182,9 +199,22 @@ macro_rules! bump {
 }
 
 impl Metrics {
-    /// All counters at zero.
+    /// All counters at zero, with no byte limit.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// All counters at zero, with a byte budget of `max_held_bytes`.
+    pub fn with_budget(max_held_bytes: usize) -> Self {
+        Self {
+            budget: ByteBudget::new(max_held_bytes),
+            ..Self::default()
+        }
+    }
+
+    /// The byte budget every azimuth is charged to.
+    pub fn budget(&self) -> &Arc<ByteBudget> {
+        &self.budget
     }
 
     bump! {
@@ -212,6 +242,8 @@ impl Metrics {
         add_reconnects => reconnects,
         add_watchdog_timeouts => watchdog_timeouts,
         add_record_bytes => record_bytes,
+        add_budget_drops => budget_drops,
+        add_record_budget_drops => record_budget_drops,
     }
 
     /// Counts one decode error of `kind`.
@@ -271,6 +303,11 @@ impl Metrics {
             reconnects: get(&self.reconnects),
             watchdog_timeouts: get(&self.watchdog_timeouts),
             record_bytes: get(&self.record_bytes),
+            budget_drops: get(&self.budget_drops),
+            record_budget_drops: get(&self.record_budget_drops),
+            held_bytes: self.budget.held(),
+            held_bytes_peak: self.budget.peak(),
+            max_held_bytes: self.budget.limit(),
             latency: self.latency.summary(),
         }
     }

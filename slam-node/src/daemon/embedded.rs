@@ -3,6 +3,9 @@
 //! truth from the scene, the simulator's server and odometry on 127.0.0.1.
 
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
 
 use crossbeam_channel::Receiver;
 use radar_driver::{
@@ -100,8 +103,37 @@ pub(super) struct Started {
     pub replay: Option<ReplayFigures>,
 }
 
+/// How often a build in progress looks at the stop request.
+const STOP_POLL: Duration = Duration::from_millis(20);
+
+/// Waits for `work` (a task doing a build: the scene's truth, the simulator's renderer),
+/// unless `stop` is set first: then the build is abandoned (aborted at its next await, or
+/// left to finish unobserved on its thread) and the daemon gives up with
+/// [`DaemonError::Stopped`]. A large scene's build (a day's trajectory, 200,000 features)
+/// takes seconds; Ctrl-C must not wait for it.
+async fn unless_stopped<T: Send + 'static>(
+    stop: &AtomicBool,
+    mut work: tokio::task::JoinHandle<T>,
+) -> Result<T, DaemonError> {
+    let mut poll = tokio::time::interval(STOP_POLL);
+    loop {
+        tokio::select! {
+            joined = &mut work => return joined.map_err(|_| DaemonError::PipelinePanicked),
+            _ = poll.tick() => {
+                if stop.load(Ordering::Relaxed) {
+                    work.abort();
+                    info!("stop requested while building the scene: abandoned");
+                    return Err(DaemonError::Stopped);
+                }
+            }
+        }
+    }
+}
+
 /// Starts the simulator and connects a driver and an odometry client to it; the pipeline is
-/// built (everything that can fail is checked) before the simulator starts.
+/// built (everything that can fail is checked) before the simulator starts. A stop request
+/// (`stop`, Ctrl-C) during the builds ends it at once with [`DaemonError::Stopped`].
+#[allow(clippy::too_many_arguments)]
 pub(super) async fn start(
     sim: EmbeddedSim,
     settings: PipelineSettings,
@@ -110,6 +142,7 @@ pub(super) async fn start(
     max_stream_s: Option<f64>,
     keep_configured_compensation: bool,
     odo_shutdown: Shutdown,
+    stop: &Arc<AtomicBool>,
 ) -> Result<Started, DaemonError> {
     let mut options = sim.options;
     options.ground_truth_path = Some(out_dir.join("ground-truth.jsonl"));
@@ -122,22 +155,31 @@ pub(super) async fn start(
     let settings = embedded_settings(settings, &scene, keep_configured_compensation);
     let start_s = start_ns as f64 * 1e-9;
     let horizon = max_stream_s.unwrap_or(600.0) + 30.0;
-    let oracle = SceneTruth::new(&scene, start_s, horizon)?;
-    let mut truth_overlay = TruthOverlay {
-        features: oracle.features().iter().map(|f| (f.x_m, f.y_m)).collect(),
-        trajectory: (0..(horizon.min(3600.0) * 4.0) as usize)
-            .filter_map(|k| oracle.pose_at(start_s + k as f64 * 0.25))
-            .map(|p| (p.x, p.y))
-            .collect(),
-    };
-    if let Some(limit) = max_stream_s {
-        let keep = (limit * 4.0).ceil() as usize + 1;
-        truth_overlay.trajectory.truncate(keep);
-    }
-    let pipeline = Pipeline::new(settings.clone(), Some(start_s), Some(Box::new(oracle)))?;
+    let build_settings = settings.clone();
+    let scene_name = scene.name.clone();
+    let (truth_overlay, pipeline) = unless_stopped(
+        stop,
+        tokio::task::spawn_blocking(move || -> Result<_, DaemonError> {
+            let oracle = SceneTruth::new(&scene, start_s, horizon)?;
+            let mut truth_overlay = TruthOverlay {
+                features: oracle.features().iter().map(|f| (f.x_m, f.y_m)).collect(),
+                trajectory: (0..(horizon.min(3600.0) * 4.0) as usize)
+                    .filter_map(|k| oracle.pose_at(start_s + k as f64 * 0.25))
+                    .map(|p| (p.x, p.y))
+                    .collect(),
+            };
+            if let Some(limit) = max_stream_s {
+                let keep = (limit * 4.0).ceil() as usize + 1;
+                truth_overlay.trajectory.truncate(keep);
+            }
+            let pipeline = Pipeline::new(build_settings, Some(start_s), Some(Box::new(oracle)))?;
+            Ok((truth_overlay, pipeline))
+        }),
+    )
+    .await??;
     let fast = options.pacing == sim_sensor::settings::Pacing::AsFastAsPossible;
-    let handle = SimServer::spawn(options).await?;
-    info!(radar = %handle.local_addr(), odometry = ?handle.odometry_addr(), scene = %scene.name, "embedded simulator started");
+    let handle = unless_stopped(stop, tokio::spawn(SimServer::spawn(options))).await??;
+    info!(radar = %handle.local_addr(), odometry = ?handle.odometry_addr(), scene = %scene_name, "embedded simulator started");
     driver_settings.address = handle.local_addr();
     let odometry: Option<Box<dyn OdometrySource>> = handle.odometry_addr().map(|a| {
         Box::new(TcpOdometry::spawn(
@@ -151,7 +193,7 @@ pub(super) async fn start(
         settings,
         start_time_s: Some(start_s),
         truth_overlay,
-        scene_name: scene.name.clone(),
+        scene_name,
         pipeline,
         handle,
         azimuths,

@@ -68,6 +68,9 @@ pub enum DaemonError {
     #[cfg(feature = "sim")]
     #[error("the embedded simulator must run a scene, not a replay")]
     NotAScene,
+    /// A stop (Ctrl-C) came while the scene was being built: nothing ran.
+    #[error("stopped while building the scene, before the run began")]
+    Stopped,
     /// The driver was built without an azimuth channel.
     #[error("the radar driver has no azimuth channel")]
     NoAzimuthChannel,
@@ -198,6 +201,7 @@ pub async fn run_daemon(
                         opts.max_stream_s,
                         opts.keep_configured_compensation,
                         odo_shutdown.clone(),
+                        &opts.stop,
                     )
                     .await?
                 }

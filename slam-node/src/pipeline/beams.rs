@@ -18,6 +18,12 @@ pub struct OfferedBeam {
     pub may_start: Vec<bool>,
 }
 
+/// Most observations pending in one beam. Far more than a beam can hold (the filter refuses
+/// beams over `max_targets_per_beam`), so it never splits a real beam; it bounds what a
+/// stuck encoder with a stuck clock (every azimuth at one bearing and one time) can pile
+/// up: one rotation of the largest legal radar is 131,070 azimuths.
+pub const MAX_PENDING_OBSERVATIONS: usize = 4096;
+
 /// Gathers observations into beams.
 #[derive(Debug)]
 pub struct BeamAssembler {
@@ -43,7 +49,7 @@ impl BeamAssembler {
             let same_beam = wrap_angle(obs.bearing_rad - first.bearing_rad).abs()
                 <= self.half_width_rad
                 && obs.timestamp_s - first.timestamp_s <= self.max_dt_s;
-            if !same_beam {
+            if !same_beam || self.pending.len() >= MAX_PENDING_OBSERVATIONS {
                 self.flush(out);
             }
         }
@@ -114,5 +120,16 @@ mod tests {
         assert_eq!(out[1].beam.targets.len(), 1);
         assert_eq!(out[0].may_start, vec![true, true]);
         assert!(out[0].beam.timestamp_s <= out[1].beam.timestamp_s);
+    }
+
+    #[test]
+    fn a_stuck_bearing_at_a_stuck_time_never_holds_more_than_the_pending_cap() {
+        let mut a = BeamAssembler::new(0.9f64.to_radians(), 0.05);
+        let mut out = Vec::new();
+        for _ in 0..3 * MAX_PENDING_OBSERVATIONS {
+            a.push(obs(8.5, 0.0, 1.0), &mut out);
+            assert!(a.pending.len() <= MAX_PENDING_OBSERVATIONS);
+        }
+        assert_eq!(out.len(), 2);
     }
 }

@@ -79,6 +79,31 @@ impl WireClock {
         Verdict::Outlier
     }
 
+    /// As [`WireClock::observe`], except that a forward step longer than `max_step_s` but
+    /// at most `max_silence_s` is accepted at once when `vouch_s` (another stream's clock,
+    /// guarded by its own `WireClock`: the odometry's) is within `max_step_s` of it. The
+    /// sender was silent (a link down and back up) while time went on; its clock did not
+    /// jump, and nothing needs resynchronising. Longer silences are confirmed as jumps.
+    pub fn observe_vouched(
+        &mut self,
+        t_s: f64,
+        vouch_s: Option<f64>,
+        max_silence_s: f64,
+    ) -> Verdict {
+        if let (Some(last), Some(vouch)) = (self.last_s, vouch_s) {
+            if t_s.is_finite()
+                && t_s > last
+                && t_s - last <= max_silence_s
+                && (t_s - vouch).abs() <= self.max_step_s
+            {
+                self.last_s = Some(t_s);
+                self.candidate = None;
+                return Verdict::Accept;
+            }
+        }
+        self.observe(t_s)
+    }
+
     /// The stream's clock: the last accepted timestamp.
     pub fn now_s(&self) -> Option<f64> {
         self.last_s
@@ -118,6 +143,28 @@ mod tests {
         assert_eq!(c.observe(99.0), Verdict::Outlier);
         assert_eq!(c.observe(f64::NAN), Verdict::Outlier);
         assert_eq!(c.observe(100.5), Verdict::Accept);
+    }
+
+    #[test]
+    fn a_silence_the_other_clock_vouches_for_is_accepted_and_a_wild_stamp_is_not() {
+        let mut c = WireClock::new(2.0, 16);
+        assert_eq!(c.observe(100.0), Verdict::Accept);
+        // The link was down for 3 s; the odometry went on to 103.1.
+        assert_eq!(c.observe_vouched(103.0, Some(103.1), 60.0), Verdict::Accept);
+        assert_eq!(c.jumps(), 0);
+        // 2100 is vouched for by nothing; nor is a step back.
+        assert_eq!(
+            c.observe_vouched(4.1e9, Some(103.2), 60.0),
+            Verdict::Outlier
+        );
+        assert_eq!(c.observe_vouched(90.0, Some(90.0), 60.0), Verdict::Outlier);
+        // Without a vouching clock, a silence is a jump to confirm, as before; so is one
+        // longer than the longest silence.
+        assert_eq!(c.observe_vouched(110.0, None, 60.0), Verdict::Outlier);
+        assert_eq!(
+            c.observe_vouched(3703.0, Some(3703.0), 60.0),
+            Verdict::Outlier
+        );
     }
 
     #[test]

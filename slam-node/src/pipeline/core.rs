@@ -38,6 +38,9 @@ const ODOMETRY_QUEUE: usize = 1 << 16;
 /// costs that azimuth unless this many consecutive azimuths confirm the new clock.
 const AZIMUTH_MAX_STEP_S: f64 = 2.0;
 const AZIMUTH_JUMP_CONFIRM: u32 = 16;
+/// A radar silence (link down and back) up to this long (s) that the odometry's clock spans
+/// is taken as a silence, not a clock jump: the filter predicts through it on odometry.
+const AZIMUTH_MAX_SILENCE_S: f64 = 60.0;
 
 /// Why the pipeline could not start or go on.
 #[derive(Debug, thiserror::Error)]
@@ -211,7 +214,13 @@ impl Pipeline {
         az: &Azimuth,
         events: &mut Vec<OutputEvent>,
     ) -> Result<(), PipelineError> {
-        match self.clock.observe(az.timestamp_s) {
+        // A silence of the radar (a link down and back) that the odometry's clock spans is
+        // not a jump of the radar's clock: the filter predicts through it on odometry.
+        match self.clock.observe_vouched(
+            az.timestamp_s,
+            self.gate.latest_s(),
+            AZIMUTH_MAX_SILENCE_S,
+        ) {
             Verdict::Accept => {}
             Verdict::Outlier => {
                 // A wild timestamp (far ahead, backwards, not finite) costs this azimuth.
