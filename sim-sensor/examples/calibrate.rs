@@ -80,37 +80,63 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let iterations: usize = std::env::var("CALIBRATE_ITERATIONS")
         .ok()
         .and_then(|v| v.parse().ok())
-        .unwrap_or(4);
-    for it in 0..iterations {
-        let mut scene = shipped::load("urban-street")?;
-        scene.realism = Some(spec.clone());
-        let sim = render_scans(&scene, None, 4, real.rotations.len().max(1) as u64)?;
-        let s = scan_stats(&sim);
-        let (dg, ds) = fit_gain_correction(&real_stats.bands, &s.bands);
-        println!(
-            "iteration {it}: gain {:.2} dB slope {:.2} dB/dec range FWHM {:.3} m beam {:.2} deg -> sim widths {:.3} m {:.2} deg, above floor {:.4} (real {:.4}); correction {dg:+.2} dB {ds:+.2} dB/dec",
-            spec.signal_gain_db,
-            spec.signal_slope_db_per_decade,
-            spec.range_fwhm_m,
-            spec.beam_fwhm_deg,
-            s.widths.range_fwhm_m,
-            s.widths.azimuth_fwhm_deg,
-            s.above_floor,
-            real_stats.above_floor,
-        );
-        spec.signal_gain_db += dg;
-        spec.signal_slope_db_per_decade += ds;
-        if s.widths.range_fwhm_m.is_finite() && real_stats.widths.range_fwhm_m.is_finite() {
-            spec.range_fwhm_m = (spec.range_fwhm_m * real_stats.widths.range_fwhm_m
-                / s.widths.range_fwhm_m)
-                .clamp(0.02, 2.0);
+        .unwrap_or(3);
+    // The high-pass corner by grid search; gain, slope and widths by iteration for each.
+    let mut best: Option<(f64, RealismSpec)> = None;
+    for highpass_m in [0.0, 3.0, 6.0, 9.0, 12.0, 15.0, 18.0] {
+        let mut trial = RealismSpec {
+            highpass_m,
+            ..spec.clone()
+        };
+        let mut err = f64::INFINITY;
+        for it in 0..=iterations {
+            let mut scene = shipped::load("urban-street")?;
+            scene.realism = Some(trial.clone());
+            let sim = render_scans(&scene, None, 4, real.rotations.len().max(1) as u64)?;
+            let s = scan_stats(&sim);
+            err = real_stats
+                .bands
+                .iter()
+                .zip(&s.bands)
+                .map(|(r, s)| (r.p99_db - s.p99_db).powi(2) + (r.p90_db - s.p90_db).powi(2))
+                .sum::<f64>();
+            println!(
+                "high-pass {highpass_m:.1} m, iteration {it}: gain {:.2} dB slope {:.2} dB/dec range FWHM {:.3} m beam {:.2} deg -> sim widths {:.3} m {:.2} deg, above floor {:.4} (real {:.4}), p90/p99 squared error {err:.1}",
+                trial.signal_gain_db,
+                trial.signal_slope_db_per_decade,
+                trial.range_fwhm_m,
+                trial.beam_fwhm_deg,
+                s.widths.range_fwhm_m,
+                s.widths.azimuth_fwhm_deg,
+                s.above_floor,
+                real_stats.above_floor,
+            );
+            if it == iterations {
+                break;
+            }
+            let (dg, ds) = fit_gain_correction(&real_stats.bands, &s.bands);
+            trial.signal_gain_db += dg;
+            trial.signal_slope_db_per_decade += ds;
+            if s.widths.range_fwhm_m.is_finite() && real_stats.widths.range_fwhm_m.is_finite() {
+                trial.range_fwhm_m = (trial.range_fwhm_m * real_stats.widths.range_fwhm_m
+                    / s.widths.range_fwhm_m)
+                    .clamp(0.02, 2.0);
+            }
+            if s.widths.azimuth_fwhm_deg.is_finite()
+                && real_stats.widths.azimuth_fwhm_deg.is_finite()
+            {
+                trial.beam_fwhm_deg = (trial.beam_fwhm_deg * real_stats.widths.azimuth_fwhm_deg
+                    / s.widths.azimuth_fwhm_deg)
+                    .clamp(0.3, 10.0);
+            }
         }
-        if s.widths.azimuth_fwhm_deg.is_finite() && real_stats.widths.azimuth_fwhm_deg.is_finite() {
-            spec.beam_fwhm_deg = (spec.beam_fwhm_deg * real_stats.widths.azimuth_fwhm_deg
-                / s.widths.azimuth_fwhm_deg)
-                .clamp(0.3, 10.0);
+        if best.as_ref().map_or(true, |(e, _)| err < *e) {
+            best = Some((err, trial));
         }
     }
+    let Some((_, spec)) = best else {
+        return Ok(());
+    };
     println!("\n// fitted constants for sim-sensor/src/realism/calibrate.rs");
     println!("pub const FITTED_FLOOR_MEAN: &[(f64, f64)] = &[");
     for (r, m) in &floor.means {
@@ -139,5 +165,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "pub const FITTED_SIGNAL_SLOPE_DB_PER_DECADE: f64 = {:.2};",
         spec.signal_slope_db_per_decade
     );
+    println!("pub const FITTED_HIGHPASS_M: f64 = {:.1};", spec.highpass_m);
     Ok(())
 }

@@ -29,43 +29,43 @@ use crate::replay::png::read_polar_png;
 
 /// Fitted floor mean per range, `(range_m, mean)` in integer power units.
 pub const FITTED_FLOOR_MEAN: &[(f64, f64)] = &[
-    (0.25, 13.052),
-    (0.75, 7.646),
-    (1.25, 6.790),
-    (1.75, 7.497),
-    (2.50, 3.532),
-    (3.50, 2.240),
-    (4.50, 2.677),
-    (6.25, 2.731),
-    (8.75, 2.731),
-    (12.50, 3.199),
-    (17.50, 3.137),
-    (25.00, 3.075),
-    (37.50, 3.329),
-    (52.50, 3.199),
-    (70.00, 3.075),
-    (90.00, 2.898),
-    (115.00, 2.573),
-    (147.50, 2.425),
+    (0.25, 29.395),
+    (0.75, 64.905),
+    (1.25, 11.139),
+    (1.75, 11.139),
+    (2.50, 4.306),
+    (3.50, 2.331),
+    (4.50, 2.956),
+    (6.25, 3.015),
+    (8.75, 3.015),
+    (12.50, 3.675),
+    (17.50, 3.603),
+    (25.00, 3.463),
+    (37.50, 3.748),
+    (52.50, 3.603),
+    (70.00, 3.395),
+    (90.00, 3.137),
+    (115.00, 2.731),
+    (147.50, 2.523),
 ];
 /// Fitted shape of the floor's gamma distribution.
-pub const FITTED_FLOOR_SHAPE: f64 = 1.75;
+pub const FITTED_FLOOR_SHAPE: f64 = 1.50;
 /// Fitted output scale `c` (`dB = c 10 log10 k`).
-pub const FITTED_LOG_SCALE: f64 = 0.986;
+pub const FITTED_LOG_SCALE: f64 = 0.9860;
 /// Largest level observed, dB.
 pub const FITTED_SATURATION_DB: f64 = 68.0;
 /// Range width (FWHM) of the kernel, metres, fitted so that the simulated street's median
 /// peak width matches the real one.
 pub const FITTED_RANGE_FWHM_M: f64 = 0.351;
 /// Two-way azimuth width (FWHM) of the antenna pattern, degrees, fitted likewise.
-pub const FITTED_BEAM_FWHM_DEG: f64 = 1.45;
+pub const FITTED_BEAM_FWHM_DEG: f64 = 1.39;
 /// Wire level of a 1 m^2 target at 10 m, dB.
-pub const FITTED_SIGNAL_GAIN_DB: f64 = 59.0;
+pub const FITTED_SIGNAL_GAIN_DB: f64 = 64.22;
 /// Net slope of a fixed target's level with range, dB per decade.
-pub const FITTED_SIGNAL_SLOPE_DB_PER_DECADE: f64 = -13.5;
+pub const FITTED_SIGNAL_SLOPE_DB_PER_DECADE: f64 = -20.86;
 
 /// Corner of the receiver's near-range high-pass filter, metres.
-pub const FITTED_HIGHPASS_M: f64 = 6.0;
+pub const FITTED_HIGHPASS_M: f64 = 18.0;
 
 /// Range bands of the floor fit, metres.
 pub const FLOOR_BAND_EDGES_M: [f64; 19] = [
@@ -280,7 +280,7 @@ pub fn fit_gain_correction(real: &[BandStats], sim: &[BandStats]) -> (f64, f64) 
     let pts: Vec<(f64, f64)> = real
         .iter()
         .zip(sim)
-        .filter(|(r, _)| r.range_m.0 >= 5.0)
+        .filter(|(r, _)| r.range_m.0 >= 2.0)
         .map(|(r, s)| {
             let centre = (r.range_m.0 * r.range_m.1).sqrt();
             ((centre / 10.0).log10(), r.p99_db - s.p99_db)
