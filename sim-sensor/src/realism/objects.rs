@@ -192,6 +192,39 @@ pub fn elevation_gain(drop_m: f64, r: f64) -> f64 {
     (-(dep / ELEVATION_HALF_RAD).powi(2) * std::f64::consts::LN_2).exp()
 }
 
+/// Entries of [`ElevationTable`] per unit of `drop / range`.
+const ELEVATION_STEPS_PER_UNIT: f64 = 2048.0;
+/// [`ElevationTable`] covers `drop / range` up to this (the gain is 0 beyond).
+const ELEVATION_MAX_RATIO: f64 = 2.0;
+
+/// [`elevation_gain`] tabulated against `drop / range` (the rendering's per-rotation loop
+/// looks it up instead of calling `atan` and `exp` per scatterer).
+#[derive(Debug, Clone)]
+pub struct ElevationTable(Vec<f32>);
+
+impl Default for ElevationTable {
+    fn default() -> Self {
+        let n = (ELEVATION_MAX_RATIO * ELEVATION_STEPS_PER_UNIT) as usize + 1;
+        ElevationTable(
+            (0..n)
+                .map(|i| elevation_gain(i as f64 / ELEVATION_STEPS_PER_UNIT, 1.0) as f32)
+                .collect(),
+        )
+    }
+}
+
+impl ElevationTable {
+    /// The gain of a scatterer `drop_m` below the radar at range `r`.
+    #[inline]
+    pub fn gain(&self, drop_m: f32, r: f64) -> f32 {
+        if drop_m <= 0.0 {
+            return 1.0;
+        }
+        let i = (f64::from(drop_m) / r.max(0.1) * ELEVATION_STEPS_PER_UNIT).round() as usize;
+        self.0.get(i).copied().unwrap_or(0.0)
+    }
+}
+
 /// An outline's shape.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Shape {

@@ -73,6 +73,9 @@ pub struct Receiver {
     pub log_scale: f64,
     /// Output clip, dB.
     pub saturation_db: f64,
+    /// Kernel reach by the top 12 bits of a deposit's `f32` power (sign, exponent and the
+    /// mantissa's top 3 bits): computed for the largest power of each bucket.
+    pub reach_by_bits: Vec<u16>,
     /// Bin size, metres.
     pub bin_m: f64,
     /// Range of bin 0, metres.
@@ -230,7 +233,25 @@ impl Receiver {
         let db_of_power = (0..DB_TABLE)
             .map(|k| (spec.log_scale * 10.0 * (k.max(1) as f64).log10()).min(spec.saturation_db))
             .collect();
+        let reach_of = |power: f32| -> usize {
+            let limit = NEGLIGIBLE_POWER / power;
+            envelope
+                .partition_point(|&v| v >= limit)
+                .min(kernel_half + 1)
+        };
+        let reach_by_bits = (0u32..1 << 12)
+            .map(|top| {
+                // The largest f32 whose top 12 bits are `top`.
+                let p = f32::from_bits((top << 20) | 0x000f_ffff);
+                if p.is_finite() && p > 0.0 {
+                    u16::try_from(reach_of(p)).unwrap_or(u16::MAX)
+                } else {
+                    0
+                }
+            })
+            .collect();
         Ok(Receiver {
+            reach_by_bits,
             kernel,
             kernel_half,
             envelope,
@@ -272,10 +293,10 @@ impl Receiver {
     /// The kernel half-length beyond which a deposit of `power` stays negligible.
     #[inline]
     pub fn kernel_reach(&self, power: f32) -> usize {
-        let limit = NEGLIGIBLE_POWER / power;
-        self.envelope
-            .partition_point(|&v| v >= limit)
-            .min(self.kernel_half + 1)
+        let top = (power.to_bits() >> 20) as usize;
+        self.reach_by_bits
+            .get(top)
+            .map_or(self.kernel_half, |&r| usize::from(r))
     }
 
     /// Output dB of integer power `k`.

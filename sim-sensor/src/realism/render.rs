@@ -55,6 +55,8 @@ const SELF_MARGIN_M: f64 = 0.15;
 /// Share of a surface's diffuse return left at grazing incidence (windows, doors, joints:
 /// real facades are not smooth): diffuse `= sigma (f + (1 - f) cos^2 i)`.
 pub const ROUGH_FLOOR: f64 = 0.2;
+/// Cosine of five specular lobe widths.
+const SPECULAR_COS_LIMIT: f64 = 0.984_7;
 /// Poses sampled per rotation to bound the vehicle's motion during it.
 const MOTION_SAMPLES: u64 = 8;
 
@@ -67,6 +69,8 @@ pub struct RealisticModel {
     pub receiver: Receiver,
     /// The settings.
     pub spec: RealismSpec,
+    /// Elevation gains of scatterers below the radar.
+    pub elevation: super::objects::ElevationTable,
 }
 
 impl RealisticModel {
@@ -87,6 +91,7 @@ impl RealisticModel {
             world,
             receiver,
             spec,
+            elevation: super::objects::ElevationTable::default(),
         })
     }
 }
@@ -220,7 +225,7 @@ impl RealisticCursor {
             if g <= 0.0 {
                 return;
             }
-            let r = px.hypot(py);
+            let r = (px * px + py * py).sqrt();
             let fb = (r - rx.first_bin_m) * inv_bin;
             if !(0.0..max_fb).contains(&fb) {
                 return;
@@ -273,7 +278,8 @@ impl RealisticCursor {
         // Floor and quantisation.
         for ((out, &s), &mean) in out_db.iter_mut().zip(&self.signal).zip(&rx.floor_mean) {
             let y = mean * rx.floor_quantiles[bits.take(&mut rng, 10)];
-            *out = rx.db_of(f64::from(y + s).floor());
+            // Non-negative: truncation is the floor.
+            *out = rx.db_of(f64::from((y + s) as u32));
         }
         Ok((
             pose,
@@ -435,11 +441,14 @@ impl RealisticCursor {
             let mut sigma = f64::from(s.diffuse_m2);
             if normal != [0.0, 0.0] {
                 let cos_i = ((normal[0] * dx + normal[1] * dy) / r).abs().min(1.0);
-                let inc = cos_i.acos();
-                sigma = sigma * (ROUGH_FLOOR + (1.0 - ROUGH_FLOOR) * cos_i * cos_i)
-                    + f64::from(s.specular_m2) * (-(inc / SPECULAR_LOBE_RAD).powi(2)).exp();
+                sigma *= ROUGH_FLOOR + (1.0 - ROUGH_FLOOR) * cos_i * cos_i;
+                // The specular lobe is below 1e-10 of its peak beyond 5 widths.
+                if s.specular_m2 > 0.0 && cos_i > SPECULAR_COS_LIMIT {
+                    let inc = cos_i.acos();
+                    sigma += f64::from(s.specular_m2) * (-(inc / SPECULAR_LOBE_RAD).powi(2)).exp();
+                }
             }
-            sigma *= super::objects::elevation_gain(f64::from(s.drop_m), r);
+            sigma *= f64::from(model.elevation.gain(s.drop_m, r));
             let world_angle = dy.atan2(dx);
             let vis = if spec.occlusion {
                 self.transmission(cell_of(world_angle), r, s.outline)
