@@ -29,8 +29,9 @@ const WINDOW_TAPS: usize = 256;
 pub const FLOOR_QUANTILES: usize = 1024;
 /// Entries of the speckle tables (12 random bits a look).
 pub const SPECKLE_QUANTILES: usize = 4096;
-/// Entries of the output table (integer powers below this are looked up).
-const DB_TABLE: usize = 1 << 16;
+/// Entries of the output table (integer powers below this are looked up; 32 KiB, so it
+/// stays in the first-level cache).
+const DB_TABLE: usize = 1 << 12;
 /// Entries of the antenna pattern table.
 const PATTERN_ENTRIES: usize = 8192;
 /// The antenna table reaches this many two-way widths off axis.
@@ -38,7 +39,7 @@ const PATTERN_REACH_WIDTHS: f64 = 30.0;
 /// Longest one-sided range kernel, bins.
 const MAX_KERNEL_HALF: usize = 600;
 /// A contribution below this (integer power units) cannot move the floor's quantisation.
-pub const NEGLIGIBLE_POWER: f32 = 0.01;
+pub const NEGLIGIBLE_POWER: f32 = 0.05;
 
 /// The tabulated receiver of one scene.
 #[derive(Debug, Clone)]
@@ -67,7 +68,7 @@ pub struct Receiver {
     pub chi4_quantiles: Vec<f32>,
     /// Integer power units per m^2 of cross section, per bin.
     pub signal_per_m2: Vec<f32>,
-    /// Output dB of integer power `k < 65536`.
+    /// Output dB of integer power `k < 4096`.
     pub db_of_power: Vec<f64>,
     /// `dB = log_scale x 10 log10 k`.
     pub log_scale: f64,
