@@ -28,6 +28,7 @@ pub mod faults;
 pub mod index;
 pub mod odometry;
 pub mod radar;
+pub mod realism;
 pub mod render;
 pub mod replay;
 pub mod scene;

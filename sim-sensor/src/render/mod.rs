@@ -27,6 +27,8 @@ use radar_model::spectrum::{
 use crate::error::SimError;
 use crate::index::GridIndex;
 use crate::radar::{DataWidth, RadarParams};
+use crate::realism::objects::World;
+use crate::realism::render::{RealisticCursor, RealisticModel};
 use crate::scene::{Feature, MotionSpec, Scene, Spreading};
 use crate::trajectory::{Trajectory, TrajectoryCursor};
 
@@ -60,6 +62,7 @@ pub struct SceneRenderer {
     power: PowerModel,
     spectrum: SpectrumModel,
     trajectory: Trajectory,
+    realistic: Option<RealisticModel>,
 }
 
 /// The radar-model settings a scene renders with.
@@ -120,7 +123,15 @@ impl SceneRenderer {
             .collect::<Result<Vec<_>, _>>()?;
         let ids = scene.features.iter().map(|f| f.id).collect();
         let cell_m = (scene.radar.max_range_m() / 8.0).clamp(2.0, 50.0);
+        let realistic = match &scene.realism {
+            Some(spec) => {
+                let world = World::build(&scene.features, &scene.objects, scene.seed)?;
+                Some(RealisticModel::new(world, spec.clone(), &scene.radar)?)
+            }
+            None => None,
+        };
         Ok(SceneRenderer {
+            realistic,
             name: scene.name.clone(),
             motion: scene.motion,
             features: scene.features.clone(),
@@ -183,6 +194,11 @@ impl SceneRenderer {
         offset_ns(&self.radar, index)
     }
 
+    /// The realistic model, when the scene asks for it (`[realism]`).
+    pub fn realistic(&self) -> Option<&RealisticModel> {
+        self.realistic.as_ref()
+    }
+
     /// A per-client rendering state.
     pub fn cursor(self: &Arc<Self>) -> RenderCursor {
         RenderCursor {
@@ -192,6 +208,7 @@ impl SceneRenderer {
             targets: Vec::new(),
             spectrum_targets: Vec::new(),
             power_db: vec![0.0; usize::from(self.radar.range_bins)],
+            realistic: Box::default(),
         }
     }
 }
@@ -225,6 +242,7 @@ pub struct RenderCursor {
     targets: Vec<PowerTarget>,
     spectrum_targets: Vec<SpectrumTarget>,
     power_db: Vec<f64>,
+    realistic: Box<RealisticCursor>,
 }
 
 impl RenderCursor {
@@ -257,6 +275,32 @@ impl RenderCursor {
         timestamp: Timestamp,
         dst: &mut BytesMut,
     ) -> Result<Rendered, SimError> {
+        let r = &*self.renderer;
+        if let Some(model) = &r.realistic {
+            let (pose, counts) = self.realistic.render(
+                model,
+                &r.trajectory,
+                &mut self.trajectory,
+                &r.radar,
+                r.seed,
+                index,
+                &mut self.power_db,
+            )?;
+            let encoder = r.radar.encoder_of(azimuth_in_rotation(&r.radar, index));
+            encode_fft_frame_from_db(
+                dst,
+                bin_width(r.radar.data_width),
+                sweep_counter,
+                encoder,
+                timestamp,
+                self.power_db.iter().copied(),
+            )
+            .map_err(|e| SimError::Model(format!("encoding azimuth {index}: {e}")))?;
+            return Ok(Rendered {
+                pose,
+                targets: counts.deposited,
+            });
+        }
         let pose = self
             .beams
             .select(&self.renderer, &mut self.trajectory, index)?;

@@ -152,6 +152,12 @@ pub struct Scene {
     pub schedule: ControlSchedule,
     /// Every point feature (lines already expanded).
     pub features: Vec<Feature>,
+    /// The realistic renderer's settings (`[realism]`); `None` renders point targets with
+    /// radar-model's synthesis, as the project's figures were made.
+    pub realism: Option<crate::realism::RealismSpec>,
+    /// Extended objects (`[[objects]]` and the `[street]` generator's), drawn only by the
+    /// realistic renderer.
+    pub objects: Vec<crate::realism::ObjectSpec>,
 }
 
 /// Most point features one scene may hold (after line expansion).

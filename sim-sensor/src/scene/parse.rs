@@ -6,6 +6,7 @@ use serde::Deserialize;
 use super::{Feature, FeatureKind, MotionSpec, NoiseSpec, ReceiverSpec, Scene, MAX_FEATURES};
 use crate::error::SceneError;
 use crate::radar::{DataWidth, RadarParams, RadarPreset};
+use crate::realism::{ObjectSpec, RealismSpec, StreetSpec};
 use crate::schedule::{ControlKey, ControlSchedule, Interpolation};
 
 #[derive(Debug, Deserialize)]
@@ -37,6 +38,12 @@ pub(super) struct RawScene {
     features: Vec<RawFeature>,
     #[serde(default)]
     lines: Vec<RawLine>,
+    #[serde(default)]
+    realism: Option<RealismSpec>,
+    #[serde(default)]
+    objects: Vec<ObjectSpec>,
+    #[serde(default)]
+    street: Option<StreetSpec>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -348,6 +355,36 @@ impl RawScene {
                 }
             }
         }
+        if let Some(realism) = &self.realism {
+            realism.validate()?;
+        } else if !self.objects.is_empty() || self.street.is_some() {
+            return Err(invalid(
+                "objects".into(),
+                "objects and [street] render only with the realistic renderer: add [realism]",
+            ));
+        }
+        let mut objects = self.objects;
+        if let Some(street) = &self.street {
+            let generated = street.generate()?;
+            for (kind, x, y) in generated.features {
+                let (rho, alpha) = kind.default_material();
+                features.push(Feature {
+                    id: 0,
+                    kind,
+                    x_m: x,
+                    y_m: y,
+                    rho,
+                    alpha,
+                });
+            }
+            if features.len() > MAX_FEATURES {
+                return Err(invalid(
+                    "street".into(),
+                    format!("the scene expands to more than {MAX_FEATURES} features"),
+                ));
+            }
+            objects.extend(generated.objects);
+        }
         for (id, f) in features.iter_mut().enumerate() {
             f.id = u32::try_from(id).unwrap_or(u32::MAX);
         }
@@ -365,6 +402,8 @@ impl RawScene {
             start_time_ns,
             schedule,
             features,
+            realism: self.realism,
+            objects,
         })
     }
 }

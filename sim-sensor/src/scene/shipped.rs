@@ -5,12 +5,13 @@ use super::Scene;
 use crate::error::SceneError;
 
 /// Names of the shipped scenes.
-pub const NAMES: [&str; 5] = [
+pub const NAMES: [&str; 6] = [
     "penetration-wood",
     "penetration-perspex",
     "outdoor-field",
     "dense-clutter",
     "long-loop",
+    "urban-street",
 ];
 
 /// The TOML text of a shipped scene.
@@ -21,6 +22,7 @@ pub fn text(name: &str) -> Option<&'static str> {
         "outdoor-field" => Some(include_str!("../../scenes/outdoor-field.toml")),
         "dense-clutter" => Some(include_str!("../../scenes/dense-clutter.toml")),
         "long-loop" => Some(include_str!("../../scenes/long-loop.toml")),
+        "urban-street" => Some(include_str!("../../scenes/urban-street.toml")),
         _ => None,
     }
 }

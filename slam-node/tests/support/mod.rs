@@ -55,6 +55,8 @@ pub fn empty_scene(name: &str, preset: RadarPreset, seed: u64) -> Scene {
         start_time_ns: None,
         schedule: ControlSchedule::stationary(),
         features: Vec::new(),
+        realism: None,
+        objects: Vec::new(),
     }
 }
 

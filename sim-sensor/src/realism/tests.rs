@@ -1,0 +1,251 @@
+//! Each effect of the realistic renderer on a small scene: the vehicle stands at the origin
+//! facing +x, so azimuth 0 looks down +x; azimuth `k` looks `0.9 k` degrees clockwise.
+
+use std::sync::Arc;
+
+use bytes::BytesMut;
+use protocol::Timestamp;
+
+use crate::render::SceneRenderer;
+use crate::scene::Scene;
+
+const HEAD: &str = "seed = 5\n[radar]\npreset = \"cts350x-400\"\n";
+
+fn scene(realism: &str, body: &str) -> Scene {
+    let text = format!("{HEAD}[realism]\n{realism}\n{body}");
+    Scene::from_toml_str("test", &text).expect("scene")
+}
+
+/// Renders azimuth `index` and returns its levels (dB, before the wire's quantisation).
+fn render(scene: &Scene, index: u64) -> Vec<f64> {
+    let renderer = Arc::new(SceneRenderer::new(scene, None, 30.0).expect("renderer"));
+    let mut cursor = renderer.cursor();
+    let mut frame = BytesMut::new();
+    cursor
+        .render(index, 0, Timestamp::EPOCH, &mut frame)
+        .expect("render");
+    cursor.last_power_db().to_vec()
+}
+
+/// Renders azimuths `indices` with one cursor.
+fn render_many(scene: &Scene, indices: impl Iterator<Item = u64>) -> Vec<Vec<f64>> {
+    let renderer = Arc::new(SceneRenderer::new(scene, None, 120.0).expect("renderer"));
+    let mut cursor = renderer.cursor();
+    let mut frame = BytesMut::new();
+    indices
+        .map(|k| {
+            frame.clear();
+            cursor
+                .render(k, 0, Timestamp::EPOCH, &mut frame)
+                .expect("render");
+            cursor.last_power_db().to_vec()
+        })
+        .collect()
+}
+
+fn bin(range_m: f64) -> usize {
+    (range_m / 0.0438).round() as usize
+}
+
+fn peak_near(db: &[f64], range_m: f64, half_bins: usize) -> f64 {
+    let b = bin(range_m);
+    db[b - half_bins..=b + half_bins]
+        .iter()
+        .copied()
+        .fold(f64::MIN, f64::max)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+const STEADY: &str = "speckle = false\nmultipath = false\n";
+
+#[test]
+fn a_scene_without_realism_renders_with_the_point_target_synthesis_as_before() {
+    let plain = Scene::from_toml_str(
+        "plain",
+        &format!("{HEAD}[[features]]\nkind = \"reflector\"\nx_m = 20.0\ny_m = 0.0\n"),
+    )
+    .expect("scene");
+    assert!(plain.realism.is_none());
+    let renderer = SceneRenderer::new(&plain, None, 10.0).expect("renderer");
+    assert!(renderer.realistic().is_none());
+    // The point-target synthesis puts the 177 m^2 reflector near 80 dB + 10 log10 0.885.
+    let db = render(&plain, 0);
+    assert!(
+        peak_near(&db, 20.0, 4) > 75.0,
+        "{}",
+        peak_near(&db, 20.0, 4)
+    );
+}
+
+#[test]
+fn objects_without_realism_are_refused_with_a_named_field() {
+    let err = Scene::from_toml_str(
+        "x",
+        &format!("{HEAD}[[objects]]\nkind = \"pole\"\nat = [5.0, 0.0]\n"),
+    )
+    .expect_err("objects need [realism]");
+    assert!(err.to_string().contains("[realism]"), "{err}");
+}
+
+#[test]
+fn a_wall_returns_less_the_further_it_is_turned_from_the_beam() {
+    // A 2 m wall segment centred 20 m ahead, square to the beam, then turned 30 and 60
+    // degrees about its centre.
+    let level = |deg: f64| {
+        let (s, c) = deg.to_radians().sin_cos();
+        let body = format!(
+            "[[objects]]\nkind = \"wall\"\nfrom = [{:.4}, {:.4}]\nto = [{:.4}, {:.4}]\n",
+            20.0 - s,
+            c,
+            20.0 + s,
+            -c
+        );
+        peak_near(&render(&scene(STEADY, &body), 0), 20.0, 40)
+    };
+    let (l0, l30, l60) = (level(0.0), level(30.0), level(60.0));
+    println!("wall at 0 / 30 / 60 degrees: {l0:.1} / {l30:.1} / {l60:.1} dB");
+    assert!(l0 > l30 + 6.0, "{l0} vs {l30}");
+    assert!(l30 > l60 + 1.0, "{l30} vs {l60}");
+}
+
+#[test]
+fn foliage_lets_part_of_the_power_through_and_a_building_front_none() {
+    // A pole 30 m ahead; in front of it at 15 m, nothing, a crown of foliage, or a front.
+    let pole = "[[objects]]\nkind = \"pole\"\nat = [30.0, 0.0]\n";
+    let screen = |what: &str| {
+        let body = format!("{pole}{what}");
+        peak_near(&render(&scene(STEADY, &body), 0), 30.0, 3)
+    };
+    let clear = screen("");
+    let foliage = screen(
+        "[[objects]]\nkind = \"foliage\"\nat = [15.0, 0.0]\nradius_m = 1.5\nrcs_scale = 0.0001\n",
+    );
+    let front = screen(
+        "[[objects]]\nkind = \"building-front\"\nfrom = [15.0, -3.0]\nto = [15.0, 3.0]\nrcs_scale = 0.0001\n",
+    );
+    println!(
+        "pole alone {clear:.1} dB, behind foliage {foliage:.1} dB, behind a front {front:.1} dB"
+    );
+    // Two passes through tau = 0.5: -6 dB (the output scale makes it 5.9).
+    assert!((clear - foliage - 6.0).abs() < 1.0, "{clear} vs {foliage}");
+    assert!(front < 15.0, "the pole shows through a front at {front} dB");
+}
+
+#[test]
+fn a_range_peak_has_the_windows_sidelobes() {
+    // A steady strong point (a reflector feature, Swerling 0) 20 m ahead.
+    let body = "[[features]]\nkind = \"reflector\"\nx_m = 20.0\ny_m = 0.0\nrho = 0.002\n";
+    let db = render(&scene(STEADY, body), 0);
+    let b = bin(20.0);
+    let peak = db[b - 2..=b + 2].iter().copied().fold(f64::MIN, f64::max);
+    // Walk out of the main lobe to the first null, then take the first sidelobe's top.
+    let side: Vec<f64> = db[b..b + 60].to_vec();
+    let null = (2..side.len() - 1)
+        .find(|&i| side[i] <= side[i - 1] && side[i] < side[i + 1])
+        .expect("a null");
+    let lobe = side[null..null + 15]
+        .iter()
+        .copied()
+        .fold(f64::MIN, f64::max);
+    // Hann: -31.5 dB, scaled by the output's c = 0.986.
+    println!(
+        "peak {peak:.1} dB, first sidelobe {lobe:.1} dB ({:.1} dB)",
+        lobe - peak
+    );
+    assert!(peak < 67.0, "clipped: {peak}");
+    assert!(
+        (lobe - peak + 31.0).abs() < 2.5,
+        "sidelobe {} dB",
+        lobe - peak
+    );
+}
+
+#[test]
+fn the_antenna_pattern_spreads_a_strong_point_over_neighbouring_azimuths_with_sidelobes() {
+    let body = "[[features]]\nkind = \"reflector\"\nx_m = 30.0\ny_m = 0.0\nrho = 0.1\n";
+    let s = scene(STEADY, body);
+    // Azimuths 0 (on axis), 1 (0.9 degrees off) and 399, and 3-5 (2.7-4.5 degrees off:
+    // the first sidelobe of the default taper is near 2.2 fwhm).
+    let rows = render_many(&s, [0u64, 1, 399, 3, 4, 5, 20].into_iter());
+    let lv: Vec<f64> = rows.iter().map(|r| peak_near(r, 30.0, 3)).collect();
+    println!("levels on axis, +/-0.9 deg, 2.7-4.5 deg, 18 deg: {lv:?}");
+    assert!(lv[0] > lv[1] + 2.0 && lv[0] > lv[2] + 2.0, "{lv:?}");
+    assert!((lv[1] - lv[2]).abs() < 1.0, "asymmetric: {lv:?}");
+    let sidelobe = lv[3].max(lv[4]).max(lv[5]);
+    // The default taper's first two-way sidelobe is about -42 dB: above the floor for a
+    // 20 m^2 point, far below its peak.
+    assert!(lv[0] < 67.0, "clipped: {lv:?}");
+    assert!(sidelobe > 15.0 && sidelobe < lv[0] - 30.0, "{lv:?}");
+    assert!(lv[6] < 15.0, "far off axis {}", lv[6]);
+}
+
+#[test]
+fn speckle_of_a_swerling_2_scatterer_has_an_exponential_power() {
+    // A tree feature (Swerling 2) 25 m ahead, looked at once a rotation for 300 rotations
+    // with the vehicle still: the peak's power over looks has mean^2 = variance.
+    let body = "[[features]]\nkind = \"tree\"\nx_m = 25.0\ny_m = 0.0\n";
+    let s = scene("multipath = false\n", body);
+    let rows = render_many(&s, (0..300).map(|r| r * 400));
+    let c = crate::realism::calibrate::FITTED_LOG_SCALE;
+    let b = bin(25.0);
+    let powers: Vec<f64> = rows.iter().map(|r| 10f64.powf(r[b] / (10.0 * c))).collect();
+    let n = powers.len() as f64;
+    let mean = powers.iter().sum::<f64>() / n;
+    let var = powers.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / n;
+    let cv2 = var / (mean * mean);
+    println!("Swerling 2: mean {mean:.1}, squared coefficient of variation {cv2:.3} (1 expected)");
+    assert!((0.7..1.35).contains(&cv2), "{cv2}");
+}
+
+#[test]
+fn a_pole_in_front_of_a_building_front_makes_a_ghost_behind_it() {
+    // The radar at the origin, a pole at 10 m, a front at 15 m square to the beam: the
+    // ghost (radar -> front -> pole -> front -> radar) is the pole's image at 20 m.
+    let body = "[[objects]]\nkind = \"pole\"\nat = [10.0, 0.0]\n\
+                [[objects]]\nkind = \"building-front\"\nfrom = [15.0, -8.0]\nto = [15.0, 8.0]\nrcs_scale = 0.0001\n";
+    let with = peak_near(&render(&scene("speckle = false\n", body), 0), 20.0, 3);
+    let without = peak_near(&render(&scene(STEADY, body), 0), 20.0, 3);
+    println!("at the image range: {with:.1} dB with multipath, {without:.1} dB without");
+    assert!(with > without + 15.0, "{with} vs {without}");
+}
+
+#[test]
+fn a_moving_vehicle_moves_between_rotations() {
+    // A vehicle 30 m ahead driving away at 10 m/s: a rotation (0.25 s) later it is 2.5 m
+    // further.
+    let body = "[[objects]]\nkind = \"vehicle\"\nat = [30.0, 0.0]\nspeed_mps = 10.0\n";
+    let rows = render_many(&scene(STEADY, body), [0u64, 400].into_iter());
+    let nearest = |r: &Vec<f64>| {
+        (bin(20.0)..bin(40.0))
+            .find(|&b| r[b] > 30.0)
+            .map(|b| b as f64 * 0.0438)
+            .unwrap_or(f64::NAN)
+    };
+    let (a, b) = (nearest(&rows[0]), nearest(&rows[1]));
+    println!("vehicle's first return at {a:.2} m, a rotation later {b:.2} m");
+    assert!((b - a - 2.5).abs() < 0.3, "{a} -> {b}");
+}
+
+#[test]
+fn the_floor_has_the_real_units_low_levels_and_median() {
+    let s = scene("", "");
+    let db = render(&s, 0);
+    let far: Vec<f64> = db[bin(60.0)..bin(160.0)].to_vec();
+    let allowed = [0.0, 3.0, 4.5, 6.0, 7.0, 7.5, 8.5, 9.0, 9.5, 10.0];
+    let low: Vec<f64> = far.iter().copied().filter(|&v| v < 10.25).collect();
+    let on_lattice = low
+        .iter()
+        .filter(|&&v| {
+            allowed
+                .iter()
+                .any(|a| ((v * 2.0).round() / 2.0 - a).abs() < 0.01)
+        })
+        .count();
+    assert_eq!(on_lattice, low.len(), "levels off the unit's lattice");
+    let m = median(far.iter().map(|v| (v * 2.0).round() / 2.0).collect());
+    assert!((0.0..=4.5).contains(&m), "median {m}");
+}
