@@ -354,10 +354,15 @@ impl FloorProfile {
     }
 }
 
-/// Linear interpolation of a per-bin table at a fractional bin (clamped to the table).
-fn interpolate(table: &[f64], bin: f64) -> f64 {
+/// Linear interpolation of a per-bin table at a fractional bin (clamped to the table; a
+/// non-finite bin reads bin 0).
+pub(crate) fn interpolate(table: &[f64], bin: f64) -> f64 {
     let last = table.len().saturating_sub(1);
-    let b = bin.clamp(0.0, last as f64);
+    let b = if bin.is_finite() {
+        bin.clamp(0.0, last as f64)
+    } else {
+        0.0
+    };
     let lo = b.floor() as usize;
     let hi = (lo + 1).min(last);
     let f = b - lo as f64;

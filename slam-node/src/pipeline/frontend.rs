@@ -515,7 +515,7 @@ fn detect_learned(
         if extent_m <= l.max_extent_m {
             learned.gain.add(range_m, p.measured_db);
         }
-        let gain = interpolate_table(&learned.gain_db, p.bin);
+        let gain = crate::detect::interpolate(&learned.gain_db, p.bin);
         out.push(Detection {
             range_m,
             power_db: p.measured_db - gain,
@@ -540,23 +540,6 @@ fn detect_learned(
         if let Err(e) = spectrum.set_tables(&learned.gain_db, learned.floor.level_db()) {
             tracing::warn!(error = %e, "the learned floor and gain were refused by the spectrum model");
         }
-    }
-}
-
-/// Linear interpolation of a per-bin table at a fractional bin (clamped to the table).
-fn interpolate_table(table: &[f64], bin: f64) -> f64 {
-    let last = table.len().saturating_sub(1);
-    let b = if bin.is_finite() {
-        bin.clamp(0.0, last as f64)
-    } else {
-        0.0
-    };
-    let lo = b.floor() as usize;
-    let hi = (lo + 1).min(last);
-    let f = b - lo as f64;
-    match (table.get(lo), table.get(hi)) {
-        (Some(a), Some(c)) => a + f * (c - a),
-        _ => 0.0,
     }
 }
 
