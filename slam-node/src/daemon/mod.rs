@@ -150,18 +150,7 @@ pub async fn run_daemon(
         .map(|d| radar_model::geometry::wrap_angle(d.to_radians()))
         .collect();
     info!(kind = ?settings.detector.kind, domain = ?settings.detector.domain, "detector");
-    let o = &opts.config.output;
-    let output = OutputHandle::spawn(OutputFiles {
-        figures: opts.figures,
-        trajectory: o.trajectory.clone(),
-        map: o.map.clone(),
-        diagnostics: o.diagnostics.clone(),
-        recording: o.mcap.as_ref().map(|file| RecordingFile {
-            path: opts.out_dir.join(file),
-            motion: settings.motion,
-        }),
-        ..OutputFiles::in_dir(opts.out_dir.clone())
-    })?;
+    let output = OutputHandle::spawn(output_files(&opts, settings.motion))?;
     let (odo_trigger, odo_shutdown) = shutdown_pair();
     #[cfg(feature = "sim")]
     let mut sim_handle: Option<sim_sensor::SimHandle> = None;
@@ -317,18 +306,7 @@ pub fn run_mcap_replay(
         .iter()
         .map(|d| radar_model::geometry::wrap_angle(d.to_radians()))
         .collect();
-    let o = &opts.config.output;
-    let output = OutputHandle::spawn(OutputFiles {
-        figures: opts.figures,
-        trajectory: o.trajectory.clone(),
-        map: o.map.clone(),
-        diagnostics: o.diagnostics.clone(),
-        recording: o.mcap.as_ref().map(|file| RecordingFile {
-            path: opts.out_dir.join(file),
-            motion: settings.motion,
-        }),
-        ..OutputFiles::in_dir(opts.out_dir.clone())
-    })?;
+    let output = OutputHandle::spawn(output_files(&opts, settings.motion))?;
     let mut replay = mcap_replay::McapReplaySettings::new(path, settings.motion);
     if let Some(topic) = odometry_topic {
         replay.odometry_topic = topic;
@@ -359,4 +337,21 @@ pub fn run_mcap_replay(
         driver_failure: None,
         mcap_replay: Some(counts),
     })
+}
+
+/// The output files a run writes: the configured names in the output folder, and the MCAP
+/// recording when one is asked for.
+fn output_files(opts: &DaemonOptions, motion: radar_model::motion::MotionModel) -> OutputFiles {
+    let o = &opts.config.output;
+    OutputFiles {
+        figures: opts.figures,
+        trajectory: o.trajectory.clone(),
+        map: o.map.clone(),
+        diagnostics: o.diagnostics.clone(),
+        recording: o.mcap.as_ref().map(|file| RecordingFile {
+            path: opts.out_dir.join(file),
+            motion,
+        }),
+        ..OutputFiles::in_dir(opts.out_dir.clone())
+    }
 }
