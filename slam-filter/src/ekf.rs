@@ -26,6 +26,7 @@ use super::predict::{predict_to, OdometrySample, ProcessModel};
 use super::repeat_look::LookCell;
 use super::settings::FilterSettings;
 use super::state::{FeatureId, FeatureParams, SlamState};
+use super::submap::FrozenSubmap;
 use super::update::{batched_update, LinearisedObservation, UpdateOutcome};
 
 /// A feature as reported: position, material shares (not the logits), uncertainty.
@@ -403,6 +404,19 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             self.stats.retired += 1;
         }
         Ok(stale)
+    }
+
+    /// Closes the current local map and starts a new one where the vehicle is (see
+    /// [`crate::submap`]): the vehicle at the new frame's origin with zero covariance, no
+    /// features, the radar loss and the held odometry kept, tentative targets re-expressed
+    /// in the new frame. Returns the closed map's compact record (material noise settled
+    /// first). O(N).
+    pub fn start_submap(&mut self) -> FrozenSubmap {
+        self.settle_material_noise();
+        let origin = self.state.pose();
+        let closed = self.state.restart_at_origin();
+        self.tentatives.reframe(&origin);
+        FrozenSubmap::from_state(&closed)
     }
 
     /// Removes a feature (map management); its id is never reused.

@@ -27,6 +27,7 @@
 //! - [`health`]: NEES and covariance health.
 //! - [`radar`]: radar-model's physics behind the filter's traits.
 //! - [`ekf`]: [`Ekf`], the whole filter per beam.
+//! - [`submap`]: local submaps of bounded size ([`Ekf::start_submap`]) and their frozen records.
 //! - [`settings`]: [`FilterSettings`], plain validated values.
 //!
 //! Two departures from the textbook EKF, both measured on the simulator (60-seed ensemble,
@@ -58,6 +59,7 @@ pub mod radar;
 pub mod repeat_look;
 pub mod settings;
 pub mod state;
+pub mod submap;
 mod symmetric;
 pub mod update;
 
@@ -70,6 +72,7 @@ pub use predict::{OdometrySample, ProcessModel};
 pub use radar::RadarBeamModel;
 pub use settings::{FilterSettings, SettingsError};
 pub use state::{FeatureId, SlamState};
+pub use submap::{FrozenSubmap, SubmapFeature, SubmapLimits};
 pub use update::{batched_update, LinearisedObservation, UpdateOutcome};
 
 /// The filter with radar-model's physics: its motion models and the multi-target beam

@@ -74,6 +74,18 @@ impl TentativeList {
         &self.items
     }
 
+    /// Re-expresses every tentative in the frame whose origin and axes are `origin` (a pose
+    /// in the current frame): positions move, covariances rotate.
+    pub fn reframe(&mut self, origin: &Pose2) {
+        let (s, c) = origin.theta.sin_cos();
+        let rt = Matrix2::new(c, s, -s, c);
+        for t in &mut self.items {
+            let d = t.position - Vector2::new(origin.x, origin.y);
+            t.position = rt * d;
+            t.covariance = rt * t.covariance * rt.transpose();
+        }
+    }
+
     /// Forgets tentatives not seen since `now_s - timeout_s`.
     pub fn expire(&mut self, now_s: f64, timeout_s: f64) {
         self.items.retain(|t| now_s - t.last_seen_s <= timeout_s);

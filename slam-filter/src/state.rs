@@ -190,6 +190,27 @@ impl SlamState {
         })
     }
 
+    /// Starts a new local map in place: the vehicle at the origin of its own frame with zero
+    /// covariance, no features, the radar loss L kept with its variance, the time and the id
+    /// counter kept (ids stay unique across local maps). Returns the state as it was.
+    pub(crate) fn restart_at_origin(&mut self) -> SlamState {
+        let loss = self.mean[LOSS_INDEX];
+        let loss_var = self.cov[(LOSS_INDEX, LOSS_INDEX)];
+        let mut mean = DVector::zeros(FEATURE_BASE);
+        mean[LOSS_INDEX] = loss;
+        let mut cov = DMatrix::zeros(FEATURE_BASE, FEATURE_BASE);
+        cov[(LOSS_INDEX, LOSS_INDEX)] = loss_var;
+        let fresh = SlamState {
+            mean,
+            cov,
+            tracks: Vec::new(),
+            next_id: self.next_id,
+            time_s: self.time_s,
+            predicted_pose: Pose2::new(0.0, 0.0, 0.0),
+        };
+        std::mem::replace(self, fresh)
+    }
+
     /// State dimension n = 4 + 4 N.
     pub fn dim(&self) -> usize {
         self.mean.len()

@@ -1,0 +1,527 @@
+//! The global layer: frozen submaps in, optimised submap frames out.
+//!
+//! [`GlobalMap`] is the layer itself, synchronous and deterministic (tests and offline use
+//! call it directly): each frozen submap becomes a node, chained to the previous one by the
+//! vehicle's pose at the switch; the earlier submaps its features could overlap (by the
+//! current estimate and the uncertainty of the two frames) are offered to the verifier
+//! ([`crate::align`]); verified closures become loop edges; the graph is solved. If several
+//! earlier submaps verify and disagree on where the new one is, none is taken (repeated
+//! structure). A solve that fails, does not converge, or leaves a loop edge far outside its
+//! own uncertainty is logged and the previous solution stays.
+//!
+//! [`GlobalLayer`] runs a [`GlobalMap`] on a thread of its own, fed by a bounded channel; the
+//! real-time path only ever `try_send`s and `try_recv`s, so it never waits for a solve.
+
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::Instant;
+
+use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
+use nalgebra::Matrix3;
+use radar_model::geometry::Pose2;
+use slam_filter::FrozenSubmap;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+use tracing::{info, warn};
+
+use crate::align::{align, AlignSettings, Alignment, Refusal};
+use crate::graph::{Edge, EdgeKind, PoseGraph, SolveSettings};
+use crate::se2::{compose, compose_covariance, inverse, transform_point};
+
+/// The global layer's settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GlobalSettings {
+    /// Look for loop closures at all.
+    pub loop_closure: bool,
+    /// The verifier's thresholds.
+    pub align: AlignSettings,
+    /// The solver's limits.
+    pub solve: SolveSettings,
+    /// Earlier submaps are candidates when their feature discs, grown by this many standard
+    /// deviations of the relative position, overlap the new one's.
+    pub search_sigmas: f64,
+    /// The relative uncertainty used for the search is capped at this (m, 1 sigma).
+    pub max_search_sigma_m: f64,
+    /// The most recent submaps (besides the previous one) not offered to the verifier: they
+    /// overlap the new one by construction and share its information.
+    pub skip_recent: usize,
+}
+
+impl Default for GlobalSettings {
+    fn default() -> Self {
+        Self {
+            loop_closure: true,
+            align: AlignSettings::default(),
+            solve: SolveSettings::default(),
+            search_sigmas: 3.0,
+            max_search_sigma_m: 50.0,
+            skip_recent: 1,
+        }
+    }
+}
+
+/// A loop closure that entered the graph.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoopClosure {
+    /// The earlier submap.
+    pub from: usize,
+    /// The later submap.
+    pub to: usize,
+    /// `to`'s frame in `from`'s.
+    pub transform: Pose2,
+    /// Its covariance (from the matched features).
+    pub covariance: Matrix3<f64>,
+    /// Matched features.
+    pub matches: usize,
+    /// Joint NIS and its dof.
+    pub nis: f64,
+    /// Dof.
+    pub dof: usize,
+    /// Matches of the best rival transform.
+    pub rival_matches: usize,
+}
+
+/// The optimised frames.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GlobalSolution {
+    /// Increases with every accepted solve.
+    pub version: u64,
+    /// Every submap frame's pose in the world (index = submap number).
+    pub frames: Vec<Pose2>,
+    /// Their marginal covariances.
+    pub covariances: Vec<Matrix3<f64>>,
+    /// Loop closures in the graph.
+    pub loops: usize,
+    /// Time the solve took (ms).
+    pub solve_ms: f64,
+}
+
+/// What adding one submap did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct AddReport {
+    /// Candidates offered to the verifier.
+    pub candidates: usize,
+    /// Closures accepted into the graph.
+    pub accepted: Vec<LoopClosure>,
+    /// Refusals, by candidate submap.
+    pub refused: Vec<(usize, Refusal)>,
+    /// Closures verified one by one but dropped because they disagreed with each other.
+    pub conflicting: usize,
+    /// Closures dropped because the solve left them outside their own uncertainty.
+    pub rejected_after_solve: usize,
+    /// The solve failed and the previous solution stands.
+    pub solve_failed: bool,
+    /// Time spent verifying and solving (ms).
+    pub elapsed_ms: f64,
+}
+
+/// The layer's running totals.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct GlobalStats {
+    /// Submaps joined.
+    pub submaps: usize,
+    /// Candidates offered to the verifier.
+    pub candidates: u64,
+    /// Loop closures in the graph.
+    pub loops: u64,
+    /// Verified closures dropped for disagreeing with another.
+    pub conflicting: u64,
+    /// Closures dropped after the solve.
+    pub rejected_after_solve: u64,
+    /// Failed solves.
+    pub failed_solves: u64,
+    /// Longest add (verification and solve), ms.
+    pub max_add_ms: f64,
+}
+
+/// Centre and radius of a submap's features, in its frame.
+fn disc(submap: &FrozenSubmap) -> ([f64; 2], f64) {
+    let n = submap.features.len().max(1) as f64;
+    let (sx, sy) = submap
+        .features
+        .iter()
+        .fold((0.0, 0.0), |(x, y), f| (x + f.xy[0], y + f.xy[1]));
+    let c = [sx / n, sy / n];
+    let r = submap
+        .features
+        .iter()
+        .map(|f| (f.xy[0] - c[0]).hypot(f.xy[1] - c[1]))
+        .fold(0.0, f64::max);
+    (c, r)
+}
+
+/// The global layer, synchronous.
+#[derive(Debug, Clone)]
+pub struct GlobalMap {
+    settings: GlobalSettings,
+    submaps: Vec<Arc<FrozenSubmap>>,
+    discs: Vec<([f64; 2], f64)>,
+    graph: PoseGraph,
+    covariances: Vec<Matrix3<f64>>,
+    loops: Vec<LoopClosure>,
+    version: u64,
+    stats: GlobalStats,
+}
+
+impl GlobalMap {
+    /// An empty layer. The first submap's frame is the world.
+    pub fn new(settings: GlobalSettings) -> Self {
+        Self {
+            settings,
+            submaps: Vec::new(),
+            discs: Vec::new(),
+            graph: PoseGraph::new(),
+            covariances: Vec::new(),
+            loops: Vec::new(),
+            version: 0,
+            stats: GlobalStats::default(),
+        }
+    }
+
+    /// The submaps joined so far.
+    pub fn submaps(&self) -> &[Arc<FrozenSubmap>] {
+        &self.submaps
+    }
+
+    /// The loop closures in the graph.
+    pub fn loops(&self) -> &[LoopClosure] {
+        &self.loops
+    }
+
+    /// Running totals.
+    pub fn stats(&self) -> &GlobalStats {
+        &self.stats
+    }
+
+    /// The graph.
+    pub fn graph(&self) -> &PoseGraph {
+        &self.graph
+    }
+
+    /// The current solution.
+    pub fn solution(&self, solve_ms: f64) -> GlobalSolution {
+        GlobalSolution {
+            version: self.version,
+            frames: self.graph.nodes().to_vec(),
+            covariances: self.covariances.clone(),
+            loops: self.loops.len(),
+            solve_ms,
+        }
+    }
+
+    /// Joins a frozen submap: a node for its frame (and one for the frame after it: the
+    /// next submap starts where this one ended), its chain edge, verified loop closures,
+    /// and a solve.
+    pub fn add_submap(&mut self, submap: Arc<FrozenSubmap>) -> AddReport {
+        let started = Instant::now();
+        let mut report = AddReport::default();
+        if self.graph.nodes().is_empty() {
+            self.graph.add_node(Pose2::new(0.0, 0.0, 0.0));
+            self.covariances.push(Matrix3::zeros());
+        }
+        let k = self.submaps.len();
+        let frame = self.graph.nodes()[k];
+        let next = compose(&frame, &submap.end_pose);
+        let next_cov = compose_covariance(
+            &frame,
+            &self.covariances[k],
+            &submap.end_pose,
+            &submap.end_cov,
+        );
+        self.graph.add_node(next);
+        self.covariances.push(next_cov);
+        self.graph.add_edge(Edge {
+            from: k,
+            to: k + 1,
+            z: submap.end_pose,
+            covariance: submap.end_cov,
+            kind: EdgeKind::Chain,
+        });
+        self.discs.push(disc(&submap));
+        self.submaps.push(submap);
+        self.stats.submaps = self.submaps.len();
+        if self.settings.loop_closure {
+            self.close_loops(k, &mut report);
+        }
+        if !report.accepted.is_empty() {
+            self.solve_with_loops(&mut report);
+        }
+        report.elapsed_ms = started.elapsed().as_secs_f64() * 1e3;
+        self.stats.max_add_ms = self.stats.max_add_ms.max(report.elapsed_ms);
+        report
+    }
+
+    /// The relative pose of frame `j` in frame `i` and a conservative covariance (the
+    /// marginals propagated as if independent: correlation through the shared chain only
+    /// shrinks the true relative uncertainty).
+    fn relative(&self, i: usize, j: usize) -> (Pose2, Matrix3<f64>) {
+        let nodes = self.graph.nodes();
+        let (fi, fj) = (nodes[i], nodes[j]);
+        let inv = inverse(&fi);
+        let z = compose(&inv, &fj);
+        // d z / d fi and d z / d fj through inverse and compose.
+        let (ja, jb) = crate::se2::compose_jacobians(&inv, &fj);
+        let (c, s) = (fi.theta.cos(), fi.theta.sin());
+        let (x, y) = (fi.x, fi.y);
+        let jinv = Matrix3::new(-c, -s, s * x - c * y, s, -c, c * x + s * y, 0.0, 0.0, -1.0);
+        let ji = ja * jinv;
+        let cov =
+            ji * self.covariances[i] * ji.transpose() + jb * self.covariances[j] * jb.transpose();
+        (z, 0.5 * (cov + cov.transpose()))
+    }
+
+    fn close_loops(&mut self, k: usize, report: &mut AddReport) {
+        let s = self.settings;
+        let Some(newest) = self.submaps.get(k).cloned() else {
+            return;
+        };
+        let (cn, rn) = self.discs[k];
+        let mut verified: Vec<(usize, Alignment)> = Vec::new();
+        for i in 0..k.saturating_sub(s.skip_recent) {
+            let (z, cov) = self.relative(i, k);
+            let sigma = (cov[(0, 0)] + cov[(1, 1)])
+                .max(0.0)
+                .sqrt()
+                .min(s.max_search_sigma_m);
+            let (ci, ri) = self.discs[i];
+            let c = transform_point(&z, cn);
+            let gap = (c[0] - ci[0]).hypot(c[1] - ci[1]) - ri - rn;
+            if gap > s.search_sigmas * sigma {
+                continue;
+            }
+            report.candidates += 1;
+            self.stats.candidates += 1;
+            let mut search_cov = cov;
+            // The cap applies to the gate as well as to the search.
+            let cap = s.max_search_sigma_m * s.max_search_sigma_m;
+            for d in 0..2 {
+                search_cov[(d, d)] = search_cov[(d, d)].min(cap);
+            }
+            match align(
+                &self.submaps[i].features,
+                &newest.features,
+                &z,
+                &search_cov,
+                &s.align,
+            ) {
+                Ok(a) => verified.push((i, a)),
+                Err(r) => report.refused.push((i, r)),
+            }
+        }
+        if verified.is_empty() {
+            return;
+        }
+        // Every verified closure implies a pose for frame k; they must agree.
+        let implied: Vec<(Pose2, Matrix3<f64>)> = verified
+            .iter()
+            .map(|(i, a)| {
+                let fi = self.graph.nodes()[*i];
+                (
+                    compose(&fi, &a.transform),
+                    compose_covariance(&fi, &self.covariances[*i], &a.transform, &a.covariance),
+                )
+            })
+            .collect();
+        let bound = ChiSquared::new(3.0)
+            .map(|d| d.inverse_cdf(s.align.joint_probability))
+            .unwrap_or(f64::INFINITY);
+        let agree = implied.iter().all(|(p, c)| {
+            implied.iter().all(|(q, d)| {
+                let e = nalgebra::Vector3::new(
+                    p.x - q.x,
+                    p.y - q.y,
+                    radar_model::geometry::wrap_angle(p.theta - q.theta),
+                );
+                (c + d)
+                    .cholesky()
+                    .is_some_and(|ch| e.dot(&ch.solve(&e)) <= bound)
+            })
+        });
+        if !agree {
+            report.conflicting += verified.len();
+            self.stats.conflicting += verified.len() as u64;
+            warn!(
+                submap = k,
+                closures = verified.len(),
+                "verified loop closures disagree with each other: none taken (repeated structure)"
+            );
+            return;
+        }
+        for (i, a) in verified {
+            report.accepted.push(LoopClosure {
+                from: i,
+                to: k,
+                transform: a.transform,
+                covariance: a.covariance,
+                matches: a.matches.len(),
+                nis: a.nis,
+                dof: a.dof,
+                rival_matches: a.rival_matches,
+            });
+        }
+    }
+
+    /// Adds the accepted closures as edges and solves; drops closures the solution leaves
+    /// far outside their covariance, and on failure restores the graph as it was.
+    fn solve_with_loops(&mut self, report: &mut AddReport) {
+        let before = self.graph.clone();
+        let bound = ChiSquared::new(3.0)
+            .map(|d| d.inverse_cdf(0.999))
+            .unwrap_or(f64::INFINITY);
+        let mut kept = report.accepted.clone();
+        loop {
+            self.graph = before.clone();
+            for l in &kept {
+                let a = l.covariance;
+                self.graph.add_edge(Edge {
+                    from: l.from,
+                    to: l.to,
+                    z: l.transform,
+                    covariance: a,
+                    kind: EdgeKind::Loop,
+                });
+            }
+            match self.graph.solve(&self.settings.solve) {
+                Ok(sol) => {
+                    let first_loop = before.edges().len();
+                    let worst = (first_loop..self.graph.edges().len())
+                        .filter_map(|e| {
+                            self.graph
+                                .edge_chi2(e, &sol.nodes)
+                                .map(|c| (e - first_loop, c))
+                        })
+                        .max_by(|a, b| a.1.total_cmp(&b.1));
+                    if let Some((idx, chi2)) = worst.filter(|(_, c)| *c > bound) {
+                        warn!(chi2, bound, "a loop closure ends far outside its own uncertainty after the solve: dropped");
+                        kept.remove(idx);
+                        report.rejected_after_solve += 1;
+                        self.stats.rejected_after_solve += 1;
+                        if kept.is_empty() {
+                            self.graph = before;
+                            return;
+                        }
+                        continue;
+                    }
+                    self.graph.set_nodes(&sol.nodes);
+                    self.covariances = sol.covariances;
+                    self.version += 1;
+                    for l in &kept {
+                        info!(from = l.from, to = l.to, matches = l.matches, "loop closed");
+                    }
+                    self.stats.loops += kept.len() as u64;
+                    self.loops.extend(kept.iter().cloned());
+                    report.accepted = kept;
+                    return;
+                }
+                Err(e) => {
+                    warn!(error = %e, "the global solve failed: the previous solution stays");
+                    self.graph = before;
+                    report.solve_failed = true;
+                    report.accepted.clear();
+                    self.stats.failed_solves += 1;
+                    return;
+                }
+            }
+        }
+    }
+}
+
+/// A message to the layer's thread.
+#[derive(Debug)]
+enum ToLayer {
+    Submap(Arc<FrozenSubmap>),
+}
+
+/// The global layer on a thread of its own.
+#[derive(Debug)]
+pub struct GlobalLayer {
+    to_layer: Option<Sender<ToLayer>>,
+    solutions: Receiver<(Arc<GlobalSolution>, AddReport)>,
+    thread: Option<JoinHandle<GlobalMap>>,
+    latest: Option<Arc<GlobalSolution>>,
+    reports: Vec<AddReport>,
+    refused_sends: u64,
+}
+
+/// Frozen submaps queued for the layer's thread at most (past it a submap is refused and
+/// the chain breaks: the thread is hopelessly behind).
+const QUEUE: usize = 256;
+
+impl GlobalLayer {
+    /// Starts the layer's thread.
+    pub fn spawn(settings: GlobalSettings) -> std::io::Result<Self> {
+        let (tx, rx) = bounded::<ToLayer>(QUEUE);
+        let (sol_tx, sol_rx) = bounded(QUEUE);
+        let thread = std::thread::Builder::new()
+            .name("global-layer".into())
+            .spawn(move || {
+                let mut map = GlobalMap::new(settings);
+                while let Ok(ToLayer::Submap(s)) = rx.recv() {
+                    let report = map.add_submap(s);
+                    let solution = Arc::new(map.solution(report.elapsed_ms));
+                    if sol_tx.try_send((solution, report)).is_err() {
+                        warn!("the real-time path is not reading the global layer's solutions: one dropped");
+                    }
+                }
+                map
+            })?;
+        Ok(Self {
+            to_layer: Some(tx),
+            solutions: sol_rx,
+            thread: Some(thread),
+            latest: None,
+            reports: Vec::new(),
+            refused_sends: 0,
+        })
+    }
+
+    /// Hands a frozen submap to the layer without waiting. `false` when the queue is full
+    /// or the thread is gone (logged; counted in [`Self::refused_sends`]).
+    pub fn submit(&mut self, submap: Arc<FrozenSubmap>) -> bool {
+        let Some(tx) = self.to_layer.as_ref() else {
+            return false;
+        };
+        match tx.try_send(ToLayer::Submap(submap)) {
+            Ok(()) => true,
+            Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {
+                self.refused_sends += 1;
+                warn!("the global layer's queue is full or its thread is gone: a submap was not joined");
+                false
+            }
+        }
+    }
+
+    /// The newest solution, without waiting (`None` until the first arrives).
+    pub fn poll(&mut self) -> Option<Arc<GlobalSolution>> {
+        while let Ok((s, report)) = self.solutions.try_recv() {
+            self.latest = Some(s);
+            self.reports.push(report);
+        }
+        self.latest.clone()
+    }
+
+    /// Reports of every submap joined so far (drained).
+    pub fn take_reports(&mut self) -> Vec<AddReport> {
+        self.poll();
+        std::mem::take(&mut self.reports)
+    }
+
+    /// Submaps that could not be handed over.
+    pub fn refused_sends(&self) -> u64 {
+        self.refused_sends
+    }
+
+    /// Closes the queue, waits for the thread to join every submap sent, and returns the
+    /// layer (end of run only: this blocks).
+    pub fn finish(mut self) -> Option<GlobalMap> {
+        self.to_layer.take();
+        let map = self.thread.take()?.join().ok();
+        self.poll();
+        map
+    }
+}
+
+impl Drop for GlobalLayer {
+    fn drop(&mut self) {
+        self.to_layer.take();
+    }
+}

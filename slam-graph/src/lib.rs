@@ -1,0 +1,23 @@
+//! The global layer over the filter's local submaps (Jose and Adams' augmented-state EKF,
+//! run on bounded pieces of the drive by `slam_filter::submap`).
+//!
+//! - [`se2`]: rigid transforms of the plane, their Jacobians.
+//! - [`graph`]: the pose graph of submap frames; Levenberg-Marquardt with a sparse Cholesky
+//!   factorisation (faer) per step; marginal covariances.
+//! - [`align`]: loop-closure verification by jointly compatible, unambiguous association of
+//!   many features, with their reflectivity and absorption.
+//! - [`layer`]: [`GlobalMap`] (synchronous, deterministic) and [`GlobalLayer`] (the same on a
+//!   thread of its own, never blocking the caller).
+//!
+//! No IO and no clock besides the solve timings.
+
+pub mod align;
+pub mod graph;
+pub mod layer;
+pub mod se2;
+
+pub use align::{align, AlignSettings, Alignment, Refusal};
+pub use graph::{Edge, EdgeKind, GraphError, PoseGraph, Solution, SolveSettings};
+pub use layer::{
+    AddReport, GlobalLayer, GlobalMap, GlobalSettings, GlobalSolution, GlobalStats, LoopClosure,
+};
