@@ -42,6 +42,7 @@ mod overrides;
 mod parse;
 pub mod radar;
 pub mod sim;
+pub mod submaps;
 pub mod values;
 
 use std::io::Read;
@@ -59,6 +60,7 @@ pub use output::{OutputSettings, RawOutput};
 pub use overrides::Override;
 pub use radar::{RadarSettings, RawRadar};
 pub use sim::{RawSim, SimSettings};
+pub use submaps::{RawSubmaps, SubmapSettings};
 pub use values::{
     Capacity, FiniteF64, NonNegativeF64, OpenProbability, PositiveF64, Probability, ValueError,
 };
@@ -89,6 +91,8 @@ pub struct RawConfig {
     pub filter: RawFilter,
     /// `[output]`.
     pub output: RawOutput,
+    /// `[submaps]`.
+    pub submaps: RawSubmaps,
 }
 
 /// Every setting, validated.
@@ -108,6 +112,8 @@ pub struct Config {
     pub filter: FilterSettings,
     /// Outputs.
     pub output: OutputSettings,
+    /// Local submaps and the global layer.
+    pub submaps: SubmapSettings,
 }
 
 /// The three ways the system is used, each with a shipped example file.
@@ -138,6 +144,7 @@ impl RawConfig {
             detector: self.detector.check(c),
             filter: self.filter.check(c),
             output: self.output.check(c),
+            submaps: self.submaps.check(c),
         }
     }
 
@@ -165,6 +172,7 @@ impl From<&Config> for RawConfig {
             detector: RawDetector::from(&c.detector),
             filter: RawFilter::from(&c.filter),
             output: RawOutput::from(&c.output),
+            submaps: RawSubmaps::from(&c.submaps),
         }
     }
 }

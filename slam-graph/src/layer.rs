@@ -44,6 +44,10 @@ pub struct GlobalSettings {
     /// The most recent submaps (besides the previous one) not offered to the verifier: they
     /// overlap the new one by construction and share its information.
     pub skip_recent: usize,
+    /// An earlier submap is a loop-closure candidate only when the vehicle has moved at
+    /// least this far (m, summed over the submaps in between) since it: a loop is a return
+    /// after an excursion, not the overlap of neighbouring submaps.
+    pub min_loop_travel_m: f64,
 }
 
 impl Default for GlobalSettings {
@@ -55,6 +59,7 @@ impl Default for GlobalSettings {
             search_sigmas: 3.0,
             max_search_sigma_m: 50.0,
             skip_recent: 1,
+            min_loop_travel_m: 100.0,
         }
     }
 }
@@ -155,6 +160,8 @@ pub struct GlobalMap {
     settings: GlobalSettings,
     submaps: Vec<Arc<FrozenSubmap>>,
     discs: Vec<([f64; 2], f64)>,
+    /// Distance (m) from the first frame to each frame along the chain of switch poses.
+    travel: Vec<f64>,
     graph: PoseGraph,
     covariances: Vec<Matrix3<f64>>,
     loops: Vec<LoopClosure>,
@@ -169,6 +176,7 @@ impl GlobalMap {
             settings,
             submaps: Vec::new(),
             discs: Vec::new(),
+            travel: vec![0.0],
             graph: PoseGraph::new(),
             covariances: Vec::new(),
             loops: Vec::new(),
@@ -237,6 +245,9 @@ impl GlobalMap {
             kind: EdgeKind::Chain,
         });
         self.discs.push(disc(&submap));
+        let last = self.travel.last().copied().unwrap_or(0.0);
+        self.travel
+            .push(last + submap.end_pose.x.hypot(submap.end_pose.y));
         self.submaps.push(submap);
         self.stats.submaps = self.submaps.len();
         if self.settings.loop_closure {
@@ -277,6 +288,10 @@ impl GlobalMap {
         let (cn, rn) = self.discs[k];
         let mut verified: Vec<(usize, Alignment)> = Vec::new();
         for i in 0..k.saturating_sub(s.skip_recent) {
+            // Frame i + 1 is where submap i ended.
+            if self.travel[k] - self.travel[i + 1] < s.min_loop_travel_m {
+                continue;
+            }
             let (z, cov) = self.relative(i, k);
             let sigma = (cov[(0, 0)] + cov[(1, 1)])
                 .max(0.0)
@@ -310,7 +325,10 @@ impl GlobalMap {
         if verified.is_empty() {
             return;
         }
-        // Every verified closure implies a pose for frame k; they must agree.
+        // Every verified closure implies a pose for frame k: they must all agree with the
+        // best (most matches), or none is taken; only the best enters the graph (the others
+        // reuse the same features of submap k and would count them twice).
+        verified.sort_by(|x, y| y.1.matches.len().cmp(&x.1.matches.len()));
         let implied: Vec<(Pose2, Matrix3<f64>)> = verified
             .iter()
             .map(|(i, a)| {
@@ -322,30 +340,44 @@ impl GlobalMap {
             })
             .collect();
         let bound = ChiSquared::new(3.0)
-            .map(|d| d.inverse_cdf(s.align.joint_probability))
+            .map(|d| d.inverse_cdf(0.999))
             .unwrap_or(f64::INFINITY);
-        let agree = implied.iter().all(|(p, c)| {
-            implied.iter().all(|(q, d)| {
+        let (best, best_cov) = implied[0];
+        let best_matches = verified[0].1.matches.len();
+        let sep = s.align.rival_separation_m;
+        // A verified closure that puts frame k elsewhere (outside both the joint uncertainty
+        // and the rival separation) is a rival explanation from another place.
+        let rival = verified
+            .iter()
+            .zip(&implied)
+            .skip(1)
+            .filter(|(_, (q, d))| {
                 let e = nalgebra::Vector3::new(
-                    p.x - q.x,
-                    p.y - q.y,
-                    radar_model::geometry::wrap_angle(p.theta - q.theta),
+                    best.x - q.x,
+                    best.y - q.y,
+                    radar_model::geometry::wrap_angle(best.theta - q.theta),
                 );
-                (c + d)
+                let far = (best.x - q.x).hypot(best.y - q.y) > sep || e.z.abs() > 0.1 * sep;
+                let outside = (best_cov + d)
                     .cholesky()
-                    .is_some_and(|ch| e.dot(&ch.solve(&e)) <= bound)
+                    .map_or(true, |ch| e.dot(&ch.solve(&e)) > bound);
+                far && outside
             })
-        });
-        if !agree {
+            .map(|((_, a), _)| a.matches.len())
+            .max()
+            .unwrap_or(0);
+        if rival as f64 >= s.align.max_rival_ratio * best_matches as f64 {
             report.conflicting += verified.len();
             self.stats.conflicting += verified.len() as u64;
             warn!(
                 submap = k,
-                closures = verified.len(),
-                "verified loop closures disagree with each other: none taken (repeated structure)"
+                best = best_matches,
+                rival,
+                "verified loop closures from different places disagree: none taken (repeated structure)"
             );
             return;
         }
+        verified.truncate(1);
         for (i, a) in verified {
             report.accepted.push(LoopClosure {
                 from: i,

@@ -118,6 +118,7 @@ fn events(g: &Arc<Geometry>, rotations: u64) -> (Vec<OutputEvent>, Vec<Azimuth>)
                 covariance,
                 observations: 31,
             }],
+            global: None,
         }));
         out.push(OutputEvent::Rotation(Box::new(RotationDiagnostics {
             rotation: r,

@@ -21,6 +21,13 @@ pub fn progress_line(s: &PipelineSummary, ekf: &DaemonEkf) -> String {
         (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt(),
         s.mean_rotation_ms()
     );
+    if s.current_submap > 0 {
+        let _ = write!(
+            line,
+            "  (submap {}: pose and map in its frame)",
+            s.current_submap
+        );
+    }
     let refused = s.refused.no_odometry + s.refused.stale_odometry;
     if refused > 0 {
         let _ = write!(line, "  refused beams (no/stale odometry) {refused}");
@@ -161,6 +168,24 @@ pub fn summary_text(r: &DaemonReport) -> String {
             100.0 * s.features_reobserved as f64 / s.features_in_view.max(1) as f64,
             s.features_reobserved,
             s.features_in_view
+        );
+    }
+    if let Some(sm) = &s.submaps {
+        let g = &sm.global;
+        let _ = writeln!(
+            t,
+            "  submaps: {} (largest {} features when closed), {} features frozen in {:.1} kB; global layer: {} loop closures from {} candidates ({} dropped as conflicting, {} after the solve, {} failed solves), {} solutions used, slowest join {:.1} ms",
+            sm.submaps,
+            sm.largest_submap_features,
+            sm.frozen_features,
+            sm.frozen_bytes as f64 / 1e3,
+            sm.loop_closures,
+            g.candidates,
+            g.conflicting,
+            g.rejected_after_solve,
+            g.failed_solves,
+            sm.solutions,
+            g.max_add_ms
         );
     }
     let n = s.rotations.max(1) as f64;

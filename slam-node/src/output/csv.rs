@@ -110,6 +110,7 @@ mod tests {
                 covariance: [[1.0; 4]; 4],
                 observations: 3,
             }],
+            global: None,
         };
         let mut buf = Vec::new();
         write_map(&m, &mut buf).unwrap();

@@ -49,6 +49,21 @@ pub struct MapSnapshot {
     pub loss_var_db2: f64,
     /// Every feature in the state.
     pub features: Vec<MapFeature>,
+    /// With submaps: the map is the union of the submaps' features placed by the global
+    /// layer's optimised frames (absent for one dense map).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub global: Option<GlobalInfo>,
+}
+
+/// How a map made of submaps was put together.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GlobalInfo {
+    /// Submaps (the current one included).
+    pub submaps: usize,
+    /// Loop closures in the global graph.
+    pub loop_closures: usize,
+    /// The global solution the frames come from (0: chained switch poses, not optimised).
+    pub solution: u64,
 }
 
 impl MapSnapshot {
@@ -113,12 +128,90 @@ impl MapSnapshot {
             loss_db: state.loss_db(),
             loss_var_db2: loss_var,
             features,
+            global: None,
+        }
+    }
+
+    /// Moves every feature from a submap's frame into the world: `frame` is the submap's
+    /// frame in the world (positions move, position covariances rotate).
+    pub fn transform(&mut self, frame: &radar_model::geometry::Pose2) {
+        for f in &mut self.features {
+            f.transform(frame);
         }
     }
 
     /// Writes the snapshot as pretty JSON.
     pub fn write_json<W: Write>(&self, sink: W) -> io::Result<()> {
         serde_json::to_writer_pretty(sink, self).map_err(io::Error::other)
+    }
+}
+
+impl MapFeature {
+    /// A frozen submap's feature, placed in the world by its submap's `frame`.
+    pub fn from_submap(
+        f: &slam_filter::SubmapFeature,
+        frame: &radar_model::geometry::Pose2,
+    ) -> Self {
+        let material = radar_model::material::Material::new(f.uv[0], f.uv[1]);
+        let shares = material.shares();
+        let j = material.shares_jacobian();
+        let mut cov = [[0.0; 4]; 4];
+        for r in 0..2 {
+            for c in 0..2 {
+                cov[r][c] = f.xy_cov[(r, c)];
+                let mut acc = 0.0;
+                for a in 0..2 {
+                    for b in 0..2 {
+                        acc += j[r][a] * f.uv_cov[(a, b)] * j[c][b];
+                    }
+                }
+                cov[2 + r][2 + c] = acc;
+            }
+        }
+        let mut out = MapFeature {
+            id: f.id.0,
+            x_m: f.xy[0],
+            y_m: f.xy[1],
+            rho: shares.rho,
+            alpha: shares.alpha,
+            tau: shares.tau,
+            covariance: cov,
+            observations: f.hits,
+        };
+        out.transform(frame);
+        out
+    }
+
+    /// Moves the feature from a frame into its parent (`frame` is the frame's pose there).
+    pub fn transform(&mut self, frame: &radar_model::geometry::Pose2) {
+        let (s, c) = frame.theta.sin_cos();
+        let (x, y) = (self.x_m, self.y_m);
+        self.x_m = frame.x + c * x - s * y;
+        self.y_m = frame.y + s * x + c * y;
+        let r = [[c, -s], [s, c]];
+        let p = [
+            [self.covariance[0][0], self.covariance[0][1]],
+            [self.covariance[1][0], self.covariance[1][1]],
+        ];
+        let mut rp = [[0.0; 2]; 2];
+        for i in 0..2 {
+            for k in 0..2 {
+                rp[i][k] = (0..2).map(|m| r[i][m] * p[m][k]).sum();
+            }
+        }
+        for i in 0..2 {
+            for k in 0..2 {
+                self.covariance[i][k] = (0..2).map(|m| rp[i][m] * r[k][m]).sum();
+            }
+        }
+        // Cross terms position x material rotate with the position.
+        for m in 2..4 {
+            let (a, b) = (self.covariance[0][m], self.covariance[1][m]);
+            self.covariance[0][m] = c * a - s * b;
+            self.covariance[1][m] = s * a + c * b;
+            self.covariance[m][0] = self.covariance[0][m];
+            self.covariance[m][1] = self.covariance[1][m];
+        }
     }
 }
 
@@ -154,6 +247,7 @@ mod tests {
                 ],
                 observations: 9,
             }],
+            global: None,
         };
         let mut buf = Vec::new();
         snap.write_json(&mut buf).unwrap();

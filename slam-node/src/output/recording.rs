@@ -480,7 +480,7 @@ impl<W: Write + Seek> McapRecorder<W> {
                 self.writer.flush()?;
                 Ok(())
             }
-            OutputEvent::Spectrum(_) | OutputEvent::Truth(_) => Ok(()),
+            OutputEvent::Spectrum(_) | OutputEvent::Truth(_) | OutputEvent::Trajectory(_) => Ok(()),
         }
     }
 

@@ -41,6 +41,10 @@ pub enum OutputEvent {
     Odometry(OdometrySample),
     /// The detections of one rotation that reached the filter.
     Detections(RotationDetections),
+    /// The whole trajectory re-expressed with the global layer's final submap frames (end
+    /// of a run on submaps): the trajectory file is rewritten with it, and the poses as
+    /// published during the run are kept beside it as `<name>-online.<ext>`.
+    Trajectory(Vec<PoseSample>),
 }
 
 /// The MCAP recording of a run.
@@ -338,6 +342,26 @@ fn run(
                 summary.spectra += 1;
             }
             OutputEvent::Truth(t) => truth = t,
+            OutputEvent::Trajectory(t) => {
+                traj.flush().map_err(io_err(&traj_path))?;
+                let online = online_path(&traj_path);
+                std::fs::rename(&traj_path, &online).map_err(io_err(&online))?;
+                let mut w = create(&traj_path)?;
+                writeln!(
+                    w,
+                    "# globally optimised: each pose through its submap's frame as the global layer solved it at the end of the run ({} poses; as published during the run: {})",
+                    t.len(),
+                    online.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+                )
+                .map_err(io_err(&traj_path))?;
+                let mut tum = TumWriter::new(w).map_err(io_err(&traj_path))?;
+                for p in &t {
+                    tum.write(p).map_err(io_err(&traj_path))?;
+                }
+                tum.flush().map_err(io_err(&traj_path))?;
+                summary.files.push(online);
+                poses = t;
+            }
             OutputEvent::Azimuth(_) | OutputEvent::Odometry(_) | OutputEvent::Detections(_) => {}
         }
     }
@@ -369,4 +393,17 @@ fn run(
         summary.figures.push(p);
     }
     Ok(summary)
+}
+
+/// `dir/name-online.ext` beside `dir/name.ext`.
+fn online_path(path: &std::path::Path) -> PathBuf {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "trajectory".into());
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}-online.{}", ext.to_string_lossy()),
+        None => format!("{stem}-online"),
+    };
+    path.with_file_name(name)
 }

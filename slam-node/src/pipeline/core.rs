@@ -8,6 +8,7 @@
 //! | odometry gate | [`OdometryGate`] | odometry not yet applied; refusal without (fresh) odometry |
 //! | filter | [`slam_filter::RadarEkf`] | the state, the held odometry, pose extrapolation |
 //! | statistics | [`RotationStats`] | per-rotation counts, timings, NIS, spectrum comparison |
+//! | submaps | [`SubmapRun`] (optional) | frozen submaps, their frames in the world, the switch, the global layer's thread |
 //! | truth | [`TruthObserver`] (optional) | scores against ground truth, changes nothing |
 
 use std::time::Instant;
@@ -24,6 +25,7 @@ use super::gate::{worth_logging, OdometryGate};
 use super::settings::PipelineSettings;
 use super::spectrum::{compare_beam, SpectrumScratch};
 use super::stats::{RotationStats, StageTimes};
+use super::submaps::SubmapRun;
 use super::summary::PipelineSummary;
 use super::truth::{TruthObserver, TruthOracle};
 use crate::output::{MapSnapshot, OutputEvent, PoseSample, SpectrumComparison};
@@ -51,6 +53,9 @@ pub enum PipelineError {
     /// The radar's geometry does not make a spectrum model.
     #[error(transparent)]
     Geometry(#[from] GeometryError),
+    /// The global layer's thread could not be started.
+    #[error("the global layer's thread could not be started")]
+    GlobalLayer(#[source] std::io::Error),
 }
 
 /// The daemon's processing state.
@@ -62,6 +67,7 @@ pub struct Pipeline {
     ekf: DaemonEkf,
     stats: RotationStats,
     truth: Option<TruthObserver>,
+    submaps: Option<SubmapRun>,
     beams: Vec<OfferedBeam>,
     spectrum: SpectrumScratch,
     clock: WireClock,
@@ -105,7 +111,13 @@ impl Pipeline {
             Pose2::new(x, y, wrap_angle(theta)),
             start_time_s.unwrap_or(0.0),
         )?;
+        let submaps = settings
+            .submaps
+            .map(SubmapRun::new)
+            .transpose()
+            .map_err(PipelineError::GlobalLayer)?;
         Ok(Self {
+            submaps,
             front_end: FrontEnd::new(settings.front_end()),
             gate: OdometryGate::new(
                 ODOMETRY_QUEUE,
@@ -130,6 +142,21 @@ impl Pipeline {
     /// The filter.
     pub fn ekf(&self) -> &DaemonEkf {
         &self.ekf
+    }
+
+    /// The submap stage, when the filter runs on submaps.
+    pub fn submaps(&self) -> Option<&SubmapRun> {
+        self.submaps.as_ref()
+    }
+
+    /// The estimated pose in the world and its covariance (through the current submap's
+    /// frame when the filter runs on submaps).
+    pub fn world_pose(&self) -> (Pose2, Matrix3<f64>) {
+        let (pose, cov) = (self.ekf.pose(), self.ekf.pose_covariance());
+        match self.submaps.as_ref() {
+            Some(s) => s.to_world(&pose, &cov),
+            None => (pose, cov),
+        }
     }
 
     /// The front end.
@@ -322,7 +349,12 @@ impl Pipeline {
                 let associated = self.stats.on_beam(beam, &report);
                 self.summary.associations += u64::from(associated);
                 if let Some(truth) = self.truth.as_mut() {
-                    let wrong = truth.on_beam(beam, &report, &self.ekf);
+                    let frame = self
+                        .submaps
+                        .as_ref()
+                        .filter(|s| s.current() > 0)
+                        .map(|s| s.frame().0);
+                    let wrong = truth.on_beam(beam, &report, &self.ekf, frame.as_ref());
                     self.stats.on_association_errors(wrong);
                 }
             }
@@ -432,10 +464,14 @@ impl Pipeline {
         }
     }
 
-    /// The map as written: material variances brought up to date first.
+    /// The map as written: material variances brought up to date first; with submaps, the
+    /// frozen submaps' features through their (optimised) frames and the current one's.
     fn map_snapshot(&mut self) -> MapSnapshot {
         self.ekf.settle_material_noise();
-        MapSnapshot::from_state(self.ekf.state())
+        match self.submaps.as_ref() {
+            Some(s) => s.map_snapshot(&self.ekf),
+            None => MapSnapshot::from_state(self.ekf.state()),
+        }
     }
 
     /// Closes the current rotation: diagnostics, pose, truth comparison, map snapshot.
@@ -460,8 +496,7 @@ impl Pipeline {
             events,
         );
         self.warn_if_behind(d.total_ms);
-        let pose = self.ekf.pose();
-        let cov = self.ekf.pose_covariance();
+        let (pose, cov) = self.world_pose();
         events.push(OutputEvent::Pose(PoseSample {
             timestamp_s: self.ekf.state().time_s(),
             x_m: pose.x,
@@ -475,7 +510,9 @@ impl Pipeline {
         }));
         if let Some(truth) = self.truth.as_mut() {
             truth.on_rotation(
-                &self.ekf,
+                self.ekf.state().time_s(),
+                pose,
+                cov,
                 self.ekf.held_odometry().is_some(),
                 self.settings.filter.max_range_m,
                 &mut d,
@@ -487,6 +524,12 @@ impl Pipeline {
             events.push(OutputEvent::Map(map));
         }
         events.push(OutputEvent::Rotation(Box::new(d)));
+        // The submap closes after this rotation's pose was published in it.
+        if let Some(s) = self.submaps.as_mut() {
+            let t = self.ekf.state().time_s();
+            s.end_rotation(&mut self.ekf, t);
+            self.summary.current_submap = s.current();
+        }
     }
 
     /// Counts, for every feature mapped before this rotation began and in the radar's view
@@ -525,10 +568,16 @@ impl Pipeline {
         self.front_end.flush(&mut self.beams);
         self.run_beams();
         self.end_rotation(events);
+        let trajectory = self.submaps.as_mut().map(|s| s.finish().0);
         let map = self.map_snapshot();
+        let map_size = map.features.len();
         events.push(OutputEvent::Map(map));
+        if let Some(t) = trajectory {
+            events.push(OutputEvent::Trajectory(t));
+        }
         let mut s = self.summary.clone();
-        s.map_size = self.ekf.feature_count();
+        s.map_size = map_size;
+        s.submaps = self.submaps.as_ref().map(|x| x.summary().clone());
         s.spectrum_bound_db = self.front_end.spectrum_bound_db().map(|b| {
             b.iter()
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
@@ -538,8 +587,13 @@ impl Pipeline {
         s.learned_gain_db_per_decade = self.front_end.learned_gain_slope();
         s.odometry_out_of_order = self.gate.out_of_order();
         if let Some(truth) = self.truth.as_ref() {
+            let features = match self.submaps.as_ref() {
+                Some(sm) => sm.world_features(&self.ekf),
+                None => self.ekf.features(),
+            };
             truth.score(
-                &self.ekf,
+                &features,
+                self.ekf.state().loss_db(),
                 self.settings.filter.initial_rho,
                 self.settings.filter.initial_alpha,
                 &mut s,

@@ -17,6 +17,7 @@ pub mod scores;
 pub mod settings;
 pub mod spectrum;
 pub mod stats;
+pub mod submaps;
 pub mod summary;
 pub mod truth;
 

@@ -77,6 +77,40 @@ pub struct PipelineSettings {
     pub radar_stall: Duration,
     /// Write a map snapshot every this many rotations (0 = only at the end).
     pub map_every_rotations: u64,
+    /// Local submaps joined by the global layer; `None`: one dense map.
+    pub submaps: Option<SubmapOptions>,
+}
+
+/// Local submaps and the global layer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SubmapOptions {
+    /// When a submap is closed.
+    pub limits: slam_filter::SubmapLimits,
+    /// The global layer.
+    pub global: slam_graph::GlobalSettings,
+}
+
+impl SubmapOptions {
+    /// From `[submaps]`; `None` when disabled.
+    pub fn from_config(s: &config::SubmapSettings) -> Option<Self> {
+        if !s.enabled {
+            return None;
+        }
+        let mut global = slam_graph::GlobalSettings {
+            loop_closure: s.loop_closure,
+            search_sigmas: s.search_sigmas.get(),
+            ..slam_graph::GlobalSettings::default()
+        };
+        global.align.min_matches = s.min_matches.get();
+        global.align.max_rival_ratio = s.max_rival_ratio.get();
+        Some(Self {
+            limits: slam_filter::SubmapLimits {
+                max_distance_m: s.max_distance_m.get(),
+                max_features: s.max_features.get(),
+            },
+            global,
+        })
+    }
 }
 
 /// The chi-square probability mass inside a fixed 3-dof threshold.
@@ -255,6 +289,7 @@ impl PipelineSettings {
             odometry_wait: c.odometry.stale_after,
             radar_stall: Duration::from_secs(2),
             map_every_rotations: 20,
+            submaps: SubmapOptions::from_config(&c.submaps),
         })
     }
 

@@ -92,6 +92,12 @@ pub struct PipelineSummary {
     pub features_in_view: u64,
     /// Of those, the ones in which it was associated again.
     pub features_reobserved: u64,
+    /// The submap the filter runs in now (0 with one dense map); poses in progress lines
+    /// are in its frame.
+    pub current_submap: usize,
+    /// Local submaps and the global layer (`None`: one dense map).
+    #[serde(skip)]
+    pub submaps: Option<super::submaps::SubmapSummary>,
     /// Pose error against truth.
     pub pose: Option<PoseErrorStats>,
     /// Associated observations against the true geometry (truth known only).

@@ -158,7 +158,14 @@ impl TruthObserver {
     /// geometry, and whether it was paired with the mapped feature of another true feature
     /// (an association error; returned as the count for this beam) or came from no true
     /// feature (clutter).
-    pub fn on_beam(&mut self, beam: &BeamObservation, report: &BeamReport, ekf: &RadarEkf) -> u32 {
+    /// `frame` places the filter's (submap) frame in the world; `None`: it is the world.
+    pub fn on_beam(
+        &mut self,
+        beam: &BeamObservation,
+        report: &BeamReport,
+        ekf: &RadarEkf,
+        frame: Option<&Pose2>,
+    ) -> u32 {
         let Some(true_pose) = self.oracle.pose_at(beam.timestamp_s) else {
             return 0;
         };
@@ -170,7 +177,10 @@ impl TruthObserver {
             };
             let xy = true_pose.point_at(t.range_m, t.bearing_rad);
             let seen = nearest_feature(features, xy, SEEN_GATE_M).map(|(i, _)| i);
-            let mapped = nearest_feature(features, [f.x_m, f.y_m], MAPPED_GATE_M).map(|(i, _)| i);
+            let xy_map = frame.map_or([f.x_m, f.y_m], |fr| {
+                slam_graph::se2::transform_point(fr, [f.x_m, f.y_m])
+            });
+            let mapped = nearest_feature(features, xy_map, MAPPED_GATE_M).map(|(i, _)| i);
             if let Some(tf) = seen.and_then(|a| features.get(a)) {
                 let rb = range_bearing(&true_pose, [tf.x_m, tf.y_m]);
                 self.observation_errors
@@ -192,23 +202,24 @@ impl TruthObserver {
         wrong
     }
 
-    /// Scores the pose at the end of a rotation (when the filter has odometry) into `d`,
-    /// and marks the true features within `max_range_m` as having come into range.
+    /// Scores the pose (in the world, with its covariance) at the end of a rotation at
+    /// `time_s` (when the filter has odometry) into `d`, and marks the true features within
+    /// `max_range_m` as having come into range.
+    #[allow(clippy::too_many_arguments)]
     pub fn on_rotation(
         &mut self,
-        ekf: &RadarEkf,
+        time_s: f64,
+        pose: Pose2,
+        cov: nalgebra::Matrix3<f64>,
         has_odometry: bool,
         max_range_m: f64,
         d: &mut RotationDiagnostics,
     ) {
-        let t = ekf.state().time_s();
-        let Some(truth) = self.oracle.pose_at(t) else {
+        let Some(truth) = self.oracle.pose_at(time_s) else {
             return;
         };
         if has_odometry {
-            let pose = ekf.pose();
-            let cov = ekf.pose_covariance();
-            let nees = ekf.pose_nees(&truth).ok();
+            let nees = slam_filter::health::pose_nees(&pose, &cov, &truth).ok();
             d.pose_error_x_m = Some(pose.x - truth.x);
             d.pose_error_y_m = Some(pose.y - truth.y);
             d.pose_error_theta_rad = Some(wrap_angle(pose.theta - truth.theta));
@@ -228,9 +239,11 @@ impl TruthObserver {
 
     /// Writes the run's scores into `summary`: pose errors, observation errors, association
     /// errors and the final map against the true features.
+    /// `features` is the map in the world; `loss_db` the filter's radar loss.
     pub fn score(
         &self,
-        ekf: &RadarEkf,
+        features: &[FeatureEstimate],
+        loss_db: f64,
         initial_rho: f64,
         initial_alpha: f64,
         summary: &mut PipelineSummary,
@@ -239,21 +252,20 @@ impl TruthObserver {
         summary.observation_errors = self.observation_errors;
         summary.association_errors = self.association_errors;
         summary.clutter_associations = self.clutter_associations;
-        let features = ekf.features();
         let in_range = self.in_range.iter().filter(|&&b| b).count();
         let mut score = score_map(
-            &features,
+            features,
             self.oracle.features(),
             in_range,
             MAPPED_GATE_M,
             initial_rho,
             initial_alpha,
         );
-        score.loss_db = ekf.state().loss_db();
+        score.loss_db = loss_db;
         if let Some(true_loss) = self.oracle.loss_db() {
             score.true_loss_db = Some(true_loss);
             score.mean_rho_error_gauge_fixed = Some(gauge_fixed_rho_error(
-                &features,
+                features,
                 self.oracle.features(),
                 MAPPED_GATE_M,
                 score.loss_db - true_loss,

@@ -1,0 +1,164 @@
+//! `[submaps]`: local submaps of bounded size joined by a global pose graph with loop
+//! closures (slam-filter's `submap`, slam-graph). Off, the filter is one dense map for the
+//! whole drive, whose cost grows with the square of everything mapped.
+
+use serde::{Deserialize, Serialize};
+
+use crate::check::Checker;
+use crate::error::FieldErrors;
+use crate::values::{Capacity, OpenProbability, PositiveF64};
+
+/// The most features one submap may be set to hold.
+pub const MAX_SUBMAP_FEATURES: usize = 5000;
+
+/// `[submaps]` as written in the file.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RawSubmaps {
+    /// Run the filter on local submaps. Default false (one dense map).
+    pub enabled: bool,
+    /// Close a submap after the vehicle has driven this far in it (m). Default 100.
+    pub max_distance_m: f64,
+    /// Close a submap once it holds this many features. Default 150.
+    pub max_features: i64,
+    /// Look for loop closures between submaps. Default true.
+    pub loop_closure: bool,
+    /// Fewest features matched to accept a loop closure. Default 6.
+    pub min_matches: i64,
+    /// A rival transform explaining at least this share of the best's matches refuses the
+    /// closure (repeated structure). Default 0.6.
+    pub max_rival_ratio: f64,
+    /// Earlier submaps are loop-closure candidates within this many standard deviations of
+    /// the relative position. Default 3.
+    pub search_sigmas: f64,
+}
+
+impl Default for RawSubmaps {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            max_distance_m: 100.0,
+            max_features: 150,
+            loop_closure: true,
+            min_matches: 6,
+            max_rival_ratio: 0.6,
+            search_sigmas: 3.0,
+        }
+    }
+}
+
+/// `[submaps]`, validated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SubmapSettings {
+    /// Run on submaps.
+    pub enabled: bool,
+    /// Distance limit (m).
+    pub max_distance_m: PositiveF64,
+    /// Feature limit.
+    pub max_features: Capacity,
+    /// Loop closure on.
+    pub loop_closure: bool,
+    /// Fewest matches (at least 3: a 2-D transform has 3 degrees of freedom).
+    pub min_matches: Capacity,
+    /// Rival ratio, in (0, 1).
+    pub max_rival_ratio: OpenProbability,
+    /// Search width in standard deviations.
+    pub search_sigmas: PositiveF64,
+}
+
+impl Default for SubmapSettings {
+    fn default() -> Self {
+        let mut c = Checker::new();
+        let s = RawSubmaps::default().check(&mut c);
+        debug_assert!(c.is_clean(), "the defaults must be valid");
+        s
+    }
+}
+
+impl RawSubmaps {
+    /// Validates this section alone; errors name `submaps.<field>`.
+    pub fn validate(&self) -> Result<SubmapSettings, FieldErrors> {
+        let mut c = Checker::new();
+        let settings = self.check(&mut c);
+        c.finish(settings)
+    }
+
+    pub(crate) fn check(&self, c: &mut Checker) -> SubmapSettings {
+        let min_matches = c.check("submaps.min_matches", Capacity::new(self.min_matches, 1000));
+        if min_matches.get() < 3 {
+            c.fail(
+                "submaps.min_matches",
+                crate::values::ValueError::Rule("must be at least 3".into()),
+            );
+        }
+        SubmapSettings {
+            enabled: self.enabled,
+            max_distance_m: c.check(
+                "submaps.max_distance_m",
+                PositiveF64::new(self.max_distance_m),
+            ),
+            max_features: c.check(
+                "submaps.max_features",
+                Capacity::new(self.max_features, MAX_SUBMAP_FEATURES),
+            ),
+            loop_closure: self.loop_closure,
+            min_matches,
+            max_rival_ratio: c.check(
+                "submaps.max_rival_ratio",
+                OpenProbability::new(self.max_rival_ratio),
+            ),
+            search_sigmas: c.check(
+                "submaps.search_sigmas",
+                PositiveF64::new(self.search_sigmas),
+            ),
+        }
+    }
+}
+
+impl From<&SubmapSettings> for RawSubmaps {
+    fn from(s: &SubmapSettings) -> Self {
+        Self {
+            enabled: s.enabled,
+            max_distance_m: s.max_distance_m.get(),
+            max_features: s.max_features.get() as i64,
+            loop_closure: s.loop_closure,
+            min_matches: s.min_matches.get() as i64,
+            max_rival_ratio: s.max_rival_ratio.get(),
+            search_sigmas: s.search_sigmas.get(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_submap_settings_are_named() {
+        let raw = RawSubmaps {
+            max_distance_m: -1.0,
+            max_features: 0,
+            min_matches: 2,
+            max_rival_ratio: 1.5,
+            search_sigmas: f64::NAN,
+            ..RawSubmaps::default()
+        };
+        let errors = raw.validate().unwrap_err().to_string();
+        for field in [
+            "submaps.max_distance_m",
+            "submaps.max_features",
+            "submaps.min_matches",
+            "submaps.max_rival_ratio",
+            "submaps.search_sigmas",
+        ] {
+            assert!(errors.contains(field), "{field} missing from {errors}");
+        }
+    }
+
+    #[test]
+    fn defaults_round_trip() {
+        let s = SubmapSettings::default();
+        assert_eq!(RawSubmaps::from(&s).validate().unwrap(), s);
+        assert!(!s.enabled);
+    }
+}

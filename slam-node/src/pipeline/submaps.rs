@@ -1,0 +1,323 @@
+//! Local submaps joined by the global layer, as the pipeline runs them.
+//!
+//! The filter ([`super::DaemonEkf`]) always holds the current submap, in that submap's frame;
+//! this stage owns everything else: the frozen submaps, every submap frame's estimate in the
+//! world (the global layer's latest solution, and the chain of switch poses for frames newer
+//! than it), the switch rule, and the record of which submap each rotation's pose was
+//! estimated in, so that the trajectory can be re-published with the final frames. The
+//! global layer runs on its own thread ([`slam_graph::GlobalLayer`]); this stage only
+//! `try_send`s frozen submaps and `try_recv`s solutions, once a rotation.
+
+use std::sync::Arc;
+
+use nalgebra::{Matrix2, Matrix3};
+use radar_model::geometry::Pose2;
+use radar_model::material::Material;
+use slam_filter::{FeatureEstimate, FrozenSubmap, SubmapFeature};
+use slam_graph::se2::{compose, compose_covariance, rotation};
+use slam_graph::{GlobalLayer, GlobalMap, GlobalStats};
+use tracing::{info, warn};
+
+use super::core::DaemonEkf;
+use super::settings::SubmapOptions;
+use crate::output::{MapFeature, MapSnapshot, PoseSample};
+
+/// What the submaps did over a run.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SubmapSummary {
+    /// Submaps started (the current one included).
+    pub submaps: usize,
+    /// Loop closures in the global graph at the end.
+    pub loop_closures: usize,
+    /// The global layer's totals.
+    pub global: GlobalStats,
+    /// Features held in frozen submaps at the end.
+    pub frozen_features: usize,
+    /// Bytes the frozen submaps hold.
+    pub frozen_bytes: usize,
+    /// Solutions received from the global layer during the run.
+    pub solutions: u64,
+    /// Frozen submaps the layer's queue refused.
+    pub refused_sends: u64,
+    /// Features in the largest submap when it was closed.
+    pub largest_submap_features: usize,
+}
+
+/// The submap stage.
+#[derive(Debug)]
+pub struct SubmapRun {
+    options: SubmapOptions,
+    layer: Option<GlobalLayer>,
+    frozen: Vec<Arc<FrozenSubmap>>,
+    frames: Vec<Pose2>,
+    frame_covs: Vec<Matrix3<f64>>,
+    version: u64,
+    driven_m: f64,
+    last_local: Option<Pose2>,
+    history: Vec<(f64, u32, Pose2, Matrix3<f64>)>,
+    summary: SubmapSummary,
+}
+
+/// `cov` of a pose in a frame, re-expressed with the frame at `frame` (covariance
+/// `frame_cov`, independent).
+fn world_pose(
+    frame: &Pose2,
+    frame_cov: &Matrix3<f64>,
+    local: &Pose2,
+    cov: &Matrix3<f64>,
+) -> (Pose2, Matrix3<f64>) {
+    (
+        compose(frame, local),
+        compose_covariance(frame, frame_cov, local, cov),
+    )
+}
+
+impl SubmapRun {
+    /// Starts the stage and the global layer's thread (when loop closure or the layer is
+    /// on; the chain of frames is kept either way).
+    pub fn new(options: SubmapOptions) -> std::io::Result<Self> {
+        Ok(Self {
+            layer: Some(GlobalLayer::spawn(options.global)?),
+            options,
+            frozen: Vec::new(),
+            frames: vec![Pose2::new(0.0, 0.0, 0.0)],
+            frame_covs: vec![Matrix3::zeros()],
+            version: 0,
+            driven_m: 0.0,
+            last_local: None,
+            history: Vec::new(),
+            summary: SubmapSummary {
+                submaps: 1,
+                ..SubmapSummary::default()
+            },
+        })
+    }
+
+    /// The index of the current submap.
+    pub fn current(&self) -> usize {
+        self.frames.len() - 1
+    }
+
+    /// The current submap's frame in the world and its covariance.
+    pub fn frame(&self) -> (Pose2, Matrix3<f64>) {
+        let k = self.current();
+        (self.frames[k], self.frame_covs[k])
+    }
+
+    /// A pose of the current submap in the world. While the first submap runs its frame is
+    /// the world's and the pose is returned as it is.
+    pub fn to_world(&self, local: &Pose2, cov: &Matrix3<f64>) -> (Pose2, Matrix3<f64>) {
+        if self.current() == 0 {
+            return (*local, *cov);
+        }
+        let (f, fc) = self.frame();
+        world_pose(&f, &fc, local, cov)
+    }
+
+    /// A point of the current submap in the world.
+    pub fn point_to_world(&self, xy: [f64; 2]) -> [f64; 2] {
+        if self.current() == 0 {
+            return xy;
+        }
+        slam_graph::se2::transform_point(&self.frames[self.current()], xy)
+    }
+
+    /// Takes the global layer's newest solution, if any: the frames it covers are replaced,
+    /// newer ones re-chained from them.
+    fn poll(&mut self) {
+        let Some(layer) = self.layer.as_mut() else {
+            return;
+        };
+        let Some(sol) = layer.poll() else {
+            return;
+        };
+        if sol.version <= self.version {
+            return;
+        }
+        self.version = sol.version;
+        self.summary.solutions += 1;
+        self.summary.loop_closures = sol.loops;
+        let n = sol.frames.len().min(self.frames.len());
+        self.frames[..n].copy_from_slice(&sol.frames[..n]);
+        self.frame_covs[..n].copy_from_slice(&sol.covariances[..n]);
+        self.rechain(n.max(1));
+    }
+
+    /// Frames from `from` on, from their predecessors and the switch poses.
+    fn rechain(&mut self, from: usize) {
+        for k in from..self.frames.len() {
+            let Some(s) = self.frozen.get(k - 1) else {
+                break;
+            };
+            let (p, c) = world_pose(
+                &self.frames[k - 1],
+                &self.frame_covs[k - 1],
+                &s.end_pose,
+                &s.end_cov,
+            );
+            self.frames[k] = p;
+            self.frame_covs[k] = c;
+        }
+    }
+
+    /// Once a rotation, after the filter's updates: records the pose, takes a new global
+    /// solution, and closes the submap (starting the next) when it is full. Returns whether
+    /// a new submap started.
+    pub fn end_rotation(&mut self, ekf: &mut DaemonEkf, time_s: f64) -> bool {
+        self.poll();
+        let local = ekf.pose();
+        let local_cov = ekf.pose_covariance();
+        self.history
+            .push((time_s, self.current() as u32, local, local_cov));
+        if let Some(last) = self.last_local {
+            self.driven_m += (local.x - last.x).hypot(local.y - last.y);
+        }
+        self.last_local = Some(local);
+        if !self
+            .options
+            .limits
+            .reached(self.driven_m, ekf.feature_count())
+        {
+            return false;
+        }
+        let features = ekf.feature_count();
+        let frozen = Arc::new(ekf.start_submap());
+        self.summary.largest_submap_features = self.summary.largest_submap_features.max(features);
+        let k = self.current();
+        let (p, c) = world_pose(
+            &self.frames[k],
+            &self.frame_covs[k],
+            &frozen.end_pose,
+            &frozen.end_cov,
+        );
+        self.frames.push(p);
+        self.frame_covs.push(c);
+        if let Some(layer) = self.layer.as_mut() {
+            layer.submit(Arc::clone(&frozen));
+        }
+        info!(
+            submap = k,
+            features,
+            driven_m = self.driven_m,
+            "submap closed; the next starts at the vehicle"
+        );
+        self.frozen.push(frozen);
+        self.summary.submaps = self.frames.len();
+        self.driven_m = 0.0;
+        self.last_local = Some(Pose2::new(0.0, 0.0, 0.0));
+        true
+    }
+
+    /// Every feature in the world: the frozen submaps' through their frames, then the
+    /// current submap's.
+    pub fn world_features(&self, ekf: &DaemonEkf) -> Vec<FeatureEstimate> {
+        let mut out = Vec::new();
+        for (s, frame) in self.frozen.iter().zip(&self.frames) {
+            out.extend(s.features.iter().map(|f| estimate_in(frame, f)));
+        }
+        let (frame, _) = self.frame();
+        out.extend(ekf.features().into_iter().map(|f| {
+            let r = rotation(frame.theta);
+            let [x, y] = slam_graph::se2::transform_point(&frame, [f.x_m, f.y_m]);
+            FeatureEstimate {
+                x_m: x,
+                y_m: y,
+                position_cov: r * f.position_cov * r.transpose(),
+                ..f
+            }
+        }));
+        out
+    }
+
+    /// The map in the world: frozen submaps through their frames, then the current one's.
+    pub fn map_snapshot(&self, ekf: &DaemonEkf) -> MapSnapshot {
+        let mut snap = MapSnapshot::from_state(ekf.state());
+        let (frame, _) = self.frame();
+        snap.transform(&frame);
+        let mut features: Vec<MapFeature> = Vec::new();
+        for (s, f) in self.frozen.iter().zip(&self.frames) {
+            features.extend(s.features.iter().map(|x| MapFeature::from_submap(x, f)));
+        }
+        features.append(&mut snap.features);
+        snap.features = features;
+        snap.global = Some(crate::output::map::GlobalInfo {
+            submaps: self.frames.len(),
+            loop_closures: self.summary.loop_closures,
+            solution: self.version,
+        });
+        snap
+    }
+
+    /// Waits for the global layer to join every submap sent (end of run), installs its
+    /// final solution and returns the whole trajectory re-expressed with the final frames
+    /// and the run's summary.
+    pub fn finish(&mut self) -> (Vec<PoseSample>, Option<GlobalMap>) {
+        let map = self.layer.take().and_then(|l| {
+            self.summary.refused_sends = l.refused_sends();
+            l.finish()
+        });
+        if let Some(m) = map.as_ref() {
+            let sol = m.solution(0.0);
+            if sol.version > self.version {
+                self.version = sol.version;
+                self.summary.solutions += 1;
+            }
+            let n = sol.frames.len().min(self.frames.len());
+            self.frames[..n].copy_from_slice(&sol.frames[..n]);
+            self.frame_covs[..n].copy_from_slice(&sol.covariances[..n]);
+            self.rechain(n.max(1));
+            self.summary.loop_closures = m.loops().len();
+            self.summary.global = *m.stats();
+        } else if !self.frozen.is_empty() {
+            warn!("the global layer's thread ended early: the trajectory uses the chained frames");
+        }
+        self.summary.frozen_features = self.frozen.iter().map(|s| s.features.len()).sum();
+        self.summary.frozen_bytes = self.frozen.iter().map(|s| s.heap_bytes()).sum();
+        let trajectory = self
+            .history
+            .iter()
+            .map(|(t, k, local, cov)| {
+                let k = *k as usize;
+                let (p, c) = if k == 0 {
+                    (*local, *cov)
+                } else {
+                    world_pose(&self.frames[k], &self.frame_covs[k], local, cov)
+                };
+                PoseSample {
+                    timestamp_s: *t,
+                    x_m: p.x,
+                    y_m: p.y,
+                    theta_rad: p.theta,
+                    covariance: [
+                        [c[(0, 0)], c[(0, 1)], c[(0, 2)]],
+                        [c[(1, 0)], c[(1, 1)], c[(1, 2)]],
+                        [c[(2, 0)], c[(2, 1)], c[(2, 2)]],
+                    ],
+                }
+            })
+            .collect();
+        (trajectory, map)
+    }
+
+    /// The run's summary so far.
+    pub fn summary(&self) -> &SubmapSummary {
+        &self.summary
+    }
+}
+
+/// A frozen submap's feature in the world through its submap's frame.
+fn estimate_in(frame: &Pose2, f: &SubmapFeature) -> FeatureEstimate {
+    let r = rotation(frame.theta);
+    let [x, y] = slam_graph::se2::transform_point(frame, f.xy);
+    let shares = Material::new(f.uv[0], f.uv[1]).shares();
+    let cov: Matrix2<f64> = r * f.xy_cov * r.transpose();
+    FeatureEstimate {
+        id: f.id,
+        x_m: x,
+        y_m: y,
+        rho: shares.rho,
+        alpha: shares.alpha,
+        position_cov: cov,
+        hits: f.hits,
+    }
+}
