@@ -12,14 +12,21 @@
 //!
 //! Landmarks (the radar's point features; every one is in the ground truth):
 //!
-//! | class | where | kind | rho (RCS) | alpha |
-//! |---|---|---|---|---|
-//! | lamp post | kerb, 0.4 m in | lamp-post | 0.05 (10 m^2) | 0.95 (opaque) |
-//! | sign pole | kerb, 0.3 m in | lamp-post | 0.02 (4 m^2) | 0.98 (opaque) |
-//! | tree | kerb, 0.8 m in | tree | 0.02 (4 m^2) | 0.60 |
-//! | bollard | kerb, 0.3 m in | wall | 0.015 (3 m^2) | 0.985 (opaque) |
-//! | parked car | its two street-side corners, 4.5 m apart, 1.8 m out from the kerb | reflector | 0.10 (20 m^2) | 0.90 (opaque) |
-//! | building corner | each block corner and recesses along the building line, 0.25 m out | wall | 0.30 (60 m^2) | 0.70 (opaque) |
+//! | class | where | kind | rho (RCS) | alpha | tau |
+//! |---|---|---|---|---|---|
+//! | lamp post | kerb, 0.4 m in | lamp-post | 0.05 (10 m^2) | 0.25 | 0.70 |
+//! | sign pole | kerb, 0.3 m in | lamp-post | 0.02 (4 m^2) | 0.18 | 0.80 |
+//! | tree | kerb, 0.8 m in | tree | 0.02 (4 m^2) | 0.60 | 0.38 |
+//! | bollard | kerb, 0.3 m in | wall | 0.015 (3 m^2) | 0.185 | 0.80 |
+//! | parked car | its two street-side corners, 4.5 m apart, 1.8 m out from the kerb | reflector | 0.10 (20 m^2) | 0.40 | 0.50 |
+//! | building corner | each block corner and recesses along the building line, 0.25 m out | wall | 0.30 (60 m^2) | 0.70 | 1e-6 (opaque) |
+//!
+//! The paper's model lets a feature take the whole beam; a pole of 10-20 cm fills a small
+//! part of a 1.8 degree beam (about 1 m across at 30 m), so thin street furniture passes most
+//! of the power on (tau 0.7-0.8) rather than being opaque as the `lamp-post` kind's default
+//! is: otherwise, looking down a kerb at a grazing angle, the first pole would hide every
+//! landmark behind it. A parked car passes about half (the realistic renderer's vehicle
+//! transmission, 0.5: the roof-mounted radar sees partly over it).
 //!
 //! Kerb slots follow each other at `kerb_spacing_m` times a seeded factor in [0.7, 1.3]; the
 //! class is drawn per slot (lamp post 25 %, sign pole 15 %, tree 30 %, bollard 10 %, parked
@@ -152,19 +159,15 @@ pub enum LandmarkClass {
 impl LandmarkClass {
     /// The feature kind and `(rho, alpha)` (see the module table).
     pub fn material(self) -> (FeatureKind, f64, f64) {
-        const OPAQUE_TAU: f64 = 1e-6;
         match self {
-            LandmarkClass::LampPost => {
-                let (rho, alpha) = FeatureKind::LampPost.default_material();
-                (FeatureKind::LampPost, rho, alpha)
-            }
-            LandmarkClass::SignPole => (FeatureKind::LampPost, 0.02, 0.98 - OPAQUE_TAU),
+            LandmarkClass::LampPost => (FeatureKind::LampPost, 0.05, 0.25),
+            LandmarkClass::SignPole => (FeatureKind::LampPost, 0.02, 0.18),
             LandmarkClass::Tree => {
                 let (rho, alpha) = FeatureKind::Tree.default_material();
                 (FeatureKind::Tree, rho, alpha)
             }
-            LandmarkClass::Bollard => (FeatureKind::Wall, 0.015, 0.985 - OPAQUE_TAU),
-            LandmarkClass::CarCorner => (FeatureKind::Reflector, 0.10, 0.90 - OPAQUE_TAU),
+            LandmarkClass::Bollard => (FeatureKind::Wall, 0.015, 0.185),
+            LandmarkClass::CarCorner => (FeatureKind::Reflector, 0.10, 0.40),
             LandmarkClass::BuildingCorner => {
                 let (rho, alpha) = FeatureKind::Wall.default_material();
                 (FeatureKind::Wall, rho, alpha)
