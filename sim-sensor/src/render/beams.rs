@@ -40,6 +40,8 @@ pub(crate) struct BeamSelector {
     candidates: Vec<Candidate>,
     near: Vec<Candidate>,
     margin_rad: f64,
+    /// Occluding segments near the current rotation.
+    occluders: Vec<[[f64; 2]; 2]>,
     /// `(range_m, feature index)` of the last selected beam, nearest first.
     pub(super) hits: Vec<(f64, usize)>,
 }
@@ -122,12 +124,16 @@ impl BeamSelector {
         r.grid
             .for_each_near([mid.x, mid.y], reach, |i| found.push(i));
         found.sort_unstable();
+        match &r.occluders {
+            Some(occluders) => occluders.gather([mid.x, mid.y], reach, &mut self.occluders),
+            None => self.occluders.clear(),
+        }
         for i in found {
             let Some(&p) = r.positions.get(i) else {
                 continue;
             };
             let range_mid = (p[0] - mid.x).hypot(p[1] - mid.y);
-            if range_mid > reach {
+            if range_mid > reach || super::occlusion::hidden([mid.x, mid.y], p, &self.occluders) {
                 continue;
             }
             let apparent = if r.bearing_sigma_rad > 0.0 {

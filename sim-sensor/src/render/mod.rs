@@ -33,6 +33,7 @@ use crate::scene::{Feature, MotionSpec, Scene, Spreading};
 use crate::trajectory::{Trajectory, TrajectoryCursor};
 
 pub mod beams;
+mod occlusion;
 
 use beams::BeamSelector;
 
@@ -63,6 +64,7 @@ pub struct SceneRenderer {
     spectrum: SpectrumModel,
     trajectory: Trajectory,
     realistic: Option<RealisticModel>,
+    occluders: Option<occlusion::Occluders>,
 }
 
 /// The radar-model settings a scene renders with.
@@ -130,8 +132,16 @@ impl SceneRenderer {
             }
             None => None,
         };
+        // The realistic renderer draws objects itself; the point-target renderer only lets
+        // opaque ones hide features.
+        let occluders = if realistic.is_none() {
+            occlusion::Occluders::new(&scene.objects)
+        } else {
+            None
+        };
         Ok(SceneRenderer {
             realistic,
+            occluders,
             name: scene.name.clone(),
             motion: scene.motion,
             features: scene.features.clone(),

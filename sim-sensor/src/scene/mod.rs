@@ -5,6 +5,7 @@
 //! The format is documented with examples in `sim-sensor/README.md`; the shipped scenes in
 //! `sim-sensor/scenes/` are embedded in the binary ([`shipped`]).
 
+pub mod city;
 pub mod kinds;
 mod parse;
 pub mod shipped;
@@ -156,8 +157,11 @@ pub struct Scene {
     /// radar-model's synthesis, as the project's figures were made.
     pub realism: Option<crate::realism::RealismSpec>,
     /// Extended objects (`[[objects]]` and the `[street]` generator's), drawn only by the
-    /// realistic renderer.
+    /// realistic renderer; the `[city]` generator's building fronts, which the point-target
+    /// renderer uses as occluders.
     pub objects: Vec<crate::realism::ObjectSpec>,
+    /// The `[city]` generator's geometry (streets, route, drive length and duration).
+    pub city: Option<city::CityLayout>,
 }
 
 /// Most point features one scene may hold (after line expansion).

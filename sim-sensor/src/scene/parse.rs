@@ -3,6 +3,7 @@
 
 use serde::Deserialize;
 
+use super::city::CitySpec;
 use super::{Feature, FeatureKind, MotionSpec, NoiseSpec, ReceiverSpec, Scene, MAX_FEATURES};
 use crate::error::SceneError;
 use crate::radar::{DataWidth, RadarParams, RadarPreset};
@@ -44,6 +45,8 @@ pub(super) struct RawScene {
     objects: Vec<ObjectSpec>,
     #[serde(default)]
     street: Option<StreetSpec>,
+    #[serde(default)]
+    city: Option<CitySpec>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -82,11 +85,11 @@ impl Default for RawRadar {
 #[serde(deny_unknown_fields)]
 struct RawStart {
     #[serde(default)]
-    x_m: f64,
+    x_m: Option<f64>,
     #[serde(default)]
-    y_m: f64,
+    y_m: Option<f64>,
     #[serde(default)]
-    theta_deg: f64,
+    theta_deg: Option<f64>,
     #[serde(default)]
     unix_time_s: Option<f64>,
 }
@@ -268,10 +271,14 @@ impl RawScene {
             }
             _ => {}
         }
-        let start = [
-            finite_coord("start.x_m".into(), self.start.x_m)?,
-            finite_coord("start.y_m".into(), self.start.y_m)?,
-            finite_coord("start.theta_deg".into(), self.start.theta_deg)?.to_radians(),
+        let mut start = [
+            finite_coord("start.x_m".into(), self.start.x_m.unwrap_or(0.0))?,
+            finite_coord("start.y_m".into(), self.start.y_m.unwrap_or(0.0))?,
+            finite_coord(
+                "start.theta_deg".into(),
+                self.start.theta_deg.unwrap_or(0.0),
+            )?
+            .to_radians(),
         ];
         let start_time_ns = match self.start.unix_time_s {
             None => None,
@@ -283,7 +290,47 @@ impl RawScene {
                 ))
             }
         };
-        let schedule = ControlSchedule::new(self.control, self.interpolation)?;
+        // A city makes its own start pose and control schedule from its route.
+        let city = match &self.city {
+            None => None,
+            Some(spec) => {
+                if self.realism.is_some() || self.street.is_some() {
+                    return Err(invalid(
+                        "city".into(),
+                        "[city] renders with the point-target renderer: remove [realism] and [street]",
+                    ));
+                }
+                if !self.control.is_empty() {
+                    return Err(invalid(
+                        "control".into(),
+                        "[city] makes the control schedule from its route: remove [[control]]",
+                    ));
+                }
+                if self.start.x_m.is_some()
+                    || self.start.y_m.is_some()
+                    || self.start.theta_deg.is_some()
+                {
+                    return Err(invalid(
+                        "start".into(),
+                        "[city] starts at its route's first junction: [start] may set only unix_time_s",
+                    ));
+                }
+                let MotionSpec::Bicycle { wheelbase_m } = self.motion else {
+                    return Err(invalid(
+                        "motion.model".into(),
+                        "[city] drives the bicycle model: set model = \"bicycle\"",
+                    ));
+                };
+                Some(spec.generate(wheelbase_m)?)
+            }
+        };
+        let schedule = match &city {
+            Some(city) => {
+                start = city.start;
+                ControlSchedule::new(city.control.clone(), Interpolation::Linear)?
+            }
+            None => ControlSchedule::new(self.control, self.interpolation)?,
+        };
 
         if self.features.len() > MAX_FEATURES {
             return Err(invalid(
@@ -385,6 +432,28 @@ impl RawScene {
             }
             objects.extend(generated.objects);
         }
+        let mut layout = None;
+        if let Some(city) = city {
+            for landmark in &city.landmarks {
+                let (kind, rho, alpha) = landmark.class.material();
+                features.push(Feature {
+                    id: 0,
+                    kind,
+                    x_m: landmark.x_m,
+                    y_m: landmark.y_m,
+                    rho,
+                    alpha,
+                });
+            }
+            if features.len() > MAX_FEATURES {
+                return Err(invalid(
+                    "city".into(),
+                    format!("the scene expands to more than {MAX_FEATURES} features"),
+                ));
+            }
+            objects.extend(city.objects);
+            layout = Some(city.layout);
+        }
         for (id, f) in features.iter_mut().enumerate() {
             f.id = u32::try_from(id).unwrap_or(u32::MAX);
         }
@@ -404,6 +473,7 @@ impl RawScene {
             features,
             realism: self.realism,
             objects,
+            city: layout,
         })
     }
 }

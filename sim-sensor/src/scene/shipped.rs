@@ -5,13 +5,15 @@ use super::Scene;
 use crate::error::SceneError;
 
 /// Names of the shipped scenes.
-pub const NAMES: [&str; 6] = [
+pub const NAMES: [&str; 8] = [
     "penetration-wood",
     "penetration-perspex",
     "outdoor-field",
     "dense-clutter",
     "long-loop",
     "urban-street",
+    "city-drive",
+    "repeated-blocks",
 ];
 
 /// The TOML text of a shipped scene.
@@ -23,6 +25,8 @@ pub fn text(name: &str) -> Option<&'static str> {
         "dense-clutter" => Some(include_str!("../../scenes/dense-clutter.toml")),
         "long-loop" => Some(include_str!("../../scenes/long-loop.toml")),
         "urban-street" => Some(include_str!("../../scenes/urban-street.toml")),
+        "city-drive" => Some(include_str!("../../scenes/city-drive.toml")),
+        "repeated-blocks" => Some(include_str!("../../scenes/repeated-blocks.toml")),
         _ => None,
     }
 }

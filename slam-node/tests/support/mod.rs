@@ -57,6 +57,7 @@ pub fn empty_scene(name: &str, preset: RadarPreset, seed: u64) -> Scene {
         features: Vec::new(),
         realism: None,
         objects: Vec::new(),
+        city: None,
     }
 }
 
