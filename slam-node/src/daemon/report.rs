@@ -187,6 +187,23 @@ pub fn summary_text(r: &DaemonReport) -> String {
             sm.solutions,
             g.max_add_ms
         );
+        if let Some(o) = &sm.optimised {
+            let _ = writeln!(
+                t,
+                "  global trajectory vs truth (trajectory.tum, final frames): RMS {:.3} m, max {:.3} m, final {:.3} m / {:.2} deg, heading RMS {:.2} deg; mean NEES {:.2}, inside 99% bound {:.1}%; drift over 100-800 m segments {} on {:.0} m driven; loop closures true {} / false {}",
+                o.rms_m,
+                o.max_m,
+                o.final_m,
+                o.final_heading_rad.to_degrees(),
+                o.rms_heading_rad.to_degrees(),
+                o.mean_nees,
+                100.0 * o.inside_99,
+                o.drift_percent.map_or("n/a (shorter drive)".to_string(), |d| format!("{d:.2}%")),
+                o.length_m,
+                sm.loops_true,
+                sm.loops_false
+            );
+        }
     }
     let n = s.rotations.max(1) as f64;
     let _ = writeln!(

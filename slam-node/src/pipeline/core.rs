@@ -568,7 +568,13 @@ impl Pipeline {
         self.front_end.flush(&mut self.beams);
         self.run_beams();
         self.end_rotation(events);
-        let trajectory = self.submaps.as_mut().map(|s| s.finish().0);
+        let trajectory = self.submaps.as_mut().map(|s| {
+            let (trajectory, map) = s.finish();
+            if let Some(truth) = self.truth.as_ref() {
+                s.score_against(&trajectory, map.as_ref(), |t| truth.pose_at(t));
+            }
+            trajectory
+        });
         let map = self.map_snapshot();
         let map_size = map.features.len();
         events.push(OutputEvent::Map(map));

@@ -41,6 +41,102 @@ pub struct SubmapSummary {
     pub refused_sends: u64,
     /// Features in the largest submap when it was closed.
     pub largest_submap_features: usize,
+    /// The final (globally optimised) trajectory against the truth, when it is known.
+    pub optimised: Option<TrajectoryScore>,
+    /// Loop closures whose transform agrees with the truth (within 1 m and 2 degrees), and
+    /// those that do not (false loop closures), when the truth is known.
+    pub loops_true: usize,
+    /// False loop closures.
+    pub loops_false: usize,
+}
+
+/// A whole trajectory against the truth.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TrajectoryScore {
+    /// Poses compared.
+    pub poses: usize,
+    /// RMS position error (m).
+    pub rms_m: f64,
+    /// Largest position error (m).
+    pub max_m: f64,
+    /// Final position error (m).
+    pub final_m: f64,
+    /// RMS heading error (rad).
+    pub rms_heading_rad: f64,
+    /// Final heading error (rad).
+    pub final_heading_rad: f64,
+    /// Mean pose NEES (3 dof).
+    pub mean_nees: f64,
+    /// Share of poses with NEES inside the 3-dof 99 % bound (11.34).
+    pub inside_99: f64,
+    /// Mean translational drift over segments of 100, 200, ..., 800 m (% of the segment),
+    /// the metric of the radar odometry literature; `None` when the drive is shorter.
+    pub drift_percent: Option<f64>,
+    /// Path length of the true trajectory (m).
+    pub length_m: f64,
+}
+
+/// Scores `estimate` against `truth` (same length, same times).
+pub fn score_trajectory(estimate: &[PoseSample], truth: &[Pose2]) -> TrajectoryScore {
+    let n = estimate.len().min(truth.len());
+    if n == 0 {
+        return TrajectoryScore::default();
+    }
+    let mut s = TrajectoryScore {
+        poses: n,
+        ..TrajectoryScore::default()
+    };
+    let (mut se, mut sh, mut nees, mut inside) = (0.0, 0.0, 0.0, 0usize);
+    for (e, t) in estimate.iter().zip(truth) {
+        let d = (e.x_m - t.x).hypot(e.y_m - t.y);
+        let h = radar_model::geometry::wrap_angle(e.theta_rad - t.theta);
+        se += d * d;
+        sh += h * h;
+        s.max_m = s.max_m.max(d);
+        s.final_m = d;
+        s.final_heading_rad = h;
+        let cov = Matrix3::from_fn(|r, c| e.covariance[r][c]);
+        if let Ok(v) =
+            slam_filter::health::pose_nees(&Pose2::new(e.x_m, e.y_m, e.theta_rad), &cov, t)
+        {
+            nees += v;
+            if v <= 11.34 {
+                inside += 1;
+            }
+        }
+    }
+    s.rms_m = (se / n as f64).sqrt();
+    s.rms_heading_rad = (sh / n as f64).sqrt();
+    s.mean_nees = nees / n as f64;
+    s.inside_99 = inside as f64 / n as f64;
+    // Distance along the true path.
+    let mut along = vec![0.0; n];
+    for k in 1..n {
+        along[k] = along[k - 1] + (truth[k].x - truth[k - 1].x).hypot(truth[k].y - truth[k - 1].y);
+    }
+    s.length_m = along[n - 1];
+    let (mut sum, mut count) = (0.0, 0usize);
+    for len in (1..=8).map(|k| 100.0 * k as f64) {
+        let mut end = 0;
+        for start in (0..n).step_by(5) {
+            while end < n && along[end] - along[start] < len {
+                end += 1;
+            }
+            if end >= n {
+                break;
+            }
+            let rel_t = slam_graph::se2::between(&truth[start], &truth[end]);
+            let (a, b) = (&estimate[start], &estimate[end]);
+            let rel_e = slam_graph::se2::between(
+                &Pose2::new(a.x_m, a.y_m, a.theta_rad),
+                &Pose2::new(b.x_m, b.y_m, b.theta_rad),
+            );
+            sum += (rel_e.x - rel_t.x).hypot(rel_e.y - rel_t.y) / len;
+            count += 1;
+        }
+    }
+    s.drift_percent = (count > 0).then(|| 100.0 * sum / count as f64);
+    s
 }
 
 /// The submap stage.
@@ -246,6 +342,54 @@ impl SubmapRun {
             solution: self.version,
         });
         snap
+    }
+
+    /// Scores the final trajectory and the loop closures against the truth
+    /// (`truth(t)`: the true pose at time `t`). A frame is the vehicle's body at the moment
+    /// its submap started, so a closure's true transform is the true relative pose of the
+    /// vehicle at the two switches.
+    pub fn score_against(
+        &mut self,
+        trajectory: &[PoseSample],
+        map: Option<&GlobalMap>,
+        truth: impl Fn(f64) -> Option<Pose2>,
+    ) {
+        let pairs: Vec<(PoseSample, Pose2)> = trajectory
+            .iter()
+            .filter_map(|p| truth(p.timestamp_s).map(|t| (*p, t)))
+            .collect();
+        let (est, tru): (Vec<PoseSample>, Vec<Pose2>) = pairs.into_iter().unzip();
+        if !est.is_empty() {
+            self.summary.optimised = Some(score_trajectory(&est, &tru));
+        }
+        let Some(map) = map else {
+            return;
+        };
+        let frame_truth = |i: usize| -> Option<Pose2> {
+            if i == 0 {
+                return Some(Pose2::new(0.0, 0.0, 0.0));
+            }
+            truth(map.submaps().get(i - 1)?.end_s)
+        };
+        for l in map.loops() {
+            let (Some(a), Some(b)) = (frame_truth(l.from), frame_truth(l.to)) else {
+                continue;
+            };
+            let t = slam_graph::se2::between(&a, &b);
+            let ok = (t.x - l.transform.x).hypot(t.y - l.transform.y) <= 1.0
+                && radar_model::geometry::wrap_angle(t.theta - l.transform.theta).abs()
+                    <= 2f64.to_radians();
+            if ok {
+                self.summary.loops_true += 1;
+            } else {
+                self.summary.loops_false += 1;
+                warn!(
+                    from = l.from,
+                    to = l.to,
+                    "a loop closure disagrees with the truth"
+                );
+            }
+        }
     }
 
     /// Waits for the global layer to join every submap sent (end of run), installs its
