@@ -569,7 +569,7 @@ impl Pipeline {
         self.run_beams();
         self.end_rotation(events);
         let trajectory = self.submaps.as_mut().map(|s| {
-            let (trajectory, map) = s.finish();
+            let (trajectory, map) = s.finish(&mut self.ekf);
             if let Some(truth) = self.truth.as_ref() {
                 s.score_against(&trajectory, map.as_ref(), |t| truth.pose_at(t));
             }

@@ -276,6 +276,13 @@ impl SubmapRun {
         {
             return false;
         }
+        self.close_submap(ekf);
+        true
+    }
+
+    /// Freezes the current submap, hands it to the global layer and starts the next one at
+    /// the vehicle.
+    fn close_submap(&mut self, ekf: &mut DaemonEkf) {
         let features = ekf.feature_count();
         let frozen = Arc::new(ekf.start_submap());
         self.summary.largest_submap_features = self.summary.largest_submap_features.max(features);
@@ -301,7 +308,6 @@ impl SubmapRun {
         self.summary.submaps = self.frames.len();
         self.driven_m = 0.0;
         self.last_local = Some(Pose2::new(0.0, 0.0, 0.0));
-        true
     }
 
     /// Every feature in the world: the frozen submaps' through their frames, then the
@@ -395,7 +401,14 @@ impl SubmapRun {
     /// Waits for the global layer to join every submap sent (end of run), installs its
     /// final solution and returns the whole trajectory re-expressed with the final frames
     /// and the run's summary.
-    pub fn finish(&mut self) -> (Vec<PoseSample>, Option<GlobalMap>) {
+    ///
+    /// When submaps were closed during the run, the current one is closed too (if it holds
+    /// features), so that the end of the drive can close a loop; a run that never filled
+    /// its first submap ends as the dense filter would.
+    pub fn finish(&mut self, ekf: &mut DaemonEkf) -> (Vec<PoseSample>, Option<GlobalMap>) {
+        if self.current() > 0 && ekf.feature_count() > 0 {
+            self.close_submap(ekf);
+        }
         let map = self.layer.take().and_then(|l| {
             self.summary.refused_sends = l.refused_sends();
             l.finish()
