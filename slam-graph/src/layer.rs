@@ -136,6 +136,8 @@ pub struct GlobalStats {
     pub failed_solves: u64,
     /// Longest add (verification and solve), ms.
     pub max_add_ms: f64,
+    /// Submaps whose end pose or covariance was unusable (kept as an unknown chain edge).
+    pub bad_submaps: u64,
 }
 
 /// Centre and radius of a submap's features, in its frame.
@@ -227,6 +229,29 @@ impl GlobalMap {
             self.covariances.push(Matrix3::zeros());
         }
         let k = self.submaps.len();
+        let pose_ok = [submap.end_pose.x, submap.end_pose.y, submap.end_pose.theta]
+            .iter()
+            .all(|v| v.is_finite());
+        let submap = if pose_ok
+            && submap.end_cov.iter().all(|v| v.is_finite())
+            && submap.end_cov.cholesky().is_some()
+        {
+            submap
+        } else {
+            // A chain edge must exist or every later frame floats free: keep the pose with
+            // a covariance that says it is unknown.
+            warn!(submap = k, "a submap's end covariance is not positive definite: the chain edge is kept as unknown");
+            self.stats.bad_submaps += 1;
+            let mut fixed = (*submap).clone();
+            fixed.end_cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(1e4, 1e4, 1.0));
+            if !(fixed.end_pose.x.is_finite()
+                && fixed.end_pose.y.is_finite()
+                && fixed.end_pose.theta.is_finite())
+            {
+                fixed.end_pose = Pose2::new(0.0, 0.0, 0.0);
+            }
+            Arc::new(fixed)
+        };
         let frame = self.graph.nodes()[k];
         let next = compose(&frame, &submap.end_pose);
         let next_cov = compose_covariance(
