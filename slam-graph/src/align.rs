@@ -322,7 +322,7 @@ pub fn align(
             hypotheses.push(Hypothesis { t, matches });
         }
     }
-    hypotheses.sort_by(|x, y| y.matches.cmp(&x.matches));
+    hypotheses.sort_by_key(|h| std::cmp::Reverse(h.matches));
     let Some(best) = hypotheses.first().copied() else {
         return Err(Refusal::TooFewMatches(0));
     };

@@ -20,6 +20,9 @@ use radar_model::geometry::{wrap_angle, Pose2};
 
 use crate::se2::between_residual;
 
+/// The normal equations' 3x3 blocks (lower triangle), keyed by (row node, column node).
+type Blocks = BTreeMap<(usize, usize), Matrix3<f64>>;
+
 /// What an edge stands for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum EdgeKind {
@@ -203,11 +206,7 @@ impl PoseGraph {
 
     /// The normal equations at `nodes` (node 0 fixed): `H` as 3x3 blocks of the lower
     /// triangle keyed by (row node, column node), and `b = J^T Omega r`.
-    fn normal_equations(
-        &self,
-        nodes: &[Pose2],
-        omegas: &[Matrix3<f64>],
-    ) -> (BTreeMap<(usize, usize), Matrix3<f64>>, Vec<f64>) {
+    fn normal_equations(&self, nodes: &[Pose2], omegas: &[Matrix3<f64>]) -> (Blocks, Vec<f64>) {
         let dim = 3 * (nodes.len() - 1);
         let mut blocks: BTreeMap<(usize, usize), Matrix3<f64>> = BTreeMap::new();
         let mut b = vec![0.0; dim];
@@ -357,13 +356,13 @@ impl PoseGraph {
                 rhs[(3 * (first - 1) + c, c)] = 1.0;
             }
             llt.solve_in_place(rhs.as_mut());
-            for k in first..last {
+            for (k, slot) in out.iter_mut().enumerate().take(last).skip(first) {
                 let (o, c0) = (3 * (k - 1), 3 * (k - first));
                 let m = Matrix3::from_fn(|r, c| rhs[(o + r, c0 + c)]);
                 if !m.iter().all(|v| v.is_finite()) {
                     return Err(GraphError::NonFinite);
                 }
-                out[k] = 0.5 * (m + m.transpose());
+                *slot = 0.5 * (m + m.transpose());
             }
             first = last;
         }

@@ -344,7 +344,10 @@ impl GlobalMap {
                 &s.align,
             ) {
                 Ok(a) => verified.push((i, a)),
-                Err(r) => report.refused.push((i, r)),
+                Err(r) => {
+                    tracing::debug!(candidate = i, submap = k, refusal = ?r, "loop closure refused");
+                    report.refused.push((i, r));
+                }
             }
         }
         if verified.is_empty() {
@@ -353,7 +356,7 @@ impl GlobalMap {
         // Every verified closure implies a pose for frame k: they must all agree with the
         // best (most matches), or none is taken; only the best enters the graph (the others
         // reuse the same features of submap k and would count them twice).
-        verified.sort_by(|x, y| y.1.matches.len().cmp(&x.1.matches.len()));
+        verified.sort_by_key(|v| std::cmp::Reverse(v.1.matches.len()));
         let implied: Vec<(Pose2, Matrix3<f64>)> = verified
             .iter()
             .map(|(i, a)| {

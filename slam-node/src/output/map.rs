@@ -188,22 +188,18 @@ impl MapFeature {
         let (x, y) = (self.x_m, self.y_m);
         self.x_m = frame.x + c * x - s * y;
         self.y_m = frame.y + s * x + c * y;
-        let r = [[c, -s], [s, c]];
-        let p = [
-            [self.covariance[0][0], self.covariance[0][1]],
-            [self.covariance[1][0], self.covariance[1][1]],
-        ];
-        let mut rp = [[0.0; 2]; 2];
-        for i in 0..2 {
-            for k in 0..2 {
-                rp[i][k] = (0..2).map(|m| r[i][m] * p[m][k]).sum();
-            }
-        }
-        for i in 0..2 {
-            for k in 0..2 {
-                self.covariance[i][k] = (0..2).map(|m| rp[i][m] * r[k][m]).sum();
-            }
-        }
+        let r = nalgebra::Matrix2::new(c, -s, s, c);
+        let p = nalgebra::Matrix2::new(
+            self.covariance[0][0],
+            self.covariance[0][1],
+            self.covariance[1][0],
+            self.covariance[1][1],
+        );
+        let q = r * p * r.transpose();
+        self.covariance[0][0] = q[(0, 0)];
+        self.covariance[0][1] = q[(0, 1)];
+        self.covariance[1][0] = q[(1, 0)];
+        self.covariance[1][1] = q[(1, 1)];
         // Cross terms position x material rotate with the position.
         for m in 2..4 {
             let (a, b) = (self.covariance[0][m], self.covariance[1][m]);
