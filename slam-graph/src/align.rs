@@ -33,8 +33,12 @@ pub struct AlignSettings {
     pub min_matches: usize,
     /// Probability mass inside each gate (position and material).
     pub gate_probability: f64,
-    /// Probability for the joint compatibility and prior tests.
+    /// Probability for the joint compatibility test.
     pub joint_probability: f64,
+    /// Probability for the test of the transform against the prior (loose: the prior is
+    /// the chained local filters' covariance, which a long excursion makes optimistic; the
+    /// joint compatibility and rival tests guard against wrong closures).
+    pub prior_probability: f64,
     /// A rival with at least this share of the best hypothesis's matches refuses the closure.
     pub max_rival_ratio: f64,
     /// Transforms closer than this (m, and a tenth of it in rad) are the same hypothesis.
@@ -52,6 +56,7 @@ impl Default for AlignSettings {
             min_matches: 6,
             gate_probability: 0.99,
             joint_probability: 0.99,
+            prior_probability: 0.99999,
             max_rival_ratio: 0.6,
             rival_separation_m: 2.0,
             max_hypotheses: 4000,
@@ -360,7 +365,7 @@ pub fn align(
         .cholesky()
         .map(|ch| d.dot(&ch.solve(&d)))
         .ok_or(Refusal::Degenerate)?;
-    if prior_m > chi2_bound(3, settings.joint_probability) {
+    if prior_m > chi2_bound(3, settings.prior_probability) {
         return Err(Refusal::FarFromPrior(prior_m));
     }
     Ok(Alignment {
