@@ -292,3 +292,78 @@ fn keys_and_liveliness_tokens_follow_the_ros2dds_bridge() {
     let ke = bridge_liveliness_key("abc", "slam/odometry", &Odometry::type_name(), ":1::0,10");
     assert!(zenoh::key_expr::KeyExpr::try_from(ke).is_ok());
 }
+
+/// A simulated radar (the shipped penetration-wood scene, paper unit, real time) on
+/// 127.0.0.1:0, without its odometry server.
+async fn simulated_radar() -> sim_sensor::SimHandle {
+    let scene = sim_sensor::scene::shipped::load("penetration-wood").expect("a shipped scene");
+    let mut options = sim_sensor::SimOptions::for_tests(scene);
+    options.odometry_bind = None;
+    options.pacing = sim_sensor::settings::Pacing::Realtime;
+    sim_sensor::SimServer::spawn(options)
+        .await
+        .expect("the simulator starts")
+}
+
+#[test]
+fn radar_zenoh_publishes_a_radar_as_navtech_b_scans_and_configuration_without_the_slam() {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let sim = runtime.block_on(simulated_radar());
+    let (session, endpoint) = subscriber_session();
+    let subscriber = session.declare_subscriber("radar_data/**").wait().unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_radar-zenoh"))
+        .args(["--address", &sim.local_addr().to_string()])
+        .args(["--connect", &endpoint, "--fft", "--duration-s", "4"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let (mut scans, mut ffts) = (Vec::new(), 0);
+    while Instant::now() < deadline && scans.len() < 3 {
+        let Ok(Some(sample)) = subscriber.recv_timeout(Duration::from_millis(200)) else {
+            continue;
+        };
+        let bytes = sample.payload().to_bytes();
+        match sample.key_expr().as_str() {
+            "radar_data/b_scan_msg" => {
+                scans.push(from_cdr::<ros_msgs::navtech::RadarBScanMsg>(&bytes).unwrap());
+            }
+            "radar_data/configuration_data" => {
+                let c: ros_msgs::navtech::RadarConfigurationMsg = from_cdr(&bytes).unwrap();
+                assert_eq!(c.azimuth_samples, sim.configuration().azimuth_samples);
+            }
+            "radar_data/fft_data" => {
+                let f: ros_msgs::navtech::RadarFftDataMsg = from_cdr(&bytes).unwrap();
+                assert_eq!(usize::from(f.data_length), f.data.len());
+                ffts += 1;
+            }
+            other => panic!("unexpected key {other}"),
+        }
+    }
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let c = sim.configuration().clone();
+    runtime.block_on(sim.shutdown()).unwrap();
+    assert!(stdout.contains("published"), "{stdout}");
+    assert!(scans.len() >= 3, "{} B-scans", scans.len());
+    assert!(ffts > 0);
+    // The configuration is sent once at the start, before the peers may have met: the
+    // B-scans carry the geometry too.
+    // The first may be a rotation joined half-way.
+    for scan in &scans[1..] {
+        let img = &scan.b_scan_img;
+        assert_eq!(img.height, u32::from(c.azimuth_samples));
+        assert_eq!(img.width, u32::from(c.range_in_bins));
+        assert_eq!(img.data.len(), (img.step * img.height) as usize);
+        assert_eq!(scan.timestamps.len(), img.height as usize);
+        // Most rows arrived (a real-time radar over loopback drops none).
+        let rows = scan.timestamps.iter().filter(|t| **t > 0).count();
+        assert!(rows * 10 >= img.height as usize * 9, "{rows} rows");
+    }
+}

@@ -100,7 +100,11 @@ pub fn bridge_liveliness_key(zid: &str, key: &str, ros_type: &str, qos: &str) ->
 }
 
 #[cfg(feature = "zenoh")]
-pub use publisher::{zenoh_config, LivePublisher};
+pub use publisher::{zenoh_config, LivePublisher, RadarPublisher};
+
+/// Topic of the radar's azimuths as Navtech's ROS 2 driver publishes them, one
+/// `navtech_msgs/msg/RadarFftDataMsg` each.
+pub const TOPIC_FFT_DATA: &str = "/radar_data/fft_data";
 
 #[cfg(feature = "zenoh")]
 mod publisher {
@@ -397,5 +401,126 @@ mod publisher {
             }
         }
         summary
+    }
+
+    /// Publishes what a radar driver receives as Navtech's ROS 2 driver does, so that a rig
+    /// can record raw radar (`ros2 bag record`, through the bridge) without the SLAM:
+    /// `RadarConfigurationMsg` when the geometry is first seen or changes, a
+    /// `RadarBScanMsg` per rotation, and on request a `RadarFftDataMsg` per azimuth. Runs on
+    /// the caller's thread (the driver's channel is bounded and drops on its own side).
+    #[derive(Debug)]
+    pub struct RadarPublisher {
+        session: zenoh::Session,
+        configuration: Topic,
+        bscan: Topic,
+        fft: Option<Topic>,
+        geometry: Option<Arc<protocol::Geometry>>,
+        building: Option<ros::BScan>,
+        summary: LiveSummary,
+    }
+
+    impl std::fmt::Debug for Topic {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.debug_struct("Topic")
+                .field("key", &self.key)
+                .finish_non_exhaustive()
+        }
+    }
+
+    impl RadarPublisher {
+        /// Opens the session and declares the radar topics (`fft`: the per-azimuth topic
+        /// too). Blocks while Zenoh opens: call it from a plain thread, not an async task.
+        pub fn open(settings: &config::live::ZenohSettings, fft: bool) -> Result<Self, LiveError> {
+            use ros_msgs::navtech::{RadarBScanMsg, RadarConfigurationMsg, RadarFftDataMsg};
+            let session = zenoh::open(zenoh_config(settings)?)
+                .wait()
+                .map_err(|e| LiveError::Open(e.to_string()))?;
+            let ns = settings.namespace.as_str();
+            let configuration = declare::<RadarConfigurationMsg>(
+                &session,
+                ns,
+                ros::TOPIC_RADAR_CONFIGURATION,
+                false,
+                false,
+            )?;
+            let bscan = declare::<RadarBScanMsg>(&session, ns, ros::TOPIC_BSCAN, false, false)?;
+            let fft = if fft {
+                Some(declare::<RadarFftDataMsg>(
+                    &session,
+                    ns,
+                    super::TOPIC_FFT_DATA,
+                    false,
+                    false,
+                )?)
+            } else {
+                None
+            };
+            info!(zid = %session.zid(), "publishing the radar live over Zenoh");
+            Ok(Self {
+                session,
+                configuration,
+                bscan,
+                fft,
+                geometry: None,
+                building: None,
+                summary: LiveSummary::default(),
+            })
+        }
+
+        /// Publishes what `az` completes: the configuration if it is new, the previous
+        /// rotation's B-scan when `az` starts another, `az` itself as FFT data on request.
+        pub fn on_azimuth(&mut self, az: &radar_driver::Azimuth) {
+            let changed = self.geometry.as_ref().map_or(true, |g| {
+                !(Arc::ptr_eq(g, &az.geometry) || **g == *az.geometry)
+            });
+            if changed {
+                self.geometry = Some(Arc::clone(&az.geometry));
+                put(
+                    &self.configuration,
+                    &ros::radar_configuration(az),
+                    &mut self.summary,
+                );
+            }
+            if self.building.as_ref().is_some_and(|b| !b.fits(az)) {
+                self.close_rotation();
+            }
+            if self.building.is_none() {
+                self.building = ros::BScan::new(az);
+                if self.building.is_none() {
+                    // A geometry too large for a B-scan: counted, never allocated.
+                    self.summary.failed += 1;
+                }
+            }
+            if let Some(b) = self.building.as_mut() {
+                b.push(az);
+            }
+            if let Some(topic) = &self.fft {
+                put(topic, &ros::fft_data(az), &mut self.summary);
+            }
+        }
+
+        fn close_rotation(&mut self) {
+            if let Some(b) = self.building.take().filter(|b| b.rows() > 0) {
+                put(&self.bscan, &b.into_message(), &mut self.summary);
+            }
+        }
+
+        /// Publishes the rotation in progress, closes the session, returns the counts.
+        pub fn finish(mut self) -> LiveSummary {
+            self.close_rotation();
+            let summary = std::mem::take(&mut self.summary);
+            let Self {
+                session,
+                configuration,
+                bscan,
+                fft,
+                ..
+            } = self;
+            drop((configuration, bscan, fft));
+            if let Err(e) = session.close().wait() {
+                warn!(error = %e, "closing the Zenoh session");
+            }
+            summary
+        }
     }
 }

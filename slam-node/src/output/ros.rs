@@ -22,7 +22,7 @@ use ros_msgs::geometry::{
     TwistWithCovariance, Vector3,
 };
 use ros_msgs::nav::{Odometry, TFMessage};
-use ros_msgs::navtech::{RadarBScanMsg, RadarConfigurationMsg};
+use ros_msgs::navtech::{RadarBScanMsg, RadarConfigurationMsg, RadarFftDataMsg};
 use ros_msgs::sensor::{Image, PointCloud2};
 use ros_msgs::std_msgs::{ColorRGBA, Header};
 use ros_msgs::visualization::{Marker, MarkerArray};
@@ -271,6 +271,24 @@ pub fn radar_configuration(az: &Azimuth) -> RadarConfigurationMsg {
         expected_rotation_rate: (g.rotation_hz * 1000.0).round().clamp(0.0, 65535.0) as u16,
         range_gain: g.range_gain as f32,
         range_offset: g.range_offset_m as f32,
+    }
+}
+
+/// `/radar_data/fft_data`: one azimuth as Navtech's ROS 2 driver publishes it (angle in
+/// degrees from the encoder, the radar's time split into seconds and nanoseconds, the bins
+/// as received).
+pub fn fft_data(az: &Azimuth) -> RadarFftDataMsg {
+    let ns = secs_to_nanos(az.timestamp_s);
+    let encoder_size = f64::from(az.geometry.encoder_size.max(1));
+    RadarFftDataMsg {
+        header: Header::new(Time::from_nanos(ns), RADAR_FRAME),
+        angle: f64::from(az.encoder) * 360.0 / encoder_size,
+        azimuth: az.encoder,
+        sweep_counter: az.sweep_counter,
+        ntp_seconds: u32::try_from(ns / 1_000_000_000).unwrap_or(u32::MAX),
+        ntp_split_seconds: (ns % 1_000_000_000) as u32,
+        data: az.bins.to_vec(),
+        data_length: u16::try_from(az.bins.len()).unwrap_or(u16::MAX),
     }
 }
 
