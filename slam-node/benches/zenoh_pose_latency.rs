@@ -12,8 +12,9 @@
 //! (which needs the next rotation's first azimuth), the queue to the publisher thread, CDR
 //! encoding and Zenoh over TCP). `SLAM_LATENCY_S` sets each run's stream seconds
 //! (default 20). Each preset runs with the simulator's odometry at 20 Hz (shipped) and at
-//! 200 Hz: the pipeline waits, bounded, for odometry to reach an azimuth's time, and at
-//! 20 Hz that wait is most of the latency.
+//! 200 Hz (the pipeline waits, bounded, for odometry to reach an azimuth's time before it
+//! uses it). Last, `radar-zenoh` on the same kind of simulator gives the path without the
+//! SLAM (B-scan receipt minus its last azimuth).
 
 use std::net::TcpListener;
 use std::path::Path;
@@ -162,14 +163,75 @@ fn run(preset: &str, odometry_hz: f64, seconds: f64) {
     }
 }
 
+/// The same path without the SLAM: `radar-zenoh` against the simulator (paper unit, real
+/// time, in this process), receipt of each B-scan minus its stamp (its last azimuth's time).
+fn radar_only(seconds: f64) {
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let sim = runtime.block_on(async {
+        let scene = sim_sensor::scene::shipped::load("outdoor-field").unwrap();
+        let mut options = sim_sensor::SimOptions::for_tests(scene);
+        options.odometry_bind = None;
+        options.pacing = sim_sensor::settings::Pacing::Realtime;
+        options.start_time_ns = None;
+        sim_sensor::SimServer::spawn(options).await.unwrap()
+    });
+    let (session, endpoint) = subscriber_session();
+    let subscriber = session
+        .declare_subscriber("radar_data/b_scan_msg")
+        .wait()
+        .unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_radar-zenoh"))
+        .args([
+            "--address",
+            &sim.local_addr().to_string(),
+            "--connect",
+            &endpoint,
+        ])
+        .arg("--duration-s")
+        .arg(seconds.to_string())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut latency = Vec::new();
+    loop {
+        match subscriber.recv_timeout(Duration::from_millis(200)) {
+            Ok(Some(sample)) => {
+                let now = SystemTime::now()
+                    .duration_since(UNIX_EPOCH)
+                    .unwrap()
+                    .as_secs_f64();
+                let scan: ros_msgs::navtech::RadarBScanMsg =
+                    from_cdr(&sample.payload().to_bytes()).unwrap();
+                let stamp = scan.b_scan_img.header.stamp;
+                latency.push((now - f64::from(stamp.sec) - f64::from(stamp.nanosec) * 1e-9) * 1e3);
+            }
+            _ => {
+                if child.try_wait().unwrap().is_some() {
+                    break;
+                }
+            }
+        }
+    }
+    runtime.block_on(sim.shutdown()).unwrap();
+    latency.sort_by(f64::total_cmp);
+    println!(
+        "radar-zenoh (no SLAM), paper-200: B-scan receipt minus its last azimuth: p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms, min {:.2} ms (n = {})",
+        quantile(&latency, 0.5),
+        quantile(&latency, 0.99),
+        latency.last().copied().unwrap_or(f64::NAN),
+        latency.first().copied().unwrap_or(f64::NAN),
+        latency.len()
+    );
+}
+
 fn main() {
     // `cargo bench` passes `--bench`; any other argument filters nothing here.
     let seconds: f64 = std::env::var("SLAM_LATENCY_S")
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(20.0);
-    // The shipped simulator's odometry comes at 20 Hz, and the pipeline waits (bounded) for
-    // odometry to reach an azimuth's time before using it: at 200 Hz that wait shrinks.
+    // The shipped simulator's odometry comes at 20 Hz; 200 Hz shortens any wait for it.
     for (preset, odometry_hz) in [
         ("paper-200", 20.0),
         ("cts350x-400", 20.0),
@@ -178,4 +240,5 @@ fn main() {
     ] {
         run(preset, odometry_hz, seconds);
     }
+    radar_only(seconds);
 }
