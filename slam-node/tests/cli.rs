@@ -311,3 +311,25 @@ fn a_run_that_knows_the_truth_writes_groundtruth_tum_beside_its_trajectory_for_e
     // The vehicle moves, so the truth is not the estimate copied.
     assert!(truth.iter().zip(&estimate).any(|(t, e)| t.1 != e.1));
 }
+
+#[cfg(not(feature = "zenoh"))]
+#[test]
+fn asking_for_zenoh_from_a_build_without_the_feature_is_refused_with_how_to_build_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = slam_node()
+        .args([
+            "--fast",
+            "--duration",
+            "1",
+            "--no-figures",
+            "--zenoh",
+            "--out",
+        ])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("built without its `zenoh` feature"), "{err}");
+    assert!(err.contains("--features zenoh"), "{err}");
+}
