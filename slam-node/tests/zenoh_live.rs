@@ -80,7 +80,7 @@ fn a_running_daemon_publishes_its_pose_tf_map_and_detections_to_a_loopback_subsc
             "--embedded-sim",
             "--fast",
             "--duration",
-            "6",
+            "30",
             "--no-figures",
         ])
         .arg("--out")
@@ -89,6 +89,8 @@ fn a_running_daemon_publishes_its_pose_tf_map_and_detections_to_a_loopback_subsc
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
+    // 30 s of stream (75 rotations, about a second with --fast): the peers may meet after
+    // the first poses, and tf_static goes out only every 10 poses.
     let deadline = Instant::now() + Duration::from_secs(60);
     let mut poses: Vec<Odometry> = Vec::new();
     let mut keys = std::collections::BTreeSet::new();

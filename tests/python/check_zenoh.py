@@ -5,7 +5,7 @@
 
 The binary must be built with `--features zenoh`. A Python `eclipse-zenoh` peer listens on
 a free 127.0.0.1 port (multicast scouting off, no router); the daemon runs against its
-embedded simulator (`--embedded-sim --fast --duration 10`) with `[output.zenoh]` connecting
+embedded simulator (`--embedded-sim --fast --duration 30`) with `[output.zenoh]` connecting
 to that port.
 
 1. Poses arrive on the key `slam/odometry` (zenoh-bridge-ros2dds's key for the ROS 2 topic
@@ -76,7 +76,7 @@ def main():
         f'connect = ["{endpoint}"]\nlisten = []\nmulticast_scouting = false\n'
     )
     run = subprocess.run(
-        [str(binary), "--config", str(config), "--embedded-sim", "--fast", "--duration", "10",
+        [str(binary), "--config", str(config), "--embedded-sim", "--fast", "--duration", "30",
          "--no-figures", "--out", str(out / "run")],
         capture_output=True, text=True, timeout=300,
     )

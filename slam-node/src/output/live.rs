@@ -134,7 +134,7 @@ mod publisher {
     use super::{bridge_liveliness_key, bridge_qos, topic_key, LiveError, LiveOutput, LiveSummary};
 
     /// `/tf_static` is published again every this many poses, for late subscribers.
-    const TF_STATIC_EVERY_POSES: u64 = 40;
+    const TF_STATIC_EVERY_POSES: u64 = 10;
     /// How long [`LivePublisher::spawn`] waits for the session to open.
     const OPEN_TIMEOUT: Duration = Duration::from_secs(10);
 
