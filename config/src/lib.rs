@@ -19,7 +19,7 @@
 //!
 //! Section by section: [`radar`] (the driver's link), [`odometry`], [`sim`] and
 //! [`faults`] (the simulator), [`model`] (radar model constants), [`detector`], [`filter`]
-//! (the EKF), [`output`]. Each module holds its `Raw*` struct (as written, documented
+//! (the EKF), [`output`] (and [`live`], `[output.zenoh]`). Each module holds its `Raw*` struct (as written, documented
 //! defaults) and its validated `*Settings`, and can be validated alone
 //! (`RawRadar::validate`).
 //!
@@ -35,6 +35,7 @@ mod error;
 pub mod examples;
 pub mod faults;
 pub mod filter;
+pub mod live;
 pub mod model;
 pub mod odometry;
 pub mod output;

@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::check::Checker;
 use crate::error::FieldErrors;
+use crate::live::{RawZenoh, ZenohSettings};
 use crate::values::ValueError;
 
 /// `[output]` as written in the file.
@@ -28,6 +29,8 @@ pub struct RawOutput {
     /// Record the run as an MCAP file (ROS 2 messages, CDR), relative to `directory`,
     /// ending in `.mcap`. Default: none.
     pub mcap: Option<PathBuf>,
+    /// `[output.zenoh]`: live ROS 2 topics over Zenoh. Default off.
+    pub zenoh: RawZenoh,
 }
 
 impl Default for RawOutput {
@@ -40,6 +43,7 @@ impl Default for RawOutput {
             pictures: true,
             progress: true,
             mcap: None,
+            zenoh: RawZenoh::default(),
         }
     }
 }
@@ -61,6 +65,8 @@ pub struct OutputSettings {
     pub progress: bool,
     /// MCAP recording file name, if the run is recorded.
     pub mcap: Option<PathBuf>,
+    /// Live topics over Zenoh.
+    pub zenoh: ZenohSettings,
 }
 
 impl OutputSettings {
@@ -146,6 +152,7 @@ impl RawOutput {
             pictures: self.pictures,
             progress: self.progress,
             mcap: c.check_opt("output.mcap", self.mcap.as_deref(), mcap_file),
+            zenoh: self.zenoh.check(c, "output.zenoh"),
         }
     }
 }
@@ -161,6 +168,7 @@ impl From<&OutputSettings> for RawOutput {
             pictures: s.pictures,
             progress: s.progress,
             mcap: s.mcap.clone(),
+            zenoh: RawZenoh::from(&s.zenoh),
         }
     }
 }

@@ -145,6 +145,14 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[output]\ndiagnostics = \"../diagnostics.csv\"", "output.diagnostics", "must be a relative path inside output.directory"),
     ("[output]\nmcap = \"/tmp/run.mcap\"", "output.mcap", "must be a relative path inside output.directory"),
     ("[output]\nmcap = \"run.bag\"", "output.mcap", "must end in .mcap"),
+    // [output.zenoh]
+    ("[output.zenoh]\nconnect = [\"udp/127.0.0.1:7447\"]", "output.zenoh.connect", "only TCP is built in"),
+    ("[output.zenoh]\nconnect = [\"tcp/127.0.0.1\"]", "output.zenoh.connect", "must be a Zenoh endpoint `tcp/host:port`"),
+    ("[output.zenoh]\nmode = \"client\"\nconnect = []", "output.zenoh.connect", "must name at least one endpoint with output.zenoh.mode = \"client\""),
+    ("[output.zenoh]\nlisten = [\"tcp/127.0.0.1:70000\"]", "output.zenoh.listen", "got \"tcp/127.0.0.1:70000\""),
+    ("[output.zenoh]\nnamespace = \"/robot1\"", "output.zenoh.namespace", "no leading or trailing slash"),
+    ("[output.zenoh]\nnamespace = \"robot/*\"", "output.zenoh.namespace", "no wildcards"),
+    ("[output.zenoh]\nqueue = 0", "output.zenoh.queue", "must be in [1, 4096], got 0"),
 ];
 
 /// Keys whose every parseable value is valid (booleans and choices; a misspelt choice is a
@@ -167,6 +175,9 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "filter.repeat_look_decorrelation",
     "output.pictures",
     "output.progress",
+    "output.zenoh.enabled",
+    "output.zenoh.mode",
+    "output.zenoh.multicast_scouting",
 ];
 
 #[test]

@@ -6,11 +6,13 @@
 //! - [`pipeline`]: per-azimuth processing at each azimuth's own time, spectrum
 //!   prediction vs measurement, truth scoring ([`pipeline::core`] does no IO; its thread
 //!   loop [`pipeline::run`] reads channels).
-//! - [`output`]: trajectory, map, diagnostics, figures; the writer thread writes files.
+//! - [`output`]: trajectory, map, diagnostics, figures, MCAP; the writer thread writes
+//!   files; with the `zenoh` feature, [`output::live`] publishes ROS 2 messages over Zenoh.
 //! - [`daemon`]: driver, odometry, simulator, pipeline and writer wired together (sockets,
 //!   threads).
 //!
-//! IO happens only in `daemon`, `pipeline::run` (channels) and `output::writer` (files).
+//! IO happens only in `daemon`, `pipeline::run` (channels), `output::writer` (files) and
+//! `output::live` (the network, feature `zenoh`).
 
 pub mod daemon;
 pub mod detect;

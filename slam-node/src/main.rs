@@ -49,6 +49,11 @@ struct Args {
     /// (default: [output] mcap, none).
     #[arg(long, value_parser = mcap_path)]
     mcap: Option<PathBuf>,
+    /// Publish pose, tf, map and detections live over Zenoh as ROS 2 messages, with the
+    /// endpoints of [output.zenoh] (default: connect to tcp/127.0.0.1:7447); needs a build
+    /// with `--features zenoh`.
+    #[arg(long)]
+    zenoh: bool,
     /// Run on a rosbag2 MCAP file instead of a radar: Navtech's ROS 2 radar messages
     /// (RadarBScanMsg or RadarFftDataMsg, with RadarConfigurationMsg) and an odometry topic,
     /// as fast as possible (a recording made with --mcap replays to the same trajectory).
@@ -129,6 +134,9 @@ fn run(args: Args) -> anyhow::Result<()> {
     };
     if let Some(mcap) = &args.mcap {
         config.output.mcap = Some(mcap.clone());
+    }
+    if args.zenoh {
+        config.output.zenoh.enabled = true;
     }
     #[cfg(feature = "sim")]
     let embedded = (args.config.is_none() || args.embedded_sim) && args.replay_mcap.is_none();

@@ -266,3 +266,70 @@ fn ctrl_c_while_a_large_scene_is_being_built_stops_the_process_at_once() {
     assert_eq!(status.code(), Some(1), "{log}");
     assert!(log.contains("while building the scene"), "{log}");
 }
+
+/// TUM lines as (t, x, y, theta).
+fn tum_poses(path: &std::path::Path) -> Vec<(f64, f64, f64, f64)> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    text.lines()
+        .filter_map(slam_node::output::trajectory::parse_tum_line)
+        .collect()
+}
+
+#[test]
+fn a_run_that_knows_the_truth_writes_groundtruth_tum_beside_its_trajectory_for_evo() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = slam_node()
+        .args([
+            "--fast",
+            "--duration",
+            "4",
+            "--no-figures",
+            "--progress-every",
+            "0",
+            "--out",
+        ])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let estimate = tum_poses(&dir.path().join("trajectory.tum"));
+    let truth = tum_poses(&dir.path().join("groundtruth.tum"));
+    assert!(truth.len() > 5, "{} true poses", truth.len());
+    assert!(truth.len() <= estimate.len());
+    // Each true pose is at the time of an estimated one, and near it: the filter tracks.
+    for t in &truth {
+        let e = estimate
+            .iter()
+            .find(|e| e.0 == t.0)
+            .unwrap_or_else(|| panic!("no estimate at {}", t.0));
+        assert!((e.1 - t.1).hypot(e.2 - t.2) < 1.0, "{e:?} against {t:?}");
+    }
+    // The vehicle moves, so the truth is not the estimate copied.
+    assert!(truth.iter().zip(&estimate).any(|(t, e)| t.1 != e.1));
+}
+
+#[cfg(not(feature = "zenoh"))]
+#[test]
+fn asking_for_zenoh_from_a_build_without_the_feature_is_refused_with_how_to_build_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = slam_node()
+        .args([
+            "--fast",
+            "--duration",
+            "1",
+            "--no-figures",
+            "--zenoh",
+            "--out",
+        ])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("built without its `zenoh` feature"), "{err}");
+    assert!(err.contains("--features zenoh"), "{err}");
+}

@@ -339,8 +339,8 @@ pub fn run_mcap_replay(
     })
 }
 
-/// The output files a run writes: the configured names in the output folder, and the MCAP
-/// recording when one is asked for.
+/// The output files a run writes: the configured names in the output folder, the MCAP
+/// recording when one is asked for, and the live Zenoh topics when `[output.zenoh]` is on.
 fn output_files(opts: &DaemonOptions, motion: radar_model::motion::MotionModel) -> OutputFiles {
     let o = &opts.config.output;
     OutputFiles {
@@ -350,6 +350,10 @@ fn output_files(opts: &DaemonOptions, motion: radar_model::motion::MotionModel) 
         diagnostics: o.diagnostics.clone(),
         recording: o.mcap.as_ref().map(|file| RecordingFile {
             path: opts.out_dir.join(file),
+            motion,
+        }),
+        live: o.zenoh.enabled.then(|| crate::output::LiveOutput {
+            zenoh: o.zenoh.clone(),
             motion,
         }),
         ..OutputFiles::in_dir(opts.out_dir.clone())

@@ -318,6 +318,16 @@ pub fn summary_text(r: &DaemonReport) -> String {
     if let Some(e) = &r.writer.recording_error {
         let _ = writeln!(t, "  MCAP recording stopped early: {e}");
     }
+    if let Some(live) = &r.writer.live {
+        let _ = writeln!(
+            t,
+            "  Zenoh: {} messages published on {} keys, {} events dropped (queue full), {} failed",
+            live.total(),
+            live.published.len(),
+            live.dropped,
+            live.failed
+        );
+    }
     t
 }
 

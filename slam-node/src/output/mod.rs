@@ -10,13 +10,16 @@ pub mod csv;
 pub mod detections;
 pub mod diagnostics;
 pub mod figures;
+pub mod live;
 pub mod map;
 pub mod recording;
+pub mod ros;
 pub mod trajectory;
 pub mod writer;
 
 pub use detections::{Detection, RotationDetections};
 pub use diagnostics::{RotationDiagnostics, SpectrumComparison};
+pub use live::{LiveError, LiveOutput, LiveSummary};
 pub use map::{MapFeature, MapSnapshot};
 pub use recording::{McapRecorder, RecordingError, RecordingSummary};
 pub use trajectory::{PoseSample, TumWriter};

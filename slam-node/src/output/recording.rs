@@ -41,54 +41,24 @@ use protocol::Geometry;
 use radar_driver::Azimuth;
 use radar_model::motion::MotionModel;
 use ros_msgs::builtin::{secs_to_nanos, Time};
-use ros_msgs::geometry::{
-    Point, Pose, PoseWithCovariance, Quaternion, Transform, TransformStamped, Twist, TwistStamped,
-    TwistWithCovariance, Vector3,
-};
+use ros_msgs::geometry::TwistStamped;
 use ros_msgs::nav::{Odometry, TFMessage};
 use ros_msgs::navtech::{RadarBScanMsg, RadarConfigurationMsg};
-use ros_msgs::sensor::{Image, PointCloud2};
-use ros_msgs::std_msgs::{ColorRGBA, Header};
-use ros_msgs::visualization::{Marker, MarkerArray};
+use ros_msgs::sensor::PointCloud2;
+use ros_msgs::visualization::MarkerArray;
 use ros_msgs::{to_cdr, CdrError, RosMessage};
 use slam_filter::OdometrySample;
 
 use super::detections::RotationDetections;
 use super::map::MapSnapshot;
+use super::ros::{self, BScan};
+pub use super::ros::{
+    steer_from_yaw_rate, yaw_rate, BASE_FRAME, MAP_FRAME, RADAR_FRAME, TOPIC_BSCAN,
+    TOPIC_DETECTIONS, TOPIC_MAP, TOPIC_MAP_COVARIANCE, TOPIC_ODOMETRY_INPUT, TOPIC_POSE,
+    TOPIC_RADAR_CONFIGURATION, TOPIC_TF, TOPIC_TF_STATIC,
+};
 use super::trajectory::PoseSample;
 use super::writer::OutputEvent;
-
-/// Topic of the radar's rotations.
-pub const TOPIC_BSCAN: &str = "/radar_data/b_scan_msg";
-/// Topic of the radar's configuration.
-pub const TOPIC_RADAR_CONFIGURATION: &str = "/radar_data/configuration_data";
-/// Topic of the odometry the pipeline took.
-pub const TOPIC_ODOMETRY_INPUT: &str = "/odom/twist";
-/// Topic of the estimated pose.
-pub const TOPIC_POSE: &str = "/slam/odometry";
-/// Topic of the transforms.
-pub const TOPIC_TF: &str = "/tf";
-/// Topic of the static transforms.
-pub const TOPIC_TF_STATIC: &str = "/tf_static";
-/// Topic of the map's features.
-pub const TOPIC_MAP: &str = "/slam/map";
-/// Topic of the map's covariance ellipses.
-pub const TOPIC_MAP_COVARIANCE: &str = "/slam/map_covariance";
-/// Topic of each rotation's detections.
-pub const TOPIC_DETECTIONS: &str = "/slam/detections";
-
-/// The world frame.
-pub const MAP_FRAME: &str = "map";
-/// The vehicle's frame.
-pub const BASE_FRAME: &str = "base_link";
-/// The radar's frame.
-pub const RADAR_FRAME: &str = "radar";
-
-/// A B-scan larger than this (from a radar configuration claiming absurd sizes) is not
-/// assembled: the rotation is counted as skipped.
-const MAX_BSCAN_BYTES: usize = 64 << 20;
-/// Chi-square 95% quantile with 2 degrees of freedom: the ellipses' scale.
-const CHI2_2DOF_95: f64 = 5.991;
 
 /// Why the recording failed (the daemon logs it and carries on without the recording).
 #[derive(Debug, thiserror::Error)]
@@ -169,92 +139,6 @@ struct Channels {
     detections: Channel,
 }
 
-/// One rotation's azimuths being laid out as a B-scan.
-#[derive(Debug)]
-struct BScan {
-    rotation: u64,
-    geometry: Arc<Geometry>,
-    bytes_per_bin: usize,
-    width: usize,
-    data: Vec<u8>,
-    encoders: Vec<u16>,
-    stamps: Vec<u64>,
-    last_time_s: f64,
-    rows: usize,
-}
-
-impl BScan {
-    fn new(az: &Azimuth) -> Option<Self> {
-        let g = &az.geometry;
-        let height = usize::from(g.azimuth_samples);
-        let width = usize::from(g.range_in_bins);
-        let bytes_per_bin = az.width.bytes_per_bin();
-        let size = height.checked_mul(width)?.checked_mul(bytes_per_bin)?;
-        if size == 0 || size > MAX_BSCAN_BYTES {
-            return None;
-        }
-        Some(Self {
-            rotation: az.rotation,
-            geometry: Arc::clone(&az.geometry),
-            bytes_per_bin,
-            width,
-            data: vec![0; size],
-            encoders: vec![0; height],
-            stamps: vec![0; height],
-            last_time_s: az.timestamp_s,
-            rows: 0,
-        })
-    }
-
-    fn fits(&self, az: &Azimuth) -> bool {
-        az.rotation == self.rotation
-            && az.width.bytes_per_bin() == self.bytes_per_bin
-            && (Arc::ptr_eq(&az.geometry, &self.geometry) || *az.geometry == *self.geometry)
-    }
-
-    fn push(&mut self, az: &Azimuth) {
-        let Some(row) = self.geometry.azimuth_index(az.encoder).map(usize::from) else {
-            return;
-        };
-        let step = self.width * self.bytes_per_bin;
-        let (Some(dst), Some(enc), Some(stamp)) = (
-            self.data.get_mut(row * step..(row + 1) * step),
-            self.encoders.get_mut(row),
-            self.stamps.get_mut(row),
-        ) else {
-            return;
-        };
-        let n = az.bins.len().min(step);
-        dst[..n].copy_from_slice(&az.bins[..n]);
-        dst[n..].fill(0);
-        *enc = az.encoder;
-        *stamp = secs_to_nanos(az.timestamp_s);
-        self.last_time_s = self.last_time_s.max(az.timestamp_s);
-        self.rows += 1;
-    }
-
-    fn into_message(self) -> RadarBScanMsg {
-        let step = self.width * self.bytes_per_bin;
-        RadarBScanMsg {
-            b_scan_img: Image {
-                header: Header::new(Time::from_secs_f64(self.last_time_s), RADAR_FRAME),
-                height: u32::from(self.geometry.azimuth_samples),
-                width: u32::from(self.geometry.range_in_bins),
-                encoding: if self.bytes_per_bin == 2 {
-                    "16UC1".into()
-                } else {
-                    "8UC1".into()
-                },
-                is_bigendian: 0,
-                step: u32::try_from(step).unwrap_or(u32::MAX),
-                data: self.data,
-            },
-            encoder_values: self.encoders,
-            timestamps: self.stamps,
-        }
-    }
-}
-
 /// Writes the recording; generic over the sink so tests can record to memory.
 pub struct McapRecorder<W: Write + Seek> {
     writer: mcap::Writer<W>,
@@ -286,69 +170,6 @@ fn channel<W: Write + Seek, M: RosMessage>(
     let schema = writer.add_schema(&M::type_name(), "ros2msg", M::schema_text().as_bytes())?;
     let id = writer.add_channel(schema, topic, "cdr", &BTreeMap::new())?;
     Ok(Channel { id, topic })
-}
-
-/// The yaw rate (rad/s) an odometry sample stands for under `motion`. With the paper's
-/// model the value is chosen among the nearest floats so that [`steer_from_yaw_rate`] gives
-/// the sample's steering back bit for bit (a recording replays to the same trajectory).
-pub fn yaw_rate(motion: &MotionModel, s: &OdometrySample) -> f64 {
-    match *motion {
-        MotionModel::Paper { step_s } if step_s > 0.0 => {
-            let guess = s.steer_rad / step_s;
-            if !guess.is_finite() {
-                return guess;
-            }
-            (0..=8i64)
-                .flat_map(|d| [d, -d])
-                .map(|d| f64::from_bits(guess.to_bits().wrapping_add_signed(d)))
-                .find(|y| y.is_finite() && y * step_s == s.steer_rad)
-                .unwrap_or(guess)
-        }
-        MotionModel::Bicycle { wheelbase_m } if wheelbase_m > 0.0 => {
-            s.speed_mps * s.steer_rad.tan() / wheelbase_m
-        }
-        _ => 0.0,
-    }
-}
-
-/// The steering input a yaw rate stands for under `motion` (the inverse of [`yaw_rate`]):
-/// `yaw_rate * step_s` for the paper's model, `atan(yaw_rate * wheelbase / speed)` for the
-/// bicycle (0 when the speed is below 1 mm/s).
-pub fn steer_from_yaw_rate(motion: &MotionModel, speed_mps: f64, yaw_rate_rps: f64) -> f64 {
-    match *motion {
-        MotionModel::Paper { step_s } => yaw_rate_rps * step_s,
-        MotionModel::Bicycle { wheelbase_m } => {
-            if speed_mps.abs() < 1e-3 {
-                0.0
-            } else {
-                (yaw_rate_rps * wheelbase_m / speed_mps).atan()
-            }
-        }
-    }
-}
-
-/// The pose's 3x3 covariance over (x, y, theta) placed in ROS's 6x6 over (x, y, z, roll,
-/// pitch, yaw); the plane's other three are left 0.
-fn covariance6(c: &[[f64; 3]; 3]) -> [f64; 36] {
-    let mut out = [0.0; 36];
-    let at = [0usize, 1, 5];
-    for (r, row) in c.iter().enumerate() {
-        for (k, v) in row.iter().enumerate() {
-            out[at[r] * 6 + at[k]] = *v;
-        }
-    }
-    out
-}
-
-/// Semi-axes (1 sigma) and the major axis's angle of a 2x2 covariance.
-fn ellipse(c: &[[f64; 4]; 4]) -> (f64, f64, f64) {
-    let (a, b, d) = (c[0][0], c[0][1], c[1][1]);
-    let mean = 0.5 * (a + d);
-    let diff = (0.25 * (a - d) * (a - d) + b * b).sqrt();
-    let major = (mean + diff).max(0.0).sqrt();
-    let minor = (mean - diff).max(0.0).sqrt();
-    let angle = 0.5 * (2.0 * b).atan2(a - d);
-    (major, minor, angle)
 }
 
 impl<W: Write + Seek> McapRecorder<W> {
@@ -420,13 +241,7 @@ impl<W: Write + Seek> McapRecorder<W> {
         )?;
         if self.first_ns.is_none() {
             self.first_ns = Some(ns);
-            let tf = TFMessage {
-                transforms: vec![TransformStamped {
-                    header: Header::new(Time::from_nanos(ns), BASE_FRAME),
-                    child_frame_id: RADAR_FRAME.into(),
-                    transform: Transform::default(),
-                }],
-            };
+            let tf = ros::tf_static(Time::from_nanos(ns));
             let data = to_cdr(&tf).map_err(|source| RecordingError::Cdr {
                 topic: TOPIC_TF_STATIC,
                 source,
@@ -490,19 +305,7 @@ impl<W: Write + Seek> McapRecorder<W> {
         });
         if changed {
             self.geometry = Some(Arc::clone(&az.geometry));
-            let g = &az.geometry;
-            let msg = RadarConfigurationMsg {
-                header: Header::new(Time::from_secs_f64(az.timestamp_s), RADAR_FRAME),
-                azimuth_samples: g.azimuth_samples,
-                encoder_size: g.encoder_size,
-                azimuth_offset: 0,
-                // As Navtech's driver fills it: the wire's tenths of a millimetre.
-                bin_size: (g.bin_size_m * 1e4).round() as f32,
-                range_in_bins: g.range_in_bins,
-                expected_rotation_rate: (g.rotation_hz * 1000.0).round().clamp(0.0, 65535.0) as u16,
-                range_gain: g.range_gain as f32,
-                range_offset: g.range_offset_m as f32,
-            };
+            let msg = ros::radar_configuration(az);
             self.write(self.channels.configuration, az.timestamp_s, &msg)?;
         }
         if self.bscan.as_ref().is_some_and(|b| !b.fits(az)) {
@@ -525,11 +328,11 @@ impl<W: Write + Seek> McapRecorder<W> {
         let Some(b) = self.bscan.take() else {
             return Ok(());
         };
-        if b.rows == 0 {
+        if b.rows() == 0 {
             return Ok(());
         }
-        let time_s = b.last_time_s;
-        let period_s = 1.0 / b.geometry.rotation_hz.max(1e-3);
+        let time_s = b.last_time_s();
+        let period_s = 1.0 / b.rotation_hz().max(1e-3);
         let (first, _) = *self.radar_span_s.get_or_insert((time_s - period_s, time_s));
         self.radar_span_s = Some((first, time_s));
         let msg = b.into_message();
@@ -540,158 +343,24 @@ impl<W: Write + Seek> McapRecorder<W> {
 
     fn on_odometry(&mut self, s: &OdometrySample) -> Result<(), RecordingError> {
         self.last_input = Some(*s);
-        let msg = TwistStamped {
-            header: Header::new(Time::from_secs_f64(s.timestamp_s), BASE_FRAME),
-            twist: Twist {
-                linear: Vector3 {
-                    x: s.speed_mps,
-                    y: 0.0,
-                    z: 0.0,
-                },
-                angular: Vector3 {
-                    x: 0.0,
-                    y: 0.0,
-                    z: yaw_rate(&self.motion, s),
-                },
-            },
-        };
+        let msg = ros::odometry_input(&self.motion, s);
         self.write(self.channels.odometry_input, s.timestamp_s, &msg)
     }
 
     fn on_pose(&mut self, p: &PoseSample) -> Result<(), RecordingError> {
-        let stamp = Time::from_secs_f64(p.timestamp_s);
-        let pose = Pose {
-            position: Point {
-                x: p.x_m,
-                y: p.y_m,
-                z: 0.0,
-            },
-            orientation: Quaternion::from_yaw(p.theta_rad),
-        };
-        // The twist is the odometry input in force (not estimated): covariance 0.
-        let twist = self.last_input.map_or(Twist::default(), |s| Twist {
-            linear: Vector3 {
-                x: s.speed_mps,
-                y: 0.0,
-                z: 0.0,
-            },
-            angular: Vector3 {
-                x: 0.0,
-                y: 0.0,
-                z: yaw_rate(&self.motion, &s),
-            },
-        });
-        let msg = Odometry {
-            header: Header::new(stamp, MAP_FRAME),
-            child_frame_id: BASE_FRAME.into(),
-            pose: PoseWithCovariance {
-                pose,
-                covariance: covariance6(&p.covariance),
-            },
-            twist: TwistWithCovariance {
-                twist,
-                covariance: [0.0; 36],
-            },
-        };
-        self.write(self.channels.pose, p.timestamp_s, &msg)?;
-        let tf = TFMessage {
-            transforms: vec![TransformStamped {
-                header: Header::new(stamp, MAP_FRAME),
-                child_frame_id: BASE_FRAME.into(),
-                transform: Transform {
-                    translation: Vector3 {
-                        x: p.x_m,
-                        y: p.y_m,
-                        z: 0.0,
-                    },
-                    rotation: pose.orientation,
-                },
-            }],
-        };
+        let (odometry, tf) = ros::pose_messages(p, self.last_input.as_ref(), &self.motion);
+        self.write(self.channels.pose, p.timestamp_s, &odometry)?;
         self.write(self.channels.tf, p.timestamp_s, &tf)
     }
 
     fn on_map(&mut self, m: &MapSnapshot) -> Result<(), RecordingError> {
-        let stamp = Time::from_secs_f64(m.timestamp_s);
-        let points: Vec<Vec<f32>> = m
-            .features
-            .iter()
-            .map(|f| {
-                vec![
-                    f.x_m as f32,
-                    f.y_m as f32,
-                    0.0,
-                    f.rho as f32,
-                    f.alpha as f32,
-                ]
-            })
-            .collect();
-        let cloud = PointCloud2::from_f32_points(
-            Header::new(stamp, MAP_FRAME),
-            &["x", "y", "z", "reflectivity", "absorption"],
-            &points,
-        );
+        let (cloud, markers) = ros::map_messages(m);
         self.write(self.channels.map, m.timestamp_s, &cloud)?;
-        let header = Header::new(stamp, MAP_FRAME);
-        let mut markers = Vec::with_capacity(m.features.len() + 1);
-        markers.push(Marker {
-            header: header.clone(),
-            ns: "covariance".into(),
-            action: Marker::DELETEALL,
-            ..Marker::default()
-        });
-        let k = CHI2_2DOF_95.sqrt();
-        for f in &m.features {
-            let (major, minor, angle) = ellipse(&f.covariance);
-            markers.push(Marker {
-                header: header.clone(),
-                ns: "covariance".into(),
-                id: i32::try_from(f.id).unwrap_or(i32::MAX),
-                type_: Marker::CYLINDER,
-                action: Marker::ADD,
-                pose: Pose {
-                    position: Point {
-                        x: f.x_m,
-                        y: f.y_m,
-                        z: 0.0,
-                    },
-                    orientation: Quaternion::from_yaw(angle),
-                },
-                scale: Vector3 {
-                    x: (2.0 * k * major).max(1e-3),
-                    y: (2.0 * k * minor).max(1e-3),
-                    z: 0.05,
-                },
-                color: ColorRGBA {
-                    r: f.rho.clamp(0.0, 1.0) as f32,
-                    g: f.alpha.clamp(0.0, 1.0) as f32,
-                    b: 0.3,
-                    a: 0.6,
-                },
-                ..Marker::default()
-            });
-        }
-        self.write(
-            self.channels.map_covariance,
-            m.timestamp_s,
-            &MarkerArray { markers },
-        )
+        self.write(self.channels.map_covariance, m.timestamp_s, &markers)
     }
 
     fn on_detections(&mut self, d: &RotationDetections) -> Result<(), RecordingError> {
-        let points: Vec<Vec<f32>> = d
-            .detections
-            .iter()
-            .map(|t| {
-                let (x, y) = t.xy_ros();
-                vec![x as f32, y as f32, 0.0, t.power_db as f32]
-            })
-            .collect();
-        let cloud = PointCloud2::from_f32_points(
-            Header::new(Time::from_secs_f64(d.timestamp_s), RADAR_FRAME),
-            &["x", "y", "z", "power_db"],
-            &points,
-        );
+        let cloud = ros::detections_message(d);
         self.write(self.channels.detections, d.timestamp_s, &cloud)
     }
 

@@ -18,6 +18,7 @@ use tracing::{info, warn};
 use super::detections::RotationDetections;
 use super::diagnostics::{RotationDiagnostics, SpectrumComparison};
 use super::figures::{draw_map, draw_spectrum, FigureError, TruthOverlay};
+use super::live::{LiveError, LiveOutput, LiveSummary};
 use super::map::MapSnapshot;
 use super::recording::{McapRecorder, RecordingError, RecordingSummary};
 use super::trajectory::{PoseSample, TumWriter};
@@ -75,6 +76,8 @@ pub struct OutputFiles {
     pub diagnostics: PathBuf,
     /// Record the run as MCAP (ROS 2 messages) too.
     pub recording: Option<RecordingFile>,
+    /// Publish live over Zenoh too (needs the `zenoh` feature).
+    pub live: Option<LiveOutput>,
 }
 
 impl OutputFiles {
@@ -89,6 +92,7 @@ impl OutputFiles {
             map: "map.json".into(),
             diagnostics: "diagnostics.jsonl".into(),
             recording: None,
+            live: None,
         }
     }
 }
@@ -116,6 +120,9 @@ pub enum WriterError {
     /// The MCAP recording could not start.
     #[error("starting the MCAP recording")]
     Recording(#[from] RecordingError),
+    /// The live Zenoh output could not start.
+    #[error("starting the live Zenoh output")]
+    Live(#[from] LiveError),
     /// The writer thread panicked.
     #[error("the writer thread panicked")]
     Panicked,
@@ -140,6 +147,8 @@ pub struct WriterSummary {
     pub recording: Option<RecordingSummary>,
     /// Why the recording stopped early, if it did (the other outputs went on).
     pub recording_error: Option<String>,
+    /// The live Zenoh output, when there was one.
+    pub live: Option<LiveSummary>,
 }
 
 /// The filter's end of the output channel.
@@ -149,6 +158,8 @@ pub struct OutputHandle {
     dropped: Arc<AtomicU64>,
     join: Option<JoinHandle<Result<WriterSummary, WriterError>>>,
     wants_inputs: bool,
+    #[cfg(feature = "zenoh")]
+    live: Option<super::live::LivePublisher>,
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> WriterError + '_ {
@@ -165,6 +176,16 @@ fn create(path: &Path) -> Result<BufWriter<File>, WriterError> {
 impl OutputHandle {
     /// Creates the folder and files and starts the writer thread.
     pub fn spawn(files: OutputFiles) -> Result<Self, WriterError> {
+        #[cfg(feature = "zenoh")]
+        let live = files
+            .live
+            .clone()
+            .map(super::live::LivePublisher::spawn)
+            .transpose()?;
+        #[cfg(not(feature = "zenoh"))]
+        if files.live.is_some() {
+            return Err(LiveError::NotBuilt.into());
+        }
         std::fs::create_dir_all(&files.dir).map_err(io_err(&files.dir))?;
         let (tx, rx) = bounded(files.capacity.max(1));
         let traj_path = files.dir.join(&files.trajectory);
@@ -203,17 +224,38 @@ impl OutputHandle {
             dropped: Arc::new(AtomicU64::new(0)),
             join: Some(join),
             wants_inputs,
+            #[cfg(feature = "zenoh")]
+            live,
         })
     }
 
-    /// Whether the writer records the inputs (azimuths, odometry): only then are they sent.
+    /// Whether the writer records the inputs (azimuths, odometry): only then are the
+    /// azimuths sent.
     pub fn wants_inputs(&self) -> bool {
         self.wants_inputs
     }
 
-    /// Hands an event to the writer without ever blocking; returns false (and counts a
-    /// drop) when the channel is full or the writer has stopped.
+    /// Whether the odometry samples are wanted: by a recording, or by the live output (the
+    /// pose message's twist).
+    pub fn wants_odometry(&self) -> bool {
+        #[cfg(feature = "zenoh")]
+        if self.live.is_some() {
+            return true;
+        }
+        self.wants_inputs
+    }
+
+    /// Hands an event to the writer (and to the live output, when there is one) without
+    /// ever blocking; returns false (and counts a drop) when the writer's channel is full or
+    /// the writer has stopped. The live output counts its own drops.
     pub fn send(&self, event: OutputEvent) -> bool {
+        #[cfg(feature = "zenoh")]
+        if let Some(live) = &self.live {
+            live.offer(&event);
+        }
+        if matches!(event, OutputEvent::Odometry(_)) && !self.wants_inputs {
+            return true;
+        }
         match self.sender.as_ref().map(|s| s.try_send(event)) {
             Some(Ok(())) => true,
             Some(Err(TrySendError::Full(_) | TrySendError::Disconnected(_))) | None => {
@@ -223,8 +265,13 @@ impl OutputHandle {
         }
     }
 
-    /// Hands an event to the writer, waiting for room (end of run only).
+    /// Hands an event to the writer, waiting for room (end of run only); the live output
+    /// is offered it as by [`OutputHandle::send`].
     pub fn send_blocking(&self, event: OutputEvent) -> bool {
+        #[cfg(feature = "zenoh")]
+        if let Some(live) = &self.live {
+            live.offer(&event);
+        }
         self.sender.as_ref().is_some_and(|s| s.send(event).is_ok())
     }
 
@@ -236,12 +283,36 @@ impl OutputHandle {
     /// Closes the channel, waits for the writer to drain it, draws the figures.
     pub fn finish(mut self) -> Result<WriterSummary, WriterError> {
         self.sender.take();
+        #[cfg(feature = "zenoh")]
+        let live = self.live.take().map(super::live::LivePublisher::finish);
+        #[cfg(not(feature = "zenoh"))]
+        let live = None;
         match self.join.take().map(JoinHandle::join) {
-            Some(Ok(r)) => r,
+            Some(Ok(r)) => r.map(|s| WriterSummary { live, ..s }),
             Some(Err(_)) => Err(WriterError::Panicked),
             None => Ok(WriterSummary::default()),
         }
     }
+}
+
+/// The ground-truth trajectory's file name, next to the estimated trajectory (TUM).
+pub const GROUND_TRUTH_FILE: &str = "groundtruth.tum";
+
+/// The true pose at `pose`'s time, from the rotation's error against the truth (estimate
+/// minus truth, computed at the same filter time), when the run knows the truth.
+fn true_pose(pose: &PoseSample, r: &RotationDiagnostics) -> Option<PoseSample> {
+    let (ex, ey, et) = (
+        r.pose_error_x_m?,
+        r.pose_error_y_m?,
+        r.pose_error_theta_rad?,
+    );
+    Some(PoseSample {
+        timestamp_s: pose.timestamp_s,
+        x_m: pose.x_m - ex,
+        y_m: pose.y_m - ey,
+        theta_rad: radar_model::geometry::wrap_angle(pose.theta_rad - et),
+        covariance: [[0.0; 3]; 3],
+    })
 }
 
 /// An error and its causes on one line.
@@ -273,7 +344,11 @@ fn run(
         ],
         ..WriterSummary::default()
     };
-    let mut poses = Vec::new();
+    let mut poses: Vec<PoseSample> = Vec::new();
+    let mut ground_truth: Option<TumWriter<BufWriter<File>>> = None;
+    // The pose of the rotation being closed (a Pose comes just before its Rotation).
+    let mut rotation_pose: Option<PoseSample> = None;
+    let truth_path = files.dir.join(GROUND_TRUTH_FILE);
     let mut last_map: Option<MapSnapshot> = None;
     let mut truth = TruthOverlay::default();
     let map_path = files.dir.join(&files.map);
@@ -294,10 +369,25 @@ fn run(
         match event {
             OutputEvent::Pose(p) => {
                 traj.write(&p).map_err(io_err(&traj_path))?;
+                rotation_pose = Some(p);
                 poses.push(p);
                 summary.poses += 1;
             }
             OutputEvent::Rotation(r) => {
+                // The rotation's pose came just before it; with its error against the truth
+                // the true pose is known: write it for `evo_ape tum groundtruth.tum
+                // trajectory.tum`.
+                if let Some(t) = rotation_pose.take().and_then(|p| true_pose(&p, &r)) {
+                    if ground_truth.is_none() {
+                        let w =
+                            TumWriter::new(create(&truth_path)?).map_err(io_err(&truth_path))?;
+                        summary.files.push(truth_path.clone());
+                        ground_truth = Some(w);
+                    }
+                    if let Some(w) = ground_truth.as_mut() {
+                        w.write(&t).map_err(io_err(&truth_path))?;
+                    }
+                }
                 if diag_csv {
                     writeln!(diag, "{}", super::csv::diagnostics_row(&r))
                 } else {
@@ -384,6 +474,9 @@ fn run(
         }
     }
     traj.flush().map_err(io_err(&traj_path))?;
+    if let Some(w) = ground_truth.as_mut() {
+        w.flush().map_err(io_err(&truth_path))?;
+    }
     diag.flush().map_err(io_err(&diag_path))?;
     spec.flush().map_err(io_err(&spec_path))?;
     if files.figures {

@@ -94,7 +94,7 @@ fn poll_odometry(
         Ok(OdometryPoll::Record(r)) => {
             let sample = to_sample(r);
             pipeline.push_odometry(sample);
-            if output.wants_inputs() {
+            if output.wants_odometry() {
                 output.send(OutputEvent::Odometry(sample));
             }
             true

@@ -1,0 +1,432 @@
+//! ROS 2 messages built from the daemon's outputs, shared by the MCAP recording
+//! ([`super::recording`]) and the live Zenoh topics (`super::live`, feature `zenoh`).
+//!
+//! | topic | type | built by |
+//! |---|---|---|
+//! | `/radar_data/b_scan_msg` | `navtech_msgs/msg/RadarBScanMsg` | [`BScan`] |
+//! | `/radar_data/configuration_data` | `navtech_msgs/msg/RadarConfigurationMsg` | [`radar_configuration`] |
+//! | `/odom/twist` | `geometry_msgs/msg/TwistStamped` | [`odometry_input`] |
+//! | `/slam/odometry`, `/tf` | `nav_msgs/msg/Odometry`, `tf2_msgs/msg/TFMessage` | [`pose_messages`] |
+//! | `/tf_static` | `tf2_msgs/msg/TFMessage` | [`tf_static`] |
+//! | `/slam/map`, `/slam/map_covariance` | `sensor_msgs/msg/PointCloud2`, `visualization_msgs/msg/MarkerArray` | [`map_messages`] |
+//! | `/slam/detections` | `sensor_msgs/msg/PointCloud2` | [`detections_message`] |
+
+use std::sync::Arc;
+
+use protocol::Geometry;
+use radar_driver::Azimuth;
+use radar_model::motion::MotionModel;
+use ros_msgs::builtin::{secs_to_nanos, Time};
+use ros_msgs::geometry::{
+    Point, Pose, PoseWithCovariance, Quaternion, Transform, TransformStamped, Twist, TwistStamped,
+    TwistWithCovariance, Vector3,
+};
+use ros_msgs::nav::{Odometry, TFMessage};
+use ros_msgs::navtech::{RadarBScanMsg, RadarConfigurationMsg, RadarFftDataMsg};
+use ros_msgs::sensor::{Image, PointCloud2};
+use ros_msgs::std_msgs::{ColorRGBA, Header};
+use ros_msgs::visualization::{Marker, MarkerArray};
+use slam_filter::OdometrySample;
+
+use super::detections::RotationDetections;
+use super::map::MapSnapshot;
+use super::trajectory::PoseSample;
+
+/// Topic of the radar's rotations.
+pub const TOPIC_BSCAN: &str = "/radar_data/b_scan_msg";
+/// Topic of the radar's configuration.
+pub const TOPIC_RADAR_CONFIGURATION: &str = "/radar_data/configuration_data";
+/// Topic of the odometry the pipeline took.
+pub const TOPIC_ODOMETRY_INPUT: &str = "/odom/twist";
+/// Topic of the estimated pose.
+pub const TOPIC_POSE: &str = "/slam/odometry";
+/// Topic of the transforms.
+pub const TOPIC_TF: &str = "/tf";
+/// Topic of the static transforms.
+pub const TOPIC_TF_STATIC: &str = "/tf_static";
+/// Topic of the map's features.
+pub const TOPIC_MAP: &str = "/slam/map";
+/// Topic of the map's covariance ellipses.
+pub const TOPIC_MAP_COVARIANCE: &str = "/slam/map_covariance";
+/// Topic of each rotation's detections.
+pub const TOPIC_DETECTIONS: &str = "/slam/detections";
+
+/// The world frame.
+pub const MAP_FRAME: &str = "map";
+/// The vehicle's frame.
+pub const BASE_FRAME: &str = "base_link";
+/// The radar's frame.
+pub const RADAR_FRAME: &str = "radar";
+
+/// A B-scan larger than this (from a radar configuration claiming absurd sizes) is not
+/// assembled: the rotation is counted as skipped.
+pub const MAX_BSCAN_BYTES: usize = 64 << 20;
+/// Chi-square 95% quantile with 2 degrees of freedom: the ellipses' scale.
+const CHI2_2DOF_95: f64 = 5.991;
+
+/// One rotation's azimuths being laid out as a B-scan (Navtech's `RadarBScanMsg`).
+#[derive(Debug)]
+pub struct BScan {
+    rotation: u64,
+    geometry: Arc<Geometry>,
+    bytes_per_bin: usize,
+    width: usize,
+    data: Vec<u8>,
+    encoders: Vec<u16>,
+    stamps: Vec<u64>,
+    last_time_s: f64,
+    rows: usize,
+}
+
+impl BScan {
+    /// A B-scan for `az`'s rotation and geometry (nothing pushed yet); `None` when the
+    /// geometry is empty or larger than 64 MiB.
+    pub fn new(az: &Azimuth) -> Option<Self> {
+        let g = &az.geometry;
+        let height = usize::from(g.azimuth_samples);
+        let width = usize::from(g.range_in_bins);
+        let bytes_per_bin = az.width.bytes_per_bin();
+        let size = height.checked_mul(width)?.checked_mul(bytes_per_bin)?;
+        if size == 0 || size > MAX_BSCAN_BYTES {
+            return None;
+        }
+        Some(Self {
+            rotation: az.rotation,
+            geometry: Arc::clone(&az.geometry),
+            bytes_per_bin,
+            width,
+            data: vec![0; size],
+            encoders: vec![0; height],
+            stamps: vec![0; height],
+            last_time_s: az.timestamp_s,
+            rows: 0,
+        })
+    }
+
+    /// Whether `az` belongs to this B-scan (same rotation, width and geometry).
+    pub fn fits(&self, az: &Azimuth) -> bool {
+        az.rotation == self.rotation
+            && az.width.bytes_per_bin() == self.bytes_per_bin
+            && (Arc::ptr_eq(&az.geometry, &self.geometry) || *az.geometry == *self.geometry)
+    }
+
+    /// Lays `az` into its row (by encoder); an encoder outside the geometry is ignored.
+    pub fn push(&mut self, az: &Azimuth) {
+        let Some(row) = self.geometry.azimuth_index(az.encoder).map(usize::from) else {
+            return;
+        };
+        let step = self.width * self.bytes_per_bin;
+        let (Some(dst), Some(enc), Some(stamp)) = (
+            self.data.get_mut(row * step..(row + 1) * step),
+            self.encoders.get_mut(row),
+            self.stamps.get_mut(row),
+        ) else {
+            return;
+        };
+        let n = az.bins.len().min(step);
+        dst[..n].copy_from_slice(&az.bins[..n]);
+        dst[n..].fill(0);
+        *enc = az.encoder;
+        *stamp = secs_to_nanos(az.timestamp_s);
+        self.last_time_s = self.last_time_s.max(az.timestamp_s);
+        self.rows += 1;
+    }
+
+    /// Rows filled so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// The latest azimuth time, seconds.
+    pub fn last_time_s(&self) -> f64 {
+        self.last_time_s
+    }
+
+    /// The radar's rotation rate, Hz.
+    pub fn rotation_hz(&self) -> f64 {
+        self.geometry.rotation_hz
+    }
+
+    /// The message, stamped at the latest azimuth, in the `radar` frame.
+    pub fn into_message(self) -> RadarBScanMsg {
+        let step = self.width * self.bytes_per_bin;
+        RadarBScanMsg {
+            b_scan_img: Image {
+                header: Header::new(Time::from_secs_f64(self.last_time_s), RADAR_FRAME),
+                height: u32::from(self.geometry.azimuth_samples),
+                width: u32::from(self.geometry.range_in_bins),
+                encoding: if self.bytes_per_bin == 2 {
+                    "16UC1".into()
+                } else {
+                    "8UC1".into()
+                },
+                is_bigendian: 0,
+                step: u32::try_from(step).unwrap_or(u32::MAX),
+                data: self.data,
+            },
+            encoder_values: self.encoders,
+            timestamps: self.stamps,
+        }
+    }
+}
+
+/// The yaw rate (rad/s) an odometry sample stands for under `motion`. With the paper's
+/// model the value is chosen among the nearest floats so that [`steer_from_yaw_rate`] gives
+/// the sample's steering back bit for bit (a recording replays to the same trajectory).
+pub fn yaw_rate(motion: &MotionModel, s: &OdometrySample) -> f64 {
+    match *motion {
+        MotionModel::Paper { step_s } if step_s > 0.0 => {
+            let guess = s.steer_rad / step_s;
+            if !guess.is_finite() {
+                return guess;
+            }
+            (0..=8i64)
+                .flat_map(|d| [d, -d])
+                .map(|d| f64::from_bits(guess.to_bits().wrapping_add_signed(d)))
+                .find(|y| y.is_finite() && y * step_s == s.steer_rad)
+                .unwrap_or(guess)
+        }
+        MotionModel::Bicycle { wheelbase_m } if wheelbase_m > 0.0 => {
+            s.speed_mps * s.steer_rad.tan() / wheelbase_m
+        }
+        _ => 0.0,
+    }
+}
+
+/// The steering input a yaw rate stands for under `motion` (the inverse of [`yaw_rate`]):
+/// `yaw_rate * step_s` for the paper's model, `atan(yaw_rate * wheelbase / speed)` for the
+/// bicycle (0 when the speed is below 1 mm/s).
+pub fn steer_from_yaw_rate(motion: &MotionModel, speed_mps: f64, yaw_rate_rps: f64) -> f64 {
+    match *motion {
+        MotionModel::Paper { step_s } => yaw_rate_rps * step_s,
+        MotionModel::Bicycle { wheelbase_m } => {
+            if speed_mps.abs() < 1e-3 {
+                0.0
+            } else {
+                (yaw_rate_rps * wheelbase_m / speed_mps).atan()
+            }
+        }
+    }
+}
+
+/// The pose's 3x3 covariance over (x, y, theta) placed in ROS's 6x6 over (x, y, z, roll,
+/// pitch, yaw); the plane's other three are left 0.
+fn covariance6(c: &[[f64; 3]; 3]) -> [f64; 36] {
+    let mut out = [0.0; 36];
+    let at = [0usize, 1, 5];
+    for (r, row) in c.iter().enumerate() {
+        for (k, v) in row.iter().enumerate() {
+            out[at[r] * 6 + at[k]] = *v;
+        }
+    }
+    out
+}
+
+/// Semi-axes (1 sigma) and the major axis's angle of a 2x2 covariance.
+fn ellipse(c: &[[f64; 4]; 4]) -> (f64, f64, f64) {
+    let (a, b, d) = (c[0][0], c[0][1], c[1][1]);
+    let mean = 0.5 * (a + d);
+    let diff = (0.25 * (a - d) * (a - d) + b * b).sqrt();
+    let major = (mean + diff).max(0.0).sqrt();
+    let minor = (mean - diff).max(0.0).sqrt();
+    let angle = 0.5 * (2.0 * b).atan2(a - d);
+    (major, minor, angle)
+}
+
+/// The twist an odometry sample stands for: speed along x, yaw rate about z.
+pub fn twist(motion: &MotionModel, s: &OdometrySample) -> Twist {
+    Twist {
+        linear: Vector3 {
+            x: s.speed_mps,
+            y: 0.0,
+            z: 0.0,
+        },
+        angular: Vector3 {
+            x: 0.0,
+            y: 0.0,
+            z: yaw_rate(motion, s),
+        },
+    }
+}
+
+/// `/odom/twist`: one odometry sample, in `base_link`.
+pub fn odometry_input(motion: &MotionModel, s: &OdometrySample) -> TwistStamped {
+    TwistStamped {
+        header: Header::new(Time::from_secs_f64(s.timestamp_s), BASE_FRAME),
+        twist: twist(motion, s),
+    }
+}
+
+/// `/radar_data/configuration_data` for `az`'s geometry, as Navtech's driver fills it.
+pub fn radar_configuration(az: &Azimuth) -> RadarConfigurationMsg {
+    let g = &az.geometry;
+    RadarConfigurationMsg {
+        header: Header::new(Time::from_secs_f64(az.timestamp_s), RADAR_FRAME),
+        azimuth_samples: g.azimuth_samples,
+        encoder_size: g.encoder_size,
+        azimuth_offset: 0,
+        // As Navtech's driver fills it: the wire's tenths of a millimetre.
+        bin_size: (g.bin_size_m * 1e4).round() as f32,
+        range_in_bins: g.range_in_bins,
+        expected_rotation_rate: (g.rotation_hz * 1000.0).round().clamp(0.0, 65535.0) as u16,
+        range_gain: g.range_gain as f32,
+        range_offset: g.range_offset_m as f32,
+    }
+}
+
+/// `/radar_data/fft_data`: one azimuth as Navtech's ROS 2 driver publishes it (angle in
+/// degrees from the encoder, the radar's time split into seconds and nanoseconds, the bins
+/// as received).
+pub fn fft_data(az: &Azimuth) -> RadarFftDataMsg {
+    let ns = secs_to_nanos(az.timestamp_s);
+    let encoder_size = f64::from(az.geometry.encoder_size.max(1));
+    RadarFftDataMsg {
+        header: Header::new(Time::from_nanos(ns), RADAR_FRAME),
+        angle: f64::from(az.encoder) * 360.0 / encoder_size,
+        azimuth: az.encoder,
+        sweep_counter: az.sweep_counter,
+        ntp_seconds: u32::try_from(ns / 1_000_000_000).unwrap_or(u32::MAX),
+        ntp_split_seconds: (ns % 1_000_000_000) as u32,
+        data: az.bins.to_vec(),
+        data_length: u16::try_from(az.bins.len()).unwrap_or(u16::MAX),
+    }
+}
+
+/// `/tf_static`: `base_link` to `radar`, identity (the radar at the vehicle's origin).
+pub fn tf_static(stamp: Time) -> TFMessage {
+    TFMessage {
+        transforms: vec![TransformStamped {
+            header: Header::new(stamp, BASE_FRAME),
+            child_frame_id: RADAR_FRAME.into(),
+            transform: Transform::default(),
+        }],
+    }
+}
+
+/// `/slam/odometry` and `/tf` for one pose: the pose with its covariance in `map`, the
+/// twist the odometry input in force (`input`; covariance 0), and `map` to `base_link`.
+pub fn pose_messages(
+    p: &PoseSample,
+    input: Option<&OdometrySample>,
+    motion: &MotionModel,
+) -> (Odometry, TFMessage) {
+    let stamp = Time::from_secs_f64(p.timestamp_s);
+    let pose = Pose {
+        position: Point {
+            x: p.x_m,
+            y: p.y_m,
+            z: 0.0,
+        },
+        orientation: Quaternion::from_yaw(p.theta_rad),
+    };
+    let odometry = Odometry {
+        header: Header::new(stamp, MAP_FRAME),
+        child_frame_id: BASE_FRAME.into(),
+        pose: PoseWithCovariance {
+            pose,
+            covariance: covariance6(&p.covariance),
+        },
+        twist: TwistWithCovariance {
+            twist: input.map_or(Twist::default(), |s| twist(motion, s)),
+            covariance: [0.0; 36],
+        },
+    };
+    let tf = TFMessage {
+        transforms: vec![TransformStamped {
+            header: Header::new(stamp, MAP_FRAME),
+            child_frame_id: BASE_FRAME.into(),
+            transform: Transform {
+                translation: Vector3 {
+                    x: p.x_m,
+                    y: p.y_m,
+                    z: 0.0,
+                },
+                rotation: pose.orientation,
+            },
+        }],
+    };
+    (odometry, tf)
+}
+
+/// `/slam/map` and `/slam/map_covariance` for one snapshot: the features as float32 `x, y,
+/// z, reflectivity, absorption` in `map`; a `DELETEALL` then a flat cylinder per feature,
+/// its 95% position ellipse, coloured by rho and alpha.
+pub fn map_messages(m: &MapSnapshot) -> (PointCloud2, MarkerArray) {
+    let stamp = Time::from_secs_f64(m.timestamp_s);
+    let points: Vec<Vec<f32>> = m
+        .features
+        .iter()
+        .map(|f| {
+            vec![
+                f.x_m as f32,
+                f.y_m as f32,
+                0.0,
+                f.rho as f32,
+                f.alpha as f32,
+            ]
+        })
+        .collect();
+    let cloud = PointCloud2::from_f32_points(
+        Header::new(stamp, MAP_FRAME),
+        &["x", "y", "z", "reflectivity", "absorption"],
+        &points,
+    );
+    let header = Header::new(stamp, MAP_FRAME);
+    let mut markers = Vec::with_capacity(m.features.len() + 1);
+    markers.push(Marker {
+        header: header.clone(),
+        ns: "covariance".into(),
+        action: Marker::DELETEALL,
+        ..Marker::default()
+    });
+    let k = CHI2_2DOF_95.sqrt();
+    for f in &m.features {
+        let (major, minor, angle) = ellipse(&f.covariance);
+        markers.push(Marker {
+            header: header.clone(),
+            ns: "covariance".into(),
+            id: i32::try_from(f.id).unwrap_or(i32::MAX),
+            type_: Marker::CYLINDER,
+            action: Marker::ADD,
+            pose: Pose {
+                position: Point {
+                    x: f.x_m,
+                    y: f.y_m,
+                    z: 0.0,
+                },
+                orientation: Quaternion::from_yaw(angle),
+            },
+            scale: Vector3 {
+                x: (2.0 * k * major).max(1e-3),
+                y: (2.0 * k * minor).max(1e-3),
+                z: 0.05,
+            },
+            color: ColorRGBA {
+                r: f.rho.clamp(0.0, 1.0) as f32,
+                g: f.alpha.clamp(0.0, 1.0) as f32,
+                b: 0.3,
+                a: 0.6,
+            },
+            ..Marker::default()
+        });
+    }
+    (cloud, MarkerArray { markers })
+}
+
+/// `/slam/detections`: float32 `x, y, z, power_db` in `radar` (x forward, y left), stamped
+/// at the rotation's end.
+pub fn detections_message(d: &RotationDetections) -> PointCloud2 {
+    let points: Vec<Vec<f32>> = d
+        .detections
+        .iter()
+        .map(|t| {
+            let (x, y) = t.xy_ros();
+            vec![x as f32, y as f32, 0.0, t.power_db as f32]
+        })
+        .collect();
+    PointCloud2::from_f32_points(
+        Header::new(Time::from_secs_f64(d.timestamp_s), RADAR_FRAME),
+        &["x", "y", "z", "power_db"],
+        &points,
+    )
+}
