@@ -18,10 +18,10 @@
 //!   street the walls, fences and cars kept out of the map) is background: its mean in dB
 //!   is the prediction's unbiased level, and three of its standard deviations the bound
 //!   (the paper's 99 % bound is three standard deviations of what the map does not
-//!   predict). On the Oxford scans the floor alone (the mean of the samples below `median
-//!   + 3 sigma`, bound three robust sigma, blind to the clutter tail by design) put 5.8 % of
-//!   the compared bins outside its bound with a bias of -2.6 dB; the background, 2.6 % and
-//!   -1.5 dB, with a wider bound (10.6-43.1 dB against 4.8-27.5).
+//!   predict). On the Oxford scans the floor alone (the mean of the samples below the
+//!   median plus 3 robust sigma, bound three robust sigma, blind to the clutter tail by
+//!   design) put 5.8 % of the compared bins outside its bound with a bias of -2.6 dB; the
+//!   background, 2.6 % and -1.5 dB, with a wider bound (10.6-43.1 dB against 4.8-27.5).
 //! - **Gain** ([`GainLearner`]): the receiver's range compensation, as the slope in dB per
 //!   decade that makes the measured peak powers of detected targets fit the radar equation's
 //!   `-40 log10 R`: the median measured peak power per tenth of a decade of range, a
