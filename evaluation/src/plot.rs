@@ -194,3 +194,101 @@ pub fn scatter_chart(
     root.present().map_err(|e| plot_err(path, e))?;
     Ok(())
 }
+
+/// Mapped features of one run: positions and their 2x2 position covariances.
+#[derive(Debug, Clone)]
+pub struct FeatureSet {
+    /// Legend text.
+    pub name: String,
+    /// `(x, y, [[c_xx, c_xy], [c_xy, c_yy]])`.
+    pub features: Vec<(f64, f64, [[f64; 2]; 2])>,
+}
+
+/// The 3-sigma ellipse of a 2x2 covariance around `(x, y)`, as a closed polyline.
+fn ellipse(x: f64, y: f64, c: [[f64; 2]; 2]) -> Vec<(f64, f64)> {
+    let (a, b, d) = (c[0][0], c[0][1], c[1][1]);
+    let mean = 0.5 * (a + d);
+    let r = (0.25 * (a - d) * (a - d) + b * b).sqrt();
+    let (l1, l2) = ((mean + r).max(0.0), (mean - r).max(0.0));
+    let angle = 0.5 * (2.0 * b).atan2(a - d);
+    let (s1, s2) = (3.0 * l1.sqrt(), 3.0 * l2.sqrt());
+    (0..=36)
+        .map(|k| {
+            let t = std::f64::consts::TAU * k as f64 / 36.0;
+            let (u, v) = (s1 * t.cos(), s2 * t.sin());
+            (
+                x + u * angle.cos() - v * angle.sin(),
+                y + u * angle.sin() + v * angle.cos(),
+            )
+        })
+        .collect()
+}
+
+/// Draws a map: `paths` as lines and each set's features as dots with their 3-sigma
+/// ellipses, one metre the same length on both axes.
+pub fn map_chart(
+    path: &Path,
+    labels: Labels<'_>,
+    paths: &[Series],
+    sets: &[FeatureSet],
+) -> Result<(), EvalError> {
+    let all = || {
+        paths.iter().flat_map(|s| s.points.iter().copied()).chain(
+            sets.iter()
+                .flat_map(|s| s.features.iter().map(|f| (f.0, f.1))),
+        )
+    };
+    let (mut x0, mut x1) = padded(extent(all().map(|p| p.0)).unwrap_or((0.0, 1.0)));
+    let (mut y0, mut y1) = padded(extent(all().map(|p| p.1)).unwrap_or((0.0, 1.0)));
+    // Equal scale: the plotting area is about 828 x 520 pixels of 900 x 620.
+    let (w, h) = (828.0, 520.0);
+    let scale = ((x1 - x0) / w).max((y1 - y0) / h);
+    let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+    (x0, x1) = (cx - 0.5 * w * scale, cx + 0.5 * w * scale);
+    (y0, y1) = (cy - 0.5 * h * scale, cy + 0.5 * h * scale);
+    let root = SVGBackend::new(path, (900, 620)).into_drawing_area();
+    let mut chart = axes(&root, path, labels, (x0, x1), (y0, y1))?;
+    for (k, s) in paths.iter().enumerate() {
+        let color = PALETTE[k % PALETTE.len()];
+        let pts: Vec<(f64, f64)> = s
+            .points
+            .iter()
+            .copied()
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .collect();
+        chart
+            .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+            .map_err(|e| plot_err(path, e))?
+            .label(s.name.as_str())
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
+    }
+    for (k, s) in sets.iter().enumerate() {
+        let color = PALETTE[(paths.len() + k) % PALETTE.len()];
+        let finite = s
+            .features
+            .iter()
+            .filter(|f| f.0.is_finite() && f.1.is_finite());
+        chart
+            .draw_series(
+                finite
+                    .clone()
+                    .map(|f| PathElement::new(ellipse(f.0, f.1, f.2), color.stroke_width(1))),
+            )
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .draw_series(finite.map(|f| Circle::new((f.0, f.1), 3, color.filled())))
+            .map_err(|e| plot_err(path, e))?
+            .label(s.name.as_str())
+            .legend(move |(x, y)| Circle::new((x + 9, y), 3, color.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    root.present().map_err(|e| plot_err(path, e))?;
+    Ok(())
+}

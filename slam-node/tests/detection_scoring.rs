@@ -10,7 +10,8 @@
 mod support;
 
 use slam_node::detect::{
-    BeamDetector, DetectionDomain, DetectorKind, DetectorSettings, FloorProfile, RangeAxis,
+    BeamDetector, DetectionDomain, DetectorKind, DetectorSettings, FloorProfile, LearnedFloor,
+    LineDetector, LinePeak, LineSettings, RangeAxis,
 };
 use support::{SimRadar, TrueTarget};
 
@@ -141,6 +142,97 @@ fn run(scene_name: &str, settings: DetectorSettings, rotations: u64, seed: u64) 
     Run {
         score,
         rotations: rotations.saturating_sub(3),
+    }
+}
+
+/// As [`run`] for the learned front end (`detect::learned` and `detect::line`): the wire's
+/// bins as the driver delivers them (8-bit, or 16-bit brought to the 8-bit scale as the
+/// daemon does), the floor learned from the stream, detection at line rate.
+fn run_learned(scene_name: &str, settings: DetectorSettings, rotations: u64, seed: u64) -> Run {
+    let scene = sim_sensor::scene::shipped::load(scene_name).expect("shipped scene");
+    let horizon_s = rotations as f64 / scene.radar.rotation_hz() + 2.0;
+    let mut radar = SimRadar::new(&scene, Some(seed), horizon_s, 0);
+    let g = *radar.spectrum.geometry();
+    let axis = RangeAxis {
+        first_bin_m: g.range_offset_m,
+        bin_m: g.bin_size_m,
+    };
+    let line = LineSettings {
+        merge_gap_bins: settings.peaks.merge_gap_bins,
+        max_peaks: settings.peaks.max_peaks,
+        min_range_m: settings.min_range_m,
+        max_range_m: settings.max_range_m,
+    };
+    let mut floor = LearnedFloor::new(settings.floor, g.bins);
+    let mut detector = LineDetector::new();
+    let mut peaks: Vec<LinePeak> = Vec::new();
+    let n_az = radar.azimuths();
+    let (mut truth, mut eight) = (Vec::<TrueTarget>::new(), Vec::<u8>::new());
+    let mut score = DetectionScore::default();
+    for k in 0..rotations {
+        for i in 0..n_az {
+            let index = k * n_az + i;
+            let az = radar.azimuth(index);
+            eight.clear();
+            match az.width {
+                protocol::BinWidth::Eight => eight.extend_from_slice(&az.bins),
+                protocol::BinWidth::Sixteen => {
+                    eight.extend(az.bins_db().map(protocol::db_to_bin8));
+                }
+            }
+            detector.detect(&eight, &mut floor, &axis, &line, &mut peaks);
+            let ranges: Vec<f64> = peaks.iter().map(|p| axis.range_m(p.bin)).collect();
+            if k >= 3 {
+                radar.true_targets(index, &mut truth);
+                score.score_beam(&truth, &ranges, TOL_M, MIN_SNR_DB);
+            }
+        }
+    }
+    Run {
+        score,
+        rotations: rotations.saturating_sub(3),
+    }
+}
+
+#[test]
+#[ignore = "measurement (about a minute in release): cargo test --release -p slam-node --test detection_scoring learned -- --ignored --nocapture"]
+fn the_learned_detector_is_scored_against_tpp_on_the_cts350x_preset_and_the_paper_unit() {
+    println!(
+        "{:<14} {:<8} {:>9} {:>8} {:>8} {:>10} {:>12}",
+        "scene", "detector", "thr_dB", "targets", "Pd", "FA/rot", "multi-beam"
+    );
+    for scene in ["long-loop", "outdoor-field"] {
+        let tpp = run(scene, DetectorSettings::default(), 8, 7);
+        println!(
+            "{:<14} {:<8} {:>9} {:>8} {:>8.3} {:>10.2} {:>7}/{:<5}",
+            scene,
+            "Tpp",
+            "default",
+            tpp.score.targets,
+            tpp.score.pd(),
+            tpp.fa_per_rotation(),
+            tpp.score.multi_target_complete,
+            tpp.score.multi_target_beams
+        );
+        for thr in THRESHOLDS_DB {
+            let mut s = DetectorSettings {
+                kind: DetectorKind::Learned,
+                ..DetectorSettings::default()
+            };
+            s.floor.min_snr_db = thr;
+            let r = run_learned(scene, s, 8, 7);
+            println!(
+                "{:<14} {:<8} {:>9.1} {:>8} {:>8.3} {:>10.2} {:>7}/{:<5}",
+                scene,
+                "Learned",
+                thr,
+                r.score.targets,
+                r.score.pd(),
+                r.fa_per_rotation(),
+                r.score.multi_target_complete,
+                r.score.multi_target_beams
+            );
+        }
     }
 }
 

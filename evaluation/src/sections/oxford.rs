@@ -21,9 +21,11 @@ use radar_model::spectrum::SpectrumGeometry;
 use sim_sensor::replay::png::read_polar_png;
 use sim_sensor::replay::truth::{chain_poses, read_oxford_odometry};
 use slam_node::daemon::replay::{recorded_settings, OdometryErrors, RecordedTruth};
+use slam_node::output::OutputEvent;
 use slam_node::pipeline::Pipeline;
 
 use crate::error::EvalError;
+use crate::plot::{map_chart, FeatureSet, Labels, Series};
 use crate::report::{num, pct, table, Options, Section};
 use crate::scan::{Row, Scan};
 use crate::sections::spectra::{cells, comparison_header, from_previous_scan};
@@ -110,6 +112,10 @@ pub struct TrackResult {
     pub beams: (u64, u64),
     /// Targets offered.
     pub targets: u64,
+    /// The filter's position at each scan's time.
+    pub path: Vec<(f64, f64)>,
+    /// The map at the end: each feature's position and position covariance.
+    pub map: Vec<(f64, f64, [[f64; 2]; 2])>,
 }
 
 /// Runs the daemon's own pipeline (front end, odometry gate, filter) over the scans, with
@@ -159,6 +165,7 @@ pub fn track(
             return;
         };
         if let Some(e) = pipeline.predicted_pose(time) {
+            result.path.push((e.x, e.y));
             result.per_scan.push((
                 (e.x - t.x).hypot(e.y - t.y),
                 dead_reckoning.get(k).copied().unwrap_or(f64::NAN),
@@ -210,6 +217,19 @@ pub fn track(
     }
     let summary = pipeline.finish(&mut events);
     result.features = pipeline.ekf().feature_count();
+    if let Some(map) = events.iter().rev().find_map(|e| match e {
+        OutputEvent::Map(m) => Some(m),
+        _ => None,
+    }) {
+        result.map = map
+            .features
+            .iter()
+            .map(|f| {
+                let c = f.covariance;
+                (f.x_m, f.y_m, [[c[0][0], c[0][1]], [c[1][0], c[1][1]]])
+            })
+            .collect();
+    }
     result.beams = (
         summary.beams,
         summary.filter_errors + summary.refused.no_odometry + summary.refused.stale_odometry,
@@ -322,6 +342,11 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
          transport; dead reckoning integrates the same odometry without the radar:\n"
     );
     let mut track_rows = Vec::new();
+    let mut paths = vec![Series {
+        name: "ground truth".into(),
+        points: truth.iter().map(|p| (p.x, p.y)).collect(),
+    }];
+    let mut sets = Vec::new();
     let cases = [
         ("exact", 1.0, 0.0),
         ("speed +5 %, yaw rate +0.02 rad/s", 1.05, 0.02),
@@ -359,6 +384,14 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
             .copied()
             .unwrap_or((f64::NAN, f64::NAN, f64::NAN));
         let filt: Vec<String> = r.per_scan.iter().map(|p| format!("{:.2}", p.0)).collect();
+        paths.push(Series {
+            name: format!("filter, odometry {name}"),
+            points: r.path.clone(),
+        });
+        sets.push(FeatureSet {
+            name: format!("{} features, odometry {name}", r.map.len()),
+            features: r.map.clone(),
+        });
         track_rows.push(vec![
             name.to_string(),
             filt.join(" "),
@@ -383,6 +416,29 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
         ],
         &track_rows,
     ));
+    if !sets.is_empty() {
+        let fig = "oxford_map.svg";
+        map_chart(
+            &opts.out_dir.join(fig),
+            Labels {
+                title: "real scans: the filter's path and map (3-sigma ellipses)",
+                x: "x (m), the first scan's frame",
+                y: "y (m)",
+            },
+            &paths,
+            &sets,
+        )?;
+        let _ = writeln!(
+            body,
+            "\n![the filter's path and map on the real scans]({fig})\n\nThe map: the \
+             features in the state at the end of each run, with their 3-sigma position \
+             ellipses, over the ground-truth path and the filter's position at each scan's \
+             time (`{}`). The scans' Cartesian image is made by `cargo run --release -p \
+             sim-sensor --example realism` and not committed (it is the licensed data \
+             itself).",
+            opts.command
+        );
+    }
     let _ = writeln!(
         body,
         "\nEight scans span {:.2} s and {:.1} m: far too short to show loop-scale drift; \

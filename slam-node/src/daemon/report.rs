@@ -136,7 +136,7 @@ pub fn summary_text(r: &DaemonReport) -> String {
         );
     }
     let bound = match s.spectrum_bound_db {
-        Some((lo, hi)) => format!("the learned floor's 3-sigma bound ({lo:.1}-{hi:.1} dB)"),
+        Some((lo, hi)) => format!("the learned background's 3-sigma bound ({lo:.1}-{hi:.1} dB)"),
         None => "+-16.35 dB".to_string(),
     };
     match (s.spectrum.in_bound_fraction(), s.spectrum.bias_db()) {

@@ -77,7 +77,7 @@ impl LineDetector {
     ) {
         out.clear();
         smooth3(bins, &mut self.smoothed);
-        floor.offer(&self.smoothed);
+        floor.offer(&self.smoothed, bins);
         if !floor.is_ready() {
             return;
         }

@@ -146,7 +146,8 @@ struct Learned {
     gain_db: Vec<f64>,
     /// 16-bit bins brought to the 8-bit scale.
     eight: Vec<u8>,
-    /// Three sigma of the learned floor per bin: the spectrum comparison's bound.
+    /// Three standard deviations of the learned background per bin: the spectrum
+    /// comparison's bound.
     bound_db: Vec<f64>,
     /// Floor refreshes seen (the spectrum model follows them).
     refreshes: u64,
@@ -534,10 +535,14 @@ fn detect_learned(
             |b| axis.range_m(b as f64),
             &mut learned.gain_db,
         );
-        for (b, s) in learned.bound_db.iter_mut().zip(learned.floor.sigma_db()) {
+        for (b, s) in learned
+            .bound_db
+            .iter_mut()
+            .zip(learned.floor.background_sigma_db())
+        {
             *b = 3.0 * s;
         }
-        if let Err(e) = spectrum.set_tables(&learned.gain_db, learned.floor.level_db()) {
+        if let Err(e) = spectrum.set_tables(&learned.gain_db, learned.floor.background_db()) {
             tracing::warn!(error = %e, "the learned floor and gain were refused by the spectrum model");
         }
     }
