@@ -85,7 +85,7 @@ impl RawSubmaps {
 
     pub(crate) fn check(&self, c: &mut Checker) -> SubmapSettings {
         let min_matches = c.check("submaps.min_matches", Capacity::new(self.min_matches, 1000));
-        if min_matches.get() < 3 {
+        if (1..3).contains(&self.min_matches) {
             c.fail(
                 "submaps.min_matches",
                 crate::values::ValueError::Rule("must be at least 3".into()),

@@ -153,11 +153,23 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[output.zenoh]\nnamespace = \"/robot1\"", "output.zenoh.namespace", "no leading or trailing slash"),
     ("[output.zenoh]\nnamespace = \"robot/*\"", "output.zenoh.namespace", "no wildcards"),
     ("[output.zenoh]\nqueue = 0", "output.zenoh.queue", "must be in [1, 4096], got 0"),
+    // [submaps]
+    ("[submaps]\nmax_distance_m = 0.0", "submaps.max_distance_m", "got 0"),
+    ("[submaps]\nmax_distance_m = -5.0", "submaps.max_distance_m", "got -5"),
+    ("[submaps]\nmax_features = 0", "submaps.max_features", "must be in [1, 5000], got 0"),
+    ("[submaps]\nmax_features = 5001", "submaps.max_features", "must be in [1, 5000], got 5001"),
+    ("[submaps]\nmin_matches = 2", "submaps.min_matches", "must be at least 3"),
+    ("[submaps]\nmin_matches = 0", "submaps.min_matches", "must be in [1, 1000], got 0"),
+    ("[submaps]\nmax_rival_ratio = 1.0", "submaps.max_rival_ratio", "got 1"),
+    ("[submaps]\nmax_rival_ratio = 0.0", "submaps.max_rival_ratio", "got 0"),
+    ("[submaps]\nsearch_sigmas = 0.0", "submaps.search_sigmas", "got 0"),
 ];
 
 /// Keys whose every parseable value is valid (booleans and choices; a misspelt choice is a
 /// parse error, tested in `unknown_keys.rs`).
 const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
+    "submaps.enabled",
+    "submaps.loop_closure",
     "radar.tcp_nodelay",
     "radar.non_contoured",
     "radar.drop_policy",
