@@ -7,6 +7,7 @@
 //! tentative list, initialising the ones it confirms.
 
 mod init;
+mod relocalise;
 
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3};
 use radar_model::geometry::{range_bearing, Pose2};
@@ -28,6 +29,7 @@ use super::settings::FilterSettings;
 use super::state::{FeatureId, FeatureParams, SlamState};
 use super::submap::FrozenSubmap;
 use super::update::{batched_update, LinearisedObservation, UpdateOutcome};
+use relocalise::Relocalisation;
 
 /// A feature as reported: position, material shares (not the logits), uncertainty.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -94,6 +96,48 @@ pub struct FilterStats {
     pub excluded_targets: u64,
     /// Odometry gaps bridged by re-initialising the pose covariance.
     pub bridged_gaps: u64,
+    /// Relocalisations accepted after a gap (see [`FilterSettings::relocalise_after_gap`]).
+    pub relocalisations: u64,
+    /// Turns held and tried for a relocalisation (accepted or not).
+    pub relocalisation_attempts: u64,
+    /// Relocalisations given up after [`FilterSettings::relocalise_give_up_s`].
+    pub relocalisations_abandoned: u64,
+    /// Beams whose targets were kept from starting features because the target rate was a
+    /// burst (see [`FilterSettings::burst_factor`]).
+    pub burst_beams: u64,
+}
+
+/// The short and learned rates of targets per second (see
+/// [`FilterSettings::burst_factor`]): exponentially decayed target counts and elapsed times.
+#[derive(Debug, Clone, Copy, Default)]
+struct TargetRate {
+    short_count: f64,
+    long_count: f64,
+    long_time_s: f64,
+    last_s: Option<f64>,
+}
+
+impl TargetRate {
+    /// Counts a beam's `targets` at `time_s`; returns whether the rate is now a burst.
+    fn is_burst(&mut self, s: &FilterSettings, time_s: f64, targets: usize) -> bool {
+        let dt = match self.last_s {
+            Some(last) if time_s >= last => time_s - last,
+            // A step back in time (a resynchronised clock): count from here.
+            _ => 0.0,
+        };
+        self.last_s = Some(time_s);
+        let n = targets as f64;
+        self.short_count = self.short_count * (-dt / s.burst_window_s).exp() + n;
+        let decay = (-dt / s.burst_norm_s).exp();
+        self.long_count = self.long_count * decay + n;
+        self.long_time_s = self.long_time_s * decay + dt;
+        if !s.burst_factor.is_finite() || self.long_time_s < s.burst_norm_s.min(2.0) {
+            return false;
+        }
+        let short = self.short_count / s.burst_window_s;
+        let norm = self.long_count / self.long_time_s;
+        short > s.burst_factor * norm + s.burst_floor_per_s
+    }
 }
 
 /// A beam's prediction (step 2) and what the association and update need with it.
@@ -125,6 +169,10 @@ pub struct Ekf<M, O> {
     odometry: Option<OdometrySample>,
     tentatives: TentativeList,
     stats: FilterStats,
+    /// Set after a bridged gap until the pose is relocalised against the map.
+    relocalising: Option<Relocalisation>,
+    /// Targets per second, for the burst guard.
+    target_rate: TargetRate,
 }
 
 impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
@@ -160,6 +208,8 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             odometry: None,
             tentatives: TentativeList::default(),
             stats: FilterStats::default(),
+            relocalising: None,
+            target_rate: TargetRate::default(),
         })
     }
 
@@ -320,6 +370,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         self.inflate_for_gap(time_s - self.state.time_s());
         self.state.set_time_s(time_s);
         self.stats.bridged_gaps += 1;
+        self.start_relocalising();
     }
 
     /// Grows the pose covariance by what the vehicle could do in `gap_s` of unknown motion.
@@ -351,6 +402,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         self.stats.bridged_gaps += 1;
         self.odometry = None;
         self.tentatives = TentativeList::default();
+        self.start_relocalising();
         Ok(())
     }
 
@@ -383,7 +435,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         in_view: impl Fn(f64, f64) -> bool,
     ) -> Result<Vec<FeatureId>, FilterError> {
         let limit = self.settings.retire_unseen_after_s;
-        if limit <= 0.0 {
+        if limit <= 0.0 || self.relocalising.is_some() {
             return Ok(Vec::new());
         }
         let now = self.state.time_s();
@@ -494,6 +546,12 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         may_start: Option<&[bool]>,
     ) -> Result<BeamReport, FilterError> {
         self.check_beam(beam)?;
+        let burst = self
+            .target_rate
+            .is_burst(&self.settings, beam.timestamp_s, beam.targets.len());
+        if self.relocalising.is_some() {
+            return self.relocalise_beam(beam);
+        }
         if beam.targets.is_empty() && self.settings.defer_empty_beams {
             return self.empty_beam(beam);
         }
@@ -524,6 +582,13 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         // 6. Augmentation (of the targets allowed to start features).
         if let Some(mask) = may_start {
             unclaimed.retain(|&j| mask.get(j).copied().unwrap_or(true));
+        }
+        if burst {
+            // A burst: the targets may re-observe (above) but start nothing.
+            if !unclaimed.is_empty() {
+                self.stats.burst_beams += 1;
+            }
+            unclaimed.clear();
         }
         self.handle_unclaimed(beam, &unclaimed, &mut report)?;
         self.tentatives

@@ -70,6 +70,52 @@ pub struct FilterSettings {
     pub gap_yaw_rate_rps: f64,
     /// See [`Self::gap_speed_mps`] (m).
     pub gap_max_sigma_m: f64,
+    /// After a bridged gap or a clock resynchronisation the pose is known only to the
+    /// inflated covariance, and one beam's nearest neighbour inside such wide gates is as
+    /// likely another feature, or clutter, as the right one: a single wrong pairing then
+    /// drags the pose metres away, and every later beam follows it. So the filter
+    /// *relocalises* first: it holds a rotation's targets (no update, no new features, no
+    /// misses), looks for the rigid correction that puts at least
+    /// `relocalise_min_features` distinct mapped features under them jointly, refuses it
+    /// when a distinct correction explains nearly as many (see
+    /// [`Self::relocalise_rival_share`]: a repetitive map), and applies the accepted
+    /// pairings as one iterated update. False switches it off (each beam is associated
+    /// under the inflated covariance, as before).
+    pub relocalise_after_gap: bool,
+    /// See [`Self::relocalise_after_gap`]: distinct features that must agree. A map with
+    /// fewer features is not relocalised against (there is nothing to check a pairing by).
+    pub relocalise_min_features: usize,
+    /// See [`Self::relocalise_after_gap`]: a correction is refused when a rival (one that
+    /// shares fewer than half of its pairings with it) explains at least this share of its
+    /// features.
+    pub relocalise_rival_share: f64,
+    /// See [`Self::relocalise_after_gap`]: rigid corrections tried per rotation (each from
+    /// two targets paired with two features at the same distance apart), at most.
+    pub relocalise_max_hypotheses: usize,
+    /// See [`Self::relocalise_after_gap`]: targets held for one attempt, at most (the
+    /// strongest are kept).
+    pub relocalise_max_targets: usize,
+    /// See [`Self::relocalise_after_gap`]: after this long without an accepted correction
+    /// (s) the filter stops relocalising and associates beam by beam again (counted in
+    /// [`crate::FilterStats::relocalisations_abandoned`]): the vehicle may have driven out
+    /// of the mapped area during the gap, and refusing to map for ever is a dead state.
+    pub relocalise_give_up_s: f64,
+    /// A burst of detections (interference, a noisy receiver, spray) must not flood the map:
+    /// the filter keeps two exponentially weighted rates of targets per second, a short one
+    /// (time constant `burst_window_s`) and the learned norm (time constant `burst_norm_s`,
+    /// bias-corrected so that it is the plain mean early on). While the short rate is above
+    /// `burst_factor` times the norm plus `burst_floor_per_s`, the beams' targets may
+    /// re-observe mapped features but start (or confirm) none. The norm keeps learning, so
+    /// a lasting change of scene (a street after a field) is accepted within about a norm
+    /// time constant. Infinity switches the guard off.
+    pub burst_factor: f64,
+    /// See [`Self::burst_factor`] (targets per second).
+    pub burst_floor_per_s: f64,
+    /// See [`Self::burst_factor`] (s).
+    pub burst_window_s: f64,
+    /// See [`Self::burst_factor`] (s). The guard waits for this long, or 2 s if shorter, of
+    /// beams before it judges a rate.
+    pub burst_norm_s: f64,
     /// Probability mass inside the association gate (for example 0.95 or 0.99).
     pub gate_probability: f64,
     /// Probability mass of the wider exclusion gate: an unpaired target inside some feature's
@@ -156,6 +202,16 @@ impl Default for FilterSettings {
             gap_speed_mps: 2.0,
             gap_yaw_rate_rps: 0.2,
             gap_max_sigma_m: 100.0,
+            relocalise_after_gap: true,
+            relocalise_min_features: 3,
+            relocalise_rival_share: 0.75,
+            relocalise_max_hypotheses: 50_000,
+            relocalise_max_targets: 2_000,
+            relocalise_give_up_s: 30.0,
+            burst_factor: 4.0,
+            burst_floor_per_s: 250.0,
+            burst_window_s: 0.1,
+            burst_norm_s: 60.0,
             gate_probability: 0.99,
             exclusion_probability: 0.9999,
             jcbb_max_nodes: 5_000,
@@ -234,6 +290,22 @@ pub enum SettingsError {
         /// The limit.
         max: usize,
     },
+    /// The value must be at least 1 (infinity allowed).
+    #[error("{name} must be >= 1, got {value}")]
+    BelowOne {
+        /// Field name.
+        name: &'static str,
+        /// Offending value.
+        value: f64,
+    },
+    /// A count below its minimum.
+    #[error("{name} must be at least {min}")]
+    TooSmall {
+        /// Field name.
+        name: &'static str,
+        /// The minimum.
+        min: usize,
+    },
     /// The value must not be NaN (infinities are allowed where documented).
     #[error("{name} must not be NaN")]
     NaN {
@@ -291,6 +363,25 @@ impl FilterSettings {
         positive("gap_speed_mps", self.gap_speed_mps)?;
         positive("gap_yaw_rate_rps", self.gap_yaw_rate_rps)?;
         positive("gap_max_sigma_m", self.gap_max_sigma_m)?;
+        if self.relocalise_min_features < 2 {
+            return Err(SettingsError::TooSmall {
+                name: "relocalise_min_features",
+                min: 2,
+            });
+        }
+        probability("relocalise_rival_share", self.relocalise_rival_share)?;
+        count("relocalise_max_hypotheses", self.relocalise_max_hypotheses)?;
+        count("relocalise_max_targets", self.relocalise_max_targets)?;
+        positive("relocalise_give_up_s", self.relocalise_give_up_s)?;
+        if self.burst_factor.is_nan() || self.burst_factor < 1.0 {
+            return Err(SettingsError::BelowOne {
+                name: "burst_factor",
+                value: self.burst_factor,
+            });
+        }
+        non_negative("burst_floor_per_s", self.burst_floor_per_s)?;
+        positive("burst_window_s", self.burst_window_s)?;
+        positive("burst_norm_s", self.burst_norm_s)?;
         probability("gate_probability", self.gate_probability)?;
         probability("exclusion_probability", self.exclusion_probability)?;
         positive("beam_half_width_rad", self.beam_half_width_rad)?;

@@ -5,7 +5,8 @@
 //! - one far-future odometry record: that record only (every later record used to be "out
 //!   of order", so the map stopped);
 //! - absurd but finite odometry: refused at the gate (the pose used to go to 1e199 m);
-//! - an odometry gap past the filter's limit: bridged (every later sample used to fail).
+//! - an odometry gap past the filter's limit: bridged (every later sample used to fail),
+//!   and the pose relocalised where it is before a beam is used again.
 
 mod support;
 
@@ -161,4 +162,37 @@ fn contoured_azimuths_are_not_taken_for_empty_range() {
         p.ekf().stats().retired
     );
     assert_eq!(s.filter_errors, 0);
+}
+
+#[test]
+fn a_parked_vehicle_stays_put_across_two_odometry_gaps() {
+    // Odometry stops for 6 s twice (past the filter's 5 s limit) while the radar goes on:
+    // each gap is bridged and the pose relocalised where it is.
+    let az = support::still_radar_azimuths(70, T0_NS);
+    let gaps = [(T0 + 4.0, T0 + 10.0), (T0 + 14.0, T0 + 20.0)];
+    let mut p = Pipeline::new(settings(), Some(T0), None).unwrap();
+    let mut events = Vec::new();
+    let mut next_odo = T0;
+    let mut worst = 0.0f64;
+    for a in &az {
+        while next_odo <= a.timestamp_s {
+            if !gaps.iter().any(|&(s, e)| next_odo > s && next_odo < e) {
+                p.push_odometry(still(next_odo));
+            }
+            next_odo += 0.05;
+        }
+        p.process_azimuth(a, &mut events).unwrap();
+        events.clear();
+        let pose = p.ekf().pose();
+        worst = worst.max(pose.x.hypot(pose.y));
+    }
+    p.finish(&mut events);
+    let stats = p.ekf().stats();
+    assert_eq!(stats.bridged_gaps, 2);
+    assert_eq!(stats.relocalisations, 2, "{stats:?}");
+    assert!(
+        worst < 0.5,
+        "the parked vehicle's estimate went {worst:.2} m off"
+    );
+    assert!(p.ekf().feature_count() >= 4);
 }
