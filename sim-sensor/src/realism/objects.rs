@@ -132,6 +132,37 @@ pub struct ObjectSpec {
     pub density_per_m2: Option<f64>,
 }
 
+impl ObjectSpec {
+    /// An object of `kind` with every optional field unset (the kind's defaults apply).
+    pub fn of_kind(kind: ObjectKind) -> ObjectSpec {
+        ObjectSpec {
+            kind,
+            from: None,
+            to: None,
+            at: None,
+            heading_deg: 0.0,
+            length_m: None,
+            width_m: None,
+            radius_m: None,
+            depth_m: None,
+            speed_mps: 0.0,
+            travel_m: None,
+            rcs_scale: None,
+            transmission: None,
+            density_per_m2: None,
+        }
+    }
+
+    /// A straight object of `kind` from `from` to `to`.
+    pub fn segment(kind: ObjectKind, from: [f64; 2], to: [f64; 2]) -> ObjectSpec {
+        ObjectSpec {
+            from: Some(from),
+            to: Some(to),
+            ..ObjectSpec::of_kind(kind)
+        }
+    }
+}
+
 /// How a scatterer's power fluctuates between looks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Swerling {
@@ -763,22 +794,7 @@ mod tests {
     use super::*;
 
     fn wall(from: [f64; 2], to: [f64; 2]) -> ObjectSpec {
-        ObjectSpec {
-            kind: ObjectKind::Wall,
-            from: Some(from),
-            to: Some(to),
-            at: None,
-            heading_deg: 0.0,
-            length_m: None,
-            width_m: None,
-            radius_m: None,
-            depth_m: None,
-            speed_mps: 0.0,
-            travel_m: None,
-            rcs_scale: None,
-            transmission: None,
-            density_per_m2: None,
-        }
+        ObjectSpec::segment(ObjectKind::Wall, from, to)
     }
 
     #[test]

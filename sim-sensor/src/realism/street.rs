@@ -92,22 +92,7 @@ pub struct Street {
 }
 
 fn object(kind: ObjectKind) -> ObjectSpec {
-    ObjectSpec {
-        kind,
-        from: None,
-        to: None,
-        at: None,
-        heading_deg: 0.0,
-        length_m: None,
-        width_m: None,
-        radius_m: None,
-        depth_m: None,
-        speed_mps: 0.0,
-        travel_m: None,
-        rcs_scale: None,
-        transmission: None,
-        density_per_m2: None,
-    }
+    ObjectSpec::of_kind(kind)
 }
 
 impl StreetSpec {

@@ -10,7 +10,7 @@
 
 use std::sync::Arc;
 
-use nalgebra::{Matrix2, Matrix3};
+use nalgebra::Matrix3;
 use radar_model::geometry::Pose2;
 use radar_model::material::Material;
 use slam_filter::{FeatureEstimate, FrozenSubmap, SubmapFeature};
@@ -233,9 +233,15 @@ impl SubmapRun {
         self.version = sol.version;
         self.summary.solutions += 1;
         self.summary.loop_closures = sol.loops;
-        let n = sol.frames.len().min(self.frames.len());
-        self.frames[..n].copy_from_slice(&sol.frames[..n]);
-        self.frame_covs[..n].copy_from_slice(&sol.covariances[..n]);
+        self.install(&sol.frames, &sol.covariances);
+    }
+
+    /// Takes a solution's frames (and covariances) for the frames it covers and re-chains
+    /// the newer ones from them.
+    fn install(&mut self, frames: &[Pose2], covariances: &[Matrix3<f64>]) {
+        let n = frames.len().min(covariances.len()).min(self.frames.len());
+        self.frames[..n].copy_from_slice(&frames[..n]);
+        self.frame_covs[..n].copy_from_slice(&covariances[..n]);
         self.rechain(n.max(1));
     }
 
@@ -318,16 +324,7 @@ impl SubmapRun {
             out.extend(s.features.iter().map(|f| estimate_in(frame, f)));
         }
         let (frame, _) = self.frame();
-        out.extend(ekf.features().into_iter().map(|f| {
-            let r = rotation(frame.theta);
-            let [x, y] = slam_graph::se2::transform_point(&frame, [f.x_m, f.y_m]);
-            FeatureEstimate {
-                x_m: x,
-                y_m: y,
-                position_cov: r * f.position_cov * r.transpose(),
-                ..f
-            }
-        }));
+        out.extend(ekf.features().into_iter().map(|f| placed(&frame, f)));
         out
     }
 
@@ -419,10 +416,7 @@ impl SubmapRun {
                 self.version = sol.version;
                 self.summary.solutions += 1;
             }
-            let n = sol.frames.len().min(self.frames.len());
-            self.frames[..n].copy_from_slice(&sol.frames[..n]);
-            self.frame_covs[..n].copy_from_slice(&sol.covariances[..n]);
-            self.rechain(n.max(1));
+            self.install(&sol.frames, &sol.covariances);
             self.summary.loop_closures = m.loops().len();
             self.summary.global = *m.stats();
         } else if !self.frozen.is_empty() {
@@ -464,17 +458,29 @@ impl SubmapRun {
 
 /// A frozen submap's feature in the world through its submap's frame.
 fn estimate_in(frame: &Pose2, f: &SubmapFeature) -> FeatureEstimate {
-    let r = rotation(frame.theta);
-    let [x, y] = slam_graph::se2::transform_point(frame, f.xy);
     let shares = Material::new(f.uv[0], f.uv[1]).shares();
-    let cov: Matrix2<f64> = r * f.xy_cov * r.transpose();
+    placed(
+        frame,
+        FeatureEstimate {
+            id: f.id,
+            x_m: f.xy[0],
+            y_m: f.xy[1],
+            rho: shares.rho,
+            alpha: shares.alpha,
+            position_cov: f.xy_cov,
+            hits: f.hits,
+        },
+    )
+}
+
+/// A feature estimate moved from a submap's frame into the world by the frame's pose.
+fn placed(frame: &Pose2, f: FeatureEstimate) -> FeatureEstimate {
+    let r = rotation(frame.theta);
+    let [x, y] = slam_graph::se2::transform_point(frame, [f.x_m, f.y_m]);
     FeatureEstimate {
-        id: f.id,
         x_m: x,
         y_m: y,
-        rho: shares.rho,
-        alpha: shares.alpha,
-        position_cov: cov,
-        hits: f.hits,
+        position_cov: r * f.position_cov * r.transpose(),
+        ..f
     }
 }

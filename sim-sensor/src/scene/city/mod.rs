@@ -526,22 +526,7 @@ impl CitySpec {
 }
 
 fn front(from: [f64; 2], to: [f64; 2]) -> ObjectSpec {
-    ObjectSpec {
-        kind: ObjectKind::BuildingFront,
-        from: Some(from),
-        to: Some(to),
-        at: None,
-        heading_deg: 0.0,
-        length_m: None,
-        width_m: None,
-        radius_m: None,
-        depth_m: None,
-        speed_mps: 0.0,
-        travel_m: None,
-        rcs_scale: None,
-        transmission: None,
-        density_per_m2: None,
-    }
+    ObjectSpec::segment(ObjectKind::BuildingFront, from, to)
 }
 
 #[cfg(test)]
