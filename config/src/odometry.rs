@@ -67,6 +67,19 @@ pub struct RawOdometry {
     pub sigma_speed_mps: f64,
     /// Standard deviation of the steering input, rad >= 0 (process noise). Default 0.01.
     pub sigma_steer_rad: f64,
+    /// Prior standard deviation of the odometry's speed scale error, in [0, 0.5): the filter
+    /// estimates a correction `k` (the model's speed is `speed (1 + k)`) when this is > 0.
+    /// White input noise cannot describe a wheel radius or a calibration a few per cent
+    /// off; with `k` in the state the landmarks measure it. Default 0 (not estimated: the
+    /// paper's filter).
+    pub speed_scale_std: f64,
+    /// Prior standard deviation of a constant steering offset, rad >= 0 (in the motion
+    /// model's steering units); estimated when > 0. Default 0.
+    pub steer_bias_std_rad: f64,
+    /// How fast the speed correction may drift, per sqrt(s), >= 0. Default 1e-4.
+    pub speed_scale_walk_per_sqrt_s: f64,
+    /// How fast the steering offset may drift, rad per sqrt(s), >= 0. Default 1e-5.
+    pub steer_bias_walk_rad_per_sqrt_s: f64,
     /// Odometry older than this (ms > 0) is stale. Default 500.
     pub stale_after_ms: i64,
     /// A record reporting a faster speed (m/s > 0, either direction) is refused. Default 60.
@@ -89,6 +102,10 @@ impl Default for RawOdometry {
             wheelbase_m: None,
             sigma_speed_mps: 0.1,
             sigma_steer_rad: 0.01,
+            speed_scale_std: 0.0,
+            steer_bias_std_rad: 0.0,
+            speed_scale_walk_per_sqrt_s: 1e-4,
+            steer_bias_walk_rad_per_sqrt_s: 1e-5,
             stale_after_ms: 500,
             max_speed_mps: DEFAULT_MAX_SPEED_MPS,
             max_steer_rad: DEFAULT_MAX_STEER_RAD,
@@ -140,6 +157,14 @@ pub struct OdometrySettings {
     pub sigma_speed_mps: NonNegativeF64,
     /// Steering input noise, rad.
     pub sigma_steer_rad: NonNegativeF64,
+    /// Prior standard deviation of the speed scale correction (0: not estimated), < 0.5.
+    pub speed_scale_std: NonNegativeF64,
+    /// Prior standard deviation of the steering offset, rad (0: not estimated).
+    pub steer_bias_std_rad: NonNegativeF64,
+    /// Random walk of the speed scale correction, per sqrt(s).
+    pub speed_scale_walk_per_sqrt_s: NonNegativeF64,
+    /// Random walk of the steering offset, rad per sqrt(s).
+    pub steer_bias_walk_rad_per_sqrt_s: NonNegativeF64,
     /// Age past which odometry is stale.
     pub stale_after: Duration,
     /// Largest believable speed, m/s.
@@ -240,6 +265,31 @@ impl RawOdometry {
                 "odometry.sigma_steer_rad",
                 NonNegativeF64::new(self.sigma_steer_rad),
             ),
+            speed_scale_std: c.check(
+                "odometry.speed_scale_std",
+                NonNegativeF64::new(self.speed_scale_std).and_then(|v| {
+                    if v.get() < 0.5 {
+                        Ok(v)
+                    } else {
+                        Err(ValueError::Rule(format!(
+                            "must be < 0.5 (a correction as uncertain as the speed itself is no correction), got {}",
+                            values::number(v.get())
+                        )))
+                    }
+                }),
+            ),
+            steer_bias_std_rad: c.check(
+                "odometry.steer_bias_std_rad",
+                NonNegativeF64::new(self.steer_bias_std_rad),
+            ),
+            speed_scale_walk_per_sqrt_s: c.check(
+                "odometry.speed_scale_walk_per_sqrt_s",
+                NonNegativeF64::new(self.speed_scale_walk_per_sqrt_s),
+            ),
+            steer_bias_walk_rad_per_sqrt_s: c.check(
+                "odometry.steer_bias_walk_rad_per_sqrt_s",
+                NonNegativeF64::new(self.steer_bias_walk_rad_per_sqrt_s),
+            ),
             stale_after: c.check(
                 "odometry.stale_after_ms",
                 values::duration_from_ms(self.stale_after_ms),
@@ -285,6 +335,10 @@ impl From<&OdometrySettings> for RawOdometry {
             wheelbase_m,
             sigma_speed_mps: s.sigma_speed_mps.get(),
             sigma_steer_rad: s.sigma_steer_rad.get(),
+            speed_scale_std: s.speed_scale_std.get(),
+            steer_bias_std_rad: s.steer_bias_std_rad.get(),
+            speed_scale_walk_per_sqrt_s: s.speed_scale_walk_per_sqrt_s.get(),
+            steer_bias_walk_rad_per_sqrt_s: s.steer_bias_walk_rad_per_sqrt_s.get(),
             stale_after_ms: values::whole_ms(s.stale_after),
             max_speed_mps: s.max_speed_mps.get(),
             max_steer_rad: s.max_steer_rad.get(),

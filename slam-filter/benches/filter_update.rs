@@ -3,17 +3,17 @@
 //!
 //! `cargo bench -p slam-filter --bench filter_update`. The state is cloned before and dropped
 //! after the timed region (criterion's `iter_batched`). Expected growth: O(n^2 m) for the covariance
-//! update, n the state dimension (4 + 4 N) and m the rows.
+//! update, n the state dimension (6 + 4 N) and m the rows.
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use nalgebra::{DMatrix, DVector};
 use slam_filter::observation::state_columns;
-use slam_filter::state::SlamState;
+use slam_filter::state::{SlamState, FEATURE_BASE, FEATURE_DIM};
 use slam_filter::{batched_update, LinearisedObservation};
 
 /// A dense, well-conditioned covariance: `D + 0.5 u u^T / n` with a smooth u.
 fn state(features: usize) -> SlamState {
-    let n = 4 + 4 * features;
+    let n = FEATURE_BASE + FEATURE_DIM * features;
     let u = DVector::from_fn(n, |i, _| ((i as f64) * 0.37).sin());
     let mut cov = &u * u.transpose() * (0.5 / n as f64);
     for i in 0..n {
@@ -79,7 +79,7 @@ fn bench_baselines(c: &mut Criterion) {
     let mut group = c.benchmark_group("baseline");
     group.sample_size(10);
     for &features in &[20usize, 100, 500, 1000] {
-        let n = 4 + 4 * features;
+        let n = FEATURE_BASE + FEATURE_DIM * features;
         let mut p = DMatrix::from_fn(n, n, |i, j| ((i * 7 + j * 3) % 11) as f64);
         group.bench_function(
             BenchmarkId::new("pass_over_P", format!("N{features}")),

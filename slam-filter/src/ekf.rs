@@ -23,7 +23,7 @@ use super::lifecycle::TentativeList;
 use super::observation::{
     row_indices, state_columns, BeamObservation, BeamObservationModel, BeamPrediction,
 };
-use super::predict::{predict_to, OdometrySample, ProcessModel};
+use super::predict::{corrected_input, predict_to, OdometrySample, ProcessModel};
 use super::repeat_look::LookCell;
 use super::settings::FilterSettings;
 use super::state::{FeatureId, FeatureParams, SlamState};
@@ -186,13 +186,17 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         observer: O,
     ) -> Result<Self, FilterError> {
         settings.validate()?;
-        let state = SlamState::new(
+        let mut state = SlamState::new(
             pose,
             pose_cov,
             settings.initial_loss_db,
             settings.initial_loss_std_db.powi(2),
             time_s,
         )?;
+        state.set_odometry_bias_prior([
+            settings.speed_scale_std.powi(2),
+            settings.steer_bias_std_rad.powi(2),
+        ]);
         Ok(Self {
             gates: GateTable::new(settings.gate_probability, 24),
             exclusion: GateTable::new(
@@ -287,9 +291,38 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         position_nees([f.x_m, f.y_m], &f.position_cov, truth_xy)
     }
 
-    /// Covariance health (`with_eigenvalues` adds an O(n^3) eigen-decomposition).
+    /// Covariance health (`with_eigenvalues` adds an O(n^3) eigen-decomposition) of the
+    /// estimated part of the state: odometry corrections that are not estimated (zero mean,
+    /// zero variance, coupled to nothing) are left out.
     pub fn covariance_health(&self, with_eigenvalues: bool) -> CovarianceHealth {
-        covariance_health(self.state.covariance(), with_eigenvalues)
+        use crate::state::{SPEED_SCALE_INDEX, STEER_BIAS_INDEX};
+        let cov = self.state.covariance();
+        // Highest index first, so that removing one leaves the other's index in place.
+        let unused: Vec<usize> = [STEER_BIAS_INDEX, SPEED_SCALE_INDEX]
+            .into_iter()
+            .filter(|&i| cov[(i, i)] == 0.0)
+            .collect();
+        if unused.is_empty() {
+            return covariance_health(cov, with_eigenvalues);
+        }
+        let mut estimated = cov.clone();
+        for i in unused {
+            estimated = estimated.remove_row(i).remove_column(i);
+        }
+        covariance_health(&estimated, with_eigenvalues)
+    }
+
+    /// The odometry corrections `[k, b]` (see [`FilterSettings::speed_scale_std`]) and
+    /// their standard deviations; `None` when they are not estimated.
+    pub fn odometry_bias(&self) -> Option<([f64; 2], [f64; 2])> {
+        if !self.state.estimates_odometry_bias() {
+            return None;
+        }
+        let c = self.state.odometry_bias_covariance();
+        Some((
+            self.state.odometry_bias(),
+            [c[(0, 0)].max(0.0).sqrt(), c[(1, 1)].max(0.0).sqrt()],
+        ))
     }
 
     /// Takes a new odometry sample: predicts to its timestamp with the previous sample held,
@@ -352,12 +385,10 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         if gap_s > 0.0 {
             let steps = (gap_s / self.settings.max_predict_step_s).ceil().max(1.0);
             let dt = gap_s / steps;
+            let (speed, steer) = corrected_input(held, self.state.odometry_bias());
             let mut done = 0.0;
             while done < steps {
-                pose = self
-                    .motion
-                    .step(&pose, held.speed_mps, held.steer_rad, dt)?
-                    .pose;
+                pose = self.motion.step(&pose, speed, steer, dt)?.pose;
                 done += 1.0;
             }
         }

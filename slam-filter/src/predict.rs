@@ -2,7 +2,9 @@
 //! from the state's time to any requested time with the odometry held since its timestamp.
 //!
 //! Only the pose rows and columns change: `P_vv <- F P_vv F^T + G Q G^T`, `P_vm <- F P_vm`
-//! (mirrored into `P_mv`). Features' positions and L get no process noise. The cost is O(n)
+//! (mirrored into `P_mv`); with the odometry corrections estimated (state `k`, `b`) the
+//! pose also moves with them (see [`propagate_with_bias`]) and they random-walk. Features'
+//! positions and L get no process noise. The cost is O(n)
 //! per step. The small random-walk variance growth of every u and v is applied lazily, per
 //! feature, when the feature is next used ([`SlamState::settle_material`]): independent
 //! additive noise on a state commutes with every update that does not observe that state,
@@ -18,7 +20,7 @@ use radar_model::geometry::{wrap_angle, Pose2};
 
 use super::error::FilterError;
 use super::settings::FilterSettings;
-use super::state::{SlamState, POSE_DIM};
+use super::state::{SlamState, POSE_DIM, SPEED_SCALE_INDEX, STEER_BIAS_INDEX};
 
 /// One odometry sample: what the vehicle reports at `timestamp_s`, held until the next.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -82,7 +84,10 @@ pub fn predict_step<M: ProcessModel + ?Sized>(
     if !(dt_s > 0.0 && dt_s.is_finite()) {
         return Ok(());
     }
-    let step = model.step(&state.pose(), input.speed_mps, input.steer_rad, dt_s)?;
+    let [k, b] = state.odometry_bias();
+    let with_bias = state.estimates_odometry_bias();
+    let (speed, steer) = corrected_input(input, [k, b]);
+    let step = model.step(&state.pose(), speed, steer, dt_s)?;
     let mut f = step.wrt_pose;
     if settings.first_estimate_jacobians {
         // The process models move the vehicle rigidly with its heading, so the heading
@@ -107,11 +112,37 @@ pub fn predict_step<M: ProcessModel + ?Sized>(
         0.0,
         settings.steer_std_rad.powi(2) * q_scale,
     );
+    if with_bias {
+        // The corrections k and b are inputs too: d pose / d k = G_speed * speed,
+        // d pose / d b = G_steer.
+        let f_b = Matrix3x2::from_columns(&[g.column(0) * input.speed_mps, g.column(1).into()]);
+        propagate_with_bias(state, &f, &f_b, &(g * q * g.transpose()));
+        state.walk_odometry_bias([
+            settings.speed_scale_walk_per_sqrt_s.powi(2) * dt_s,
+            settings.steer_bias_walk_rad_per_sqrt_s.powi(2) * dt_s,
+        ]);
+    } else {
+        propagate_pose(state, &f, &(g * q * g.transpose()));
+    }
+    state.mean[0] = step.pose.x;
+    state.mean[1] = step.pose.y;
+    state.mean[2] = wrap_angle(step.pose.theta);
+    state.predicted_pose = state.pose();
+    Ok(())
+}
+
+/// The inputs the process model is driven by: the odometry corrected by the state's
+/// `[k, b]` (see [`crate::state::SPEED_SCALE_INDEX`]).
+pub fn corrected_input(input: &OdometrySample, bias: [f64; 2]) -> (f64, f64) {
+    (input.speed_mps * (1.0 + bias[0]), input.steer_rad + bias[1])
+}
+
+/// `P_vv <- F P_vv F^T + Q_v`, `P_vm <- F P_vm`: the pose rows and columns only.
+fn propagate_pose(state: &mut SlamState, f: &Matrix3<f64>, q_v: &Matrix3<f64>) {
     let n = state.dim();
     let cov = &mut state.cov;
-    // Pose block.
     let p_vv = cov.fixed_view::<3, 3>(0, 0).into_owned();
-    let mut new_vv = f * p_vv * f.transpose() + g * q * g.transpose();
+    let mut new_vv = f * p_vv * f.transpose() + q_v;
     new_vv = 0.5 * (new_vv + new_vv.transpose());
     cov.fixed_view_mut::<3, 3>(0, 0).copy_from(&new_vv);
     // Pose-map cross blocks, read from the pose columns (contiguous in j) and written to both
@@ -124,11 +155,43 @@ pub fn predict_step<M: ProcessModel + ?Sized>(
             cov[(r, j)] = fc[r];
         }
     }
-    state.mean[0] = step.pose.x;
-    state.mean[1] = step.pose.y;
-    state.mean[2] = wrap_angle(step.pose.theta);
-    state.predicted_pose = state.pose();
-    Ok(())
+}
+
+/// As [`propagate_pose`] with the odometry corrections `(k, b)` as inputs: the pose moves
+/// by `F pose + F_b (k, b)`, the corrections stay, so for every other element `j`
+/// `P_vj <- F P_vj + F_b P_bj` and `P_vv <- F P_vv F^T + F P_vb F_b^T + F_b P_bv F^T +
+/// F_b P_bb F_b^T + Q_v`, `P_vb <- F P_vb + F_b P_bb`. O(n).
+fn propagate_with_bias(
+    state: &mut SlamState,
+    f: &Matrix3<f64>,
+    f_b: &Matrix3x2<f64>,
+    q_v: &Matrix3<f64>,
+) {
+    let n = state.dim();
+    let cov = &mut state.cov;
+    let (bk, bb) = (SPEED_SCALE_INDEX, STEER_BIAS_INDEX);
+    let p_vv = cov.fixed_view::<3, 3>(0, 0).into_owned();
+    let p_vb = Matrix3x2::from_columns(&[
+        Vector3::new(cov[(0, bk)], cov[(1, bk)], cov[(2, bk)]),
+        Vector3::new(cov[(0, bb)], cov[(1, bb)], cov[(2, bb)]),
+    ]);
+    let p_bb = Matrix2::new(cov[(bk, bk)], cov[(bk, bb)], cov[(bb, bk)], cov[(bb, bb)]);
+    let fpvb_fbt = f * p_vb * f_b.transpose();
+    let mut new_vv = f * p_vv * f.transpose()
+        + fpvb_fbt
+        + fpvb_fbt.transpose()
+        + f_b * p_bb * f_b.transpose()
+        + q_v;
+    new_vv = 0.5 * (new_vv + new_vv.transpose());
+    cov.fixed_view_mut::<3, 3>(0, 0).copy_from(&new_vv);
+    for j in POSE_DIM..n {
+        let c = Vector3::new(cov[(j, 0)], cov[(j, 1)], cov[(j, 2)]);
+        let fc = f * c + f_b * nalgebra::Vector2::new(cov[(j, bk)], cov[(j, bb)]);
+        for r in 0..POSE_DIM {
+            cov[(j, r)] = fc[r];
+            cov[(r, j)] = fc[r];
+        }
+    }
 }
 
 /// Predicts from the state's time to `to_s` with `input` held, in steps of at most

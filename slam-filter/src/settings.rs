@@ -47,6 +47,22 @@ pub struct FilterSettings {
     /// period. Input noise is treated as white with spectral density `std^2 * correlation`, so
     /// predicting over `dt` in one step or many gives the same pose covariance growth.
     pub input_noise_correlation_s: f64,
+    /// Prior standard deviation of the odometry's speed correction `k` (the motion model is
+    /// driven by `speed (1 + k)`; a wheel radius or a calibration 5 % off is `k` near
+    /// -0.05). Zero (the default, the paper's filter) does not estimate it. The input noise
+    /// above is white: it cannot describe an error that persists for the whole drive, and a
+    /// filter fed odometry a few per cent fast becomes certain of a wrong path; with `k` in
+    /// the state the landmarks measure the scale.
+    pub speed_scale_std: f64,
+    /// Prior standard deviation of the odometry's steering offset `b` (rad, in the motion
+    /// model's steering units: the model is driven by `steer + b`). Zero (default): not
+    /// estimated. See [`Self::speed_scale_std`].
+    pub steer_bias_std_rad: f64,
+    /// Random walk of `k` (per square root of a second): how fast the scale may drift (tyre
+    /// pressure, load). Used only when `k` is estimated.
+    pub speed_scale_walk_per_sqrt_s: f64,
+    /// Random walk of `b` (rad per square root of a second). Used only when `b` is estimated.
+    pub steer_bias_walk_rad_per_sqrt_s: f64,
     /// Growth rate of the variance of each feature's u and v (1/s): the paper's Gaussian
     /// change of reflectivity and absorption with viewing angle.
     pub material_variance_per_s: f64,
@@ -195,6 +211,10 @@ impl Default for FilterSettings {
             speed_std_mps: 0.05,
             steer_std_rad: 0.5_f64.to_radians(),
             input_noise_correlation_s: 0.05,
+            speed_scale_std: 0.0,
+            steer_bias_std_rad: 0.0,
+            speed_scale_walk_per_sqrt_s: 1e-4,
+            steer_bias_walk_rad_per_sqrt_s: 1e-5,
             material_variance_per_s: 1e-4,
             defer_empty_beams: true,
             max_predict_step_s: 0.05,
@@ -244,6 +264,9 @@ pub const MAX_JCBB_NODES: usize = 100_000;
 /// A setting that makes no sense.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum SettingsError {
+    /// A speed correction this uncertain would let the model's speed change sign.
+    #[error("speed_scale_std must be < 0.5 (a prior that lets the speed correction reach -100 % is not a correction), got {0}")]
+    SpeedScaleTooUncertain(f64),
     /// The value must be finite and strictly positive.
     #[error("{name} must be finite and > 0, got {value}")]
     NotPositive {
@@ -355,6 +378,19 @@ impl FilterSettings {
         positive("speed_std_mps", self.speed_std_mps)?;
         positive("steer_std_rad", self.steer_std_rad)?;
         positive("input_noise_correlation_s", self.input_noise_correlation_s)?;
+        non_negative("speed_scale_std", self.speed_scale_std)?;
+        non_negative("steer_bias_std_rad", self.steer_bias_std_rad)?;
+        non_negative(
+            "speed_scale_walk_per_sqrt_s",
+            self.speed_scale_walk_per_sqrt_s,
+        )?;
+        non_negative(
+            "steer_bias_walk_rad_per_sqrt_s",
+            self.steer_bias_walk_rad_per_sqrt_s,
+        )?;
+        if self.speed_scale_std >= 0.5 {
+            return Err(SettingsError::SpeedScaleTooUncertain(self.speed_scale_std));
+        }
         non_negative("material_variance_per_s", self.material_variance_per_s)?;
         non_negative("repeat_look_range_m", self.repeat_look_range_m)?;
         non_negative("repeat_look_bearing_rad", self.repeat_look_bearing_rad)?;

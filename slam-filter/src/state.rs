@@ -6,12 +6,17 @@
 //! |------------------|-------------------------------------------|
 //! | 0, 1, 2          | vehicle pose `x`, `y` (m), `theta` (rad)  |
 //! | 3                | radar loss `L` (dB)                       |
-//! | 4 + 4 s + 0, 1   | feature in slot `s`: `x_s`, `y_s` (m)     |
-//! | 4 + 4 s + 2, 3   | feature in slot `s`: `u_s`, `v_s`         |
+//! | 4                | odometry speed correction `k` (ratio)     |
+//! | 5                | odometry steering offset `b` (rad)        |
+//! | 6 + 4 s + 0, 1   | feature in slot `s`: `x_s`, `y_s` (m)     |
+//! | 6 + 4 s + 2, 3   | feature in slot `s`: `u_s`, `v_s`         |
 //!
 //! `L` is stored right after the pose (the paper puts it last) so that appending a feature
 //! is a resize that leaves every existing index in place, and removing one shifts only the
-//! features after it. `(rho, alpha, tau) = softmax(u, v, 0)` (radar-model's `material`), so
+//! features after it. `k` and `b` are the odometry's systematic errors (not in the paper):
+//! the motion model is driven by `speed (1 + k)` and `steer + b` (see
+//! [`super::FilterSettings::speed_scale_std`]). When they are not estimated they stay at
+//! zero with zero variance and nothing couples to them, so the filter is the paper's. `(rho, alpha, tau) = softmax(u, v, 0)` (radar-model's `material`), so
 //! every value of `u, v` is a valid material and no clamping is ever needed.
 //!
 //! The covariance `P` is kept exactly symmetric: every operation writes one triangle and
@@ -26,8 +31,12 @@ use super::error::FilterError;
 pub const POSE_DIM: usize = 3;
 /// Index of the radar loss L.
 pub const LOSS_INDEX: usize = 3;
+/// Index of the odometry speed correction `k` (the model's speed is `speed (1 + k)`).
+pub const SPEED_SCALE_INDEX: usize = 4;
+/// Index of the odometry steering offset `b` (the model's steering is `steer + b`).
+pub const STEER_BIAS_INDEX: usize = 5;
 /// Index of the first feature's first element.
-pub const FEATURE_BASE: usize = 4;
+pub const FEATURE_BASE: usize = 6;
 /// Elements per feature: x, y, u, v.
 pub const FEATURE_DIM: usize = 4;
 
@@ -154,7 +163,7 @@ impl SlamState {
     ) -> Result<Self, FilterError> {
         let n = mean.len();
         if n < FEATURE_BASE || (n - FEATURE_BASE) % FEATURE_DIM != 0 {
-            return Err(FilterError::Shape("state length must be 4 + 4 N"));
+            return Err(FilterError::Shape("state length must be 6 + 4 N"));
         }
         if cov.nrows() != n || cov.ncols() != n {
             return Err(FilterError::Shape("covariance must be n x n"));
@@ -191,15 +200,18 @@ impl SlamState {
     }
 
     /// Starts a new local map in place: the vehicle at the origin of its own frame with zero
-    /// covariance, no features, the radar loss L kept with its variance, the time and the id
-    /// counter kept (ids stay unique across local maps). Returns the state as it was.
+    /// covariance, no features, the radar loss L and the odometry corrections kept with their
+    /// joint covariance, the time and the id counter kept (ids stay unique across local
+    /// maps). Returns the state as it was.
     pub(crate) fn restart_at_origin(&mut self) -> SlamState {
-        let loss = self.mean[LOSS_INDEX];
-        let loss_var = self.cov[(LOSS_INDEX, LOSS_INDEX)];
         let mut mean = DVector::zeros(FEATURE_BASE);
-        mean[LOSS_INDEX] = loss;
         let mut cov = DMatrix::zeros(FEATURE_BASE, FEATURE_BASE);
-        cov[(LOSS_INDEX, LOSS_INDEX)] = loss_var;
+        for r in LOSS_INDEX..FEATURE_BASE {
+            mean[r] = self.mean[r];
+            for c in LOSS_INDEX..FEATURE_BASE {
+                cov[(r, c)] = self.cov[(r, c)];
+            }
+        }
         let fresh = SlamState {
             mean,
             cov,
@@ -211,7 +223,7 @@ impl SlamState {
         std::mem::replace(self, fresh)
     }
 
-    /// State dimension n = 4 + 4 N.
+    /// State dimension n = 6 + 4 N.
     pub fn dim(&self) -> usize {
         self.mean.len()
     }
@@ -253,6 +265,54 @@ impl SlamState {
     /// The radar loss L (dB).
     pub fn loss_db(&self) -> f64 {
         self.mean[LOSS_INDEX]
+    }
+
+    /// The odometry corrections `[k, b]`: the motion model is driven by `speed (1 + k)` and
+    /// `steer + b`. Zero when they are not estimated.
+    pub fn odometry_bias(&self) -> [f64; 2] {
+        [self.mean[SPEED_SCALE_INDEX], self.mean[STEER_BIAS_INDEX]]
+    }
+
+    /// The odometry corrections' 2x2 covariance.
+    pub fn odometry_bias_covariance(&self) -> Matrix2<f64> {
+        self.cov
+            .fixed_view::<2, 2>(SPEED_SCALE_INDEX, SPEED_SCALE_INDEX)
+            .into_owned()
+    }
+
+    /// Whether the odometry corrections are estimated (either has a variance).
+    pub fn estimates_odometry_bias(&self) -> bool {
+        self.cov[(SPEED_SCALE_INDEX, SPEED_SCALE_INDEX)] > 0.0
+            || self.cov[(STEER_BIAS_INDEX, STEER_BIAS_INDEX)] > 0.0
+    }
+
+    /// Gives the odometry corrections the prior variances `[k, b]` (zero: not estimated), with
+    /// no correlation to the rest of the state: set at the start, before any prediction.
+    pub(crate) fn set_odometry_bias_prior(&mut self, variances: [f64; 2]) {
+        for (i, v) in [SPEED_SCALE_INDEX, STEER_BIAS_INDEX]
+            .into_iter()
+            .zip(variances)
+        {
+            self.mean[i] = 0.0;
+            for j in 0..self.dim() {
+                self.cov[(i, j)] = 0.0;
+                self.cov[(j, i)] = 0.0;
+            }
+            self.cov[(i, i)] = if v.is_finite() && v > 0.0 { v } else { 0.0 };
+        }
+    }
+
+    /// Adds random-walk variances `[k, b]` to the odometry corrections (non-negative, finite
+    /// entries only).
+    pub(crate) fn walk_odometry_bias(&mut self, variances: [f64; 2]) {
+        for (i, v) in [SPEED_SCALE_INDEX, STEER_BIAS_INDEX]
+            .into_iter()
+            .zip(variances)
+        {
+            if v.is_finite() && v > 0.0 {
+                self.cov[(i, i)] += v;
+            }
+        }
     }
 
     /// Feature book-keeping in slot order.

@@ -11,6 +11,7 @@ use radar_model::observation::{observe_beam, BeamFeature};
 use radar_model::power::PowerModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use rand_distr::Distribution;
 use slam_filter::{
     BeamObservation, Ekf, FilterError, FilterSettings, OdometrySample, RadarBeamModel, Target,
 };
@@ -847,4 +848,109 @@ fn without_the_burst_guard_the_same_second_of_noise_floods_the_map() {
         f.stats()
     );
     assert_eq!(most, 300, "the map stopped at {most} features");
+}
+
+/// Drives 100 m past posts on both sides of a road with gentle bends, the odometry reading
+/// the speed 5 % fast and the steering 0.01 rad off (a mis-calibrated wheel and steering
+/// sensor), and returns the final position error and the filter.
+fn drive_with_biased_odometry(s: FilterSettings) -> (f64, Filter) {
+    const AZ: usize = 100;
+    const ROTATION_S: f64 = 0.25;
+    let step = std::f64::consts::TAU / AZ as f64;
+    let s = FilterSettings {
+        beam_half_width_rad: 0.5 * step,
+        ..s
+    };
+    let mut f = filter(s, Pose2::new(0.0, 0.0, 0.0), [0.0; 3]);
+    let motion = MotionModel::Bicycle { wheelbase_m: 2.5 };
+    let posts: Vec<BeamFeature> = (0..24)
+        .flat_map(|i| {
+            let x = -10.0 + 6.0 * f64::from(i);
+            let wiggle = 1.5 * (0.7 * f64::from(i)).sin();
+            [
+                feature(x, 8.0 + wiggle, 0.7, 0.1),
+                feature(x + 3.0, -9.0 + wiggle, 0.6, 0.1),
+            ]
+        })
+        .collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut truth = Pose2::new(0.0, 0.0, 0.0);
+    let dt = ROTATION_S / AZ as f64;
+    let mut t = T0;
+    let speed = 5.0;
+    for rotation in 0..80 {
+        let steer = 0.02 * (0.15 * f64::from(rotation)).sin();
+        for a in 0..AZ {
+            t += dt;
+            truth = motion
+                .predict(&truth, &ControlInput::new(speed, steer), dt)
+                .unwrap();
+            if a % 12 == 0 {
+                let n: f64 = rand_distr::StandardNormal.sample(&mut rng);
+                f.apply_odometry(OdometrySample {
+                    timestamp_s: t,
+                    speed_mps: 1.05 * speed + 0.02 * n,
+                    steer_rad: steer - 0.01,
+                })
+                .unwrap();
+            }
+            let beam = wrap_angle(a as f64 * step);
+            let mut in_beam: Vec<BeamFeature> = posts
+                .iter()
+                .filter(|p| {
+                    let rb = range_bearing(&truth, p.xy);
+                    wrap_angle(rb.bearing_rad - beam).abs() <= 0.5 * step && rb.range_m < 40.0
+                })
+                .copied()
+                .collect();
+            in_beam.sort_by(|p, q| {
+                range_bearing(&truth, p.xy)
+                    .range_m
+                    .total_cmp(&range_bearing(&truth, q.xy).range_m)
+            });
+            let targets = if in_beam.is_empty() {
+                Vec::new()
+            } else {
+                noisy(&truth, &in_beam, 0.0, &mut rng)
+            };
+            f.process_beam(&BeamObservation {
+                timestamp_s: t,
+                bearing_rad: beam,
+                targets,
+            })
+            .unwrap();
+        }
+    }
+    let p = f.pose();
+    ((p.x - truth.x).hypot(p.y - truth.y), f)
+}
+
+#[test]
+fn odometry_five_percent_fast_and_steering_off_is_learned_and_the_pose_stays_on_the_road() {
+    let learn = FilterSettings {
+        speed_scale_std: 0.1,
+        steer_bias_std_rad: 0.02,
+        ..settings()
+    };
+    let (with, f) = drive_with_biased_odometry(learn);
+    let (without, g) = drive_with_biased_odometry(settings());
+    assert!(g.odometry_bias().is_none());
+    let ([k, b], [sk, sb]) = f.odometry_bias().expect("estimated");
+    // The model's speed is reading * (1 + k): the truth is k = 1/1.05 - 1, b = +0.01.
+    let (k_true, b_true) = (1.0 / 1.05 - 1.0, 0.01);
+    eprintln!(
+        "final error {with:.3} m with the corrections, {without:.3} m without; \
+         k {k:.4} +- {sk:.4} (true {k_true:.4}), b {b:.4} +- {sb:.4} (true {b_true})"
+    );
+    assert_healthy(&f);
+    assert!(
+        (k - k_true).abs() < 0.01 && (k - k_true).abs() < 4.0 * sk,
+        "k {k}"
+    );
+    assert!(
+        (b - b_true).abs() < 0.004 && (b - b_true).abs() < 4.0 * sb,
+        "b {b}"
+    );
+    assert!(with < 0.5, "final error {with} m");
+    assert!(without > 2.0 * with, "without the corrections {without} m");
 }

@@ -6,12 +6,14 @@
 
 use std::f64::consts::PI;
 
-use nalgebra::{DMatrix, DVector, Matrix3, Matrix4};
+use nalgebra::{DMatrix, DVector, Matrix3};
 use proptest::prelude::*;
 use radar_model::geometry::Pose2;
 use radar_model::motion::MotionModel;
 use slam_filter::predict::{predict_to, OdometrySample, ProcessModel};
-use slam_filter::state::SlamState;
+use slam_filter::state::{
+    feature_index, SlamState, FEATURE_BASE, LOSS_INDEX, SPEED_SCALE_INDEX, STEER_BIAS_INDEX,
+};
 use slam_filter::{
     batched_update, BeamObservation, Ekf, FilterSettings, LinearisedObservation, RadarBeamModel,
     Target,
@@ -29,28 +31,27 @@ fn spd(n: usize, entries: &[f64], scales: &[f64]) -> DMatrix<f64> {
     0.5 * (&p + p.transpose())
 }
 
-/// A state of `features` features whose covariance is `cov` (built through `augment`).
-fn state_with(cov: &DMatrix<f64>, mean: &[f64]) -> SlamState {
-    let n = cov.nrows();
-    let pose = Pose2::new(mean[0], mean[1], mean[2]);
-    let pv = cov.fixed_view::<3, 3>(0, 0).into_owned();
-    let mut s = SlamState::new(pose, pv, mean[3], cov[(3, 3)], 0.0).unwrap();
-    let mut k = 4;
-    while k < n {
-        let cross = cov.view((k, 0), (4, k)).into_owned();
-        let block: Matrix4<f64> = cov.fixed_view::<4, 4>(k, k).into_owned();
-        s.augment(
-            [mean[k], mean[k + 1], mean[k + 2], mean[k + 3]],
-            &cross,
-            &block,
-            0.0,
-            100,
-        )
-        .unwrap();
-        k += 4;
+/// A state whose mean and covariance are `mean` and `cov` (layout `6 + 4 N`). With
+/// `bias` false the odometry corrections' rows and columns are zeroed (not estimated).
+fn state_with(cov: &DMatrix<f64>, mean: &[f64], bias: bool) -> (SlamState, DMatrix<f64>) {
+    let mut cov = cov.clone();
+    if !bias {
+        for i in [SPEED_SCALE_INDEX, STEER_BIAS_INDEX] {
+            cov.row_mut(i).fill(0.0);
+            cov.column_mut(i).fill(0.0);
+        }
     }
-    // Pose-loss cross terms are not set by `new`; keep the test to states where they are 0.
-    s
+    let mut mean = DVector::from_vec(mean.to_vec());
+    if !bias {
+        mean[SPEED_SCALE_INDEX] = 0.0;
+        mean[STEER_BIAS_INDEX] = 0.0;
+    } else {
+        // Plausible corrections: a few per cent of speed, a few milliradians of steering.
+        mean[SPEED_SCALE_INDEX] = -0.04;
+        mean[STEER_BIAS_INDEX] = 0.003;
+    }
+    let state = SlamState::from_parts(mean, cov.clone(), 0.0).unwrap();
+    (state, cov)
 }
 
 fn relative_error(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
@@ -68,20 +69,17 @@ proptest! {
         h_entries in prop::collection::vec(-2.0f64..2.0, 8..64),
         nu_entries in prop::collection::vec(-1.0f64..1.0, 6),
         m in 1usize..13,
+        bias in any::<bool>(),
     ) {
-        let n = 4 + 4 * features;
-        let mut cov = spd(n, &entries, &scales);
-        // The constructor takes pose and L independent: zero those cross terms.
-        for i in 0..3 {
-            cov[(i, 3)] = 0.0;
-            cov[(3, i)] = 0.0;
-        }
+        let n = FEATURE_BASE + 4 * features;
+        let cov = spd(n, &entries, &scales);
         prop_assume!(cov.clone().cholesky().is_some());
         let mean: Vec<f64> = (0..n).map(|i| 0.1 * i as f64).collect();
-        let mut state = state_with(&cov, &mean);
+        let (mut state, cov) = state_with(&cov, &mean, bias);
+        let mean: Vec<f64> = state.mean().iter().copied().collect();
         // H touches the pose, the last feature and L.
-        let last = 4 + 4 * (features - 1);
-        let columns: Vec<usize> = vec![0, 1, 2, last, last + 1, last + 2, last + 3, 3];
+        let last = feature_index(features - 1);
+        let columns: Vec<usize> = vec![0, 1, 2, last, last + 1, last + 2, last + 3, LOSS_INDEX];
         let h = DMatrix::from_fn(m, columns.len(), |i, j| h_entries[(i * 8 + j) % h_entries.len()]);
         let nu = DVector::from_fn(m, |i, _| nu_entries[i % nu_entries.len()] * 0.01);
         let r = DMatrix::from_diagonal(&DVector::from_element(m, 0.5));
@@ -116,28 +114,46 @@ proptest! {
         speed in -5.0f64..5.0,
         steer in -0.5f64..0.5,
         dt in 0.001f64..0.05,
+        bias in any::<bool>(),
     ) {
-        let n = 4 + 4 * features;
-        let mut cov = spd(n, &entries, &[1.0]);
-        for i in 0..3 { cov[(i, 3)] = 0.0; cov[(3, i)] = 0.0; }
+        let n = FEATURE_BASE + 4 * features;
+        let cov = spd(n, &entries, &[1.0]);
         let mean: Vec<f64> = (0..n).map(|i| 0.3 * i as f64).collect();
-        let mut state = state_with(&cov, &mean);
-        let settings = FilterSettings { max_predict_step_s: 1.0, material_variance_per_s: 1e-3, ..FilterSettings::default() };
+        let (mut state, cov) = state_with(&cov, &mean, bias);
+        let settings = FilterSettings {
+            max_predict_step_s: 1.0,
+            material_variance_per_s: 1e-3,
+            speed_scale_walk_per_sqrt_s: 1e-3,
+            steer_bias_walk_rad_per_sqrt_s: 1e-4,
+            ..FilterSettings::default()
+        };
         let model = MotionModel::Bicycle { wheelbase_m: 2.5 };
         let input = OdometrySample { timestamp_s: 0.0, speed_mps: speed, steer_rad: steer };
-        let step = model.step(&state.pose(), speed, steer, dt).unwrap();
+        let [k, b] = state.odometry_bias();
+        let step = model.step(&state.pose(), speed * (1.0 + k), steer + b, dt).unwrap();
         predict_to(&mut state, &model, &input, dt, &settings).unwrap();
         // The material random walk is added lazily; settle it to compare with the dense form.
         state.settle_all_material(settings.material_variance_per_s);
         let mut f_full = DMatrix::identity(n, n);
         f_full.view_mut((0, 0), (3, 3)).copy_from(&step.wrt_pose);
+        if bias {
+            // d pose / d k = G_speed * measured speed, d pose / d b = G_steer.
+            for r in 0..3 {
+                f_full[(r, SPEED_SCALE_INDEX)] = step.wrt_input[(r, 0)] * speed;
+                f_full[(r, STEER_BIAS_INDEX)] = step.wrt_input[(r, 1)];
+            }
+        }
         let q_in = nalgebra::Matrix2::new(
             settings.speed_std_mps.powi(2) * settings.input_noise_correlation_s / dt, 0.0,
             0.0, settings.steer_std_rad.powi(2) * settings.input_noise_correlation_s / dt);
         let mut q = DMatrix::zeros(n, n);
         q.view_mut((0, 0), (3, 3)).copy_from(&(step.wrt_input * q_in * step.wrt_input.transpose()));
+        if bias {
+            q[(SPEED_SCALE_INDEX, SPEED_SCALE_INDEX)] = 1e-6 * dt;
+            q[(STEER_BIAS_INDEX, STEER_BIAS_INDEX)] = 1e-8 * dt;
+        }
         for f in 0..features {
-            let i = 4 + 4 * f;
+            let i = feature_index(f);
             q[(i + 2, i + 2)] = 1e-3 * dt;
             q[(i + 3, i + 3)] = 1e-3 * dt;
         }
@@ -201,8 +217,10 @@ proptest! {
     fn random_odometry_and_beams_keep_the_covariance_symmetric_positive_definite_and_parameters_in_range(
         ops in prop::collection::vec(op(), 1..120),
         use_power in any::<bool>(),
+        bias in any::<bool>(),
     ) {
-        let settings = FilterSettings { use_power, confirm_min_separation_s: 0.0, retire_after_misses: 3, ..FilterSettings::default() };
+        let (speed_scale_std, steer_bias_std_rad) = if bias { (0.05, 0.01) } else { (0.0, 0.0) };
+        let settings = FilterSettings { use_power, confirm_min_separation_s: 0.0, retire_after_misses: 3, speed_scale_std, steer_bias_std_rad, ..FilterSettings::default() };
         let p0 = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.01, 0.01, 0.001));
         let mut f = Ekf::new(settings, Pose2::new(0.0, 0.0, 3.0), p0, 0.0, MotionModel::Bicycle { wheelbase_m: 2.5 }, RadarBeamModel::default()).unwrap();
         let mut t = 0.0;

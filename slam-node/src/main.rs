@@ -138,8 +138,12 @@ fn run(args: Args) -> anyhow::Result<()> {
     if args.zenoh {
         config.output.zenoh.enabled = true;
     }
+    // A folder of recorded scans is served by the simulator in this process, whatever the
+    // configuration's radar address says (without this, --config with --replay-dir dialled
+    // the configured radar and waited for ever).
     #[cfg(feature = "sim")]
-    let embedded = (args.config.is_none() || args.embedded_sim) && args.replay_mcap.is_none();
+    let embedded = (args.config.is_none() || args.embedded_sim || args.replay_dir.is_some())
+        && args.replay_mcap.is_none();
     #[cfg(not(feature = "sim"))]
     let embedded = false;
     #[cfg(not(feature = "sim"))]

@@ -162,3 +162,46 @@ fn boreas_and_radiate_ground_truth_drive_the_same_arc_and_dead_reckoning_follows
         );
     }
 }
+
+/// `--config` with `--replay-dir` replays the folder with the configuration's settings (it
+/// used to dial the configuration's radar address and wait for ever): the shipped example
+/// that estimates the odometry's scale and steering offset runs to a summary that reports
+/// them, in bounded time.
+#[test]
+fn a_configuration_given_with_a_replay_folder_is_used_and_the_replay_still_runs() {
+    let (dir, _drive) = boreas();
+    let out = tempfile::tempdir().unwrap();
+    let config = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../config/examples/replay-odometry-bias.toml");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_slam-node"))
+        .arg("--config")
+        .arg(&config)
+        .arg("--replay-dir")
+        .arg(dir.path())
+        .args(["--fast", "--no-figures", "--progress-every", "0", "--out"])
+        .arg(out.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > deadline {
+            child.kill().unwrap();
+            panic!("slam-node --config --replay-dir did not finish within 60 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let run = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout).to_string();
+    let stderr = String::from_utf8_lossy(&run.stderr).to_string();
+    assert!(run.status.success(), "{stdout}\n{stderr}");
+    assert_summary(
+        &stdout,
+        &stderr,
+        &[
+            "recorded drive (boreas",
+            "odometry corrections estimated: speed x ",
+        ],
+    );
+}

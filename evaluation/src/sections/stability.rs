@@ -15,6 +15,7 @@ use radar_model::power::PowerModel;
 use rand::Rng;
 use sim_sensor::scene::shipped;
 use sim_sensor::schedule::{ControlKey, ControlSchedule, Interpolation};
+use slam_filter::state::{feature_index, FEATURE_BASE, FEATURE_DIM, LOSS_INDEX};
 use slam_filter::{
     batched_update, BeamObservation, CovarianceHealth, Ekf, FilterSettings, LinearisedObservation,
     OdometrySample, RadarBeamModel, SlamState, Target,
@@ -174,7 +175,7 @@ fn stare(
 /// random correlations: the update's own numerics, without a model in between.
 fn wide_variances(updates: usize, seed: u64) -> Result<(u64, HealthExtremes), EvalError> {
     let features = 12;
-    let n = 4 + 4 * features;
+    let n = FEATURE_BASE + FEATURE_DIM * features;
     let mut rng = seeded_rng(seed);
     let a = DMatrix::from_fn(n, n, |_, _| rng.gen_range(-1.0..1.0));
     let mut c = &a * a.transpose() + DMatrix::identity(n, n) * (n as f64);
@@ -189,7 +190,7 @@ fn wide_variances(updates: usize, seed: u64) -> Result<(u64, HealthExtremes), Ev
         .collect();
     let cov = DMatrix::from_fn(n, n, |i, j| c[(i, j)] * sd[i] * sd[j]);
     let mean = DVector::from_fn(n, |i, _| {
-        if i < 4 {
+        if i < FEATURE_BASE {
             0.0
         } else {
             rng.gen_range(-50.0..50.0)
@@ -206,8 +207,8 @@ fn wide_variances(updates: usize, seed: u64) -> Result<(u64, HealthExtremes), Ev
         // Observe the pose, L and one feature with a random dense Jacobian and noise
         // spanning several decades.
         let slot = k % features;
-        let mut columns: Vec<usize> = (0..4).collect();
-        columns.extend(4 + 4 * slot..8 + 4 * slot);
+        let mut columns: Vec<usize> = vec![0, 1, 2, LOSS_INDEX];
+        columns.extend(feature_index(slot)..feature_index(slot) + FEATURE_DIM);
         let m = 3;
         let jacobian = DMatrix::from_fn(m, columns.len(), |_, _| rng.gen_range(-1.0..1.0));
         let noise_sd = 10f64.powf(rng.gen_range(-4.0..2.0));

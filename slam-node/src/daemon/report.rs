@@ -135,6 +135,17 @@ pub fn summary_text(r: &DaemonReport) -> String {
             s.map_size, s.associations
         );
     }
+    if let Some(([k, b], [sk, sb])) = s.odometry_corrections {
+        let _ = writeln!(
+            t,
+            "  odometry corrections estimated: speed x {:.4} +- {:.4} (k {:+.4}), steering offset {:+.4} +- {:.4} rad",
+            1.0 + k,
+            sk,
+            k,
+            b,
+            sb
+        );
+    }
     let bound = match s.spectrum_bound_db {
         Some((lo, hi)) => format!("the learned background's 3-sigma bound ({lo:.1}-{hi:.1} dB)"),
         None => "+-16.35 dB".to_string(),

@@ -591,6 +591,7 @@ impl Pipeline {
                 })
         });
         s.learned_gain_db_per_decade = self.front_end.learned_gain_slope();
+        s.odometry_corrections = self.ekf.odometry_bias();
         s.odometry_out_of_order = self.gate.out_of_order();
         if let Some(truth) = self.truth.as_ref() {
             let features = match self.submaps.as_ref() {

@@ -235,6 +235,10 @@ impl PipelineSettings {
             power_std_db: c.model.sigma_power_db.get(),
             speed_std_mps: c.odometry.sigma_speed_mps.get().max(1e-3),
             steer_std_rad: c.odometry.sigma_steer_rad.get().max(1e-5),
+            speed_scale_std: c.odometry.speed_scale_std.get(),
+            steer_bias_std_rad: c.odometry.steer_bias_std_rad.get(),
+            speed_scale_walk_per_sqrt_s: c.odometry.speed_scale_walk_per_sqrt_s.get(),
+            steer_bias_walk_rad_per_sqrt_s: c.odometry.steer_bias_walk_rad_per_sqrt_s.get(),
             material_variance_per_s: f.sigma_u.get().max(f.sigma_v.get()).powi(2),
             gate_probability: gate_probability(f.gate),
             jcbb_max_nodes: match f.association {

@@ -85,6 +85,10 @@ pub struct PipelineSummary {
     pub spectrum_bound_db: Option<(f64, f64)>,
     /// The learned receiver compensation slope, dB per decade.
     pub learned_gain_db_per_decade: Option<f64>,
+    /// The odometry corrections `[k, b]` the filter estimated at the end (speed times
+    /// `1 + k`, steering plus `b` rad) with their standard deviations; `None` when they are
+    /// not estimated (`[odometry] speed_scale_std` and `steer_bias_std_rad` zero).
+    pub odometry_corrections: Option<([f64; 2], [f64; 2])>,
     /// Observations kept out of the map as extended returns (walls, fences, cars).
     pub extended_returns: u64,
     /// Feature-rotations in which a mapped feature (mapped before the rotation began) was in
