@@ -3,7 +3,7 @@
 //! then on the realistic street; prints the Markdown tables.
 //!
 //! Run: `cargo run --release -p evaluation --bin association_sweep -- [--seeds N]
-//! [--seconds S] [--street-seconds S] [--no-street] [--jobs N] [--noise 5,20]`
+//! [--seconds S] [--street-seconds S] [--no-street] [--jobs N] [--noise 5,20] [--no-pairs] [--street-noise-scale K]`
 
 use clap::Parser;
 use evaluation::sections::association_sweep::{sweep, SweepBudget, NOISE_MULTIPLES};
@@ -27,6 +27,12 @@ struct Args {
     /// Worker threads.
     #[arg(long, default_value_t = 2)]
     jobs: usize,
+    /// Skip the pair scenes (the street only).
+    #[arg(long)]
+    no_pairs: bool,
+    /// Multiply the street filter's observation noise (range, bearing, power) by this.
+    #[arg(long, default_value_t = 1.0)]
+    street_noise_scale: f64,
     /// Multiples of the simulator's default odometry noise to sweep (comma-separated;
     /// default 5,20).
     #[arg(long, value_delimiter = ',')]
@@ -54,6 +60,8 @@ fn main() -> anyhow::Result<()> {
         skip_street: args.no_street,
         jobs: args.jobs.max(1),
         noise_multiples,
+        skip_pairs: args.no_pairs,
+        street_noise_scale: args.street_noise_scale,
     };
     let started = std::time::Instant::now();
     println!("{}", sweep(&budget)?);
