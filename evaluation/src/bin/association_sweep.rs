@@ -3,7 +3,8 @@
 //! then on the realistic street; prints the Markdown tables.
 //!
 //! Run: `cargo run --release -p evaluation --bin association_sweep -- [--seeds N]
-//! [--seconds S] [--street-seconds S] [--no-street] [--jobs N] [--noise 5,20] [--no-pairs] [--street-noise-scale K]`
+//! [--seconds S] [--street-seconds S] [--no-street] [--jobs N] [--noise 5,20] [--no-pairs] [--street-noise-scale K]
+//! [--street-static-only]`
 
 use clap::Parser;
 use evaluation::sections::association_sweep::{sweep, SweepBudget, NOISE_MULTIPLES};
@@ -33,6 +34,9 @@ struct Args {
     /// Multiply the street filter's observation noise (range, bearing, power) by this.
     #[arg(long, default_value_t = 1.0)]
     street_noise_scale: f64,
+    /// Remove the street's moving vehicles.
+    #[arg(long)]
+    street_static_only: bool,
     /// Multiples of the simulator's default odometry noise to sweep (comma-separated;
     /// default 5,20).
     #[arg(long, value_delimiter = ',')]
@@ -62,6 +66,7 @@ fn main() -> anyhow::Result<()> {
         noise_multiples,
         skip_pairs: args.no_pairs,
         street_noise_scale: args.street_noise_scale,
+        street_static_only: args.street_static_only,
     };
     let started = std::time::Instant::now();
     println!("{}", sweep(&budget)?);
