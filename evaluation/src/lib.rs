@@ -29,10 +29,11 @@ use std::time::Instant;
 use report::{write_file, Options, Section};
 
 /// Keys of the sections, in report order.
-pub const SECTION_KEYS: [&str; 7] = [
+pub const SECTION_KEYS: [&str; 8] = [
     "consistency",
     "accuracy",
     "association",
+    "association-sweep",
     "spectra",
     "sweep",
     "oxford",
@@ -55,6 +56,7 @@ fn run_section(key: &str, opts: &Options) -> Result<Section, EvalError> {
         "consistency" => sections::consistency::section(opts),
         "accuracy" => sections::accuracy::section(opts),
         "association" => sections::association::section(opts),
+        "association-sweep" => sections::association_sweep::section(opts),
         "spectra" => sections::spectra::section(opts),
         "sweep" => sections::sweep::section(opts),
         "oxford" => sections::oxford::section(opts),

@@ -21,6 +21,12 @@ pub struct Budget {
     pub association_seeds: usize,
     /// Simulated seconds per association run.
     pub association_seconds: f64,
+    /// Seeds per cell of the association sweep (and per setting on the street).
+    pub association_sweep_seeds: usize,
+    /// Simulated seconds per run of the association sweep's pair scenes.
+    pub association_sweep_seconds: f64,
+    /// Simulated seconds per run of the association sweep on the realistic street.
+    pub association_sweep_street_seconds: f64,
     /// Simulated seconds per point of the speed/error sweep.
     pub sweep_seconds: f64,
     /// Rotations compared per scene in the spectra section.
@@ -48,6 +54,9 @@ impl Budget {
             scene_seconds: 20.0,
             association_seeds: 3,
             association_seconds: 20.0,
+            association_sweep_seeds: 6,
+            association_sweep_seconds: 20.0,
+            association_sweep_street_seconds: 20.0,
             sweep_seconds: 6.0,
             spectra_rotations: 3,
             stability_steps: 1_000_000,
@@ -67,6 +76,9 @@ impl Budget {
             scene_seconds: 6.0,
             association_seeds: 1,
             association_seconds: 6.0,
+            association_sweep_seeds: 2,
+            association_sweep_seconds: 6.0,
+            association_sweep_street_seconds: 5.0,
             sweep_seconds: 4.0,
             spectra_rotations: 1,
             stability_steps: 20_000,
@@ -86,6 +98,9 @@ impl Budget {
             scene_seconds: 0.8,
             association_seeds: 1,
             association_seconds: 0.8,
+            association_sweep_seeds: 1,
+            association_sweep_seconds: 0.8,
+            association_sweep_street_seconds: 0.8,
             sweep_seconds: 0.8,
             spectra_rotations: 1,
             stability_steps: 400,

@@ -3,6 +3,7 @@
 
 pub mod accuracy;
 pub mod association;
+pub mod association_sweep;
 pub mod consistency;
 pub mod oxford;
 pub mod spectra;
