@@ -2,9 +2,11 @@
 //! default. Only slam-node built with its `zenoh` feature publishes; this crate only checks
 //! the settings.
 //!
-//! Keys follow zenoh-bridge-ros2dds: the ROS 2 topic `/slam/odometry` is the key
-//! `slam/odometry` (with `namespace = "robot1"`, `robot1/slam/odometry`), the payload is
-//! the CDR serialisation with its 4-byte encapsulation header, as a DDS writer sends it.
+//! Keys follow `convention`: zenoh-bridge-ros2dds's by default (the ROS 2 topic
+//! `/slam/odometry` is the key `slam/odometry`, with `namespace = "robot1"`
+//! `robot1/slam/odometry`), or rmw_zenoh's (`<domain_id>/<topic>/<DDS type>/<type hash>`);
+//! the payload is the CDR serialisation with its 4-byte encapsulation header either way. The
+//! same session takes `[odometry] source = "zenoh"`.
 
 use serde::{Deserialize, Serialize};
 
@@ -28,6 +30,26 @@ pub enum ZenohMode {
     Client,
 }
 
+/// Which ROS 2 mapping of topics to Zenoh keys, as written: `convention = "ros2dds" |
+/// "rmw_zenoh"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize, Serialize)]
+pub enum ZenohConvention {
+    /// zenoh-bridge-ros2dds: the topic name without its leading slash, under `namespace`;
+    /// the bridge's liveliness tokens. The default: a ROS 2 system on its usual DDS reaches
+    /// us through the bridge, and plain Zenoh tools read the keys as topic names.
+    #[default]
+    #[serde(rename = "ros2dds")]
+    Ros2dds,
+    /// rmw_zenoh (`RMW_IMPLEMENTATION=rmw_zenoh_cpp`): `<domain_id>/<namespace>/<topic>/
+    /// <package>::msg::dds_::<Type>_/RIHS01_<sha256>`, each message with rmw_zenoh's
+    /// attachment (sequence number, time, publisher GID), and its liveliness graph tokens.
+    #[serde(rename = "rmw_zenoh")]
+    RmwZenoh,
+}
+
+/// The largest ROS 2 domain id (as DDS allows).
+pub const MAX_DOMAIN_ID: i64 = 232;
+
 /// `[output.zenoh]` as written in the file.
 #[derive(Debug, Clone, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
@@ -47,6 +69,11 @@ pub struct RawZenoh {
     pub namespace: String,
     /// Events waiting for the publisher thread; more are dropped and counted. Default 64.
     pub queue: i64,
+    /// `"ros2dds"` (default) or `"rmw_zenoh"`: how ROS 2 topics map to keys.
+    pub convention: ZenohConvention,
+    /// The ROS 2 domain (`ROS_DOMAIN_ID`, 0 to 232): the first chunk of every rmw_zenoh key.
+    /// Default 0.
+    pub domain_id: i64,
 }
 
 impl Default for RawZenoh {
@@ -59,6 +86,8 @@ impl Default for RawZenoh {
             multicast_scouting: false,
             namespace: String::new(),
             queue: 64,
+            convention: ZenohConvention::Ros2dds,
+            domain_id: 0,
         }
     }
 }
@@ -80,6 +109,10 @@ pub struct ZenohSettings {
     pub namespace: String,
     /// Publisher queue, events.
     pub queue: Capacity,
+    /// Key convention.
+    pub convention: ZenohConvention,
+    /// ROS 2 domain id (rmw_zenoh keys).
+    pub domain_id: u32,
 }
 
 impl Default for ZenohSettings {
@@ -144,6 +177,16 @@ pub fn namespace(text: &str) -> Result<String, ValueError> {
     }
 }
 
+/// A ROS 2 domain id, 0 to [`MAX_DOMAIN_ID`].
+pub fn domain_id(value: i64) -> Result<u32, ValueError> {
+    match u32::try_from(value) {
+        Ok(id) if value <= MAX_DOMAIN_ID => Ok(id),
+        _ => Err(ValueError::Rule(format!(
+            "must be a ROS 2 domain id from 0 to {MAX_DOMAIN_ID}, got {value}"
+        ))),
+    }
+}
+
 impl RawZenoh {
     /// Validates this table alone; errors name `output.zenoh.<field>`.
     pub fn validate(&self) -> Result<ZenohSettings, FieldErrors> {
@@ -180,6 +223,10 @@ impl RawZenoh {
                 &format!("{table}.queue"),
                 Capacity::new(self.queue, MAX_ZENOH_QUEUE),
             ),
+            convention: self.convention,
+            domain_id: c
+                .check_ok(&format!("{table}.domain_id"), domain_id(self.domain_id))
+                .unwrap_or_default(),
         }
     }
 }
@@ -195,6 +242,8 @@ impl From<&ZenohSettings> for RawZenoh {
             multicast_scouting: s.multicast_scouting,
             namespace: s.namespace.clone(),
             queue: crate::values::as_i64(s.queue.get()),
+            convention: s.convention,
+            domain_id: i64::from(s.domain_id),
         }
     }
 }

@@ -11,7 +11,7 @@ use crate::check::Checker;
 use crate::error::FieldErrors;
 use crate::values::{self, NonNegativeF64, PositiveF64, ValueError};
 
-/// The odometry source, as written: `source = "tcp" | "file" | "none"`.
+/// The odometry source, as written: `source = "tcp" | "file" | "zenoh" | "none"`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum OdometrySourceKind {
@@ -19,9 +19,28 @@ pub enum OdometrySourceKind {
     Tcp,
     /// The same format read from the file at `path`.
     File,
+    /// ROS 2 messages (`message`) on the ROS 2 topic `topic`, over the Zenoh session of
+    /// `[output.zenoh]` (its endpoints, mode, namespace and key convention); slam-node built
+    /// with its `zenoh` feature only.
+    Zenoh,
     /// No odometry: the daemon says so and refuses to pretend.
     None,
 }
+
+/// The ROS 2 message a Zenoh odometry topic carries, as written: its type name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Deserialize, Serialize)]
+pub enum OdometryMessageKind {
+    /// `nav_msgs/msg/Odometry`: the twist's forward speed and yaw rate.
+    #[default]
+    #[serde(rename = "nav_msgs/msg/Odometry")]
+    Odometry,
+    /// `geometry_msgs/msg/TwistStamped`: forward speed and yaw rate.
+    #[serde(rename = "geometry_msgs/msg/TwistStamped")]
+    TwistStamped,
+}
+
+/// Default ROS 2 topic of Zenoh odometry.
+pub const DEFAULT_ODOMETRY_TOPIC: &str = "/odom";
 
 /// The motion model, as written: `motion_model = "paper" | "bicycle"`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, Serialize)]
@@ -56,6 +75,12 @@ pub struct RawOdometry {
     pub address: Option<String>,
     /// With `source = "file"`: the odometry file (required then).
     pub path: Option<PathBuf>,
+    /// With `source = "zenoh"`: the ROS 2 topic, absolute (`/odom`, the default); its key
+    /// follows `[output.zenoh] convention` and `namespace`.
+    pub topic: Option<String>,
+    /// With `source = "zenoh"`: `"nav_msgs/msg/Odometry"` (default) or
+    /// `"geometry_msgs/msg/TwistStamped"`; the yaw rate becomes the motion model's steering.
+    pub message: Option<OdometryMessageKind>,
     /// `"paper"` (eq. 2) or `"bicycle"`. Default `"paper"`.
     pub motion_model: MotionModelKind,
     /// With `motion_model = "paper"`: the step, s > 0, over which a steer value is the whole
@@ -97,6 +122,8 @@ impl Default for RawOdometry {
             source: OdometrySourceKind::Tcp,
             address: None,
             path: None,
+            topic: None,
+            message: None,
             motion_model: MotionModelKind::Paper,
             step_s: None,
             wheelbase_m: None,
@@ -126,6 +153,13 @@ pub enum OdometrySource {
     File {
         /// The file.
         path: PathBuf,
+    },
+    /// ROS 2 messages over Zenoh.
+    Zenoh {
+        /// The ROS 2 topic, absolute.
+        topic: String,
+        /// Its message type.
+        message: OdometryMessageKind,
     },
     /// None.
     None,
@@ -190,6 +224,24 @@ fn only_with(other_key: &str, value: &str) -> ValueError {
     ))
 }
 
+/// An absolute ROS 2 topic name: `/` then names of letters, digits and `_` (not starting
+/// with a digit) joined by single slashes, no trailing slash.
+pub fn ros_topic(text: &str) -> Result<String, ValueError> {
+    let ok = text.strip_prefix('/').is_some_and(|rest| {
+        rest.split('/').all(|name| {
+            name.chars().next().is_some_and(|c| !c.is_ascii_digit())
+                && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+        })
+    });
+    if ok {
+        Ok(text.to_owned())
+    } else {
+        Err(ValueError::Rule(format!(
+            "must be an absolute ROS 2 topic name such as \"/odom\" (names of letters, digits and `_` after single slashes), got {text:?}"
+        )))
+    }
+}
+
 impl RawOdometry {
     /// Validates this section alone; errors name `odometry.<field>`.
     pub fn validate(&self) -> Result<OdometrySettings, FieldErrors> {
@@ -204,6 +256,12 @@ impl RawOdometry {
         }
         if self.source != OdometrySourceKind::File && self.path.is_some() {
             c.fail("odometry.path", only_with("odometry.source", "file"));
+        }
+        if self.source != OdometrySourceKind::Zenoh && self.topic.is_some() {
+            c.fail("odometry.topic", only_with("odometry.source", "zenoh"));
+        }
+        if self.source != OdometrySourceKind::Zenoh && self.message.is_some() {
+            c.fail("odometry.message", only_with("odometry.source", "zenoh"));
         }
         let source = match self.source {
             OdometrySourceKind::Tcp => OdometrySource::Tcp {
@@ -225,6 +283,15 @@ impl RawOdometry {
                     );
                     OdometrySource::None
                 }
+            },
+            OdometrySourceKind::Zenoh => OdometrySource::Zenoh {
+                topic: c
+                    .check_ok(
+                        "odometry.topic",
+                        ros_topic(self.topic.as_deref().unwrap_or(DEFAULT_ODOMETRY_TOPIC)),
+                    )
+                    .unwrap_or_default(),
+                message: self.message.unwrap_or_default(),
             },
             OdometrySourceKind::None => OdometrySource::None,
         };
@@ -318,7 +385,12 @@ impl From<&OdometrySettings> for RawOdometry {
                 (OdometrySourceKind::Tcp, Some(address.to_string()), None)
             }
             OdometrySource::File { path } => (OdometrySourceKind::File, None, Some(path.clone())),
+            OdometrySource::Zenoh { .. } => (OdometrySourceKind::Zenoh, None, None),
             OdometrySource::None => (OdometrySourceKind::None, None, None),
+        };
+        let (topic, message) = match &s.source {
+            OdometrySource::Zenoh { topic, message } => (Some(topic.clone()), Some(*message)),
+            _ => (None, None),
         };
         let (motion_model, step_s, wheelbase_m) = match s.motion_model {
             MotionModel::Paper { step_s } => (MotionModelKind::Paper, Some(step_s.get()), None),
@@ -330,6 +402,8 @@ impl From<&OdometrySettings> for RawOdometry {
             source,
             address,
             path,
+            topic,
+            message,
             motion_model,
             step_s,
             wheelbase_m,

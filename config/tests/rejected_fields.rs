@@ -36,6 +36,11 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[odometry]\nsource = \"file\"", "odometry.path", "is required with odometry.source = \"file\""),
     ("[odometry]\nsource = \"file\"\npath = \"\"", "odometry.path", "must not be empty"),
     ("[odometry]\npath = \"odo.txt\"", "odometry.path", "is only used with odometry.source = \"file\""),
+    ("[odometry]\nsource = \"zenoh\"\ntopic = \"odom\"", "odometry.topic", "must be an absolute ROS 2 topic name"),
+    ("[odometry]\nsource = \"zenoh\"\ntopic = \"/odom/\"", "odometry.topic", "got \"/odom/\""),
+    ("[odometry]\nsource = \"zenoh\"\ntopic = \"/vehicle/2odom\"", "odometry.topic", "got \"/vehicle/2odom\""),
+    ("[odometry]\ntopic = \"/odom\"", "odometry.topic", "is only used with odometry.source = \"zenoh\""),
+    ("[odometry]\nmessage = \"nav_msgs/msg/Odometry\"", "odometry.message", "is only used with odometry.source = \"zenoh\""),
     ("[odometry]\nstep_s = 0.0", "odometry.step_s", "must be > 0, got 0"),
     ("[odometry]\nmotion_model = \"bicycle\"\nstep_s = 0.1", "odometry.step_s", "is only used with odometry.motion_model = \"paper\""),
     ("[odometry]\nmotion_model = \"bicycle\"\nwheelbase_m = -2.7", "odometry.wheelbase_m", "must be > 0, got -2.7"),
@@ -158,6 +163,8 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[output.zenoh]\nnamespace = \"/robot1\"", "output.zenoh.namespace", "no leading or trailing slash"),
     ("[output.zenoh]\nnamespace = \"robot/*\"", "output.zenoh.namespace", "no wildcards"),
     ("[output.zenoh]\nqueue = 0", "output.zenoh.queue", "must be in [1, 4096], got 0"),
+    ("[output.zenoh]\ndomain_id = 233", "output.zenoh.domain_id", "must be a ROS 2 domain id from 0 to 232, got 233"),
+    ("[output.zenoh]\ndomain_id = -1", "output.zenoh.domain_id", "got -1"),
     // [submaps]
     ("[submaps]\nmax_distance_m = 0.0", "submaps.max_distance_m", "got 0"),
     ("[submaps]\nmax_distance_m = -5.0", "submaps.max_distance_m", "got -5"),
@@ -195,6 +202,7 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "output.zenoh.enabled",
     "output.zenoh.mode",
     "output.zenoh.multicast_scouting",
+    "output.zenoh.convention",
 ];
 
 #[test]

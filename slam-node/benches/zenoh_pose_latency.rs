@@ -16,7 +16,6 @@
 //! uses it). Last, `radar-zenoh` on the same kind of simulator gives the path without the
 //! SLAM (B-scan receipt minus its last azimuth).
 
-use std::net::TcpListener;
 use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -25,25 +24,21 @@ use ros_msgs::from_cdr;
 use ros_msgs::nav::Odometry;
 use zenoh::Wait;
 
+/// A peer listening on a port the system chose on 127.0.0.1, and its bound locator.
 fn subscriber_session() -> (zenoh::Session, String) {
-    for _ in 0..5 {
-        let port = TcpListener::bind("127.0.0.1:0")
-            .and_then(|l| l.local_addr())
-            .map(|a| a.port())
-            .expect("a free loopback port");
-        let endpoint = format!("tcp/127.0.0.1:{port}");
-        let mut c = zenoh::Config::default();
-        c.insert_json5("mode", "\"peer\"").unwrap();
-        c.insert_json5("listen/endpoints", &format!("[\"{endpoint}\"]"))
-            .unwrap();
-        c.insert_json5("connect/endpoints", "[]").unwrap();
-        c.insert_json5("scouting/multicast/enabled", "false")
-            .unwrap();
-        if let Ok(s) = zenoh::open(c).wait() {
-            return (s, endpoint);
-        }
-    }
-    panic!("no loopback port could be listened on");
+    let mut c = zenoh::Config::default();
+    c.insert_json5("mode", "\"peer\"").unwrap();
+    c.insert_json5("listen/endpoints", "[\"tcp/127.0.0.1:0\"]")
+        .unwrap();
+    c.insert_json5("connect/endpoints", "[]").unwrap();
+    c.insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    let session = zenoh::open(c).wait().expect("a loopback Zenoh peer");
+    let locator = slam_node::output::zenoh_node::listening_on(&session)
+        .into_iter()
+        .find(|l| l.starts_with("tcp/127.0.0.1:") && !l.ends_with(":0"))
+        .expect("the bound locator");
+    (session, locator)
 }
 
 /// The last-azimuth times of the rotations, in order, from `diagnostics.csv`.

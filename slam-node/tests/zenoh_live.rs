@@ -11,34 +11,43 @@ use ros_msgs::nav::{Odometry, TFMessage};
 use ros_msgs::sensor::PointCloud2;
 use ros_msgs::visualization::MarkerArray;
 use ros_msgs::{from_cdr, RosMessage};
-use slam_node::output::live::{bridge_liveliness_key, bridge_qos, topic_key, LivePublisher};
+use slam_node::output::live::{
+    bridge_liveliness_key, bridge_qos, dds_type_name, rmw_zenoh_attachment, rmw_zenoh_entity_token,
+    rmw_zenoh_key, rmw_zenoh_node_token, rmw_zenoh_qos, topic_key, type_hash, EntityKind,
+    LivePublisher,
+};
 use slam_node::output::{LiveError, LiveOutput, OutputEvent, PoseSample};
 use zenoh::Wait;
 
-/// A port free on 127.0.0.1 a moment ago (Zenoh is told the exact endpoint to listen on).
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map(|a| a.port())
-        .expect("a free loopback port")
+/// A peer listening on a port the system chose on 127.0.0.1 (no port is picked, released
+/// and reused), and that listener's locator as the session reports it.
+fn subscriber_session() -> (zenoh::Session, String) {
+    let mut c = zenoh::Config::default();
+    c.insert_json5("mode", "\"peer\"").unwrap();
+    c.insert_json5("listen/endpoints", "[\"tcp/127.0.0.1:0\"]")
+        .unwrap();
+    c.insert_json5("connect/endpoints", "[]").unwrap();
+    c.insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    let session = zenoh::open(c).wait().expect("a loopback Zenoh peer");
+    let locator = slam_node::output::zenoh_node::listening_on(&session)
+        .into_iter()
+        .find(|l| l.starts_with("tcp/127.0.0.1:") && !l.ends_with(":0"))
+        .expect("the bound locator");
+    (session, locator)
 }
 
-/// A session on a fresh loopback port (retrying if the port was taken meanwhile).
-fn subscriber_session() -> (zenoh::Session, String) {
-    for _ in 0..5 {
-        let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-        let mut c = zenoh::Config::default();
-        c.insert_json5("mode", "\"peer\"").unwrap();
-        c.insert_json5("listen/endpoints", &format!("[\"{endpoint}\"]"))
-            .unwrap();
-        c.insert_json5("connect/endpoints", "[]").unwrap();
-        c.insert_json5("scouting/multicast/enabled", "false")
-            .unwrap();
-        if let Ok(s) = zenoh::open(c).wait() {
-            return (s, endpoint);
+/// A TCP port on 127.0.0.1 held by this test for its whole life, whose every connection is
+/// closed at once: a Zenoh client finds no router there.
+fn port_that_closes_every_connection() -> u16 {
+    let listener = TcpListener::bind("127.0.0.1:0").expect("a loopback port");
+    let port = listener.local_addr().expect("its address").port();
+    std::thread::spawn(move || {
+        for stream in listener.incoming() {
+            drop(stream);
         }
-    }
-    panic!("no loopback port could be listened on");
+    });
+    port
 }
 
 fn write_config(dir: &std::path::Path, connect: &str, listen: &str) -> std::path::PathBuf {
@@ -217,6 +226,7 @@ fn live(queue: i64, connect: Vec<String>) -> LiveOutput {
     LiveOutput {
         zenoh: raw.validate().unwrap(),
         motion: MotionModel::Paper { step_s: 0.25 },
+        node: None,
     }
 }
 
@@ -265,17 +275,21 @@ fn poses_offered_to_the_publisher_arrive_as_cdr_odometry_with_their_covariance()
 
 #[test]
 fn a_bad_endpoint_is_a_typed_error_not_a_panic() {
-    // Client mode with nothing listening: Zenoh gives up at once.
+    // Client mode with no router behind the endpoint: Zenoh gives up at once.
     let raw = config::live::RawZenoh {
         enabled: true,
         mode: config::live::ZenohMode::Client,
-        connect: vec![format!("tcp/127.0.0.1:{}", free_port())],
+        connect: vec![format!(
+            "tcp/127.0.0.1:{}",
+            port_that_closes_every_connection()
+        )],
         listen: Vec::new(),
         ..Default::default()
     };
     let result = LivePublisher::spawn(LiveOutput {
         zenoh: raw.validate().unwrap(),
         motion: MotionModel::Paper { step_s: 0.25 },
+        node: None,
     });
     assert!(matches!(result, Err(LiveError::Open(_))), "{result:?}");
 }
@@ -293,6 +307,109 @@ fn keys_and_liveliness_tokens_follow_the_ros2dds_bridge() {
     // The key is a valid Zenoh key expression.
     let ke = bridge_liveliness_key("abc", "slam/odometry", &Odometry::type_name(), ":1::0,10");
     assert!(zenoh::key_expr::KeyExpr::try_from(ke).is_ok());
+}
+
+#[test]
+fn keys_and_liveliness_tokens_follow_rmw_zenoh_as_its_design_document_shows_them() {
+    assert_eq!(
+        dds_type_name("nav_msgs/msg/Odometry"),
+        "nav_msgs::msg::dds_::Odometry_"
+    );
+    // rmw_zenoh's docs/design.md: the `chatter` topic of demo_nodes_cpp.
+    assert_eq!(
+        rmw_zenoh_key(0, "robot1", "/chatter", "std_msgs/msg/String").unwrap(),
+        "0/robot1/chatter/std_msgs::msg::dds_::String_/RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
+    );
+    assert_eq!(
+        rmw_zenoh_node_token(2, "aac3178e146ba6f1fc6e6a4085e77f21", 0, "", "listener"),
+        "@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/listener"
+    );
+    assert_eq!(
+        rmw_zenoh_entity_token(
+            2,
+            "8b20917502ee955ac4476e0266340d5c",
+            0,
+            10,
+            EntityKind::Publisher,
+            "",
+            "talker",
+            "/chatter",
+            "std_msgs/msg/String",
+            "::,7:,:,:,,"
+        )
+        .unwrap(),
+        "@ros2_lv/2/8b20917502ee955ac4476e0266340d5c/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18/::,7:,:,:,,"
+    );
+    assert_eq!(rmw_zenoh_qos(false, 10), "::,10:,:,:,,");
+    assert_eq!(rmw_zenoh_qos(true, 1), ":1:,1:,:,:,,");
+    // Our own topic, namespaced, and a type whose hash is not tabulated.
+    let key = rmw_zenoh_key(3, "robot1", "/slam/odometry", &Odometry::type_name()).unwrap();
+    assert_eq!(
+        key,
+        format!(
+            "3/robot1/slam/odometry/nav_msgs::msg::dds_::Odometry_/{}",
+            type_hash("nav_msgs/msg/Odometry").unwrap()
+        )
+    );
+    assert!(zenoh::key_expr::KeyExpr::try_from(key).is_ok());
+    assert!(matches!(
+        rmw_zenoh_key(0, "", "/x", "std_msgs/msg/Bool"),
+        Err(LiveError::UnknownTypeHash(_))
+    ));
+    let a = rmw_zenoh_attachment(7, -2, &[9; 16]);
+    assert_eq!(&a[..8], &7i64.to_le_bytes());
+    assert_eq!(&a[8..16], &(-2i64).to_le_bytes());
+    assert_eq!(a[16], 16);
+    assert_eq!(&a[17..], &[9; 16]);
+}
+
+#[test]
+fn under_rmw_zenoh_poses_arrive_on_its_key_with_its_attachment_and_its_graph_tokens() {
+    let (session, endpoint) = subscriber_session();
+    let key = rmw_zenoh_key(0, "", "/slam/odometry", &Odometry::type_name()).unwrap();
+    let subscriber = session.declare_subscriber(key.as_str()).wait().unwrap();
+    let mut out = live(64, vec![endpoint]);
+    out.zenoh.convention = config::live::ZenohConvention::RmwZenoh;
+    let publisher = LivePublisher::spawn(out).unwrap();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let mut got = None;
+    let mut t = 0.0;
+    while got.is_none() && Instant::now() < deadline {
+        t += 1.0;
+        publisher.offer(&pose(1.7e9 + t));
+        if let Ok(Some(sample)) = subscriber.recv_timeout(Duration::from_millis(50)) {
+            got = Some(sample);
+        }
+    }
+    let sample = got.expect("a pose within 20 s");
+    let odometry: Odometry = from_cdr(&sample.payload().to_bytes()).unwrap();
+    assert!((odometry.pose.pose.position.x - 1.0).abs() < 1e-12);
+    let attachment = sample
+        .attachment()
+        .expect("rmw_zenoh's attachment")
+        .to_bytes();
+    assert_eq!(attachment.len(), 33);
+    assert!(i64::from_le_bytes(attachment[..8].try_into().unwrap()) >= 1);
+    assert_eq!(attachment[16], 16);
+    // The graph: the node's token and its publisher's.
+    let replies = session.liveliness().get("@ros2_lv/0/**").wait().unwrap();
+    let mut tokens = Vec::new();
+    while let Ok(Some(reply)) = replies.recv_timeout(Duration::from_secs(2)) {
+        if let Ok(s) = reply.result() {
+            tokens.push(s.key_expr().as_str().to_owned());
+        }
+    }
+    assert!(
+        tokens.iter().any(|t| t.ends_with("/0/0/NN/%/%/slam_node")),
+        "{tokens:?}"
+    );
+    assert!(
+        tokens.iter().any(|t| t
+            .contains("/MP/%/%/slam_node/%slam%odometry/nav_msgs::msg::dds_::Odometry_/RIHS01_")
+            && t.ends_with("/::,10:,:,:,,")),
+        "{tokens:?}"
+    );
+    drop(publisher);
 }
 
 /// A simulated radar (the shipped penetration-wood scene, paper unit, real time) on

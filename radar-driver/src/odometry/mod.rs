@@ -53,6 +53,10 @@ pub enum OdometryError {
     /// Reading the file failed; the source has ended.
     #[error("reading odometry failed")]
     Read(#[source] std::io::Error),
+    /// The configured source is not one this crate opens (`zenoh`: slam-node subscribes to
+    /// it on its own Zenoh session).
+    #[error("odometry source \"{0}\" is opened by slam-node, not by radar-driver")]
+    OpenedElsewhere(&'static str),
 }
 
 impl OdometryError {
@@ -71,7 +75,8 @@ pub trait OdometrySource: Send {
 
 #[cfg(feature = "config")]
 /// Opens the source the `[odometry]` section names: a [`TcpOdometry`] (spawned on
-/// `runtime`, stopped by `shutdown`), a [`FileOdometry`], or `None` for `source = "none"`.
+/// `runtime`, stopped by `shutdown`), a [`FileOdometry`], or `None` for `source = "none"`;
+/// `source = "zenoh"` is [`OdometryError::OpenedElsewhere`] (slam-node opens it).
 pub fn open_configured(
     settings: &config::OdometrySettings,
     runtime: &tokio::runtime::Handle,
@@ -85,6 +90,9 @@ pub fn open_configured(
         ))),
         config::odometry::OdometrySource::File { path } => {
             Some(Box::new(FileOdometry::open(path)?))
+        }
+        config::odometry::OdometrySource::Zenoh { .. } => {
+            return Err(OdometryError::OpenedElsewhere("zenoh"))
         }
         config::odometry::OdometrySource::None => None,
     })

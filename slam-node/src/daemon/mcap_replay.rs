@@ -34,13 +34,11 @@ use protocol::{BinWidth, Geometry};
 use radar_driver::{Azimuth, OdometryError, OdometryPoll, OdometryRecord, OdometrySource};
 use radar_model::motion::MotionModel;
 use ros_msgs::builtin::Time;
-use ros_msgs::geometry::TwistStamped;
-use ros_msgs::nav::Odometry;
 use ros_msgs::navtech::{RadarBScanMsg, RadarConfigurationMsg, RadarFftDataMsg};
 use ros_msgs::{from_cdr, RosMessage};
 use tracing::warn;
 
-use crate::output::recording::steer_from_yaw_rate;
+use crate::output::ros::OdometryMessage;
 
 /// The longest record read (a B-scan of a CTS350-X is 1.5 MB).
 const MAX_RECORD_BYTES: usize = 256 << 20;
@@ -193,8 +191,7 @@ enum Use {
     BScan,
     Fft,
     Configuration,
-    Twist,
-    Odometry,
+    Odometry(OdometryMessage),
     Ignored,
     UnknownSchema,
     WrongEncoding,
@@ -317,10 +314,8 @@ impl Reader {
                             Use::Configuration
                         } else if c.topic != self.settings.odometry_topic {
                             Use::Ignored
-                        } else if same_type(name, &TwistStamped::type_name()) {
-                            Use::Twist
-                        } else if same_type(name, &Odometry::type_name()) {
-                            Use::Odometry
+                        } else if let Some(kind) = OdometryMessage::from_type_name(name) {
+                            Use::Odometry(kind)
                         } else {
                             Use::UnknownSchema
                         }
@@ -368,16 +363,8 @@ impl Reader {
                 Ok(m) => self.on_fft(m),
                 Err(e) => self.malformed("fft data", &e.to_string()),
             },
-            Use::Twist => match from_cdr::<TwistStamped>(data) {
-                Ok(m) => self.on_odometry(m.header.stamp, m.twist.linear.x, m.twist.angular.z),
-                Err(e) => self.malformed("odometry", &e.to_string()),
-            },
-            Use::Odometry => match from_cdr::<Odometry>(data) {
-                Ok(m) => self.on_odometry(
-                    m.header.stamp,
-                    m.twist.twist.linear.x,
-                    m.twist.twist.angular.z,
-                ),
+            Use::Odometry(kind) => match kind.decode(data, &self.settings.motion) {
+                Ok(record) => self.on_odometry(record),
                 Err(e) => self.malformed("odometry", &e.to_string()),
             },
         }
@@ -516,13 +503,8 @@ impl Reader {
         self.hold(timestamp_s, vec![az]);
     }
 
-    fn on_odometry(&mut self, stamp: Time, speed_mps: f64, yaw_rate_rps: f64) {
-        let timestamp_s = stamp.as_secs_f64();
-        let record = OdometryRecord {
-            timestamp_s,
-            speed_mps,
-            steer_rad: steer_from_yaw_rate(&self.settings.motion, speed_mps, yaw_rate_rps),
-        };
+    fn on_odometry(&mut self, record: OdometryRecord) {
+        let timestamp_s = record.timestamp_s;
         if !self.odometry_closed {
             if self.odo_tx.send(record).is_ok() {
                 self.counts.odometry += 1;

@@ -12,6 +12,7 @@ pub mod mcap_replay;
 pub mod replay;
 pub mod report;
 pub mod sink;
+pub mod zenoh_odometry;
 
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
@@ -77,6 +78,9 @@ pub enum DaemonError {
     /// An MCAP replay could not start.
     #[error("MCAP replay")]
     McapReplay(#[from] mcap_replay::McapReplayError),
+    /// The Zenoh session or the odometry subscription could not start.
+    #[error("Zenoh")]
+    Zenoh(#[from] crate::output::LiveError),
 }
 
 /// Everything a daemon run needs.
@@ -133,6 +137,75 @@ pub struct DaemonReport {
     pub driver_failure: Option<radar_driver::DriverError>,
     /// A replay of an MCAP file: what it read and refused.
     pub mcap_replay: Option<mcap_replay::McapReplayCounts>,
+    /// Odometry from Zenoh: what the subscription received and lost.
+    pub zenoh_odometry: Option<zenoh_odometry::ZenohOdometryCounts>,
+}
+
+/// The Zenoh session a run needs (publishing, or odometry from Zenoh), opened on a blocking
+/// thread; `None` when it needs none. Without the `zenoh` feature, asking for one is
+/// [`crate::output::LiveError::NotBuilt`].
+async fn open_zenoh(
+    config: &config::Config,
+) -> Result<Option<crate::output::live::SharedNode>, DaemonError> {
+    let wanted = config.output.zenoh.enabled
+        || matches!(
+            config.odometry.source,
+            config::odometry::OdometrySource::Zenoh { .. }
+        );
+    if !wanted {
+        return Ok(None);
+    }
+    #[cfg(feature = "zenoh")]
+    {
+        let settings = config.output.zenoh.clone();
+        let node = tokio::task::spawn_blocking(move || {
+            crate::output::zenoh_node::ZenohNode::open(&settings, crate::output::live::NODE_NAME)
+        })
+        .await
+        .map_err(|_| DaemonError::PipelinePanicked)??;
+        Ok(Some(Arc::new(node)))
+    }
+    #[cfg(not(feature = "zenoh"))]
+    Err(crate::output::LiveError::NotBuilt.into())
+}
+
+/// An odometry source over Zenoh and its counters.
+type ZenohOdometrySource = (Box<dyn OdometrySource>, zenoh_odometry::SharedStats);
+
+/// The odometry subscription `[odometry] source = "zenoh"` asks for, on `node`, decoding under
+/// `motion`; `None` for other sources.
+#[cfg(feature = "zenoh")]
+fn zenoh_odometry_source(
+    config: &config::Config,
+    node: Option<&crate::output::live::SharedNode>,
+    motion: radar_model::motion::MotionModel,
+) -> Result<Option<ZenohOdometrySource>, DaemonError> {
+    let (config::odometry::OdometrySource::Zenoh { topic, message }, Some(node)) =
+        (&config.odometry.source, node)
+    else {
+        return Ok(None);
+    };
+    let message = match message {
+        config::odometry::OdometryMessageKind::Odometry => {
+            crate::output::ros::OdometryMessage::Odometry
+        }
+        config::odometry::OdometryMessageKind::TwistStamped => {
+            crate::output::ros::OdometryMessage::TwistStamped
+        }
+    };
+    let source = zenoh_odometry::ZenohOdometry::subscribe(node, topic, message, motion)?;
+    let stats = source.stats();
+    Ok(Some((Box::new(source), stats)))
+}
+
+/// Without the `zenoh` feature there is no Zenoh odometry ([`open_zenoh`] refused it).
+#[cfg(not(feature = "zenoh"))]
+fn zenoh_odometry_source(
+    _config: &config::Config,
+    _node: Option<&crate::output::live::SharedNode>,
+    _motion: radar_model::motion::MotionModel,
+) -> Result<Option<ZenohOdometrySource>, DaemonError> {
+    Ok(None)
 }
 
 /// Runs the daemon to the end of the stream, the duration limit or a stop request.
@@ -150,7 +223,9 @@ pub async fn run_daemon(
         .map(|d| radar_model::geometry::wrap_angle(d.to_radians()))
         .collect();
     info!(kind = ?settings.detector.kind, domain = ?settings.detector.domain, "detector");
-    let output = OutputHandle::spawn(output_files(&opts, settings.motion))?;
+    let node = open_zenoh(&opts.config).await?;
+    let output = OutputHandle::spawn(output_files(&opts, settings.motion, node.clone()))?;
+    let mut zenoh_stats = None;
     let (odo_trigger, odo_shutdown) = shutdown_pair();
     #[cfg(feature = "sim")]
     let mut sim_handle: Option<sim_sensor::SimHandle> = None;
@@ -202,16 +277,31 @@ pub async fn run_daemon(
             scene_name = Some(started.scene_name);
             pipeline = Some(started.pipeline);
             sim_handle = Some(started.handle);
-            (started.azimuths, started.driver, started.odometry)
+            // Odometry from Zenoh instead of the simulator's odometry port.
+            let odometry =
+                match zenoh_odometry_source(&opts.config, node.as_ref(), settings.motion)? {
+                    Some((source, stats)) => {
+                        zenoh_stats = Some(stats);
+                        Some(source)
+                    }
+                    None => started.odometry,
+                };
+            (started.azimuths, started.driver, odometry)
         }
         #[cfg(not(feature = "sim"))]
         match sim {}
     } else {
-        let odometry = radar_driver::odometry::open_configured(
-            &opts.config.odometry,
-            &tokio::runtime::Handle::current(),
-            odo_shutdown.clone(),
-        )?;
+        let odometry = match zenoh_odometry_source(&opts.config, node.as_ref(), settings.motion)? {
+            Some((source, stats)) => {
+                zenoh_stats = Some(stats);
+                Some(source)
+            }
+            None => radar_driver::odometry::open_configured(
+                &opts.config.odometry,
+                &tokio::runtime::Handle::current(),
+                odo_shutdown.clone(),
+            )?,
+        };
         if odometry.is_none() {
             return Err(DaemonError::NoOdometry);
         }
@@ -275,6 +365,8 @@ pub async fn run_daemon(
     let writer = tokio::task::spawn_blocking(move || output.finish())
         .await
         .map_err(|_| DaemonError::PipelinePanicked)??;
+    let zenoh_odometry = zenoh_stats.map(|s| s.snapshot());
+    close_zenoh(node).await;
     Ok(DaemonReport {
         run,
         driver,
@@ -285,6 +377,7 @@ pub async fn run_daemon(
         replay: replay_figures,
         driver_failure,
         mcap_replay: None,
+        zenoh_odometry,
     })
 }
 
@@ -306,7 +399,19 @@ pub fn run_mcap_replay(
         .iter()
         .map(|d| radar_model::geometry::wrap_angle(d.to_radians()))
         .collect();
-    let output = OutputHandle::spawn(output_files(&opts, settings.motion))?;
+    // The replay's odometry comes from the file: a session only to publish.
+    #[cfg(feature = "zenoh")]
+    let node = if opts.config.output.zenoh.enabled {
+        Some(Arc::new(crate::output::zenoh_node::ZenohNode::open(
+            &opts.config.output.zenoh,
+            crate::output::live::NODE_NAME,
+        )?))
+    } else {
+        None
+    };
+    #[cfg(not(feature = "zenoh"))]
+    let node: Option<crate::output::live::SharedNode> = None;
+    let output = OutputHandle::spawn(output_files(&opts, settings.motion, node.clone()))?;
     let mut replay = mcap_replay::McapReplaySettings::new(path, settings.motion);
     if let Some(topic) = odometry_topic {
         replay.odometry_topic = topic;
@@ -326,6 +431,12 @@ pub fn run_mcap_replay(
     let run = run_pipeline(pipeline, inputs, &output, control);
     let counts = reader.finish();
     let writer = output.finish()?;
+    #[cfg(feature = "zenoh")]
+    if let Some(node) = node {
+        node.close();
+    }
+    #[cfg(not(feature = "zenoh"))]
+    let _ = node;
     Ok(DaemonReport {
         run,
         driver: None,
@@ -336,12 +447,27 @@ pub fn run_mcap_replay(
         replay: None,
         driver_failure: None,
         mcap_replay: Some(counts),
+        zenoh_odometry: None,
     })
+}
+
+/// Closes the run's Zenoh session, if it has one, on a blocking thread.
+async fn close_zenoh(node: Option<crate::output::live::SharedNode>) {
+    #[cfg(feature = "zenoh")]
+    if let Some(node) = node {
+        let _ = tokio::task::spawn_blocking(move || node.close()).await;
+    }
+    #[cfg(not(feature = "zenoh"))]
+    let _ = node;
 }
 
 /// The output files a run writes: the configured names in the output folder, the MCAP
 /// recording when one is asked for, and the live Zenoh topics when `[output.zenoh]` is on.
-fn output_files(opts: &DaemonOptions, motion: radar_model::motion::MotionModel) -> OutputFiles {
+fn output_files(
+    opts: &DaemonOptions,
+    motion: radar_model::motion::MotionModel,
+    node: Option<crate::output::live::SharedNode>,
+) -> OutputFiles {
     let o = &opts.config.output;
     OutputFiles {
         figures: opts.figures,
@@ -355,6 +481,7 @@ fn output_files(opts: &DaemonOptions, motion: radar_model::motion::MotionModel) 
         live: o.zenoh.enabled.then(|| crate::output::LiveOutput {
             zenoh: o.zenoh.clone(),
             motion,
+            node,
         }),
         ..OutputFiles::in_dir(opts.out_dir.clone())
     }

@@ -323,6 +323,19 @@ pub fn summary_text(r: &DaemonReport) -> String {
                 .map_or(String::new(), |e| format!("; the file ended early: {e}"))
         );
     }
+    if let Some(z) = &r.zenoh_odometry {
+        let _ = writeln!(
+            t,
+            "  Zenoh odometry on {}: {} samples received, {} taken; lost {} (malformed {}, another type {}, queue full {})",
+            z.key,
+            z.received,
+            z.decoded,
+            z.lost(),
+            z.malformed,
+            z.wrong_type,
+            z.dropped
+        );
+    }
     if let Some(rec) = &r.writer.recording {
         let _ = writeln!(t, "{}", recording_line(rec));
     }

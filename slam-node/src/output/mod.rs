@@ -16,6 +16,8 @@ pub mod recording;
 pub mod ros;
 pub mod trajectory;
 pub mod writer;
+#[cfg(feature = "zenoh")]
+pub mod zenoh_node;
 
 pub use detections::{Detection, RotationDetections};
 pub use diagnostics::{RotationDiagnostics, SpectrumComparison};

@@ -209,6 +209,69 @@ pub fn steer_from_yaw_rate(motion: &MotionModel, speed_mps: f64, yaw_rate_rps: f
     }
 }
 
+/// The ROS 2 messages the daemon takes its odometry from (an MCAP replay's odometry topic, a
+/// Zenoh subscription): the vehicle's forward speed and yaw rate, the yaw rate turned into
+/// the motion model's steering input ([`steer_from_yaw_rate`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum OdometryMessage {
+    /// `nav_msgs/msg/Odometry`: `twist.twist.linear.x` and `twist.twist.angular.z`, stamped
+    /// by its header.
+    Odometry,
+    /// `geometry_msgs/msg/TwistStamped`: `twist.linear.x` and `twist.angular.z`.
+    TwistStamped,
+}
+
+impl OdometryMessage {
+    /// The message named `name` (`package/msg/Type` or `package/Type`), if it is one of them.
+    pub fn from_type_name(name: &str) -> Option<Self> {
+        let same = |full: String| name == full || name == full.replacen("/msg/", "/", 1);
+        if same(<Odometry as ros_msgs::RosMessage>::type_name()) {
+            Some(Self::Odometry)
+        } else if same(<TwistStamped as ros_msgs::RosMessage>::type_name()) {
+            Some(Self::TwistStamped)
+        } else {
+            None
+        }
+    }
+
+    /// The ROS 2 type name, `package/msg/Type`.
+    pub fn type_name(self) -> String {
+        match self {
+            Self::Odometry => <Odometry as ros_msgs::RosMessage>::type_name(),
+            Self::TwistStamped => <TwistStamped as ros_msgs::RosMessage>::type_name(),
+        }
+    }
+
+    /// Decodes one CDR payload of this type into an odometry record under `motion`. A
+    /// payload that does not decode (truncated, garbage, another type's longer or shorter
+    /// layout) is an error; the values are checked later by the pipeline's odometry gate.
+    pub fn decode(
+        self,
+        payload: &[u8],
+        motion: &MotionModel,
+    ) -> Result<radar_driver::OdometryRecord, ros_msgs::CdrError> {
+        let (stamp, speed_mps, yaw_rate_rps) = match self {
+            Self::Odometry => {
+                let m: Odometry = ros_msgs::from_cdr(payload)?;
+                (
+                    m.header.stamp,
+                    m.twist.twist.linear.x,
+                    m.twist.twist.angular.z,
+                )
+            }
+            Self::TwistStamped => {
+                let m: TwistStamped = ros_msgs::from_cdr(payload)?;
+                (m.header.stamp, m.twist.linear.x, m.twist.angular.z)
+            }
+        };
+        Ok(radar_driver::OdometryRecord {
+            timestamp_s: stamp.as_secs_f64(),
+            speed_mps,
+            steer_rad: steer_from_yaw_rate(motion, speed_mps, yaw_rate_rps),
+        })
+    }
+}
+
 /// The pose's 3x3 covariance over (x, y, theta) placed in ROS's 6x6 over (x, y, z, roll,
 /// pitch, yaw); the plane's other three are left 0.
 fn covariance6(c: &[[f64; 3]; 3]) -> [f64; 36] {

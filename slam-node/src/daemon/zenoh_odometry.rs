@@ -1,0 +1,196 @@
+//! The vehicle's odometry over Zenoh (`[odometry] source = "zenoh"`, feature `zenoh`):
+//! `nav_msgs/msg/Odometry` or `geometry_msgs/msg/TwistStamped` on a ROS 2 topic, keyed by
+//! `[output.zenoh] convention`, decoded as an MCAP replay decodes its odometry topic
+//! ([`crate::output::ros::OdometryMessage`]) and handed to the pipeline through the same
+//! [`OdometrySource`] seam the TCP odometry client feeds.
+//!
+//! A peer's bad input costs that message only: a payload that does not decode (garbage,
+//! truncated, another type's layout) is counted as malformed, a sample whose encoding names
+//! another ROS type as of another type; the first ten and then every power of two are logged.
+//! Decoding runs in Zenoh's callback and never blocks: decoded records go to the pipeline on
+//! a bounded channel, and a full channel drops the record and counts it.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+/// What the Zenoh odometry subscription received.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ZenohOdometryCounts {
+    /// The key subscribed to.
+    pub key: String,
+    /// Samples received.
+    pub received: u64,
+    /// Records decoded and handed to the pipeline.
+    pub decoded: u64,
+    /// Samples whose payload did not decode.
+    pub malformed: u64,
+    /// Samples whose encoding named another ROS type.
+    pub wrong_type: u64,
+    /// Records dropped because the pipeline's channel was full.
+    pub dropped: u64,
+}
+
+impl ZenohOdometryCounts {
+    /// Samples lost for any reason.
+    pub fn lost(&self) -> u64 {
+        self.malformed + self.wrong_type + self.dropped
+    }
+}
+
+/// The subscription's live counters.
+#[derive(Debug, Default)]
+pub struct ZenohOdometryStats {
+    key: String,
+    received: AtomicU64,
+    decoded: AtomicU64,
+    malformed: AtomicU64,
+    wrong_type: AtomicU64,
+    dropped: AtomicU64,
+}
+
+impl ZenohOdometryStats {
+    /// A copy of the counters.
+    pub fn snapshot(&self) -> ZenohOdometryCounts {
+        let g = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        ZenohOdometryCounts {
+            key: self.key.clone(),
+            received: g(&self.received),
+            decoded: g(&self.decoded),
+            malformed: g(&self.malformed),
+            wrong_type: g(&self.wrong_type),
+            dropped: g(&self.dropped),
+        }
+    }
+
+    /// Samples lost so far for any reason.
+    pub fn lost(&self) -> u64 {
+        self.malformed.load(Ordering::Relaxed)
+            + self.wrong_type.load(Ordering::Relaxed)
+            + self.dropped.load(Ordering::Relaxed)
+    }
+}
+
+/// Shared handle to the counters.
+pub type SharedStats = Arc<ZenohOdometryStats>;
+
+#[cfg(feature = "zenoh")]
+pub use subscriber::ZenohOdometry;
+
+#[cfg(feature = "zenoh")]
+mod subscriber {
+    use std::sync::atomic::Ordering;
+    use std::sync::Arc;
+    use std::time::Duration;
+
+    use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, TryRecvError, TrySendError};
+    use radar_driver::{OdometryError, OdometryPoll, OdometryRecord, OdometrySource};
+    use radar_model::motion::MotionModel;
+    use tracing::{info, warn};
+
+    use super::{SharedStats, ZenohOdometryStats};
+    use crate::output::live::LiveError;
+    use crate::output::ros::OdometryMessage;
+    use crate::output::zenoh_node::{Subscription, ZenohNode};
+
+    /// Records waiting for the pipeline (about 50 s at 20 Hz); more are dropped and counted.
+    pub const CAPACITY: usize = 1024;
+
+    /// The pipeline's end of the subscription.
+    #[derive(Debug)]
+    pub struct ZenohOdometry {
+        rx: Receiver<OdometryRecord>,
+        stats: SharedStats,
+        _subscription: Subscription,
+    }
+
+    fn log_lost(stats: &ZenohOdometryStats, what: &str, detail: &str) {
+        let n = stats.lost();
+        if n <= 10 || n.is_power_of_two() {
+            warn!(key = %stats.key, what, detail, lost = n, "Zenoh odometry sample lost");
+        }
+    }
+
+    /// Whether a sample's encoding names a ROS type other than `expected` (no schema, or a
+    /// schema naming the same type, is not).
+    fn names_another_type(encoding: &zenoh::bytes::Encoding, expected: OdometryMessage) -> bool {
+        let text = encoding.to_string();
+        match text.split_once(';') {
+            Some((_, schema)) if !schema.is_empty() => {
+                OdometryMessage::from_type_name(schema) != Some(expected)
+            }
+            _ => false,
+        }
+    }
+
+    impl ZenohOdometry {
+        /// Subscribes to `topic` (`message`) on `node`, decoding under `motion`.
+        pub fn subscribe(
+            node: &ZenohNode,
+            topic: &str,
+            message: OdometryMessage,
+            motion: MotionModel,
+        ) -> Result<Self, LiveError> {
+            let (tx, rx) = bounded(CAPACITY);
+            let key = node.key(topic, &message.type_name())?;
+            let stats = Arc::new(ZenohOdometryStats {
+                key: key.clone(),
+                ..ZenohOdometryStats::default()
+            });
+            let counters = Arc::clone(&stats);
+            let subscription = node.subscriber(topic, &message.type_name(), move |sample| {
+                let s = &counters;
+                s.received.fetch_add(1, Ordering::Relaxed);
+                if names_another_type(sample.encoding(), message) {
+                    s.wrong_type.fetch_add(1, Ordering::Relaxed);
+                    log_lost(s, "another type", &sample.encoding().to_string());
+                    return;
+                }
+                let payload = sample.payload().to_bytes();
+                match message.decode(&payload, &motion) {
+                    Ok(record) => match tx.try_send(record) {
+                        Ok(()) => {
+                            s.decoded.fetch_add(1, Ordering::Relaxed);
+                        }
+                        Err(TrySendError::Full(_)) => {
+                            s.dropped.fetch_add(1, Ordering::Relaxed);
+                            log_lost(s, "queue full", "the pipeline is behind");
+                        }
+                        Err(TrySendError::Disconnected(_)) => {}
+                    },
+                    Err(e) => {
+                        s.malformed.fetch_add(1, Ordering::Relaxed);
+                        log_lost(s, "malformed", &e.to_string());
+                    }
+                }
+            })?;
+            info!(key = %subscription.key, message = %message.type_name(), "odometry from Zenoh");
+            Ok(Self {
+                rx,
+                stats,
+                _subscription: subscription,
+            })
+        }
+
+        /// The counters (live).
+        pub fn stats(&self) -> SharedStats {
+            Arc::clone(&self.stats)
+        }
+    }
+
+    impl OdometrySource for ZenohOdometry {
+        fn poll_next(&mut self, timeout: Duration) -> Result<OdometryPoll, OdometryError> {
+            if timeout.is_zero() {
+                return Ok(match self.rx.try_recv() {
+                    Ok(r) => OdometryPoll::Record(r),
+                    Err(TryRecvError::Empty) => OdometryPoll::Pending,
+                    Err(TryRecvError::Disconnected) => OdometryPoll::Ended,
+                });
+            }
+            Ok(match self.rx.recv_timeout(timeout) {
+                Ok(r) => OdometryPoll::Record(r),
+                Err(RecvTimeoutError::Timeout) => OdometryPoll::Pending,
+                Err(RecvTimeoutError::Disconnected) => OdometryPoll::Ended,
+            })
+        }
+    }
+}
