@@ -171,8 +171,8 @@ fn boreas_and_radiate_ground_truth_drive_the_same_arc_and_dead_reckoning_follows
 fn a_configuration_given_with_a_replay_folder_is_used_and_the_replay_still_runs() {
     let (dir, _drive) = boreas();
     let out = tempfile::tempdir().unwrap();
-    let config = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../config/examples/replay-odometry-bias.toml");
+    let config =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/examples/replay-odometry-bias.toml");
     let mut child = Command::new(env!("CARGO_BIN_EXE_slam-node"))
         .arg("--config")
         .arg(&config)
