@@ -26,19 +26,7 @@ use zenoh::Wait;
 
 /// A peer listening on a port the system chose on 127.0.0.1, and its bound locator.
 fn subscriber_session() -> (zenoh::Session, String) {
-    let mut c = zenoh::Config::default();
-    c.insert_json5("mode", "\"peer\"").unwrap();
-    c.insert_json5("listen/endpoints", "[\"tcp/127.0.0.1:0\"]")
-        .unwrap();
-    c.insert_json5("connect/endpoints", "[]").unwrap();
-    c.insert_json5("scouting/multicast/enabled", "false")
-        .unwrap();
-    let session = zenoh::open(c).wait().expect("a loopback Zenoh peer");
-    let locator = slam_node::output::zenoh_node::listening_on(&session)
-        .into_iter()
-        .find(|l| l.starts_with("tcp/127.0.0.1:") && !l.ends_with(":0"))
-        .expect("the bound locator");
-    (session, locator)
+    slam_node::output::zenoh_node::loopback_peer().expect("a loopback Zenoh peer")
 }
 
 /// The last-azimuth times of the rotations, in order, from `diagnostics.csv`.

@@ -19,22 +19,9 @@ use slam_node::output::live::{
 use slam_node::output::{LiveError, LiveOutput, OutputEvent, PoseSample};
 use zenoh::Wait;
 
-/// A peer listening on a port the system chose on 127.0.0.1 (no port is picked, released
-/// and reused), and that listener's locator as the session reports it.
+/// A peer listening on a port the system chose on 127.0.0.1, and its bound locator.
 fn subscriber_session() -> (zenoh::Session, String) {
-    let mut c = zenoh::Config::default();
-    c.insert_json5("mode", "\"peer\"").unwrap();
-    c.insert_json5("listen/endpoints", "[\"tcp/127.0.0.1:0\"]")
-        .unwrap();
-    c.insert_json5("connect/endpoints", "[]").unwrap();
-    c.insert_json5("scouting/multicast/enabled", "false")
-        .unwrap();
-    let session = zenoh::open(c).wait().expect("a loopback Zenoh peer");
-    let locator = slam_node::output::zenoh_node::listening_on(&session)
-        .into_iter()
-        .find(|l| l.starts_with("tcp/127.0.0.1:") && !l.ends_with(":0"))
-        .expect("the bound locator");
-    (session, locator)
+    slam_node::output::zenoh_node::loopback_peer().expect("a loopback Zenoh peer")
 }
 
 /// A TCP port on 127.0.0.1 held by this test for its whole life, whose every connection is

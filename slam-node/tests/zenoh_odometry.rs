@@ -27,25 +27,9 @@ const RATE_HZ: u64 = 20;
 /// Stream time the daemon runs, s.
 const DURATION_S: f64 = 20.0;
 
-/// A peer listening on a port the system chose on 127.0.0.1, and that port's locator.
+/// A peer listening on a port the system chose on 127.0.0.1, and its bound locator.
 fn listening_session() -> (zenoh::Session, String) {
-    let mut c = zenoh::Config::default();
-    c.insert_json5("mode", "\"peer\"").unwrap();
-    c.insert_json5("listen/endpoints", "[\"tcp/127.0.0.1:0\"]")
-        .unwrap();
-    c.insert_json5("connect/endpoints", "[]").unwrap();
-    c.insert_json5("scouting/multicast/enabled", "false")
-        .unwrap();
-    let session = zenoh::open(c).wait().expect("a loopback Zenoh peer");
-    let locator = session
-        .info()
-        .locators()
-        .wait()
-        .into_iter()
-        .map(|l| l.to_string())
-        .find(|l| l.starts_with("tcp/127.0.0.1:") && !l.ends_with(":0"))
-        .expect("the bound locator");
-    (session, locator)
+    slam_node::output::zenoh_node::loopback_peer().expect("a loopback Zenoh peer")
 }
 
 /// The scene's true controls every 1/20 s from the start, as (stamp, speed, yaw rate) under

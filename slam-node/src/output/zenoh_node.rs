@@ -58,6 +58,24 @@ pub fn listening_on(session: &zenoh::Session) -> Vec<String> {
         .collect()
 }
 
+/// A peer session listening on a port the system chose on 127.0.0.1 (multicast scouting
+/// off, connecting nowhere), and the locator it is bound to: the other end of loopback
+/// tests and benchmarks, which hand the locator to the daemon's `connect` endpoints (no
+/// port is picked, released and reused).
+pub fn loopback_peer() -> zenoh::Result<(zenoh::Session, String)> {
+    let mut c = zenoh::Config::default();
+    c.insert_json5("mode", "\"peer\"")?;
+    c.insert_json5("listen/endpoints", "[\"tcp/127.0.0.1:0\"]")?;
+    c.insert_json5("connect/endpoints", "[]")?;
+    c.insert_json5("scouting/multicast/enabled", "false")?;
+    let session = zenoh::open(c).wait()?;
+    let locator = listening_on(&session)
+        .into_iter()
+        .find(|l| l.starts_with("tcp/127.0.0.1:") && !l.ends_with(":0"))
+        .ok_or("the loopback peer reports no bound tcp/127.0.0.1 locator")?;
+    Ok((session, locator))
+}
+
 /// An open session standing for one ROS 2 node.
 pub struct ZenohNode {
     session: zenoh::Session,
