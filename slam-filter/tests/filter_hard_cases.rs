@@ -1,5 +1,7 @@
 //! The named hard cases every change must pass (docs/radar-model.md, section 6).
 
+mod common;
+
 use std::f64::consts::PI;
 
 use nalgebra::Matrix3;
@@ -665,13 +667,7 @@ fn parked_across_a_gap(s: FilterSettings, clutter_every: usize) -> (f64, Filter)
                 continue; // The daemon refuses beams while the odometry is stale.
             }
             let bearing = wrap_angle(k as f64 * step);
-            let in_beam: Vec<BeamFeature> = map
-                .iter()
-                .copied()
-                .filter(|m| {
-                    wrap_angle(range_bearing(&truth, m.xy).bearing_rad - bearing).abs() <= half
-                })
-                .collect();
+            let in_beam = common::in_beam(&truth, &map, bearing, half, f64::INFINITY);
             let mut seen = noisy(&truth, &in_beam, 0.0, &mut rng);
             clutter += 1;
             if clutter % clutter_every == 0 {
@@ -786,13 +782,7 @@ fn a_second_of_noise(burst_factor: f64, max_features: usize) -> (usize, Vec<Beam
                 next_odometry += 0.05;
             }
             let bearing = wrap_angle(k as f64 * step);
-            let in_beam: Vec<BeamFeature> = posts
-                .iter()
-                .copied()
-                .filter(|m| {
-                    wrap_angle(range_bearing(&truth, m.xy).bearing_rad - bearing).abs() <= half
-                })
-                .collect();
+            let in_beam = common::in_beam(&truth, &posts, bearing, half, f64::INFINITY);
             let mut seen = noisy(&truth, &in_beam, 0.0, &mut rng);
             if (5.0..6.0).contains(&(t - T0)) {
                 use rand::Rng;
@@ -895,19 +885,7 @@ fn drive_with_biased_odometry(s: FilterSettings) -> (f64, Filter) {
                 .unwrap();
             }
             let beam = wrap_angle(a as f64 * step);
-            let mut in_beam: Vec<BeamFeature> = posts
-                .iter()
-                .filter(|p| {
-                    let rb = range_bearing(&truth, p.xy);
-                    wrap_angle(rb.bearing_rad - beam).abs() <= 0.5 * step && rb.range_m < 40.0
-                })
-                .copied()
-                .collect();
-            in_beam.sort_by(|p, q| {
-                range_bearing(&truth, p.xy)
-                    .range_m
-                    .total_cmp(&range_bearing(&truth, q.xy).range_m)
-            });
+            let in_beam = common::in_beam_by_range(&truth, &posts, beam, 0.5 * step, 40.0);
             let targets = if in_beam.is_empty() {
                 Vec::new()
             } else {

@@ -7,10 +7,12 @@
 //! `SLAM_FILTER_RECORD=1 cargo test -p slam-filter --test stored_run`, and say why in the
 //! commit.
 
+mod common;
+
 use std::path::PathBuf;
 
 use nalgebra::Matrix3;
-use radar_model::geometry::{range_bearing, wrap_angle, Pose2};
+use radar_model::geometry::{wrap_angle, Pose2};
 use radar_model::material::Material;
 use radar_model::motion::MotionModel;
 use radar_model::observation::{observe_beam, BeamFeature};
@@ -116,19 +118,7 @@ fn run() -> Run {
                 .expect("odometry");
             }
             let beam = wrap_angle(a as f64 * step);
-            let mut in_beam: Vec<BeamFeature> = features
-                .iter()
-                .filter(|feat| {
-                    let rb = range_bearing(&truth, feat.xy);
-                    wrap_angle(rb.bearing_rad - beam).abs() <= 0.5 * step && rb.range_m < 60.0
-                })
-                .copied()
-                .collect();
-            in_beam.sort_by(|p, q| {
-                range_bearing(&truth, p.xy)
-                    .range_m
-                    .total_cmp(&range_bearing(&truth, q.xy).range_m)
-            });
+            let in_beam = common::in_beam_by_range(&truth, &features, beam, 0.5 * step, 60.0);
             let targets: Vec<Target> = if in_beam.is_empty() {
                 Vec::new()
             } else {

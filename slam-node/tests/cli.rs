@@ -23,12 +23,15 @@ fn durations_that_are_not_finite_positive_seconds_are_refused_at_parse_time() {
 #[test]
 fn a_driver_that_gives_up_reconnecting_makes_the_process_exit_non_zero() {
     let dir = tempfile::tempdir().unwrap();
-    // A port nobody listens on: bind, read the port, close.
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
+    // A port this test holds for its whole life (bound on 127.0.0.1:0, never released for
+    // another process to take), whose every connection is closed at once: no radar there.
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    std::thread::spawn(move || {
+        for stream in listener.incoming() {
+            drop(stream);
+        }
+    });
     let odometry = dir.path().join("odometry.txt");
     std::fs::write(
         &odometry,

@@ -29,6 +29,29 @@ pub enum OdometryPoll {
     Ended,
 }
 
+/// Polls a channel of records as a source does: `Pending` when nothing arrives within
+/// `timeout` (at once when it is zero), `Ended` once every sender is gone. For sources that
+/// decode on another thread and hand records over a channel (a recording's reader, a
+/// middleware subscription).
+pub fn poll_channel(
+    rx: &crossbeam_channel::Receiver<OdometryRecord>,
+    timeout: Duration,
+) -> OdometryPoll {
+    use crossbeam_channel::{RecvTimeoutError, TryRecvError};
+    if timeout.is_zero() {
+        return match rx.try_recv() {
+            Ok(r) => OdometryPoll::Record(r),
+            Err(TryRecvError::Empty) => OdometryPoll::Pending,
+            Err(TryRecvError::Disconnected) => OdometryPoll::Ended,
+        };
+    }
+    match rx.recv_timeout(timeout) {
+        Ok(r) => OdometryPoll::Record(r),
+        Err(RecvTimeoutError::Timeout) => OdometryPoll::Pending,
+        Err(RecvTimeoutError::Disconnected) => OdometryPoll::Ended,
+    }
+}
+
 /// Why a source could not give a record.
 #[derive(Debug, thiserror::Error)]
 pub enum OdometryError {

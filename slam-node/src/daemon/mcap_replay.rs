@@ -27,7 +27,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use bytes::Bytes;
-use crossbeam_channel::{bounded, unbounded, Receiver, RecvTimeoutError, Sender, TryRecvError};
+use crossbeam_channel::{bounded, unbounded, Receiver, Sender};
 use mcap::records::Record;
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use protocol::{BinWidth, Geometry};
@@ -146,18 +146,7 @@ pub struct ReplayOdometry {
 
 impl OdometrySource for ReplayOdometry {
     fn poll_next(&mut self, timeout: Duration) -> Result<OdometryPoll, OdometryError> {
-        if timeout.is_zero() {
-            return Ok(match self.rx.try_recv() {
-                Ok(r) => OdometryPoll::Record(r),
-                Err(TryRecvError::Empty) => OdometryPoll::Pending,
-                Err(TryRecvError::Disconnected) => OdometryPoll::Ended,
-            });
-        }
-        Ok(match self.rx.recv_timeout(timeout) {
-            Ok(r) => OdometryPoll::Record(r),
-            Err(RecvTimeoutError::Timeout) => OdometryPoll::Pending,
-            Err(RecvTimeoutError::Disconnected) => OdometryPoll::Ended,
-        })
+        Ok(radar_driver::odometry::poll_channel(&self.rx, timeout))
     }
 }
 

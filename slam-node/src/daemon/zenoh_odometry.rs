@@ -82,7 +82,7 @@ mod subscriber {
     use std::sync::Arc;
     use std::time::Duration;
 
-    use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, TryRecvError, TrySendError};
+    use crossbeam_channel::{bounded, Receiver, TrySendError};
     use radar_driver::{OdometryError, OdometryPoll, OdometryRecord, OdometrySource};
     use radar_model::motion::MotionModel;
     use tracing::{info, warn};
@@ -179,18 +179,7 @@ mod subscriber {
 
     impl OdometrySource for ZenohOdometry {
         fn poll_next(&mut self, timeout: Duration) -> Result<OdometryPoll, OdometryError> {
-            if timeout.is_zero() {
-                return Ok(match self.rx.try_recv() {
-                    Ok(r) => OdometryPoll::Record(r),
-                    Err(TryRecvError::Empty) => OdometryPoll::Pending,
-                    Err(TryRecvError::Disconnected) => OdometryPoll::Ended,
-                });
-            }
-            Ok(match self.rx.recv_timeout(timeout) {
-                Ok(r) => OdometryPoll::Record(r),
-                Err(RecvTimeoutError::Timeout) => OdometryPoll::Pending,
-                Err(RecvTimeoutError::Disconnected) => OdometryPoll::Ended,
-            })
+            Ok(radar_driver::odometry::poll_channel(&self.rx, timeout))
         }
     }
 }
