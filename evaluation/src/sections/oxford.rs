@@ -19,7 +19,7 @@ use radar_model::noise::{NoiseModel, RangeSpread};
 use radar_model::power::PowerModel;
 use radar_model::spectrum::SpectrumGeometry;
 use sim_sensor::replay::png::read_polar_png;
-use sim_sensor::replay::truth::{chain_poses, read_oxford_odometry};
+use sim_sensor::replay::truth::{chain_pose_times, chain_poses, read_oxford_odometry};
 use slam_node::daemon::replay::{recorded_settings, OdometryErrors, RecordedTruth};
 use slam_node::output::OutputEvent;
 use slam_node::pipeline::Pipeline;
@@ -121,15 +121,17 @@ pub struct TrackResult {
 /// Runs the daemon's own pipeline (front end, odometry gate, filter) over the scans, with
 /// the daemon's settings for recorded CTS350-X scans and odometry made from the ground
 /// truth exactly as `slam-node --replay-dir` makes it: noise-free here, the speed scaled by
-/// `speed_scale` and `yaw_rate_bias` (rad/s) added. Only the transport differs: the rows go
-/// in as azimuths directly instead of over TCP.
+/// `speed_scale` and `yaw_rate_bias` (rad/s) added. `truth` holds at `truth_times_s` (s; the
+/// middle of each scan's rotation for Oxford). Only the transport differs: the rows go in as
+/// azimuths directly instead of over TCP.
 pub fn track(
     scans: &[TimedScan],
     truth: &[Pose2],
+    truth_times_s: &[f64],
     speed_scale: f64,
     yaw_rate_bias: f64,
 ) -> Result<TrackResult, EvalError> {
-    let times: Vec<f64> = scans.iter().map(|s| s.time_s).collect();
+    let times: Vec<f64> = truth_times_s.to_vec();
     let recorded = RecordedTruth::from_poses(times.clone(), truth.to_vec())
         .ok_or_else(|| EvalError::Setting("the scans' ground truth is not usable".into()))?;
     let errors = OdometryErrors {
@@ -260,6 +262,10 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
     let rows = read_oxford_odometry(&csv)?;
     let times_us: Vec<i64> = scans.iter().map(|s| s.time_us).collect();
     let truth = chain_poses(&csv, &rows, &times_us)?;
+    let truth_times_s: Vec<f64> = chain_pose_times(&csv, &rows, &times_us)?
+        .iter()
+        .map(|&us| us as f64 * 1e-6)
+        .collect();
     // Relative pose of scan k+1 in scan k's frame (chain_poses found every one).
     let rel: Vec<Pose2> = times_us
         .windows(2)
@@ -359,8 +365,8 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
             let handles: Vec<_> = cases
                 .iter()
                 .map(|&(_, scale, bias)| {
-                    let (scans, truth) = (&scans, &truth);
-                    scope.spawn(move || track(scans, truth, scale, bias))
+                    let (scans, truth, truth_times_s) = (&scans, &truth, &truth_times_s);
+                    scope.spawn(move || track(scans, truth, truth_times_s, scale, bias))
                 })
                 .collect();
             handles

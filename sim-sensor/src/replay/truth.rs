@@ -1,7 +1,10 @@
 //! Ground truth that comes with recorded scans. Oxford Radar RobotCar: `radar_odometry.csv`
 //! (each row: the pose of the scan at `source_radar_timestamp` in the frame of the scan at
 //! `destination_radar_timestamp`; x forward, y right, yaw clockwise), chained into poses in
-//! the first scan's frame (x forward, y left, heading counter-clockwise), one per scan.
+//! the first scan's frame (x forward, y left, heading counter-clockwise), one per scan. A
+//! row's poses hold at its own times, `source_timestamp` and `destination_timestamp`, which
+//! are the middle of each scan's rotation (about 126 ms after the scan's name, its first
+//! azimuth), as the data set's SDK interpolates them: [`chain_pose_times`].
 //! Boreas ([`super::boreas`]) and RADIATE ([`super::radiate`]) give absolute poses, which
 //! [`relative_to_first`] puts in the same frame. No IO beyond reading the files named.
 
@@ -83,6 +86,13 @@ pub struct RelativePose {
     pub source_us: i64,
     /// The earlier scan (µs since the epoch).
     pub destination_us: i64,
+    /// The time at which the later scan's pose holds (`source_timestamp`, µs): the middle of
+    /// its rotation.
+    pub source_pose_us: i64,
+    /// The time at which the earlier scan's pose holds (`destination_timestamp`, µs).
+    pub destination_pose_us: i64,
+    /// The row's 1-based line in its file.
+    pub line: usize,
     /// The source's pose in the destination's frame (x forward, y left, CCW heading).
     pub pose: Pose2,
 }
@@ -164,6 +174,9 @@ pub fn read_oxford_odometry(path: &Path) -> Result<Vec<RelativePose>, TruthError
         out.push(RelativePose {
             source_us: int(8)?,
             destination_us: int(9)?,
+            source_pose_us: int(0)?,
+            destination_pose_us: int(1)?,
+            line: i + 1,
             pose: Pose2::new(num(2)?, -num(3)?, -num(7)?),
         });
     }
@@ -196,6 +209,45 @@ pub fn chain_poses(
     Ok(poses)
 }
 
+/// The times (µs) at which the poses of [`chain_poses`] hold: each row's own
+/// `destination_timestamp` for the first scan and `source_timestamp` for the others (the
+/// middle of each rotation, where the data set's radar odometry places its poses). A time
+/// that does not increase is refused by row.
+pub fn chain_pose_times(
+    path: &Path,
+    rows: &[RelativePose],
+    scan_times_us: &[i64],
+) -> Result<Vec<i64>, TruthError> {
+    let mut times = Vec::with_capacity(scan_times_us.len());
+    for (k, w) in scan_times_us.windows(2).enumerate() {
+        let (from_us, to_us) = (w[0], w[1]);
+        let Some(rel) = rows
+            .iter()
+            .find(|r| r.source_us == to_us && r.destination_us == from_us)
+        else {
+            return Err(TruthError::Missing {
+                path: path.to_path_buf(),
+                from_us,
+                to_us,
+            });
+        };
+        if k == 0 {
+            times.push(rel.destination_pose_us);
+        }
+        let earlier = times.last().copied().unwrap_or(i64::MIN);
+        if rel.source_pose_us <= earlier || rel.destination_pose_us >= rel.source_pose_us {
+            return Err(TruthError::OutOfOrder {
+                path: path.to_path_buf(),
+                row: rel.line,
+                earlier_us: earlier.max(rel.destination_pose_us),
+                later_us: rel.source_pose_us,
+            });
+        }
+        times.push(rel.source_pose_us);
+    }
+    Ok(times)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -207,8 +259,8 @@ mod tests {
         std::fs::write(
             &path,
             "source_timestamp,destination_timestamp,x,y,z,roll,pitch,yaw,source_radar_timestamp,destination_radar_timestamp\n\
-             0,0,2.0,0.0,0,0,0,-0.1,200,100\n\
-             0,0,2.0,0.0,0,0,0,0.0,300,200\n",
+             250,150,2.0,0.0,0,0,0,-0.1,200,100\n\
+             350,250,2.0,0.0,0,0,0,0.0,300,200\n",
         )
         .unwrap();
         let rows = read_oxford_odometry(&path).unwrap();
@@ -218,6 +270,9 @@ mod tests {
         // yaw -0.1 clockwise is +0.1 counter-clockwise.
         assert!((poses[1].theta - 0.1).abs() < 1e-12);
         assert!((poses[2].x - (2.0 + 2.0 * 0.1f64.cos())).abs() < 1e-12);
+        // The poses hold at the rows' own times (the middle of each rotation).
+        let times = chain_pose_times(&path, &rows, &[100, 200, 300]).unwrap();
+        assert_eq!(times, vec![150, 250, 350]);
         let err = chain_poses(&path, &rows, &[100, 250]).unwrap_err();
         assert!(err.to_string().contains("250"), "{err}");
         std::fs::write(&path, "header\n1,2,3\n").unwrap();

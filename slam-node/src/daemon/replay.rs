@@ -18,7 +18,9 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use sim_sensor::replay::boreas::{boreas_poses, read_radar_poses};
 use sim_sensor::replay::radiate::radiate_poses;
-use sim_sensor::replay::truth::{chain_poses, compose, read_oxford_odometry, TruthError};
+use sim_sensor::replay::truth::{
+    chain_pose_times, chain_poses, compose, read_oxford_odometry, TruthError,
+};
 use sim_sensor::replay::{ReplayFormat, ScanSet};
 use slam_filter::{OdometrySample, ProcessModel};
 
@@ -115,21 +117,26 @@ impl RecordedTruth {
                 count: times_us.len(),
             });
         }
-        let poses = match scans.format {
+        // Oxford's radar odometry places each scan's pose at the middle of its rotation
+        // (the row's own times), not at the scan's name (its first azimuth).
+        let (pose_times_us, poses) = match scans.format {
             ReplayFormat::Oxford => {
                 let csv = scans.dir.join("radar_odometry.csv");
                 let rows = read_oxford_odometry(&csv)?;
-                chain_poses(&csv, &rows, &times_us)?
+                (
+                    chain_pose_times(&csv, &rows, &times_us)?,
+                    chain_poses(&csv, &rows, &times_us)?,
+                )
             }
             ReplayFormat::Boreas => {
                 let csv = scans.dir.join("applanix").join("radar_poses.csv");
                 let rows = read_radar_poses(&csv)?;
-                boreas_poses(&csv, &rows, &times_us)?
+                (times_us.clone(), boreas_poses(&csv, &rows, &times_us)?)
             }
-            ReplayFormat::Radiate => radiate_poses(&scans.dir, &times_us)?,
+            ReplayFormat::Radiate => (times_us.clone(), radiate_poses(&scans.dir, &times_us)?),
         };
         Ok(Self {
-            times_s: times_us.iter().map(|&us| us as f64 * 1e-6).collect(),
+            times_s: pose_times_us.iter().map(|&us| us as f64 * 1e-6).collect(),
             poses,
         })
     }
