@@ -114,6 +114,15 @@ pub struct RawOdometry {
     /// A record whose speed changed faster than this since the last accepted one (m/s^2 > 0;
     /// checked over intervals up to 1 s) is refused. Default 20 (2 g).
     pub max_accel_mps2: f64,
+    /// Radar odometry: register each rotation's detections (walls and fences included)
+    /// against the previous rotation's and give the measured motion to the filter, which
+    /// uses it to estimate the odometry corrections (so it needs `speed_scale_std` or
+    /// `steer_bias_std_rad` > 0). Default false.
+    pub radar_odometry: bool,
+    /// Standard deviation of one registration's translation, each axis, m > 0. Default 0.05.
+    pub radar_odometry_sigma_m: f64,
+    /// Standard deviation of one registration's rotation, rad > 0. Default 0.003.
+    pub radar_odometry_sigma_rad: f64,
 }
 
 impl Default for RawOdometry {
@@ -137,6 +146,9 @@ impl Default for RawOdometry {
             max_speed_mps: DEFAULT_MAX_SPEED_MPS,
             max_steer_rad: DEFAULT_MAX_STEER_RAD,
             max_accel_mps2: DEFAULT_MAX_ACCEL_MPS2,
+            radar_odometry: false,
+            radar_odometry_sigma_m: 0.05,
+            radar_odometry_sigma_rad: 0.003,
         }
     }
 }
@@ -207,6 +219,12 @@ pub struct OdometrySettings {
     pub max_steer_rad: PositiveF64,
     /// Largest believable change of speed, m/s^2.
     pub max_accel_mps2: PositiveF64,
+    /// Radar odometry on.
+    pub radar_odometry: bool,
+    /// One registration's translation standard deviation, m.
+    pub radar_odometry_sigma_m: PositiveF64,
+    /// One registration's rotation standard deviation, rad.
+    pub radar_odometry_sigma_rad: PositiveF64,
 }
 
 impl Default for OdometrySettings {
@@ -373,6 +391,27 @@ impl RawOdometry {
                 "odometry.max_accel_mps2",
                 PositiveF64::new(self.max_accel_mps2),
             ),
+            radar_odometry: {
+                if self.radar_odometry && self.speed_scale_std == 0.0 && self.steer_bias_std_rad == 0.0
+                {
+                    c.fail(
+                        "odometry.radar_odometry",
+                        ValueError::Rule(
+                            "needs speed_scale_std or steer_bias_std_rad > 0: the measured motion observes the odometry corrections"
+                                .into(),
+                        ),
+                    );
+                }
+                self.radar_odometry
+            },
+            radar_odometry_sigma_m: c.check(
+                "odometry.radar_odometry_sigma_m",
+                PositiveF64::new(self.radar_odometry_sigma_m),
+            ),
+            radar_odometry_sigma_rad: c.check(
+                "odometry.radar_odometry_sigma_rad",
+                PositiveF64::new(self.radar_odometry_sigma_rad),
+            ),
         }
     }
 }
@@ -417,6 +456,9 @@ impl From<&OdometrySettings> for RawOdometry {
             max_speed_mps: s.max_speed_mps.get(),
             max_steer_rad: s.max_steer_rad.get(),
             max_accel_mps2: s.max_accel_mps2.get(),
+            radar_odometry: s.radar_odometry,
+            radar_odometry_sigma_m: s.radar_odometry_sigma_m.get(),
+            radar_odometry_sigma_rad: s.radar_odometry_sigma_rad.get(),
         }
     }
 }

@@ -9,8 +9,8 @@
 mod init;
 mod relocalise;
 
-use nalgebra::{DMatrix, DVector, Matrix2, Matrix3};
-use radar_model::geometry::{range_bearing, Pose2};
+use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Vector3};
+use radar_model::geometry::{range_bearing, wrap_angle, Pose2};
 use radar_model::layout::ObservationRow;
 use radar_model::material::Material;
 
@@ -20,15 +20,18 @@ use super::error::FilterError;
 use super::fej::relinearise_at_first_estimates;
 use super::health::{covariance_health, pose_nees, position_nees, CovarianceHealth};
 use super::lifecycle::TentativeList;
+use super::motion_tally::MotionTally;
 use super::observation::{
     row_indices, state_columns, BeamObservation, BeamObservationModel, BeamPrediction,
 };
 use super::predict::{corrected_input, predict_to, OdometrySample, ProcessModel};
 use super::repeat_look::LookCell;
 use super::settings::FilterSettings;
-use super::state::{FeatureId, FeatureParams, SlamState};
+use super::state::{FeatureId, FeatureParams, SlamState, SPEED_SCALE_INDEX};
 use super::submap::FrozenSubmap;
-use super::update::{batched_update, LinearisedObservation, UpdateOutcome};
+use super::update::{
+    batched_update, subtract_wwt_lower_and_mirror, LinearisedObservation, UpdateOutcome,
+};
 use relocalise::Relocalisation;
 
 /// A feature as reported: position, material shares (not the logits), uncertainty.
@@ -105,6 +108,28 @@ pub struct FilterStats {
     /// Beams whose targets were kept from starting features because the target rate was a
     /// burst (see [`FilterSettings::burst_factor`]).
     pub burst_beams: u64,
+    /// Measurements of the motion since a mark applied
+    /// ([`Ekf::observe_motion_since_mark`]).
+    pub motion_updates: u64,
+}
+
+/// What a measurement of the motion since a mark did ([`Ekf::observe_motion_since_mark`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MotionOutcome {
+    /// Applied, with its normalised innovation squared (3 dof).
+    Applied {
+        /// Normalised innovation squared.
+        nis: f64,
+    },
+    /// Refused by the gate; nothing changed.
+    Gated {
+        /// Normalised innovation squared.
+        nis: f64,
+    },
+    /// No mark to measure from; nothing changed.
+    NoMark,
+    /// The odometry corrections are not estimated, so the measurement observes nothing.
+    NotEstimated,
 }
 
 /// The short and learned rates of targets per second (see
@@ -398,6 +423,8 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// Jumps the state to `time_s` across an odometry gap: the pose covariance grows by what
     /// the vehicle could have done meanwhile (see [`FilterSettings::gap_speed_mps`]).
     fn bridge_gap(&mut self, time_s: f64) {
+        // The motion across the gap is unknown: no tally spans it.
+        self.state.tally = None;
         self.inflate_for_gap(time_s - self.state.time_s());
         self.state.set_time_s(time_s);
         self.stats.bridged_gaps += 1;
@@ -430,11 +457,111 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         }
         self.inflate_for_gap(self.settings.max_predict_gap_s);
         self.state.set_time_s(time_s);
+        self.state.tally = None;
         self.stats.bridged_gaps += 1;
         self.odometry = None;
         self.tentatives = TentativeList::default();
         self.start_relocalising();
         Ok(())
+    }
+
+    /// Starts tallying the motion from the state's time on (see [`crate::motion_tally`]):
+    /// the reference for the next [`Self::observe_motion_since_mark`]. Any earlier tally is
+    /// dropped.
+    pub fn mark_motion(&mut self) {
+        self.state.tally = Some(MotionTally::start(self.state.time_s()));
+    }
+
+    /// The tally since the last mark, up to the state's time; `None` without a mark (none
+    /// was set, or a gap, a clock jump or a new submap dropped it).
+    pub fn motion_tally(&self) -> Option<&MotionTally> {
+        self.state.tally.as_ref()
+    }
+
+    /// The pose at `time_s` in the frame of the pose at the last mark, as the odometry
+    /// drives it (the tally extrapolated with the held odometry, mean only; updates since
+    /// the mark do not move it). `None` without a mark or odometry.
+    pub fn motion_since_mark(&self, time_s: f64) -> Option<Pose2> {
+        let tally = self.state.tally.as_ref()?;
+        let held = self.odometry?;
+        let gap_s = time_s - self.state.time_s();
+        let mut pose = tally.rel;
+        if gap_s > 0.0 && gap_s.is_finite() {
+            let steps = (gap_s / self.settings.max_predict_step_s).ceil().max(1.0);
+            let dt = gap_s / steps;
+            let (speed, steer) = corrected_input(&held, self.state.odometry_bias());
+            let mut done = 0.0;
+            while done < steps {
+                pose = self.motion.step(&pose, speed, steer, dt).ok()?.pose;
+                done += 1.0;
+            }
+        }
+        Some(pose)
+    }
+
+    /// Updates the odometry corrections `k`, `b` (and, through their correlations, the
+    /// pose and the map) with a measurement of the motion since the last mark:
+    /// `measured` is the pose at the state's time in the frame of the pose at the mark
+    /// (for example from registering two radar rotations), `cov` its covariance. The
+    /// prediction is the tally (see [`crate::motion_tally`]); the innovation covariance
+    /// adds the odometry's input noise since the mark. A measurement whose normalised
+    /// innovation exceeds `gate_chi2` (3 dof) is refused and changes nothing. Without
+    /// estimated corrections ([`FilterSettings::speed_scale_std`] zero) or without a mark,
+    /// nothing is observable and nothing changes. The mark stays: call
+    /// [`Self::mark_motion`] to start the next interval.
+    pub fn observe_motion_since_mark(
+        &mut self,
+        measured: Pose2,
+        cov: &Matrix3<f64>,
+        gate_chi2: f64,
+    ) -> Result<MotionOutcome, FilterError> {
+        if ![measured.x, measured.y, measured.theta]
+            .iter()
+            .chain(cov.iter())
+            .all(|v| v.is_finite())
+        {
+            return Err(FilterError::NonFiniteInput("measured motion"));
+        }
+        let Some(tally) = self.state.tally else {
+            return Ok(MotionOutcome::NoMark);
+        };
+        if !self.state.estimates_odometry_bias() {
+            return Ok(MotionOutcome::NotEstimated);
+        }
+        let nu = Vector3::new(
+            measured.x - tally.rel.x,
+            measured.y - tally.rel.y,
+            wrap_angle(measured.theta - tally.rel.theta),
+        );
+        let n = self.state.dim();
+        let j = tally.wrt_bias;
+        // P H^T: H is J in the columns of k and b.
+        let p_kb = self.state.cov.columns(SPEED_SCALE_INDEX, 2).into_owned();
+        let pht = &p_kb * j.transpose();
+        let p_bb = self.state.odometry_bias_covariance();
+        let s = j * p_bb * j.transpose() + tally.noise + cov;
+        let s = 0.5 * (s + s.transpose());
+        let chol = s
+            .cholesky()
+            .ok_or(FilterError::CovarianceNotPositiveDefinite)?;
+        let nis = nu.dot(&chol.solve(&nu));
+        if !nis.is_finite() || nis > gate_chi2 {
+            return Ok(MotionOutcome::Gated { nis });
+        }
+        // x += P H^T S^-1 nu; P -= W W^T with W = P H^T L^-T (S = L L^T).
+        let gain_nu = &pht * chol.solve(&nu);
+        let l = chol.l();
+        let w_t = l
+            .solve_lower_triangular(&pht.transpose())
+            .ok_or(FilterError::CovarianceNotPositiveDefinite)?;
+        let w = DMatrix::from_column_slice(n, 3, w_t.transpose().as_slice());
+        for i in 0..n {
+            self.state.mean[i] += gain_nu[i];
+        }
+        self.state.mean[2] = wrap_angle(self.state.mean[2]);
+        subtract_wwt_lower_and_mirror(&mut self.state.cov, &w);
+        self.stats.motion_updates += 1;
+        Ok(MotionOutcome::Applied { nis })
     }
 
     /// Predicts the state to `time_s` with the held odometry.

@@ -53,6 +53,7 @@ pub mod fej;
 pub mod health;
 mod id;
 pub mod lifecycle;
+pub mod motion_tally;
 pub mod observation;
 pub mod predict;
 pub mod radar;
@@ -64,7 +65,7 @@ mod symmetric;
 pub mod update;
 
 pub use beam::BeamCandidate;
-pub use ekf::{BeamReport, Ekf, FeatureEstimate, FilterStats};
+pub use ekf::{BeamReport, Ekf, FeatureEstimate, FilterStats, MotionOutcome};
 pub use error::FilterError;
 pub use health::CovarianceHealth;
 pub use observation::{BeamObservation, BeamObservationModel, RangeBearingModel, Target};

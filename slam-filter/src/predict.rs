@@ -112,6 +112,9 @@ pub fn predict_step<M: ProcessModel + ?Sized>(
         0.0,
         settings.steer_std_rad.powi(2) * q_scale,
     );
+    if let Some(tally) = state.tally.as_mut() {
+        tally.step(model, input, [k, b], &q, dt_s)?;
+    }
     if with_bias {
         // The corrections k and b are inputs too: d pose / d k = G_speed * speed,
         // d pose / d b = G_steer.

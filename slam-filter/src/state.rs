@@ -26,6 +26,7 @@ use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Matrix4};
 use radar_model::geometry::{wrap_angle, Pose2};
 
 use super::error::FilterError;
+use super::motion_tally::MotionTally;
 
 /// Number of pose elements.
 pub const POSE_DIM: usize = 3;
@@ -93,6 +94,9 @@ pub struct SlamState {
     /// The pose as last predicted, before any update since (the propagation's linearisation
     /// point under first-estimates Jacobians).
     pub(crate) predicted_pose: Pose2,
+    /// The motion since the last mark, advanced by every prediction step (book-keeping, not
+    /// part of the estimate): see [`crate::motion_tally`].
+    pub(crate) tally: Option<MotionTally>,
 }
 
 /// Index of slot `s`'s first element.
@@ -149,6 +153,7 @@ impl SlamState {
             next_id: 0,
             time_s,
             predicted_pose: Pose2::new(pose.x, pose.y, wrap_angle(pose.theta)),
+            tally: None,
         })
     }
 
@@ -191,6 +196,7 @@ impl SlamState {
         mean[2] = wrap_angle(mean[2]);
         Ok(Self {
             predicted_pose: Pose2::new(mean[0], mean[1], mean[2]),
+            tally: None,
             mean,
             cov,
             tracks,
@@ -219,6 +225,8 @@ impl SlamState {
             next_id: self.next_id,
             time_s: self.time_s,
             predicted_pose: Pose2::new(0.0, 0.0, 0.0),
+            // A new local frame: the motion since a mark in the old one is not carried.
+            tally: None,
         };
         std::mem::replace(self, fresh)
     }

@@ -146,6 +146,18 @@ pub fn summary_text(r: &DaemonReport) -> String {
             sb
         );
     }
+    if let Some(m) = s.scan_match {
+        let mean_nis = if m.applied > 0 {
+            m.nis_sum / m.applied as f64
+        } else {
+            f64::NAN
+        };
+        let _ = writeln!(
+            t,
+            "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {:.2}, 3 dof), {} gated",
+            m.tried, m.failed, m.applied, mean_nis, m.gated
+        );
+    }
     let bound = match s.spectrum_bound_db {
         Some((lo, hi)) => format!("the learned background's 3-sigma bound ({lo:.1}-{hi:.1} dB)"),
         None => "+-16.35 dB".to_string(),

@@ -25,6 +25,7 @@ use super::gate::{worth_logging, OdometryGate};
 use super::settings::PipelineSettings;
 use super::spectrum::{compare_beam, SpectrumScratch};
 use super::stats::{RotationStats, StageTimes};
+use super::scan_match::ScanMatcher;
 use super::submaps::SubmapRun;
 use super::summary::PipelineSummary;
 use super::truth::{TruthObserver, TruthOracle};
@@ -43,6 +44,8 @@ const AZIMUTH_JUMP_CONFIRM: u32 = 16;
 /// A radar silence (link down and back) up to this long (s) that the odometry's clock spans
 /// is taken as a silence, not a clock jump: the filter predicts through it on odometry.
 const AZIMUTH_MAX_SILENCE_S: f64 = 60.0;
+/// Radar odometry's gate: the 99.9 % point of chi-square with 3 dof.
+const RADAR_ODOMETRY_GATE_CHI2: f64 = 16.27;
 
 /// Why the pipeline could not start or go on.
 #[derive(Debug, thiserror::Error)]
@@ -76,6 +79,7 @@ pub struct Pipeline {
     rotation_start_s: Option<f64>,
     summary: PipelineSummary,
     filter_started: bool,
+    scan_match: ScanMatcher,
 }
 
 fn filter_at(
@@ -135,6 +139,7 @@ impl Pipeline {
             rotation_start_s: None,
             summary: PipelineSummary::default(),
             filter_started: false,
+            scan_match: ScanMatcher::new(settings.scan_match),
             settings,
         })
     }
@@ -301,6 +306,11 @@ impl Pipeline {
             .front_end
             .process(az, index, bearing, &mut self.beams, near_map);
         self.summary.extended_returns += counts.extended as u64;
+        if self.scan_match.enabled() {
+            let sensor = self.ekf.motion_since_mark(az.timestamp_s);
+            self.scan_match
+                .add_azimuth(sensor, bearing, self.front_end.detections());
+        }
         let detected = Instant::now();
         self.run_beams();
         let filtered = Instant::now();
@@ -480,6 +490,7 @@ impl Pipeline {
             return;
         }
         self.count_reobservations();
+        self.register_rotation();
         let front_end = &self.front_end;
         match self
             .ekf
@@ -530,6 +541,43 @@ impl Pipeline {
             s.end_rotation(&mut self.ekf, t);
             self.summary.current_submap = s.current();
         }
+    }
+
+    /// Radar odometry: registers this rotation's cloud against the previous one's and gives
+    /// the measured motion to the filter, then marks the filter for the next rotation.
+    fn register_rotation(&mut self) {
+        if !self.scan_match.enabled() {
+            return;
+        }
+        let started = Instant::now();
+        let end = self.ekf.motion_tally().map(|t| t.rel);
+        if let Some((motion, cov, reg)) = self.scan_match.end_rotation(end) {
+            match self
+                .ekf
+                .observe_motion_since_mark(motion, &cov, RADAR_ODOMETRY_GATE_CHI2)
+            {
+                Ok(outcome) => {
+                    if matches!(outcome, slam_filter::MotionOutcome::Gated { .. }) {
+                        let gated = self.scan_match.counts().gated + 1;
+                        if worth_logging(gated) {
+                            warn!(
+                                ?outcome,
+                                pairs = reg.pairs,
+                                rms_m = reg.rms_m,
+                                gated,
+                                "radar odometry disagrees with the odometry beyond its gate: not used"
+                            );
+                        }
+                    }
+                    self.scan_match.record(outcome);
+                }
+                Err(e) => warn!(error = %e, "radar odometry update failed"),
+            }
+        }
+        if self.ekf.held_odometry().is_some() {
+            self.ekf.mark_motion();
+        }
+        self.stats.on_registration(ms(started, Instant::now()));
     }
 
     /// Counts, for every feature mapped before this rotation began and in the radar's view
@@ -592,6 +640,10 @@ impl Pipeline {
         });
         s.learned_gain_db_per_decade = self.front_end.learned_gain_slope();
         s.odometry_corrections = self.ekf.odometry_bias();
+        s.scan_match = self
+            .scan_match
+            .enabled()
+            .then(|| self.scan_match.counts());
         s.odometry_out_of_order = self.gate.out_of_order();
         if let Some(truth) = self.truth.as_ref() {
             let features = match self.submaps.as_ref() {

@@ -11,6 +11,7 @@ pub mod frontend;
 pub mod gate;
 pub mod odometry;
 pub mod run;
+pub mod scan_match;
 #[cfg(feature = "sim")]
 pub mod scene_truth;
 pub mod scores;

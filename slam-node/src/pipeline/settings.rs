@@ -16,6 +16,7 @@ use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::frontend::FrontEndSettings;
 use super::gate::OdometryLimits;
+use super::scan_match::ScanMatchSettings;
 use crate::detect::{DetectorKind, DetectorSettings};
 use slam_filter::FilterSettings;
 
@@ -79,6 +80,8 @@ pub struct PipelineSettings {
     pub map_every_rotations: u64,
     /// Local submaps joined by the global layer; `None`: one dense map.
     pub submaps: Option<SubmapOptions>,
+    /// Radar odometry (rotations registered against each other, see [`ScanMatchSettings`]).
+    pub scan_match: ScanMatchSettings,
 }
 
 /// Local submaps and the global layer.
@@ -294,6 +297,12 @@ impl PipelineSettings {
             radar_stall: Duration::from_secs(2),
             map_every_rotations: 20,
             submaps: SubmapOptions::from_config(&c.submaps),
+            scan_match: ScanMatchSettings {
+                enabled: c.odometry.radar_odometry,
+                sigma_xy_m: c.odometry.radar_odometry_sigma_m.get(),
+                sigma_theta_rad: c.odometry.radar_odometry_sigma_rad.get(),
+                ..ScanMatchSettings::default()
+            },
         })
     }
 

@@ -50,6 +50,13 @@ impl RotationStats {
         self.rot.total_ms += times.detect_ms + times.filter_ms + times.spectrum_ms;
     }
 
+    /// Counts the time of one rotation's radar-odometry registration and update (in the
+    /// filter's share).
+    pub fn on_registration(&mut self, ms: f64) {
+        self.rot.filter_ms += ms;
+        self.rot.total_ms += ms;
+    }
+
     /// Counts one beam the filter processed; returns its associations.
     pub fn on_beam(&mut self, beam: &BeamObservation, report: &BeamReport) -> u32 {
         self.detections
