@@ -102,6 +102,11 @@ struct Args {
     #[cfg(feature = "sim")]
     #[arg(long, default_value_t = 1, requires = "replay_dir")]
     odometry_seed: u64,
+    /// With --replay-dir: no radar odometry (by default rotations are registered against
+    /// each other and the filter estimates the odometry's speed scale and steering offset).
+    #[cfg(feature = "sim")]
+    #[arg(long, requires = "replay_dir")]
+    no_radar_odometry: bool,
     /// Progress line every this many rotations (0 = none; default 10, or none when the
     /// configuration says `[output] progress = false`).
     #[arg(long)]
@@ -365,5 +370,6 @@ fn recorded(args: &Args) -> anyhow::Result<Option<slam_node::daemon::RecordedRep
         dir: dir.clone(),
         format: args.replay_format,
         errors,
+        radar_odometry: !args.no_radar_odometry,
     }))
 }

@@ -108,6 +108,60 @@ fn real_scans_replay_through_the_driver_and_are_scored_against_ground_truth_and_
     }
 }
 
+/// The number after `key` in `text` (up to the next space or comma).
+fn figure_after(text: &str, key: &str) -> f64 {
+    let at = text
+        .find(key)
+        .unwrap_or_else(|| panic!("{key:?} missing from\n{text}"));
+    text[at + key.len()..]
+        .trim_start()
+        .split([' ', ',', ';'])
+        .next()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no number after {key:?} in\n{text}"))
+}
+
+#[test]
+fn on_real_scans_with_odometry_five_per_cent_fast_radar_odometry_halves_dead_reckoning_s_error() {
+    let Some(dir) = oxford() else { return };
+    let out = tempfile::tempdir().unwrap();
+    let run = slam_node()
+        .args([
+            "--replay-dir",
+            dir.to_str().unwrap(),
+            "--fast",
+            "--no-figures",
+        ])
+        .args([
+            "--odometry-speed-scale",
+            "1.05",
+            "--odometry-yaw-rate-bias",
+            "0.02",
+        ])
+        .args(["--out", out.path().to_str().unwrap()])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{stdout}");
+    let line = stdout
+        .lines()
+        .find(|l| l.contains("against the ground truth:"))
+        .unwrap_or_else(|| panic!("no comparison in\n{stdout}"));
+    let filter_final = figure_after(line, "final");
+    let dead_reckoning = &line[line.find("dead reckoning").unwrap()..];
+    let dead_reckoning_final = figure_after(dead_reckoning, "final");
+    let applied = figure_after(&stdout, "failed,");
+    eprintln!("{line}\nregistrations applied {applied}");
+    assert!(
+        applied >= 5.0,
+        "radar odometry applied {applied}:\n{stdout}"
+    );
+    assert!(
+        filter_final <= 0.5 * dead_reckoning_final,
+        "final {filter_final} m against dead reckoning's {dead_reckoning_final} m"
+    );
+}
+
 #[test]
 fn a_replay_folder_that_is_not_there_is_refused_by_name() {
     let out = slam_node()

@@ -20,7 +20,9 @@ use radar_model::power::PowerModel;
 use radar_model::spectrum::SpectrumGeometry;
 use sim_sensor::replay::png::read_polar_png;
 use sim_sensor::replay::truth::{chain_pose_times, chain_poses, read_oxford_odometry};
-use slam_node::daemon::replay::{recorded_settings, OdometryErrors, RecordedTruth};
+use slam_node::daemon::replay::{
+    recorded_settings, with_radar_odometry, OdometryErrors, RecordedTruth,
+};
 use slam_node::output::OutputEvent;
 use slam_node::pipeline::Pipeline;
 
@@ -123,13 +125,15 @@ pub struct TrackResult {
 /// truth exactly as `slam-node --replay-dir` makes it: noise-free here, the speed scaled by
 /// `speed_scale` and `yaw_rate_bias` (rad/s) added. `truth` holds at `truth_times_s` (s; the
 /// middle of each scan's rotation for Oxford). Only the transport differs: the rows go in as
-/// azimuths directly instead of over TCP.
+/// azimuths directly instead of over TCP. With `radar_odometry` the replay's default radar
+/// odometry runs ([`with_radar_odometry`]).
 pub fn track(
     scans: &[TimedScan],
     truth: &[Pose2],
     truth_times_s: &[f64],
     speed_scale: f64,
     yaw_rate_bias: f64,
+    radar_odometry: bool,
 ) -> Result<TrackResult, EvalError> {
     let times: Vec<f64> = truth_times_s.to_vec();
     let recorded = RecordedTruth::from_poses(times.clone(), truth.to_vec())
@@ -147,7 +151,11 @@ pub fn track(
         .first()
         .and_then(|s| s.scan.rows.first())
         .map_or(0, |r| r.measured_db.len());
-    let settings = recorded_settings(crate::daemon::shipped_settings()?, bins as f64 * BIN_SIZE_M);
+    let mut settings =
+        recorded_settings(crate::daemon::shipped_settings()?, bins as f64 * BIN_SIZE_M);
+    if radar_odometry {
+        settings = with_radar_odometry(settings);
+    }
     let cts = Geometry::cts350x();
     let geometry = Arc::new(Geometry {
         azimuth_samples: u16::try_from(scans.first().map_or(400, |s| s.scan.rows.len()))
@@ -317,13 +325,15 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
          with its own timestamp is needed in order, which the reader gives directly). Relative \
          poses from `radar_odometry.csv`, converted from the data set's x-forward, y-right \
          frame to ours (y left, heading counter-clockwise). The first scan's first azimuth is \
-         {:.3} s from its file timestamp; poses are taken at the file timestamps.\n",
+         {:.3} s from its file timestamp; each pose holds at its row's own time          (`source_timestamp`), the middle of the scan's rotation, {:.3} s after the first          scan's file timestamp, as the data set's SDK interpolates them.\n",
         scans.len(),
         scans.first().map_or(0, |s| s.scan.rows.len()),
         bins,
         BIN_SIZE_M,
         dir.display(),
-        first_row_t - scans.first().map_or(f64::NAN, |s| s.time_s)
+        first_row_t - scans.first().map_or(f64::NAN, |s| s.time_s),
+        truth_times_s.first().copied().unwrap_or(f64::NAN)
+            - scans.first().map_or(f64::NAN, |s| s.time_s)
     );
     let _ = writeln!(
         body,
@@ -354,8 +364,20 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
     }];
     let mut sets = Vec::new();
     let cases = [
-        ("exact", 1.0, 0.0),
-        ("speed +5 %, yaw rate +0.02 rad/s", 1.05, 0.02),
+        ("exact, no radar odometry", 1.0, 0.0, false),
+        (
+            "speed +5 %, yaw rate +0.02 rad/s, no radar odometry",
+            1.05,
+            0.02,
+            false,
+        ),
+        ("exact, radar odometry", 1.0, 0.0, true),
+        (
+            "speed +5 %, yaw rate +0.02 rad/s, radar odometry",
+            1.05,
+            0.02,
+            true,
+        ),
     ];
     // The two runs are independent: one thread each.
     let results: Vec<Result<TrackResult, EvalError>> = if opts.budget.skip_heavy {
@@ -364,9 +386,9 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
         std::thread::scope(|scope| {
             let handles: Vec<_> = cases
                 .iter()
-                .map(|&(_, scale, bias)| {
+                .map(|&(_, scale, bias, radar)| {
                     let (scans, truth, truth_times_s) = (&scans, &truth, &truth_times_s);
-                    scope.spawn(move || track(scans, truth, truth_times_s, scale, bias))
+                    scope.spawn(move || track(scans, truth, truth_times_s, scale, bias, radar))
                 })
                 .collect();
             handles
@@ -382,7 +404,7 @@ pub fn section(opts: &Options) -> Result<Section, EvalError> {
     if results.is_empty() {
         let _ = writeln!(body, "(Skipped in this budget: the filter over the real scans takes minutes in a debug build.)\n");
     }
-    for ((name, _, _), r) in cases.iter().zip(results) {
+    for ((name, _, _, _), r) in cases.iter().zip(results) {
         let r = r?;
         let last = r
             .per_scan

@@ -214,6 +214,9 @@ pub struct RecordedReplay {
     pub format: Option<sim_sensor::replay::ReplayFormat>,
     /// The errors put on the ground truth's motion to make the odometry.
     pub errors: OdometryErrors,
+    /// Radar odometry with the odometry corrections estimated (see
+    /// [`super::replay::with_radar_odometry`]); `false` leaves the settings as configured.
+    pub radar_odometry: bool,
 }
 
 /// Replays recorded scans through the simulator's server, with odometry from their ground
@@ -247,7 +250,10 @@ pub(super) async fn start_replay(
     options.odometry_bind = None;
     options.ground_truth_path = None;
     options.start_time_ns = None;
-    let settings = recorded_settings_for(settings, geometry.max_range_m(), geometry.bin_size_m);
+    let mut settings = recorded_settings_for(settings, geometry.max_range_m(), geometry.bin_size_m);
+    if recorded.radar_odometry {
+        settings = super::replay::with_radar_odometry(settings);
+    }
     let samples = truth.odometry(&recorded.errors);
     let mut figures = ReplayFigures::new(&truth, &samples, recorded.errors);
     figures.format = Some(format);

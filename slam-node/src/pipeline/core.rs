@@ -16,16 +16,16 @@ use std::time::Instant;
 use nalgebra::Matrix3;
 use radar_driver::Azimuth;
 use radar_model::geometry::{wrap_angle, Pose2};
-use tracing::{info, warn};
+use tracing::{debug, info, warn};
 
 use super::beams::OfferedBeam;
 use super::clock::{Verdict, WireClock};
 use super::frontend::{FrontEnd, GeometryError};
 use super::gate::{worth_logging, OdometryGate};
+use super::scan_match::ScanMatcher;
 use super::settings::PipelineSettings;
 use super::spectrum::{compare_beam, SpectrumScratch};
 use super::stats::{RotationStats, StageTimes};
-use super::scan_match::ScanMatcher;
 use super::submaps::SubmapRun;
 use super::summary::PipelineSummary;
 use super::truth::{TruthObserver, TruthOracle};
@@ -552,6 +552,20 @@ impl Pipeline {
         let started = Instant::now();
         let end = self.ekf.motion_tally().map(|t| t.rel);
         if let Some((motion, cov, reg)) = self.scan_match.end_rotation(end) {
+            if let Some(odo) = end {
+                debug!(
+                    measured_x = motion.x,
+                    measured_y = motion.y,
+                    measured_theta = motion.theta,
+                    odometry_x = odo.x,
+                    odometry_y = odo.y,
+                    odometry_theta = odo.theta,
+                    pairs = reg.pairs,
+                    rms_m = reg.rms_m,
+                    iterations = reg.iterations,
+                    "radar odometry registration"
+                );
+            }
             match self
                 .ekf
                 .observe_motion_since_mark(motion, &cov, RADAR_ODOMETRY_GATE_CHI2)
@@ -640,10 +654,7 @@ impl Pipeline {
         });
         s.learned_gain_db_per_decade = self.front_end.learned_gain_slope();
         s.odometry_corrections = self.ekf.odometry_bias();
-        s.scan_match = self
-            .scan_match
-            .enabled()
-            .then(|| self.scan_match.counts());
+        s.scan_match = self.scan_match.enabled().then(|| self.scan_match.counts());
         s.odometry_out_of_order = self.gate.out_of_order();
         if let Some(truth) = self.truth.as_ref() {
             let features = match self.submaps.as_ref() {

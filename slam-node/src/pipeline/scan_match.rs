@@ -98,9 +98,9 @@ pub fn register(
         let gate = gate_m * (0.85f64.powi(it as i32)).max(0.2);
         let gate2 = gate * gate;
         let (s, c) = t.theta.sin_cos();
+        // Sums over the pairs: n, p, q, and the raw cross-products for the centred ones.
         let (mut n, mut sp, mut sq) = (0usize, [0.0; 2], [0.0; 2]);
-        let mut pairs: Vec<([f64; 2], [f64; 2])> = Vec::with_capacity(current.len());
-        let mut sum_d2 = 0.0;
+        let (mut sdot, mut scross, mut sum_d2) = (0.0, 0.0, 0.0);
         for p in current {
             let moved = [t.x + c * p[0] - s * p[1], t.y + s * p[0] + c * p[1]];
             let nn = reference.nearest_one::<SquaredEuclidean>(&moved);
@@ -114,7 +114,8 @@ pub fn register(
             sum_d2 += nn.distance;
             sp = [sp[0] + p[0], sp[1] + p[1]];
             sq = [sq[0] + q[0], sq[1] + q[1]];
-            pairs.push((*p, *q));
+            sdot += p[0] * q[0] + p[1] * q[1];
+            scross += p[0] * q[1] - p[1] * q[0];
         }
         if n < min_pairs.max(3) {
             return None;
@@ -122,12 +123,8 @@ pub fn register(
         let nf = n as f64;
         let (mp, mq) = ([sp[0] / nf, sp[1] / nf], [sq[0] / nf, sq[1] / nf]);
         // Closed-form rotation: atan2 of the cross- and dot-sums of the centred pairs.
-        let (mut cross, mut dot) = (0.0, 0.0);
-        for (p, q) in &pairs {
-            let (a, b) = ([p[0] - mp[0], p[1] - mp[1]], [q[0] - mq[0], q[1] - mq[1]]);
-            dot += a[0] * b[0] + a[1] * b[1];
-            cross += a[0] * b[1] - a[1] * b[0];
-        }
+        let dot = sdot - nf * (mp[0] * mq[0] + mp[1] * mq[1]);
+        let cross = scross - nf * (mp[0] * mq[1] - mp[1] * mq[0]);
         let theta = cross.atan2(dot);
         let (s, c) = theta.sin_cos();
         let next = Pose2::new(
@@ -199,7 +196,12 @@ impl ScanMatcher {
 
     /// Adds one azimuth's detections at `bearing_rad`, the sensor at `sensor` (the frame at
     /// the last mark; `None` when there is none: nothing is added).
-    pub fn add_azimuth(&mut self, sensor: Option<Pose2>, bearing_rad: f64, detections: &[Detection]) {
+    pub fn add_azimuth(
+        &mut self,
+        sensor: Option<Pose2>,
+        bearing_rad: f64,
+        detections: &[Detection],
+    ) {
         let Some(sensor) = sensor else {
             return;
         };
@@ -234,7 +236,10 @@ impl ScanMatcher {
     /// the last mark (the tally), `None` without a mark. Registers the cloud against the
     /// previous rotation's and returns the measured motion with its covariance when the
     /// registration holds; the caller gives it to the filter and marks the filter anew.
-    pub fn end_rotation(&mut self, end: Option<Pose2>) -> Option<(Pose2, Matrix3<f64>, Registration)> {
+    pub fn end_rotation(
+        &mut self,
+        end: Option<Pose2>,
+    ) -> Option<(Pose2, Matrix3<f64>, Registration)> {
         let points = std::mem::take(&mut self.current);
         let Some(end) = end else {
             self.previous = None;
@@ -349,7 +354,15 @@ mod tests {
     fn too_few_pairs_is_no_registration() {
         let reference = vec![[0.0, 0.0], [1.0, 0.0]];
         let tree = ImmutableKdTree::new_from_slice(&reference);
-        assert!(register(&tree, &reference, &reference, Pose2::new(0.0, 0.0, 0.0), 1.0, 3).is_none());
+        assert!(register(
+            &tree,
+            &reference,
+            &reference,
+            Pose2::new(0.0, 0.0, 0.0),
+            1.0,
+            3
+        )
+        .is_none());
         assert!(register(&tree, &reference, &[], Pose2::new(0.0, 0.0, 0.0), 1.0, 1).is_none());
     }
 }
