@@ -57,7 +57,7 @@ impl Default for ScanMatchSettings {
             max_range_m: 80.0,
             sigma_xy_m: 0.05,
             sigma_theta_rad: 0.003,
-            pair_gate_m: 1.5,
+            pair_gate_m: 0.6,
             min_pairs: 100,
         }
     }
