@@ -120,7 +120,7 @@ async fn as_fast_as_possible_odometry_starts_at_the_first_record_and_resumes_whe
     let mut last = 0;
     loop {
         let mut line = String::new();
-        match tokio::time::timeout(Duration::from_millis(300), reader.read_line(&mut line)).await {
+        match tokio::time::timeout(Duration::from_secs(1), reader.read_line(&mut line)).await {
             Ok(Ok(n)) if n > 0 => {
                 let j = record_index(&line);
                 assert_eq!(j, last + 1, "records in order without gaps");
@@ -134,19 +134,20 @@ async fn as_fast_as_possible_odometry_starts_at_the_first_record_and_resumes_whe
     drop(reader);
     let mut reader = BufReader::new(TcpStream::connect(addr).await.expect("reconnect"));
     read_line(&mut reader).await;
-    // The radar moves on; the reconnected stream carries on after the last record sent.
+    // The radar moves on (read until the record comes: a socket's window may reopen only
+    // once much of its buffer has been read); the reconnected stream carries on after the
+    // last record sent.
     let radar_task = tokio::spawn(async move {
-        for _ in 0..1000 {
+        loop {
             radar.next_fft().await;
         }
-        radar
     });
     assert_eq!(
         record_index(&read_line(&mut reader).await),
         last + 1,
         "a reconnected client neither misses records nor gets them twice"
     );
-    let _radar = radar_task.await.expect("radar reader");
+    radar_task.abort();
     handle.shutdown().await.expect("shutdown");
 }
 
