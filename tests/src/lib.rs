@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
-use sim_sensor::{FaultScope, FaultSettings, Pacing, SimOptions};
+use sim_sensor::{FaultScope, FaultSettings, OdometryNoise, Pacing, SimOptions};
 use slam_node::daemon::{run_daemon, DaemonError, DaemonOptions, DaemonReport, EmbeddedSim};
 use slam_node::detect::DetectorSettings;
 
@@ -37,6 +37,10 @@ pub struct Run {
     pub mirror: bool,
     /// The odometry link's idle timeout (`None`: the daemon's default, 7 s).
     pub odometry_idle_timeout: Option<Duration>,
+    /// The simulator's odometry noise (`None`: its default, 0.1 m/s and 0.01 rad at 20 Hz).
+    pub odometry_noise: Option<OdometryNoise>,
+    /// The scene's bearing noise, degrees (`None`: the scene's).
+    pub bearing_sigma_deg: Option<f64>,
 }
 
 impl Run {
@@ -54,6 +58,8 @@ impl Run {
             repeat_look_decorrelation: true,
             mirror: false,
             odometry_idle_timeout: None,
+            odometry_noise: None,
+            bearing_sigma_deg: None,
         }
     }
 }
@@ -78,12 +84,18 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
     if run.mirror {
         scene = scene.mirrored().map_err(sim_sensor::SimError::from)?;
     }
+    if let Some(sigma) = run.bearing_sigma_deg {
+        scene.noise.bearing_sigma_deg = sigma;
+    }
     let mut options = SimOptions::for_tests(scene);
     options.pacing = Pacing::AsFastAsPossible;
     options.faults = run.faults.clone();
     options.fault_scope = run.fault_scope;
     if let Some(seed) = run.seed {
         options.seed = Some(seed);
+    }
+    if let Some(noise) = run.odometry_noise {
+        options.odometry = noise;
     }
     if !run.odometry {
         options.odometry_bind = None;
