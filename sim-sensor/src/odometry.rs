@@ -9,11 +9,18 @@
 //! client reads identical records). In real time a record leaves when the wall clock reaches
 //! its stamp; as fast as possible, records are released up to [`FAST_LEAD_NS`] ahead of the
 //! radar's frontier, so odometry is always available for the azimuths being served but never
-//! races unboundedly ahead of them. A new client starts at the record in force at the
-//! world's current time.
+//! races unboundedly ahead of them. A new client starts, in real time, at the record in
+//! force at the world's current time; as fast as possible, at the first record no client has
+//! been sent yet (the first client at the scene's first record, whenever it connects): there
+//! the radar's frontier is not the consumer's time (it runs ahead by whatever the sockets and
+//! the client's queues hold), so a client that reconnects after its link went quiet carries
+//! on exactly where its stream stopped, and one that connects after the radar started still
+//! reads the records from the start. (Starting at the frontier made both depend on the
+//! machine's timing: the odometry was cut short after a reconnect, or began late.)
 
 use std::fmt::Write as _;
 use std::net::SocketAddr;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -120,6 +127,8 @@ pub(crate) struct OdometryServer {
     listener: TcpListener,
     world: Arc<World>,
     generator: OdometryGenerator,
+    /// The first record no client has been sent (where a client starts as fast as possible).
+    unsent: Arc<AtomicU64>,
 }
 
 impl OdometryServer {
@@ -141,6 +150,7 @@ impl OdometryServer {
             listener,
             world,
             generator,
+            unsent: Arc::new(AtomicU64::new(0)),
         })
     }
 
@@ -167,8 +177,9 @@ impl OdometryServer {
                     }
                     tracing::info!(%peer, "odometry client connected");
                     let (world, generator, cancel) = (Arc::clone(&self.world), self.generator.clone(), cancel.clone());
+                    let unsent = Arc::clone(&self.unsent);
                     clients.spawn(async move {
-                        if let Err(error) = serve_odometry(socket, world, generator, cancel).await {
+                        if let Err(error) = serve_odometry(socket, world, generator, unsent, cancel).await {
                             tracing::info!(%peer, %error, "odometry client gone");
                         }
                     });
@@ -184,6 +195,7 @@ async fn serve_odometry(
     mut socket: TcpStream,
     world: Arc<World>,
     generator: OdometryGenerator,
+    unsent: Arc<AtomicU64>,
     cancel: CancellationToken,
 ) -> std::io::Result<()> {
     let Some(scene) = world.scene().cloned() else {
@@ -194,7 +206,10 @@ async fn serve_odometry(
     line.push_str(HEADER);
     line.push('\n');
     socket.write_all(line.as_bytes()).await?;
-    let mut j = world.current_offset_ns() / generator.period_ns();
+    let mut j = match world.pacing {
+        Pacing::Realtime => world.current_offset_ns() / generator.period_ns(),
+        Pacing::AsFastAsPossible => unsent.load(Ordering::Acquire),
+    };
     let end_ns = world.stop_after.map(|n| scene.offset_ns(n));
     loop {
         let t_ns = generator.offset_ns(j);
@@ -229,6 +244,7 @@ async fn serve_odometry(
             written = socket.write_all(line.as_bytes()) => written?,
         }
         j += 1;
+        unsent.fetch_max(j, Ordering::AcqRel);
     }
 }
 

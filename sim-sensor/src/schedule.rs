@@ -88,6 +88,21 @@ impl ControlSchedule {
         })
     }
 
+    /// The same schedule with every steering input negated (the vehicle turns the other way).
+    pub fn with_steer_negated(&self) -> Self {
+        Self {
+            keys: self
+                .keys
+                .iter()
+                .map(|k| ControlKey {
+                    steer_rad: -k.steer_rad,
+                    ..*k
+                })
+                .collect(),
+            interpolation: self.interpolation,
+        }
+    }
+
     /// The keyframes.
     pub fn keys(&self) -> &[ControlKey] {
         &self.keys

@@ -85,6 +85,72 @@ async fn odometry_lines_follow_the_contract_and_carry_the_true_controls_without_
     handle.shutdown().await.expect("shutdown");
 }
 
+/// The record number of an odometry line (records are 50 ms apart from the start).
+fn record_index(line: &str) -> u64 {
+    let stamp = line.split(' ').next().expect("a timestamp");
+    let (secs, nanos) = stamp.split_once('.').expect("decimal timestamp");
+    let t_ns =
+        secs.parse::<u64>().expect("secs") * 1_000_000_000 + nanos.parse::<u64>().expect("nanos");
+    (t_ns - START_NS) / 50_000_000
+}
+
+#[tokio::test]
+async fn as_fast_as_possible_odometry_starts_at_the_first_record_and_resumes_where_it_stopped() {
+    let scene = shipped::load("outdoor-field").expect("scene");
+    let handle = SimServer::spawn(SimOptions::for_tests(scene))
+        .await
+        .expect("spawn");
+    // The radar runs 5 s ahead before any odometry client connects.
+    let mut radar = TestClient::connect(handle.local_addr()).await;
+    radar.configuration().await;
+    radar.send(Message::StartFftData).await;
+    for _ in 0..2500 {
+        radar.next_fft().await;
+    }
+    let addr = handle.odometry_addr().expect("odometry port");
+    let mut reader = BufReader::new(TcpStream::connect(addr).await.expect("connect"));
+    read_line(&mut reader).await;
+    assert_eq!(
+        record_index(&read_line(&mut reader).await),
+        0,
+        "a client connecting late still starts at the scene's first record"
+    );
+    // Read everything the server has sent (the radar is not read, so its frontier stands
+    // still), then the link goes quiet and is dropped, as an idle client drops it.
+    let mut last = 0;
+    loop {
+        let mut line = String::new();
+        match tokio::time::timeout(Duration::from_secs(1), reader.read_line(&mut line)).await {
+            Ok(Ok(n)) if n > 0 => {
+                let j = record_index(&line);
+                assert_eq!(j, last + 1, "records in order without gaps");
+                last = j;
+            }
+            Ok(_) => panic!("odometry stream ended"),
+            Err(_) => break,
+        }
+    }
+    assert!(last >= 100, "records up to the radar's frontier: {last}");
+    drop(reader);
+    let mut reader = BufReader::new(TcpStream::connect(addr).await.expect("reconnect"));
+    read_line(&mut reader).await;
+    // The radar moves on (read until the record comes: a socket's window may reopen only
+    // once much of its buffer has been read); the reconnected stream carries on after the
+    // last record sent.
+    let radar_task = tokio::spawn(async move {
+        loop {
+            radar.next_fft().await;
+        }
+    });
+    assert_eq!(
+        record_index(&read_line(&mut reader).await),
+        last + 1,
+        "a reconnected client neither misses records nor gets them twice"
+    );
+    radar_task.abort();
+    handle.shutdown().await.expect("shutdown");
+}
+
 #[tokio::test]
 async fn the_ground_truth_file_holds_the_scene_and_a_pose_for_every_served_azimuth() {
     let scene = shipped::load("outdoor-field").expect("scene");

@@ -314,7 +314,7 @@ fn embedded_sim(
         .map(|d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
         .unwrap_or(0);
     options.start_time_ns = Some(now_ns);
-    Ok(slam_node::daemon::EmbeddedSim { options })
+    Ok(slam_node::daemon::EmbeddedSim::new(options))
 }
 
 /// Whether the run replays recorded scans.

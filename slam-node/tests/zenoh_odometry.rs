@@ -102,7 +102,7 @@ fn options(
     sim.start_time_ns = Some(START_NS);
     let opts = DaemonOptions {
         config,
-        embedded: Some(EmbeddedSim { options: sim }),
+        embedded: Some(EmbeddedSim::new(sim)),
         recorded: None,
         max_stream_s: Some(DURATION_S),
         out_dir: out.to_path_buf(),

@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
-use sim_sensor::{FaultScope, FaultSettings, Pacing, SimOptions};
+use sim_sensor::{FaultScope, FaultSettings, OdometryNoise, Pacing, SimOptions};
 use slam_node::daemon::{run_daemon, DaemonError, DaemonOptions, DaemonReport, EmbeddedSim};
 use slam_node::detect::DetectorSettings;
 
@@ -33,6 +33,14 @@ pub struct Run {
     pub first_estimate_jacobians: bool,
     /// Repeat-look decorrelation in the filter (the shipped default: on).
     pub repeat_look_decorrelation: bool,
+    /// Drive the scene's mirror image (`Scene::mirrored`: the vehicle turns the other way).
+    pub mirror: bool,
+    /// The odometry link's idle timeout (`None`: the daemon's default, 7 s).
+    pub odometry_idle_timeout: Option<Duration>,
+    /// The simulator's odometry noise (`None`: its default, 0.1 m/s and 0.01 rad at 20 Hz).
+    pub odometry_noise: Option<OdometryNoise>,
+    /// The scene's bearing noise, degrees (`None`: the scene's).
+    pub bearing_sigma_deg: Option<f64>,
 }
 
 impl Run {
@@ -48,6 +56,10 @@ impl Run {
             seed: None,
             first_estimate_jacobians: true,
             repeat_look_decorrelation: true,
+            mirror: false,
+            odometry_idle_timeout: None,
+            odometry_noise: None,
+            bearing_sigma_deg: None,
         }
     }
 }
@@ -67,7 +79,14 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
     // Likewise a small socket receive buffer (the default 4 MiB holds ten seconds of it).
     config.radar.recv_buffer_bytes =
         config::values::Capacity::new(64 * 1024, 1 << 28).expect("valid size");
-    let scene = sim_sensor::scene::shipped::load(run.scene).map_err(sim_sensor::SimError::from)?;
+    let mut scene =
+        sim_sensor::scene::shipped::load(run.scene).map_err(sim_sensor::SimError::from)?;
+    if run.mirror {
+        scene = scene.mirrored().map_err(sim_sensor::SimError::from)?;
+    }
+    if let Some(sigma) = run.bearing_sigma_deg {
+        scene.noise.bearing_sigma_deg = sigma;
+    }
     let mut options = SimOptions::for_tests(scene);
     options.pacing = Pacing::AsFastAsPossible;
     options.faults = run.faults.clone();
@@ -75,13 +94,20 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
     if let Some(seed) = run.seed {
         options.seed = Some(seed);
     }
+    if let Some(noise) = run.odometry_noise {
+        options.odometry = noise;
+    }
     if !run.odometry {
         options.odometry_bind = None;
+    }
+    let mut embedded = EmbeddedSim::new(options);
+    if let Some(idle) = run.odometry_idle_timeout {
+        embedded.odometry_idle_timeout = idle;
     }
     let stop = Arc::new(AtomicBool::new(false));
     let opts = DaemonOptions {
         config,
-        embedded: Some(EmbeddedSim { options }),
+        embedded: Some(embedded),
         recorded: None,
         max_stream_s: Some(run.duration_s),
         out_dir: out.to_path_buf(),

@@ -225,6 +225,31 @@ impl Scene {
         self
     }
 
+    /// The scene reflected about the world's x axis: every feature's and the start's y, the
+    /// start heading and every steering input negated, so the vehicle turns the other way
+    /// past the mirror image of the same features (a check for handedness in the radar, the
+    /// filter or the simulator: the radar still sweeps clockwise). Point-feature scenes
+    /// only: a scene with extended objects or a generated city is refused.
+    pub fn mirrored(&self) -> Result<Scene, SceneError> {
+        if !self.objects.is_empty() || self.city.is_some() || self.realism.is_some() {
+            return Err(SceneError::Invalid {
+                field: "objects".into(),
+                reason: format!(
+                    "scene {:?}: only point-feature scenes can be mirrored",
+                    self.name
+                ),
+            });
+        }
+        let mut m = self.clone();
+        m.name = format!("{}-mirrored", self.name);
+        m.start = [self.start[0], -self.start[1], -self.start[2]];
+        for f in &mut m.features {
+            f.y_m = -f.y_m;
+        }
+        m.schedule = self.schedule.with_steer_negated();
+        Ok(m)
+    }
+
     /// The largest distance of any feature from the start position, metres.
     pub fn extent_m(&self) -> f64 {
         self.features
@@ -244,6 +269,37 @@ mod tests {
         x_m = 14.0
         y_m = 0.0
     "#;
+
+    #[test]
+    fn a_mirrored_scene_drives_the_mirror_image_past_the_mirrored_features() {
+        let scene = shipped::load("outdoor-field").expect("shipped");
+        let mirrored = scene.mirrored().expect("point features only");
+        let a = crate::trajectory::Trajectory::new(&scene, 60.0).expect("trajectory");
+        let b = crate::trajectory::Trajectory::new(&mirrored, 60.0).expect("trajectory");
+        for t_s in [0.0, 12.5, 30.0, 39.99, 55.0] {
+            let t_ns = (t_s * 1e9) as u64;
+            let (p, q) = (
+                a.pose_at(t_ns).expect("pose"),
+                b.pose_at(t_ns).expect("pose"),
+            );
+            assert!(
+                (p.x - q.x).abs() < 1e-9 && (p.y + q.y).abs() < 1e-9,
+                "{t_s} s"
+            );
+            assert!((p.theta + q.theta).abs() < 1e-12, "{t_s} s");
+        }
+        assert!(
+            a.pose_at(30_000_000_000).expect("pose").y.abs() > 1.0,
+            "the scene turns"
+        );
+        for (f, g) in scene.features.iter().zip(&mirrored.features) {
+            assert_eq!((f.id, f.x_m, f.y_m), (g.id, g.x_m, -g.y_m));
+        }
+        assert!(shipped::load("urban-street")
+            .expect("shipped")
+            .mirrored()
+            .is_err());
+    }
 
     #[test]
     fn a_minimal_scene_takes_the_paper_radar_and_default_materials() {

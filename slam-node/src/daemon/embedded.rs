@@ -29,6 +29,20 @@ use crate::pipeline::{Pipeline, PipelineSettings, SceneTruth, TruthOracle};
 pub struct EmbeddedSim {
     /// The simulator's options (bind 127.0.0.1:0 for tests and the default run).
     pub options: SimOptions,
+    /// Nothing received on the odometry link for this long is a dead link: the client
+    /// reconnects (default 7 s, as against a vehicle; tests shorten it).
+    pub odometry_idle_timeout: Duration,
+}
+
+impl EmbeddedSim {
+    /// The simulator with `options`, the odometry client's defaults.
+    pub fn new(options: SimOptions) -> Self {
+        let defaults = TcpOdometrySettings::new(std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
+        Self {
+            options,
+            odometry_idle_timeout: defaults.idle_timeout,
+        }
+    }
 }
 
 /// The daemon's settings for running against the simulator's `scene`: its motion model, its
@@ -181,10 +195,13 @@ pub(super) async fn start(
     let handle = unless_stopped(stop, tokio::spawn(SimServer::spawn(options))).await??;
     info!(radar = %handle.local_addr(), odometry = ?handle.odometry_addr(), scene = %scene_name, "embedded simulator started");
     driver_settings.address = handle.local_addr();
+    let idle_timeout = sim.odometry_idle_timeout;
     let odometry: Option<Box<dyn OdometrySource>> = handle.odometry_addr().map(|a| {
+        let mut odometry = TcpOdometrySettings::new(a);
+        odometry.idle_timeout = idle_timeout;
         Box::new(TcpOdometry::spawn(
             &tokio::runtime::Handle::current(),
-            TcpOdometrySettings::new(a),
+            odometry,
             odo_shutdown,
         )) as Box<dyn OdometrySource>
     });
