@@ -4,7 +4,8 @@
 //! detection figure of the realism comparison (`cargo run --release -p sim-sensor
 //! --example realism` gives the others).
 //!
-//! Run: `cargo run --release -p evaluation --bin realism_detections`
+//! Run: `cargo run --release -p evaluation --bin realism_detections [-- SCENE]` (SCENE: a
+//! shipped scene's name or a scene file; `urban-street` by default).
 //!
 //! Rows: the daemon's default detector (TPP), and the front end for current units
 //! (`[detector] kind = "learned"`, with the settings `slam-node --replay-dir` uses):
@@ -12,11 +13,19 @@
 //!
 //! The detector's default (TPP) keeps a per-bin minimum over scans, so the first two
 //! rotations of each set are warm-up and are not counted.
+//!
+//! Then which simulated objects make the learned front end's targets, by removal: the
+//! street rendered again without one kind of object at a time (ground clutter on the
+//! streets, clutter inside the blocks, hedges, crowns, parked and moving vehicles,
+//! building fronts, the point features), and the targets that go with it. Removing an
+//! occluder (a front, a hedge, a vehicle) also uncovers what it hid, so its row is what it
+//! makes less what it hides.
 
 use sim_sensor::realism::calibrate::{default_oxford_dir, load_polar_dir};
 use sim_sensor::realism::render_scans;
 use sim_sensor::realism::stats::Scans;
-use sim_sensor::scene::shipped;
+use sim_sensor::realism::{ObjectKind, ObjectSpec};
+use sim_sensor::scene::{shipped, Scene};
 use slam_node::detect::{
     BeamDetector, DetectorKind, DetectorSettings, LearnedFloor, LineDetector, LineSettings,
     RangeAxis,
@@ -57,6 +66,21 @@ fn per_rotation(scans: &Scans, settings: DetectorSettings, warmup: usize) -> f64
 /// rotations after `warmup`, all of them and the point-like ones (at most the landmark
 /// extent in range, the others being what the daemon keeps out of the map as extended).
 fn learned_per_rotation(scans: &Scans, settings: &DetectorSettings, warmup: usize) -> (f64, f64) {
+    let (all, points, _) = learned_with_extents(scans, settings, warmup);
+    (all, points)
+}
+
+/// Range extents (m) of extended targets: the upper edges of [`extent_histogram`]'s bins.
+const EXTENT_EDGES_M: [f64; 5] = [1.0, 2.0, 4.0, 8.0, f64::INFINITY];
+
+/// [`learned_per_rotation`] and the extended targets per rotation by range extent
+/// (`EXTENT_EDGES_M`).
+fn learned_with_extents(
+    scans: &Scans,
+    settings: &DetectorSettings,
+    warmup: usize,
+) -> (f64, f64, [f64; 5]) {
+    let mut hist = [0usize; 5];
     let mut floor = LearnedFloor::new(settings.floor, scans.bins);
     let mut line = LineDetector::new();
     let axis = RangeAxis {
@@ -76,12 +100,18 @@ fn learned_per_rotation(scans: &Scans, settings: &DetectorSettings, warmup: usiz
             line.detect(row, &mut floor, &axis, &line_settings, &mut peaks);
             if r >= warmup {
                 all += peaks.len();
-                points += peaks
-                    .iter()
-                    .filter(|p| {
-                        p.extent_bins as f64 * scans.bin_m <= settings.landmarks.max_extent_m
-                    })
-                    .count();
+                for p in &peaks {
+                    let extent = p.extent_bins as f64 * scans.bin_m;
+                    if extent <= settings.landmarks.max_extent_m {
+                        points += 1;
+                    } else if let Some(h) = EXTENT_EDGES_M
+                        .iter()
+                        .position(|&e| extent <= e)
+                        .and_then(|k| hist.get_mut(k))
+                    {
+                        *h += 1;
+                    }
+                }
             }
         }
         if r >= warmup {
@@ -89,7 +119,11 @@ fn learned_per_rotation(scans: &Scans, settings: &DetectorSettings, warmup: usiz
         }
     }
     let n = counted.max(1) as f64;
-    (all as f64 / n, points as f64 / n)
+    (
+        all as f64 / n,
+        points as f64 / n,
+        hist.map(|h| h as f64 / n),
+    )
 }
 
 fn main() -> anyhow::Result<()> {
@@ -99,7 +133,14 @@ fn main() -> anyhow::Result<()> {
         return Ok(());
     }
     let real = load_polar_dir(&dir)?;
-    let scene = shipped::load("urban-street")?;
+    let name = std::env::args()
+        .nth(1)
+        .unwrap_or_else(|| "urban-street".into());
+    let scene = if shipped::NAMES.contains(&name.as_str()) {
+        shipped::load(&name)?
+    } else {
+        Scene::load(std::path::Path::new(&name))?
+    };
     let sim = render_scans(&scene, None, 4, real.rotations.len() as u64)?;
     println!("| detector | real detections / rotation | simulated | sim / real |");
     println!("|---|---|---|---|");
@@ -135,5 +176,75 @@ fn main() -> anyhow::Result<()> {
         "| learned front end, point-like targets (extent <= 0.5 m) | {rp:.0} | {sp:.0} | {:.2} |",
         sp / rp
     );
+    let extents = |scans: &Scans| {
+        let settings = slam_node::daemon::replay::recorded_settings_for(
+            shipped.clone(),
+            scans.bins as f64 * scans.bin_m,
+            scans.bin_m,
+        );
+        learned_with_extents(scans, &settings.detector, 2).2
+    };
+    let (re, se) = (extents(&real), extents(&sim));
+    println!("\n| extended targets by range extent (m) | real / rotation | simulated |");
+    println!("|---|---|---|");
+    let mut lower = 0.5;
+    for ((edge, r), s) in EXTENT_EDGES_M.iter().zip(re).zip(se) {
+        println!("| {lower}-{edge} | {r:.0} | {s:.0} |");
+        lower = *edge;
+    }
+    // Attribution by removal.
+    println!("\n| simulated street without | every target / rotation | point-like | extended | extended less than the whole street |");
+    println!("|---|---|---|---|---|");
+    let extended_all = sa - sp;
+    let rows: [(&str, &Removed); 8] = [
+        ("(nothing removed)", &|_| false),
+        ("ground clutter on the streets", &|o| is_clutter(o, true)),
+        ("clutter inside the blocks", &|o| is_clutter(o, false)),
+        ("hedges", &|o| o.kind == ObjectKind::Hedge),
+        ("crowns (foliage)", &|o| o.kind == ObjectKind::Foliage),
+        ("parked vehicles", &|o| {
+            o.kind == ObjectKind::Vehicle && o.speed_mps == 0.0
+        }),
+        ("moving vehicles", &|o| {
+            o.kind == ObjectKind::Vehicle && o.speed_mps != 0.0
+        }),
+        ("building fronts", &|o| o.kind == ObjectKind::BuildingFront),
+    ];
+    let mut variants: Vec<(String, Scene)> = rows
+        .iter()
+        .map(|(name, drop)| {
+            let mut s = scene.clone();
+            s.objects.retain(|o| !drop(o));
+            (name.to_string(), s)
+        })
+        .collect();
+    let mut points = scene.clone();
+    points.features.clear();
+    variants.push(("point features (trunks, lamp posts)".into(), points));
+    for (name, variant) in &variants {
+        let scans = render_scans(variant, None, 4, real.rotations.len() as u64)?;
+        let (a, p) = learned(&scans);
+        println!(
+            "| {name} | {a:.0} | {p:.0} | {:.0} | {:.0} |",
+            a - p,
+            extended_all - (a - p)
+        );
+    }
     Ok(())
+}
+
+/// Which objects a row of the attribution removes.
+type Removed = dyn Fn(&ObjectSpec) -> bool;
+
+/// Ground clutter the street generator laid along a street (`street`: a rectangle less
+/// than 20 m across, the street's width) or inside a block (wider).
+fn is_clutter(o: &ObjectSpec, street: bool) -> bool {
+    if o.kind != ObjectKind::Clutter {
+        return false;
+    }
+    let (Some(a), Some(b)) = (o.from, o.to) else {
+        return false;
+    };
+    let narrow = (b[0] - a[0]).abs().min((b[1] - a[1]).abs());
+    (narrow < 20.0) == street
 }

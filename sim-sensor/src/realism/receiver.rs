@@ -17,6 +17,7 @@
 //!   values 0, 3, 4.5, 6, 7, 7.5, 8.5 ... dB (`10 log10` of small integers): this is what
 //!   makes them so.
 
+use protocol::units::{db_to_bin16, db_to_bin8};
 use statrs::distribution::{ContinuousCDF, Gamma};
 
 use super::RangeWindow;
@@ -38,6 +39,8 @@ const PATTERN_ENTRIES: usize = 8192;
 const PATTERN_REACH_WIDTHS: f64 = 30.0;
 /// Longest one-sided range kernel, bins.
 const MAX_KERNEL_HALF: usize = 600;
+/// Range envelopes of the receiver's gain, over 1, 2, 4 ... 1024 bins either side.
+const GAIN_ENVELOPES: usize = 11;
 /// A contribution below this (integer power units) cannot move the floor's quantisation.
 pub const NEGLIGIBLE_POWER: f32 = 0.05;
 
@@ -68,8 +71,15 @@ pub struct Receiver {
     pub chi4_quantiles: Vec<f32>,
     /// Integer power units per m^2 of cross section, per bin.
     pub signal_per_m2: Vec<f32>,
+    /// `gain_envelopes[j][b]`: the largest `signal_per_m2` within `2^j` bins of bin `b`
+    /// (the last: the largest anywhere).
+    pub gain_envelopes: Vec<Vec<f32>>,
     /// Output dB of integer power `k < 4096`.
     pub db_of_power: Vec<f64>,
+    /// The 8-bit wire value of integer power `k < 4096` (`db_to_bin8` of its dB).
+    pub wire8_of_power: Vec<u8>,
+    /// The 16-bit wire value of integer power `k < 4096` (`db_to_bin16` of its dB).
+    pub wire16_of_power: Vec<u16>,
     /// `dB = log_scale x 10 log10 k`.
     pub log_scale: f64,
     /// Output clip, dB.
@@ -221,7 +231,7 @@ impl Receiver {
             .collect();
         let chi4_quantiles = quantiles(SPECKLE_QUANTILES, 2.0)?;
 
-        let signal_per_m2 = (0..bins)
+        let signal_per_m2: Vec<f32> = (0..bins)
             .map(|b| {
                 let r = (first_bin_m + b as f64 * bin_m).max(0.5);
                 let level_db = spec.signal_gain_db
@@ -231,9 +241,12 @@ impl Receiver {
                 10f64.powf(level_db / (10.0 * spec.log_scale)) as f32
             })
             .collect();
-        let db_of_power = (0..DB_TABLE)
+        let gain_envelopes = gain_envelopes(&signal_per_m2);
+        let db_of_power: Vec<f64> = (0..DB_TABLE)
             .map(|k| (spec.log_scale * 10.0 * (k.max(1) as f64).log10()).min(spec.saturation_db))
             .collect();
+        let wire8_of_power = db_of_power.iter().map(|&d| db_to_bin8(d)).collect();
+        let wire16_of_power = db_of_power.iter().map(|&d| db_to_bin16(d)).collect();
         let reach_of = |power: f32| -> usize {
             let limit = NEGLIGIBLE_POWER / power;
             envelope
@@ -265,7 +278,10 @@ impl Receiver {
             exp_quantiles,
             chi4_quantiles,
             signal_per_m2,
+            gain_envelopes,
             db_of_power,
+            wire8_of_power,
+            wire16_of_power,
             log_scale: spec.log_scale,
             saturation_db: spec.saturation_db,
             bin_m,
@@ -291,6 +307,38 @@ impl Receiver {
         (i as f64 + 1.0) / self.pattern_per_tan
     }
 
+    /// The power (integer units on the beam's axis) below which a return stays below
+    /// [`NEGLIGIBLE_POWER`] everywhere beyond `|tan(offset)| = max_tan`: `power <
+    /// pattern_threshold(t)` implies `pattern_reach_tan(power) <= t`.
+    pub fn pattern_threshold(&self, max_tan: f64) -> f32 {
+        // pattern_reach_tan(p) = (i + 1) / per_tan with i the first index whose envelope
+        // is below NEGLIGIBLE_POWER / p; it is at most max_tan when the envelope at
+        // floor(max_tan per_tan) - 1 is below it.
+        let i = (max_tan * self.pattern_per_tan).floor() - 1.0;
+        if i < 0.0 {
+            return NEGLIGIBLE_POWER;
+        }
+        match self.pattern_envelope.get(i as usize) {
+            Some(&e) if e > 0.0 => NEGLIGIBLE_POWER / e * (1.0 - 1e-6),
+            Some(_) => f32::INFINITY,
+            None => f32::INFINITY,
+        }
+    }
+
+    /// The largest `signal_per_m2` within `shift_m` metres in range of each bin.
+    pub fn gain_envelope(&self, shift_m: f64) -> &[f32] {
+        let bins = (shift_m / self.bin_m).ceil().max(0.0) + 1.0;
+        let j = self
+            .gain_envelopes
+            .iter()
+            .enumerate()
+            .position(|(j, _)| bins <= f64::from(1u32 << j.min(30)))
+            .unwrap_or(self.gain_envelopes.len() - 1);
+        self.gain_envelopes
+            .get(j)
+            .map_or(&self.signal_per_m2, |e| e.as_slice())
+    }
+
     /// The kernel half-length beyond which a deposit of `power` stays negligible.
     #[inline]
     pub fn kernel_reach(&self, power: f32) -> usize {
@@ -310,6 +358,26 @@ impl Receiver {
         }
     }
 
+    /// Output dB of integer power `k` and its wire value (`db_to_bin8`, or `db_to_bin16`
+    /// when `sixteen`), by table below 4096.
+    #[inline]
+    pub fn quantise(&self, k: u32, sixteen: bool) -> (f64, u16) {
+        let i = k as usize;
+        match (self.db_of_power.get(i), sixteen) {
+            (Some(&db), false) => (db, u16::from(self.wire8_of_power[i])),
+            (Some(&db), true) => (db, self.wire16_of_power[i]),
+            (None, _) => {
+                let db = self.db_of(f64::from(k));
+                let wire = if sixteen {
+                    db_to_bin16(db)
+                } else {
+                    u16::from(db_to_bin8(db))
+                };
+                (db, wire)
+            }
+        }
+    }
+
     /// The full width at half maximum of the tabulated range kernel, bins (measured on the
     /// table, for tests).
     pub fn kernel_fwhm_bins(&self) -> f64 {
@@ -322,6 +390,33 @@ impl Receiver {
         let (a, b) = (f64::from(side[i - 1]), f64::from(side[i]));
         2.0 * ((i - 1) as f64 + (a - 0.5) / (a - b))
     }
+}
+
+/// Envelopes of `gain` over `2^j` bins either side, `j = 0..GAIN_ENVELOPES - 1`, then the
+/// largest anywhere.
+fn gain_envelopes(gain: &[f32]) -> Vec<Vec<f32>> {
+    let n = gain.len();
+    let at = |v: &[f32], i: isize| -> f32 {
+        let i = i.clamp(0, n as isize - 1) as usize;
+        v.get(i).copied().unwrap_or(0.0)
+    };
+    let mut out: Vec<Vec<f32>> = Vec::with_capacity(GAIN_ENVELOPES + 1);
+    // Within 1 bin.
+    let first: Vec<f32> = (0..n as isize)
+        .map(|b| at(gain, b - 1).max(at(gain, b)).max(at(gain, b + 1)))
+        .collect();
+    out.push(first);
+    for j in 0..GAIN_ENVELOPES - 1 {
+        let step = 1isize << j;
+        let prev = &out[j];
+        let next = (0..n as isize)
+            .map(|b| at(prev, b - step).max(at(prev, b + step)))
+            .collect();
+        out.push(next);
+    }
+    let top = gain.iter().copied().fold(0.0f32, f32::max);
+    out.push(vec![top; n]);
+    out
 }
 
 /// Linear interpolation in `[x, y]` pairs (sorted by x), held flat beyond the ends.

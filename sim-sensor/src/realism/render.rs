@@ -16,25 +16,31 @@
 //!    each mirror outline (building fronts, walls) within that range, where the mirror
 //!    point lies on the outline and both radar and source are on its front side, becomes a
 //!    scatterer at the image position with `reflectance^2` of the source's power;
-//! 4. the candidates are split by how far off the beam's axis their sidelobes still matter
-//!    (from their strength and the antenna's envelope) into tiers, each sorted by bearing.
+//! 4. the candidates are put into lists by how far off the beam's axis their sidelobes
+//!    still matter (from their largest possible deposit and the antenna's envelope), by
+//!    whether they move, and by range shell (the motion during the rotation moves the
+//!    bearing of a candidate at range `r` by at most `turn + asin(shift / r)`); within a
+//!    list they are grouped by bearing bucket with a counting sort. Candidates nearer than
+//!    the first shell are tested on every azimuth.
 //!
-//! Per azimuth: the pose at the azimuth's own time; each candidate within its tier's
-//! window (plus the margin the vehicle's motion during the rotation allows; near ones
-//! always) gets its exact range and offset from the beam's axis from that pose (movers at
-//! that time), its two-way antenna gain, its speckle draw (Swerling 2 and 4) and the
-//! receiver's gain at its range, and is deposited into the range line (split linearly
-//! between the two bins about it); the line is convolved with the range kernel (each
-//! deposit only as far as its sidelobes matter); a floor draw is added to every bin, and the
-//! sum is quantised as the unit does.
+//! Per azimuth: the pose at the azimuth's own time; each candidate in its lists' buckets
+//! within the window (the list's offset plus its shell's margin) gets its exact range and
+//! offset from the beam's axis from that pose (movers at that time), its two-way antenna
+//! gain, its speckle draw (Swerling 2 and 4) and the receiver's gain at its range, and is
+//! deposited into the range line (split linearly between the two bins about it, which are
+//! marked as touched); the touched bins are convolved with the range kernel (each deposit
+//! only as far as its sidelobes matter, in loops of a few fixed lengths); a floor draw
+//! (10 random bits, six to a 64-bit word) is added to every bin, and the sum is quantised
+//! as the unit does, to its level and straight to the wire's value by table.
 
+use protocol::BinWidth;
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use radar_model::geometry::{wrap_angle, Pose2};
 
 use super::objects::{Mover, Shape, Swerling, World, SPECULAR_LOBE_RAD};
-use super::receiver::{Receiver, NEGLIGIBLE_POWER};
+use super::receiver::{Receiver, FLOOR_QUANTILES, NEGLIGIBLE_POWER};
 use super::RealismSpec;
 use crate::error::{SceneError, SimError};
 use crate::radar::RadarParams;
@@ -43,9 +49,14 @@ use crate::trajectory::{Trajectory, TrajectoryCursor};
 
 /// Cells of the polar transmission buffer (0.088 degrees each).
 pub const OCCLUSION_CELLS: usize = 4096;
-/// Candidates within this (plus twice the distance travelled in the rotation) are tested
-/// on every azimuth.
-const NEAR_RANGE_M: f64 = 5.0;
+/// Range shells of candidates: shell `k` starts at `2^k` times [`SHELL_START_SHIFTS`]
+/// times the distance the motion can move a candidate in the rotation; candidates nearer
+/// than shell 0 are tested on every azimuth.
+const SHELLS: usize = 5;
+/// Where shell 0 starts, in units of the distance the motion can move a candidate.
+const SHELL_START_SHIFTS: f64 = 2.0;
+/// The largest per-look speckle draw (the tables' top quantile, about 9 times the mean).
+const SPECKLE_MAX: f32 = 9.0;
 /// Random streams: rotation draws and the rotation's ghosts use streams above this.
 const ROTATION_STREAM_BASE: u64 = 3 << 62;
 /// Most ghosts formed in one rotation.
@@ -57,6 +68,10 @@ const SELF_MARGIN_M: f64 = 0.15;
 pub const ROUGH_FLOOR: f64 = 0.2;
 /// Cosine of five specular lobe widths.
 const SPECULAR_COS_LIMIT: f64 = 0.984_7;
+/// Random bits of one floor draw (an index into the floor's quantile table).
+const FLOOR_BITS: u32 = FLOOR_QUANTILES.trailing_zeros();
+/// Floor draws taken from one 64-bit random word.
+const FLOOR_DRAWS_PER_WORD: usize = (64 / FLOOR_BITS) as usize;
 /// Poses sampled per rotation to bound the vehicle's motion during it.
 const MOTION_SAMPLES: u64 = 8;
 
@@ -71,6 +86,8 @@ pub struct RealisticModel {
     pub spec: RealismSpec,
     /// Elevation gains of scatterers below the radar.
     pub elevation: super::objects::ElevationTable,
+    /// `(sin, cos)` of each occlusion cell's central direction.
+    cell_dirs: Vec<(f64, f64)>,
 }
 
 impl RealisticModel {
@@ -92,11 +109,14 @@ impl RealisticModel {
             receiver,
             spec,
             elevation: super::objects::ElevationTable::default(),
+            cell_dirs: (0..OCCLUSION_CELLS)
+                .map(|c| cell_angle(c).sin_cos())
+                .collect(),
         })
     }
 }
 
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 struct Candidate {
     bearing_mid: f64,
     /// World position at the rotation's middle time.
@@ -109,11 +129,169 @@ struct Candidate {
     per_look: u8,
 }
 
-#[derive(Debug, Default)]
+/// A list of candidates of one strength (how far off the beam's axis they still matter),
+/// one motion family (static or moving) and one range shell (how far the motion during
+/// the rotation can move their bearing).
+#[derive(Debug, Clone, Copy)]
 struct Tier {
+    /// Tangent of the largest offset from the beam's axis at which they still matter.
     half_tan: f64,
+    /// Half-width of the bearing window an azimuth visits: the offset's angle plus the
+    /// shell's margin for motion.
     half_rad: f64,
-    list: Vec<Candidate>,
+}
+
+/// Bearing buckets of a list (0.35 degrees each).
+const BEARING_BUCKETS: usize = 1024;
+
+/// The bucket of a bearing in (-pi, pi].
+fn bucket_of(bearing: f64) -> usize {
+    let pi = std::f64::consts::PI;
+    let u = (bearing + pi) / (2.0 * pi) * BEARING_BUCKETS as f64;
+    (u.max(0.0) as usize).min(BEARING_BUCKETS - 1)
+}
+
+impl Tier {
+    /// The buckets (inclusive) holding every bearing within `half_rad` of `bearing`: one
+    /// span, or two when the window crosses the +/-pi seam.
+    fn buckets(&self, bearing: f64) -> [(usize, usize); 2] {
+        let pi = std::f64::consts::PI;
+        let none = (1, 0);
+        if self.half_rad >= pi {
+            return [(0, BEARING_BUCKETS - 1), none];
+        }
+        let lo = bearing - self.half_rad;
+        let hi = bearing + self.half_rad;
+        if lo < -pi {
+            [
+                (0, bucket_of(hi)),
+                (bucket_of(lo + 2.0 * pi), BEARING_BUCKETS - 1),
+            ]
+        } else if hi > pi {
+            [
+                (bucket_of(lo), BEARING_BUCKETS - 1),
+                (0, bucket_of(hi - 2.0 * pi)),
+            ]
+        } else {
+            [(bucket_of(lo), bucket_of(hi)), none]
+        }
+    }
+}
+
+/// One azimuth's pose and beam, for depositing candidates into its range line.
+struct Deposit<'a> {
+    rx: &'a Receiver,
+    /// Seconds from the rotation's middle time (movers).
+    dt: f64,
+    x: f64,
+    y: f64,
+    /// The beam's world direction.
+    cphi: f64,
+    sphi: f64,
+    inv_bin: f64,
+    max_fb: f64,
+}
+
+impl Deposit<'_> {
+    /// Deposits `c` into `line` if it lies within `max_tan` of the beam's axis and inside
+    /// the range line; returns 1 if it did.
+    #[inline(always)]
+    fn deposit(
+        &self,
+        c: &Candidate,
+        max_tan: f64,
+        line: &mut Line<'_>,
+        bits: &mut Bits,
+        rng: &mut ChaCha8Rng,
+    ) -> usize {
+        let rx = self.rx;
+        let px = c.pos[0] + c.vel[0] * self.dt - self.x;
+        let py = c.pos[1] + c.vel[1] * self.dt - self.y;
+        let along = px * self.cphi + py * self.sphi;
+        let cross = (py * self.cphi - px * self.sphi).abs();
+        // Behind the radar, or `cross / along >= max_tan`.
+        if along <= 0.0 || cross >= max_tan * along {
+            return 0;
+        }
+        let g = rx.pattern_at(cross / along);
+        let r = (px * px + py * py).sqrt();
+        let fb = (r - rx.first_bin_m) * self.inv_bin;
+        if g <= 0.0 || !(0.0..self.max_fb).contains(&fb) {
+            return 0;
+        }
+        let b0 = fb as usize;
+        let w = (fb - b0 as f64) as f32;
+        let speckle = match c.per_look {
+            2 => rx.exp_quantiles[bits.take(rng, 12)],
+            4 => rx.chi4_quantiles[bits.take(rng, 12)],
+            _ => 1.0,
+        };
+        let Some(&gain) = rx.signal_per_m2.get(b0) else {
+            return 0;
+        };
+        let p = c.power * g * gain * speckle;
+        if let Some([lo, hi, ..]) = line.power.get_mut(b0..) {
+            *lo += p * (1.0 - w);
+            *hi += p * w;
+        }
+        for b in [b0, b0 + 1] {
+            if let Some(word) = line.touched.get_mut(b / 64) {
+                *word |= 1 << (b % 64);
+            }
+        }
+        1
+    }
+}
+
+/// The range line being deposited into, and which of its bins were touched (a bit per
+/// bin).
+struct Line<'a> {
+    power: &'a mut [f32],
+    touched: &'a mut [u64],
+}
+
+/// Kernel half-lengths (bins) spread by fixed-length loops; longer reaches by a general one.
+const KERNEL_CLASSES: [usize; 5] = [4, 8, 16, 32, 64];
+
+/// `dst += p src` over `N` bins.
+#[inline(always)]
+fn add_scaled<const N: usize>(dst: &mut [f32], src: &[f32], p: f32) {
+    if let (Ok(dst), Ok(src)) = (<&mut [f32; N]>::try_from(dst), <&[f32; N]>::try_from(src)) {
+        for (d, &k) in dst.iter_mut().zip(src) {
+            *d += p * k;
+        }
+    }
+}
+
+/// Adds a deposit of `p` at bin `b`, convolved with the range kernel, to `signal`: at
+/// least as far either side as the kernel's sidelobes keep it above
+/// [`NEGLIGIBLE_POWER`] (rounded up to a [`KERNEL_CLASSES`] length, so most deposits take
+/// a loop of fixed length), never beyond the kernel.
+#[inline]
+fn spread(signal: &mut [f32], rx: &Receiver, b: usize, p: f32) {
+    let h = rx.kernel_half;
+    let reach = rx.kernel_reach(p).min(h);
+    let class = KERNEL_CLASSES.iter().copied().find(|&c| c >= reach);
+    if let Some(c) = class.filter(|&c| c <= h && b >= c && b + c < signal.len()) {
+        let (dst, ker) = (&mut signal[b - c..=b + c], &rx.kernel[h - c..=h + c]);
+        match c {
+            4 => add_scaled::<9>(dst, ker, p),
+            8 => add_scaled::<17>(dst, ker, p),
+            16 => add_scaled::<33>(dst, ker, p),
+            32 => add_scaled::<65>(dst, ker, p),
+            _ => add_scaled::<129>(dst, ker, p),
+        }
+        return;
+    }
+    let lo = b.saturating_sub(reach);
+    let hi = (b + reach + 1).min(signal.len());
+    let k0 = h + lo - b;
+    let (Some(dst), Some(ker)) = (signal.get_mut(lo..hi), rx.kernel.get(k0..k0 + (hi - lo))) else {
+        return;
+    };
+    for (d, &k) in dst.iter_mut().zip(ker) {
+        *d += p * k;
+    }
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -138,17 +316,39 @@ pub struct AzimuthCounts {
 pub struct RealisticCursor {
     rotation: Option<u64>,
     mid_offset_s: f64,
-    near: Vec<Candidate>,
-    tiers: Vec<Tier>,
-    margin_rad: f64,
+    /// Candidates so close that the vehicle's motion can move them anywhere: every
+    /// azimuth tests them.
+    always: Vec<Candidate>,
+    /// The others' lists, by motion family (static, moving), range shell and strength.
+    lists: Vec<Tier>,
+    /// The others, by list and, within a list, by bearing bucket.
+    sorted: Vec<Candidate>,
+    /// `sorted[starts[l B + k]..starts[l B + k + 1]]`: list `l`'s bucket `k`.
+    starts: Vec<u32>,
+    /// Each candidate's list and bucket (`l B + k`; `u32::MAX` for `always`).
+    keys: Vec<u32>,
+    /// The rotation's candidates before sorting.
+    all: Vec<Candidate>,
+    /// Tests only: every candidate is tested on every azimuth, as far off the beam's axis
+    /// as the antenna table reaches.
+    test_every_candidate: bool,
     ghosts: usize,
     crossings: Vec<Crossing>,
+    /// Scratch for sorting the crossings by cell.
+    by_cell: Vec<Crossing>,
     cell_starts: Vec<u32>,
     found: Vec<usize>,
     line: Vec<f32>,
     signal: Vec<f32>,
+    touched: Vec<u64>,
+    power: Vec<u32>,
     mirrors: Vec<([f64; 2], [f64; 2])>,
     sources: Vec<(usize, f32)>,
+}
+
+/// Where range shell `k` starts for candidates the motion can move by `shift_m`, metres.
+fn shell_start_m(shift_m: f64, k: usize) -> f64 {
+    (SHELL_START_SHIFTS * shift_m).max(0.5) * f64::from(1u32 << k.min(16))
 }
 
 fn cell_of(angle: f64) -> usize {
@@ -162,7 +362,11 @@ fn cell_angle(cell: usize) -> f64 {
 
 /// Range along the ray of world angle `phi` from `o` to segment `a`-`b`, if it crosses.
 fn ray_segment(o: [f64; 2], phi: f64, a: [f64; 2], b: [f64; 2]) -> Option<f64> {
-    let (s, c) = phi.sin_cos();
+    ray_segment_dir(o, phi.sin_cos(), a, b)
+}
+
+/// [`ray_segment`] along the direction `(sin, cos)`.
+fn ray_segment_dir(o: [f64; 2], (s, c): (f64, f64), a: [f64; 2], b: [f64; 2]) -> Option<f64> {
     let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
     let (ax, ay) = (a[0] - o[0], a[1] - o[1]);
     let det = ex * s - ey * c;
@@ -175,7 +379,9 @@ fn ray_segment(o: [f64; 2], phi: f64, a: [f64; 2], b: [f64; 2]) -> Option<f64> {
 }
 
 impl RealisticCursor {
-    /// Renders azimuth `index` into `out_db` (the unit's output levels, dB).
+    /// Renders azimuth `index` into `out_db` (the unit's output levels, dB) and `out_wire`
+    /// (the same levels as the wire's bins of `width`, little-endian: what
+    /// `protocol::encode_fft_frame_from_db` would make of `out_db`).
     #[allow(clippy::too_many_arguments)]
     pub fn render(
         &mut self,
@@ -185,7 +391,9 @@ impl RealisticCursor {
         radar: &RadarParams,
         seed: u64,
         index: u64,
+        width: BinWidth,
         out_db: &mut [f64],
+        out_wire: &mut Vec<u8>,
     ) -> Result<(Pose2, AzimuthCounts), SimError> {
         let n = u64::from(radar.azimuths.max(1));
         let rotation = index / n;
@@ -201,85 +409,117 @@ impl RealisticCursor {
         let (sphi, cphi) = phi.sin_cos();
         let rx = &model.receiver;
         let bins = out_db.len();
-        self.line.clear();
-        self.line.resize(bins, 0.0);
+        // The line, the signal and the touched-bin marks are left zeroed by the azimuth
+        // before: only a new size clears them.
+        if self.line.len() != bins || self.signal.len() != bins {
+            self.line = vec![0.0; bins];
+            self.signal = vec![0.0; bins];
+            self.touched = vec![0; bins.div_ceil(64) + 1];
+        }
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         rng.set_stream(index);
         let mut bits = Bits::default();
         let mut deposited = 0usize;
-        let max_fb = (bins as f64 - 1.0).max(0.0);
-        let inv_bin = 1.0 / rx.bin_m;
-        let mut deposit = |c: &Candidate, max_tan: f64, line: &mut [f32], bits: &mut Bits| {
-            let px = c.pos[0] + c.vel[0] * dt - pose.x;
-            let py = c.pos[1] + c.vel[1] * dt - pose.y;
-            let along = px * cphi + py * sphi;
-            if along <= 0.0 {
-                return;
-            }
-            let cross = (py * cphi - px * sphi).abs();
-            let t = cross / along;
-            if t >= max_tan {
-                return;
-            }
-            let g = rx.pattern_at(t);
-            if g <= 0.0 {
-                return;
-            }
-            let r = (px * px + py * py).sqrt();
-            let fb = (r - rx.first_bin_m) * inv_bin;
-            if !(0.0..max_fb).contains(&fb) {
-                return;
-            }
-            let b0 = fb as usize;
-            let w = (fb - b0 as f64) as f32;
-            let speckle = match c.per_look {
-                2 => rx.exp_quantiles[bits.take(&mut rng, 12)],
-                4 => rx.chi4_quantiles[bits.take(&mut rng, 12)],
-                _ => 1.0,
-            };
-            let p = c.power * g * rx.signal_per_m2[b0] * speckle;
-            if let [lo, hi, ..] = &mut line[b0..] {
-                *lo += p * (1.0 - w);
-                *hi += p * w;
-            }
-            deposited += 1;
+        let at = Deposit {
+            rx,
+            dt,
+            x: pose.x,
+            y: pose.y,
+            cphi,
+            sphi,
+            inv_bin: 1.0 / rx.bin_m,
+            max_fb: (bins as f64 - 1.0).max(0.0),
         };
-        for c in &self.near {
-            deposit(c, rx.pattern_max_tan, &mut self.line, &mut bits);
+        let mut line = Line {
+            power: &mut self.line,
+            touched: &mut self.touched,
+        };
+        for c in &self.always {
+            deposited += at.deposit(c, rx.pattern_max_tan, &mut line, &mut bits, &mut rng);
         }
-        for tier in &self.tiers {
-            let half = tier.half_rad + self.margin_rad;
-            for_each_in_window(&tier.list, bearing, half, |c| {
-                deposit(c, tier.half_tan.max(1e-9), &mut self.line, &mut bits)
-            });
-        }
-        // Range kernel.
-        self.signal.clear();
-        self.signal.resize(bins, 0.0);
-        let h = rx.kernel_half;
-        for (b, &p) in self.line.iter().enumerate() {
-            if p <= NEGLIGIBLE_POWER * 0.01 {
-                continue;
-            }
-            let reach = rx.kernel_reach(p).min(h);
-            let lo = b.saturating_sub(reach);
-            let hi = (b + reach + 1).min(bins);
-            let k0 = h + lo - b;
-            let (Some(dst), Some(ker)) = (
-                self.signal.get_mut(lo..hi),
-                rx.kernel.get(k0..k0 + (hi - lo)),
-            ) else {
-                continue;
-            };
-            for (d, &k) in dst.iter_mut().zip(ker) {
-                *d += p * k;
+        for (l, list) in self.lists.iter().enumerate() {
+            let base = l * BEARING_BUCKETS;
+            for (first, last) in list.buckets(bearing) {
+                if first > last {
+                    continue;
+                }
+                let (Some(&a), Some(&b)) = (
+                    self.starts.get(base + first),
+                    self.starts.get(base + last + 1),
+                ) else {
+                    continue;
+                };
+                for c in self.sorted.get(a as usize..b as usize).unwrap_or_default() {
+                    deposited += at.deposit(c, list.half_tan, &mut line, &mut bits, &mut rng);
+                }
             }
         }
-        // Floor and quantisation.
-        for ((out, &s), &mean) in out_db.iter_mut().zip(&self.signal).zip(&rx.floor_mean) {
-            let y = mean * rx.floor_quantiles[bits.take(&mut rng, 10)];
-            // Non-negative: truncation is the floor.
-            *out = rx.db_of(f64::from((y + s) as u32));
+        // Range kernel: each deposit spread as far as its sidelobes matter, in bin order;
+        // the line is zeroed as it is read.
+        for (w, word) in self.touched.iter_mut().enumerate() {
+            let mut marks = std::mem::take(word);
+            while marks != 0 {
+                let b = w * 64 + marks.trailing_zeros() as usize;
+                marks &= marks - 1;
+                let Some(cell) = self.line.get_mut(b) else {
+                    continue;
+                };
+                let p = std::mem::take(cell);
+                if p > NEGLIGIBLE_POWER * 0.01 {
+                    spread(&mut self.signal, rx, b, p);
+                }
+            }
+        }
+        // Floor and quantisation: the unit's integer power `k = floor(floor draw + signal)`
+        // per bin (the signal zeroed as it is read), then its level and wire value by
+        // table.
+        if self.power.len() != bins {
+            self.power = vec![0; bins];
+        }
+        let quantiles: &[f32; FLOOR_QUANTILES] = rx
+            .floor_quantiles
+            .as_slice()
+            .try_into()
+            .map_err(|_| SimError::Model("floor quantile table of the wrong size".into()))?;
+        let n = bins.min(rx.floor_mean.len());
+        for ((k6, s6), m6) in self.power[..n]
+            .chunks_mut(FLOOR_DRAWS_PER_WORD)
+            .zip(self.signal[..n].chunks_mut(FLOOR_DRAWS_PER_WORD))
+            .zip(rx.floor_mean[..n].chunks(FLOOR_DRAWS_PER_WORD))
+        {
+            let mut word = rng.next_u64();
+            for ((k, s), &m) in k6.iter_mut().zip(s6).zip(m6) {
+                let y = m * quantiles[(word as usize) & (FLOOR_QUANTILES - 1)];
+                word >>= FLOOR_BITS;
+                // Non-negative: truncation is the floor.
+                *k = (y + std::mem::take(s)) as u32;
+            }
+        }
+        self.signal[n..].fill(0.0);
+        self.power[n..].fill(0);
+        match width {
+            BinWidth::Eight => {
+                out_wire.resize(bins, 0);
+                for ((&k, out), w) in self.power.iter().zip(out_db.iter_mut()).zip(out_wire) {
+                    let (db, wire) = rx.quantise(k, false);
+                    *out = db;
+                    // An 8-bit value.
+                    *w = wire as u8;
+                }
+            }
+            BinWidth::Sixteen => {
+                out_wire.resize(2 * bins, 0);
+                for ((&k, out), w) in self
+                    .power
+                    .iter()
+                    .zip(out_db.iter_mut())
+                    .zip(out_wire.chunks_exact_mut(2))
+                {
+                    let (db, wire) = rx.quantise(k, true);
+                    *out = db;
+                    w.copy_from_slice(&wire.to_le_bytes());
+                }
+            }
         }
         Ok((
             pose,
@@ -314,7 +554,8 @@ impl RealisticCursor {
             travel_m = travel_m.max((p.x - mid.x).hypot(p.y - mid.y));
             turn_rad = turn_rad.max(wrap_angle(p.theta - mid.theta).abs());
         }
-        // Movers move too: pad by the fastest one's travel in half a rotation.
+        // Movers move too: their candidates' bearings are bounded with the fastest one's
+        // travel in half a rotation added.
         let half_rot_s = 0.5 / radar.rotation_hz().max(1e-3);
         let fastest = model
             .world
@@ -324,9 +565,7 @@ impl RealisticCursor {
             .fold(0.0, f64::max);
         travel_m = travel_m * 1.25 + 0.05;
         turn_rad = turn_rad * 1.25 + 1e-3;
-        let near_m = NEAR_RANGE_M + 2.0 * (travel_m + fastest * half_rot_s);
-        self.margin_rad =
-            turn_rad + ((travel_m + fastest * half_rot_s) / near_m).min(1.0).asin() + 1e-6;
+        let shift_m = [travel_m, travel_m + fastest * half_rot_s];
         let reach = radar.max_range_m() + travel_m + 1.0;
         let o = [mid.x, mid.y];
         let w = &model.world;
@@ -376,12 +615,19 @@ impl RealisticCursor {
                     }
                 }
                 if spec.occlusion {
-                    rasterise(&mut self.crossings, o, shape, outline.tau, id, reach);
+                    rasterise(
+                        &mut self.crossings,
+                        &model.cell_dirs,
+                        o,
+                        shape,
+                        outline.tau,
+                        id,
+                        reach,
+                    );
                 }
             }
         }
-        self.crossings
-            .sort_unstable_by(|a, b| a.cell.cmp(&b.cell).then(a.range.total_cmp(&b.range)));
+        // By cell (a counting sort), then by range within each cell.
         self.cell_starts.clear();
         self.cell_starts.resize(OCCLUSION_CELLS + 1, 0);
         for c in &self.crossings {
@@ -392,37 +638,72 @@ impl RealisticCursor {
         for i in 1..self.cell_starts.len() {
             self.cell_starts[i] += self.cell_starts[i - 1];
         }
+        self.by_cell.clear();
+        self.by_cell.resize(
+            self.crossings.len(),
+            Crossing {
+                cell: 0,
+                range: 0.0,
+                tau: 1.0,
+                outline: u32::MAX,
+            },
+        );
+        for c in &self.crossings {
+            if let Some(slot) = self.cell_starts.get_mut(c.cell as usize) {
+                if let Some(dst) = self.by_cell.get_mut(*slot as usize) {
+                    *dst = *c;
+                }
+                *slot += 1;
+            }
+        }
+        self.cell_starts.rotate_right(1);
+        if let Some(first) = self.cell_starts.first_mut() {
+            *first = 0;
+        }
+        std::mem::swap(&mut self.crossings, &mut self.by_cell);
+        for cell in self.cell_starts.windows(2) {
+            if let Some(group) = self.crossings.get_mut(cell[0] as usize..cell[1] as usize) {
+                group.sort_unstable_by(|a, b| a.range.total_cmp(&b.range));
+            }
+        }
 
         // 2. Candidates.
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         rng.set_stream(ROTATION_STREAM_BASE | rotation);
         let mut bits = Bits::default();
-        self.near.clear();
-        let mut all: Vec<Candidate> = Vec::new();
+        let mut all = std::mem::take(&mut self.all);
+        all.clear();
         self.sources.clear();
         self.found.clear();
         let found = &mut self.found;
         w.scatterer_grid.for_each_near(o, reach, |i| found.push(i));
-        self.found.sort_unstable();
         let statics = self
             .found
             .iter()
             .filter_map(|&i| w.static_scatterers.get(i).copied());
         let ids: Vec<u32> = statics.chain(w.moving_scatterers.iter().copied()).collect();
+        // Each mover's centre, heading's sine and cosine, and speed.
+        let mover_frame: Vec<([f64; 2], f64, f64, f64)> = mover_pose
+            .iter()
+            .zip(&w.movers)
+            .map(|(&(c, h), m)| {
+                let (sh, ch) = h.sin_cos();
+                (c, sh, ch, m.speed_mps)
+            })
+            .collect();
         let max_gain = rx.signal_per_m2.iter().copied().fold(0.0f32, f32::max);
         for id in ids {
             let Some(s) = w.scatterers.get(id as usize) else {
                 continue;
             };
-            let (pos, vel, normal) = match mover_pose.get(s.mover as usize) {
-                Some(&(c, h)) => {
-                    let m = &w.movers[s.mover as usize];
-                    let (sh, ch) = h.sin_cos();
+            let (pos, vel, normal) = match mover_frame.get(s.mover as usize) {
+                Some(&(c, sh, ch, speed)) => {
                     let nx = f64::from(s.normal[0]);
                     let ny = f64::from(s.normal[1]);
+                    let [px, py] = s.pos;
                     (
-                        Mover::to_world(c, h, s.pos),
-                        [m.speed_mps * ch, m.speed_mps * sh],
+                        [c[0] + ch * px - sh * py, c[1] + sh * px + ch * py],
+                        [speed * ch, speed * sh],
                         [ch * nx - sh * ny, sh * nx + ch * ny],
                     )
                 }
@@ -434,7 +715,7 @@ impl RealisticCursor {
             };
             let dx = pos[0] - o[0];
             let dy = pos[1] - o[1];
-            let r = dx.hypot(dy);
+            let r = (dx * dx + dy * dy).sqrt();
             if r > reach || r < 1e-3 {
                 continue;
             }
@@ -531,37 +812,89 @@ impl RealisticCursor {
         }
         self.ghosts = ghosts;
 
-        // 4. Tiers by how far off axis each candidate still matters.
+        // 4. Lists by how far off the beam's axis each candidate still matters (its largest
+        // deposit: its power, the receiver's largest gain within the distance the motion
+        // can move it in range, the largest speckle draw), by whether it moves, and by
+        // range shell: the bearing of a candidate at range `r` from the middle pose moves
+        // by at most `turn + asin(shift / r)` during the rotation. Within a list the
+        // candidates are grouped by bearing bucket (a counting sort, no comparisons).
         let main_tan = (1.5 * spec.beam_fwhm_deg.to_radians()).tan();
         let mid_tan = (5.0 * spec.beam_fwhm_deg.to_radians()).tan();
         let tier_tans = [main_tan, mid_tan, rx.pattern_max_tan];
-        if self.tiers.len() != tier_tans.len() {
-            self.tiers = tier_tans.iter().map(|_| Tier::default()).collect();
-        }
-        for (tier, &t) in self.tiers.iter_mut().zip(&tier_tans) {
-            tier.list.clear();
-            tier.half_tan = t;
-            tier.half_rad = t.atan();
-        }
-        for c in all {
-            let r = (c.pos[0] - o[0]).hypot(c.pos[1] - o[1]);
-            if r < near_m {
-                self.near.push(c);
-                continue;
+        let lists = tier_tans.len() * shift_m.len() * SHELLS;
+        self.lists.clear();
+        for &shift in &shift_m {
+            for shell in 0..SHELLS {
+                let r_lo = shell_start_m(shift, shell);
+                let margin = turn_rad + (shift / r_lo).min(1.0).asin() + 1e-6;
+                for &t in &tier_tans {
+                    self.lists.push(Tier {
+                        half_tan: t,
+                        half_rad: t.atan() + margin,
+                    });
+                }
             }
+        }
+        // A deposit of `power` (integer units on the beam's axis) stays negligible beyond
+        // a tier's tangent when `power < threshold`.
+        let thresholds = tier_tans.map(|t| rx.pattern_threshold(t));
+        let envelopes = shift_m.map(|shift| rx.gain_envelope(shift));
+        self.always.clear();
+        self.keys.clear();
+        self.starts.clear();
+        self.starts.resize(lists * BEARING_BUCKETS + 1, 0);
+        for c in &all {
+            let family = usize::from(c.vel != [0.0, 0.0]);
+            let shift = shift_m[family];
+            let r = ((c.pos[0] - o[0]).powi(2) + (c.pos[1] - o[1]).powi(2)).sqrt();
+            let shell = (0..SHELLS).rev().find(|&k| r >= shell_start_m(shift, k));
+            let Some(shell) = shell.filter(|_| !self.test_every_candidate) else {
+                self.always.push(*c);
+                self.keys.push(u32::MAX);
+                continue;
+            };
             let fb = ((r - rx.first_bin_m) / rx.bin_m).max(0.0) as usize;
-            let gain = rx.signal_per_m2.get(fb).copied().unwrap_or(0.0);
-            let reach_tan = rx.pattern_reach_tan(c.power * gain * 9.0);
-            let k = tier_tans
+            let gain = envelopes[family]
+                .get(fb)
+                .or(envelopes[family].last())
+                .copied()
+                .unwrap_or(0.0);
+            let speckle_max = if c.per_look == 0 { 1.0 } else { SPECKLE_MAX };
+            let largest = c.power * gain * speckle_max;
+            let strength = thresholds
                 .iter()
-                .position(|&t| reach_tan <= t)
+                .position(|&th| largest < th)
                 .unwrap_or(tier_tans.len() - 1);
-            self.tiers[k].list.push(c);
+            let list = (family * SHELLS + shell) * tier_tans.len() + strength;
+            let key = list * BEARING_BUCKETS + bucket_of(c.bearing_mid);
+            self.keys.push(key as u32);
+            if let Some(count) = self.starts.get_mut(key + 1) {
+                *count += 1;
+            }
         }
-        for tier in &mut self.tiers {
-            tier.list
-                .sort_by(|a, b| a.bearing_mid.total_cmp(&b.bearing_mid));
+        for i in 1..self.starts.len() {
+            self.starts[i] += self.starts[i - 1];
         }
+        self.sorted.clear();
+        self.sorted.resize(
+            self.starts.last().map_or(0, |&n| n as usize),
+            Candidate::default(),
+        );
+        // Scatter: `starts[key]` walks through its key's slots, ending at the next key's
+        // start; shifting by one then restores the starts.
+        for (c, &key) in all.iter().zip(&self.keys) {
+            if let Some(slot) = self.starts.get_mut(key as usize) {
+                if let Some(dst) = self.sorted.get_mut(*slot as usize) {
+                    *dst = *c;
+                }
+                *slot += 1;
+            }
+        }
+        self.starts.rotate_right(1);
+        if let Some(first) = self.starts.first_mut() {
+            *first = 0;
+        }
+        self.all = all;
         self.rotation = Some(rotation);
         Ok(())
     }
@@ -588,14 +921,32 @@ impl RealisticCursor {
         t * t
     }
 
+    /// Tests only: test every candidate on every azimuth (the reference the windowed
+    /// lists are checked against).
+    #[cfg(test)]
+    pub(crate) fn test_every_candidate(&mut self) {
+        self.test_every_candidate = true;
+        self.rotation = None;
+    }
+
     /// Ghosts formed in the current rotation.
     pub fn ghosts(&self) -> usize {
         self.ghosts
     }
 }
 
-/// Rasterises one outline into the crossings of the polar buffer about `o`.
-fn rasterise(out: &mut Vec<Crossing>, o: [f64; 2], shape: Shape, tau: f32, id: u32, reach: f64) {
+/// Rasterises one outline into the crossings of the polar buffer about `o` (`dirs`: each
+/// cell's direction, `(sin, cos)`).
+#[allow(clippy::too_many_arguments)]
+fn rasterise(
+    out: &mut Vec<Crossing>,
+    dirs: &[(f64, f64)],
+    o: [f64; 2],
+    shape: Shape,
+    tau: f32,
+    id: u32,
+    reach: f64,
+) {
     match shape {
         Shape::Segment { a, b } => {
             let aa = (a[1] - o[1]).atan2(a[0] - o[0]);
@@ -607,7 +958,10 @@ fn rasterise(out: &mut Vec<Crossing>, o: [f64; 2], shape: Shape, tau: f32, id: u
             let cells = (span / std::f64::consts::TAU * OCCLUSION_CELLS as f64).ceil() as usize + 1;
             for k in 0..cells.min(OCCLUSION_CELLS) {
                 let cell = (c0 + k) % OCCLUSION_CELLS;
-                if let Some(range) = ray_segment(o, cell_angle(cell), a, b) {
+                let Some(&dir) = dirs.get(cell) else {
+                    continue;
+                };
+                if let Some(range) = ray_segment_dir(o, dir, a, b) {
                     if range <= reach {
                         out.push(Crossing {
                             cell: cell as u32,
@@ -620,23 +974,27 @@ fn rasterise(out: &mut Vec<Crossing>, o: [f64; 2], shape: Shape, tau: f32, id: u
             }
         }
         Shape::Disk { c, r } => {
-            let d = (c[0] - o[0]).hypot(c[1] - o[1]);
+            let d = ((c[0] - o[0]).powi(2) + (c[1] - o[1]).powi(2)).sqrt();
             if d <= r || d - r > reach {
                 return;
             }
             let centre = (c[1] - o[1]).atan2(c[0] - o[0]);
+            let (s_c, c_c) = ((c[1] - o[1]) / d, (c[0] - o[0]) / d);
             let half = (r / d).asin();
             let c0 = cell_of(centre - half);
             let cells =
                 (2.0 * half / std::f64::consts::TAU * OCCLUSION_CELLS as f64).ceil() as usize + 1;
             for k in 0..cells.min(OCCLUSION_CELLS) {
                 let cell = (c0 + k) % OCCLUSION_CELLS;
-                let delta = wrap_angle(cell_angle(cell) - centre);
-                let s = d * delta.sin();
+                let Some(&(s_k, c_k)) = dirs.get(cell) else {
+                    continue;
+                };
+                // sin and cos of the cell's direction less the centre's.
+                let s = d * (s_k * c_c - c_k * s_c);
                 if s.abs() >= r {
                     continue;
                 }
-                let range = d * delta.cos() - (r * r - s * s).sqrt();
+                let range = d * (c_k * c_c + s_k * s_c) - (r * r - s * s).sqrt();
                 out.push(Crossing {
                     cell: cell as u32,
                     range: range.max(0.0) as f32,
@@ -666,36 +1024,5 @@ impl Bits {
         self.word >>= n;
         self.left -= n;
         v
-    }
-}
-
-/// Visits the candidates (sorted by `bearing_mid` in (-pi, pi]) within `half` of
-/// `bearing`, across the +/-pi seam.
-fn for_each_in_window(
-    candidates: &[Candidate],
-    bearing: f64,
-    half: f64,
-    mut visit: impl FnMut(&Candidate),
-) {
-    let pi = std::f64::consts::PI;
-    if half >= pi {
-        candidates.iter().for_each(visit);
-        return;
-    }
-    let lo = bearing - half;
-    let hi = bearing + half;
-    let mut range = |a: f64, b: f64| {
-        let start = candidates.partition_point(|c| c.bearing_mid < a);
-        let end = candidates.partition_point(|c| c.bearing_mid <= b);
-        if let Some(slice) = candidates.get(start..end.max(start)) {
-            slice.iter().for_each(&mut visit);
-        }
-    };
-    range(lo.max(-pi), hi.min(pi));
-    if lo < -pi {
-        range(lo + 2.0 * pi, pi);
-    }
-    if hi > pi {
-        range(-pi, hi - 2.0 * pi);
     }
 }

@@ -11,7 +11,7 @@
 use std::sync::Arc;
 
 use bytes::BytesMut;
-use protocol::{encode_fft_frame_from_db, BinWidth, Timestamp};
+use protocol::{encode_fft_frame, encode_fft_frame_from_db, BinWidth, Timestamp};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -218,6 +218,7 @@ impl SceneRenderer {
             targets: Vec::new(),
             spectrum_targets: Vec::new(),
             power_db: vec![0.0; usize::from(self.radar.range_bins)],
+            wire: Vec::new(),
             realistic: Box::default(),
         }
     }
@@ -252,6 +253,8 @@ pub struct RenderCursor {
     targets: Vec<PowerTarget>,
     spectrum_targets: Vec<SpectrumTarget>,
     power_db: Vec<f64>,
+    /// The realistic renderer's bins as the wire carries them.
+    wire: Vec<u8>,
     realistic: Box<RealisticCursor>,
 }
 
@@ -287,6 +290,7 @@ impl RenderCursor {
     ) -> Result<Rendered, SimError> {
         let r = &*self.renderer;
         if let Some(model) = &r.realistic {
+            let width = bin_width(r.radar.data_width);
             let (pose, counts) = self.realistic.render(
                 model,
                 &r.trajectory,
@@ -294,18 +298,13 @@ impl RenderCursor {
                 &r.radar,
                 r.seed,
                 index,
+                width,
                 &mut self.power_db,
+                &mut self.wire,
             )?;
             let encoder = r.radar.encoder_of(azimuth_in_rotation(&r.radar, index));
-            encode_fft_frame_from_db(
-                dst,
-                bin_width(r.radar.data_width),
-                sweep_counter,
-                encoder,
-                timestamp,
-                self.power_db.iter().copied(),
-            )
-            .map_err(|e| SimError::Model(format!("encoding azimuth {index}: {e}")))?;
+            encode_fft_frame(dst, width, sweep_counter, encoder, timestamp, &self.wire)
+                .map_err(|e| SimError::Model(format!("encoding azimuth {index}: {e}")))?;
             return Ok(Rendered {
                 pose,
                 targets: counts.deposited,
@@ -355,6 +354,12 @@ impl RenderCursor {
             pose,
             targets: self.beams.hits.len(),
         })
+    }
+
+    /// Tests only: the realistic renderer tests every candidate on every azimuth.
+    #[cfg(test)]
+    pub(crate) fn test_every_candidate(&mut self) {
+        self.realistic.test_every_candidate();
     }
 
     /// The last rendered spectrum in dB (before quantisation).
