@@ -11,7 +11,7 @@ use std::hint::black_box;
 use criterion::{criterion_group, criterion_main, Criterion};
 use kiddo::ImmutableKdTree;
 use radar_model::geometry::Pose2;
-use slam_node::pipeline::scan_match::register;
+use slam_node::pipeline::scan_match::{in_frame_of, register};
 
 /// About 2400 points: what the strongest 6 detections of 400 azimuths make. Fronts with
 /// set-backs every few metres, cars and posts at irregular places (a street without
@@ -65,21 +65,10 @@ fn street() -> Vec<[f64; 2]> {
     pts
 }
 
-fn seen_from(world: &[[f64; 2]], pose: Pose2) -> Vec<[f64; 2]> {
-    let (s, c) = pose.theta.sin_cos();
-    world
-        .iter()
-        .map(|p| {
-            let (dx, dy) = (p[0] - pose.x, p[1] - pose.y);
-            [c * dx + s * dy, -s * dx + c * dy]
-        })
-        .collect()
-}
-
 fn bench(c: &mut Criterion) {
     let world = street();
-    let reference = seen_from(&world, Pose2::new(0.0, 0.0, 0.0));
-    let current = seen_from(&world, Pose2::new(2.0, 0.03, 0.01));
+    let reference = in_frame_of(&Pose2::new(0.0, 0.0, 0.0), &world);
+    let current = in_frame_of(&Pose2::new(2.0, 0.03, 0.01), &world);
     let start = Pose2::new(2.1, 0.0, 0.0);
     c.bench_function("register 2 rotations (tree build included)", |b| {
         b.iter(|| {

@@ -74,9 +74,9 @@ fn oxford() -> Option<std::path::PathBuf> {
     }
 }
 
-#[test]
-fn real_scans_replay_through_the_driver_and_are_scored_against_ground_truth_and_dead_reckoning() {
-    let Some(dir) = oxford() else { return };
+/// `slam-node --replay-dir <Oxford> --fast --no-figures` with `extra` arguments; its stdout
+/// (the run must succeed).
+fn replay_oxford(dir: &std::path::Path, extra: &[&str]) -> String {
     let out = tempfile::tempdir().unwrap();
     let run = slam_node()
         .args([
@@ -85,15 +85,23 @@ fn real_scans_replay_through_the_driver_and_are_scored_against_ground_truth_and_
             "--fast",
             "--no-figures",
         ])
+        .args(extra)
         .args(["--out", out.path().to_str().unwrap()])
         .output()
         .unwrap();
-    let stdout = String::from_utf8_lossy(&run.stdout);
+    let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
     assert!(
         run.status.success(),
         "{stdout}\n{}",
         String::from_utf8_lossy(&run.stderr)
     );
+    stdout
+}
+
+#[test]
+fn real_scans_replay_through_the_driver_and_are_scored_against_ground_truth_and_dead_reckoning() {
+    let Some(dir) = oxford() else { return };
+    let stdout = replay_oxford(&dir, &[]);
     for expected in [
         "rotations 8, azimuths 3200 (0 malformed)",
         "against the ground truth: filter RMS",
@@ -124,25 +132,15 @@ fn figure_after(text: &str, key: &str) -> f64 {
 #[test]
 fn on_real_scans_with_odometry_five_per_cent_fast_radar_odometry_halves_dead_reckoning_s_error() {
     let Some(dir) = oxford() else { return };
-    let out = tempfile::tempdir().unwrap();
-    let run = slam_node()
-        .args([
-            "--replay-dir",
-            dir.to_str().unwrap(),
-            "--fast",
-            "--no-figures",
-        ])
-        .args([
+    let stdout = replay_oxford(
+        &dir,
+        &[
             "--odometry-speed-scale",
             "1.05",
             "--odometry-yaw-rate-bias",
             "0.02",
-        ])
-        .args(["--out", out.path().to_str().unwrap()])
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(run.status.success(), "{stdout}");
+        ],
+    );
     let line = stdout
         .lines()
         .find(|l| l.contains("against the ground truth:"))

@@ -194,19 +194,27 @@ pub fn chain_poses(
     let mut last = Pose2::default();
     poses.push(last);
     for w in scan_times_us.windows(2) {
-        let (from_us, to_us) = (w[0], w[1]);
-        let rel = rows
-            .iter()
-            .find(|r| r.source_us == to_us && r.destination_us == from_us)
-            .ok_or(TruthError::Missing {
-                path: path.to_path_buf(),
-                from_us,
-                to_us,
-            })?;
+        let rel = link(path, rows, w[0], w[1])?;
         last = compose(&last, &rel.pose);
         poses.push(last);
     }
     Ok(poses)
+}
+
+/// The row giving scan `to_us` in the frame of scan `from_us`.
+fn link<'a>(
+    path: &Path,
+    rows: &'a [RelativePose],
+    from_us: i64,
+    to_us: i64,
+) -> Result<&'a RelativePose, TruthError> {
+    rows.iter()
+        .find(|r| r.source_us == to_us && r.destination_us == from_us)
+        .ok_or(TruthError::Missing {
+            path: path.to_path_buf(),
+            from_us,
+            to_us,
+        })
 }
 
 /// The times (µs) at which the poses of [`chain_poses`] hold: each row's own
@@ -220,17 +228,7 @@ pub fn chain_pose_times(
 ) -> Result<Vec<i64>, TruthError> {
     let mut times = Vec::with_capacity(scan_times_us.len());
     for (k, w) in scan_times_us.windows(2).enumerate() {
-        let (from_us, to_us) = (w[0], w[1]);
-        let Some(rel) = rows
-            .iter()
-            .find(|r| r.source_us == to_us && r.destination_us == from_us)
-        else {
-            return Err(TruthError::Missing {
-                path: path.to_path_buf(),
-                from_us,
-                to_us,
-            });
-        };
+        let rel = link(path, rows, w[0], w[1])?;
         if k == 0 {
             times.push(rel.destination_pose_us);
         }

@@ -459,8 +459,9 @@ mod tests {
 
     #[test]
     fn a_straight_drive_gives_its_speed_and_dead_reckoning_follows_exact_odometry() {
-        // 2 m every 0.25 s: 8 m/s straight ahead.
-        let rows = "0,0,2.0,0,0,0,0,0,1250000,1000000\n0,0,2.0,0,0,0,0,0,1500000,1250000\n0,0,2.0,0,0,0,0,0,1750000,1500000\n";
+        // 2 m every 0.25 s: 8 m/s straight ahead; each pose holds at the middle of its
+        // scan's rotation (the rows' own times, 0.125 s after the scans' names).
+        let rows = "1375000,1125000,2.0,0,0,0,0,0,1250000,1000000\n1625000,1375000,2.0,0,0,0,0,0,1500000,1250000\n1875000,1625000,2.0,0,0,0,0,0,1750000,1500000\n";
         let dir = folder(&[1_000_000, 1_250_000, 1_500_000, 1_750_000], rows);
         let truth = RecordedTruth::read_oxford(dir.path()).unwrap();
         assert!((truth.distance_m() - 6.0).abs() < 1e-9);
@@ -474,10 +475,11 @@ mod tests {
         let errors = truth.dead_reckoning_errors(&samples);
         assert_eq!(errors.len(), 4);
         assert!(errors.iter().all(|e| *e < 1e-6), "{errors:?}");
-        let p = truth.pose_at(1.125).unwrap();
+        assert_eq!(truth.times_s(), &[1.125, 1.375, 1.625, 1.875]);
+        let p = truth.pose_at(1.25).unwrap();
         assert!((p.x - 1.0).abs() < 1e-9);
         // 5 % fast odometry drifts 5 % of the distance, from the first sample half a scan
-        // before the first scan: 7 m by the last.
+        // before the first pose: 7 m by the last.
         let fast = OdometryErrors {
             speed_scale: 1.05,
             ..exact

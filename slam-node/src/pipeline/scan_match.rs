@@ -147,6 +147,18 @@ pub fn register(
     last
 }
 
+/// `points` (in some frame) expressed in the frame of `pose` (a pose in that frame).
+pub fn in_frame_of(pose: &Pose2, points: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let (s, c) = pose.theta.sin_cos();
+    points
+        .iter()
+        .map(|p| {
+            let (dx, dy) = (p[0] - pose.x, p[1] - pose.y);
+            [c * dx + s * dy, -s * dx + c * dy]
+        })
+        .collect()
+}
+
 /// What radar odometry did over a run.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct ScanMatchCounts {
@@ -245,15 +257,7 @@ impl ScanMatcher {
             self.previous = None;
             return None;
         };
-        // The cloud in the vehicle's frame at `end`.
-        let (s, c) = end.theta.sin_cos();
-        let local: Vec<[f64; 2]> = points
-            .iter()
-            .map(|p| {
-                let (dx, dy) = (p[0] - end.x, p[1] - end.y);
-                [c * dx + s * dy, -s * dx + c * dy]
-            })
-            .collect();
+        let local = in_frame_of(&end, &points);
         let mut out = None;
         if let Some((reference_points, tree)) = self.previous.as_ref() {
             self.counts.tried += 1;
@@ -317,24 +321,13 @@ mod tests {
         pts
     }
 
-    fn seen_from(world: &[[f64; 2]], pose: Pose2) -> Vec<[f64; 2]> {
-        let (s, c) = pose.theta.sin_cos();
-        world
-            .iter()
-            .map(|p| {
-                let (dx, dy) = (p[0] - pose.x, p[1] - pose.y);
-                [c * dx + s * dy, -s * dx + c * dy]
-            })
-            .collect()
-    }
-
     #[test]
     fn icp_recovers_a_motion_started_five_per_cent_off() {
         let world = street();
         let a = Pose2::new(0.0, 0.0, 0.0);
         let b = Pose2::new(2.2, 0.05, 0.012);
-        let reference = seen_from(&world, a);
-        let current = seen_from(&world, b);
+        let reference = in_frame_of(&a, &world);
+        let current = in_frame_of(&b, &world);
         let tree = ImmutableKdTree::new_from_slice(&reference);
         let reg = register(
             &tree,
