@@ -62,8 +62,11 @@ async fn bad_arguments_exit_with_an_error_and_a_message() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--address"));
+    // A radar on 127.0.0.1:0, held for the test's life: the refusal must come at parsing,
+    // before any connection.
+    let radar = FakeRadar::bind().await;
     let out = Command::new(env!("CARGO_BIN_EXE_radar-driver"))
-        .args(["--address", "127.0.0.1:1", "--interval-s", "0"])
+        .args(["--address", &radar.addr.to_string(), "--interval-s", "0"])
         .output()
         .await
         .unwrap();
@@ -83,9 +86,11 @@ async fn out_of_range_values_are_refused_when_parsing_not_with_a_panic() {
         &["--interval-s", "0"],
         &["--watchdog-ms", "0"],
     ];
+    let radar = FakeRadar::bind().await;
+    let address = radar.addr.to_string();
     for args in cases {
         let out = Command::new(env!("CARGO_BIN_EXE_radar-driver"))
-            .args(["--address", "127.0.0.1:1"])
+            .args(["--address", &address])
             .args(args)
             .output()
             .await
