@@ -27,11 +27,9 @@ use super::observation::{
 use super::predict::{corrected_input, predict_to, OdometrySample, ProcessModel};
 use super::repeat_look::LookCell;
 use super::settings::FilterSettings;
-use super::state::{FeatureId, FeatureParams, SlamState, SPEED_SCALE_INDEX};
+use super::state::{FeatureId, FeatureParams, SlamState, SPEED_SCALE_INDEX, STEER_BIAS_INDEX};
 use super::submap::FrozenSubmap;
-use super::update::{
-    batched_update, subtract_wwt_lower_and_mirror, LinearisedObservation, UpdateOutcome,
-};
+use super::update::{batched_update, LinearisedObservation, UpdateOutcome};
 use relocalise::Relocalisation;
 
 /// A feature as reported: position, material shares (not the logits), uncertainty.
@@ -405,9 +403,20 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// Steps the mean pose from the state's time to `time_s` with `held`, in steps of at
     /// most `max_predict_step_s` (as the prediction does).
     fn extrapolate_pose(&self, held: &OdometrySample, time_s: f64) -> Result<Pose2, FilterError> {
+        self.extrapolate_from(self.pose(), held, time_s)
+    }
+
+    /// Steps `pose`, taken to hold at the state's time, to `time_s` with `held` (as
+    /// [`Self::extrapolate_pose`]); unchanged for a time at or before the state's.
+    fn extrapolate_from(
+        &self,
+        mut pose: Pose2,
+        held: &OdometrySample,
+        time_s: f64,
+    ) -> Result<Pose2, FilterError> {
         let gap_s = time_s - self.state.time_s();
-        let mut pose = self.pose();
-        if gap_s > 0.0 {
+        // A non-finite time would make the step count infinite: no extrapolation.
+        if gap_s > 0.0 && gap_s.is_finite() {
             let steps = (gap_s / self.settings.max_predict_step_s).ceil().max(1.0);
             let dt = gap_s / steps;
             let (speed, steer) = corrected_input(held, self.state.odometry_bias());
@@ -484,19 +493,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     pub fn motion_since_mark(&self, time_s: f64) -> Option<Pose2> {
         let tally = self.state.tally.as_ref()?;
         let held = self.odometry?;
-        let gap_s = time_s - self.state.time_s();
-        let mut pose = tally.rel;
-        if gap_s > 0.0 && gap_s.is_finite() {
-            let steps = (gap_s / self.settings.max_predict_step_s).ceil().max(1.0);
-            let dt = gap_s / steps;
-            let (speed, steer) = corrected_input(&held, self.state.odometry_bias());
-            let mut done = 0.0;
-            while done < steps {
-                pose = self.motion.step(&pose, speed, steer, dt).ok()?.pose;
-                done += 1.0;
-            }
-        }
-        Some(pose)
+        self.extrapolate_from(tally.rel, &held, time_s).ok()
     }
 
     /// Updates the odometry corrections `k`, `b` (and, through their correlations, the
@@ -533,33 +530,27 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             measured.y - tally.rel.y,
             wrap_angle(measured.theta - tally.rel.theta),
         );
-        let n = self.state.dim();
+        // The gate first, on S = J P_kb J^T + noise since the mark + R (3 x 3); then the
+        // filter's one batched update with H = J in the columns of k and b.
         let j = tally.wrt_bias;
-        // P H^T: H is J in the columns of k and b.
-        let p_kb = self.state.cov.columns(SPEED_SCALE_INDEX, 2).into_owned();
-        let pht = &p_kb * j.transpose();
-        let p_bb = self.state.odometry_bias_covariance();
-        let s = j * p_bb * j.transpose() + tally.noise + cov;
-        let s = 0.5 * (s + s.transpose());
-        let chol = s
+        let noise = tally.noise + cov;
+        let s = j * self.state.odometry_bias_covariance() * j.transpose() + noise;
+        let chol = (0.5 * (s + s.transpose()))
             .cholesky()
-            .ok_or(FilterError::CovarianceNotPositiveDefinite)?;
+            .ok_or(FilterError::InnovationNotPositiveDefinite { dim: 3 })?;
         let nis = nu.dot(&chol.solve(&nu));
         if !nis.is_finite() || nis > gate_chi2 {
             return Ok(MotionOutcome::Gated { nis });
         }
-        // x += P H^T S^-1 nu; P -= W W^T with W = P H^T L^-T (S = L L^T).
-        let gain_nu = &pht * chol.solve(&nu);
-        let l = chol.l();
-        let w_t = l
-            .solve_lower_triangular(&pht.transpose())
-            .ok_or(FilterError::CovarianceNotPositiveDefinite)?;
-        let w = DMatrix::from_column_slice(n, 3, w_t.transpose().as_slice());
-        for i in 0..n {
-            self.state.mean[i] += gain_nu[i];
-        }
-        self.state.mean[2] = wrap_angle(self.state.mean[2]);
-        subtract_wwt_lower_and_mirror(&mut self.state.cov, &w);
+        batched_update(
+            &mut self.state,
+            &LinearisedObservation {
+                columns: vec![SPEED_SCALE_INDEX, STEER_BIAS_INDEX],
+                jacobian: DMatrix::from_fn(3, 2, |r, c| j[(r, c)]),
+                innovation: DVector::from_column_slice(nu.as_slice()),
+                noise: DMatrix::from_fn(3, 3, |r, c| noise[(r, c)]),
+            },
+        )?;
         self.stats.motion_updates += 1;
         Ok(MotionOutcome::Applied { nis })
     }

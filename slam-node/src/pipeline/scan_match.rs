@@ -235,12 +235,9 @@ impl ScanMatcher {
             });
         }
         let room = MAX_POINTS.saturating_sub(self.current.len());
-        // The paper's bearing is clockwise from the heading (eq. 4: beta = theta - atan2).
-        let angle = sensor.theta - bearing_rad;
-        let (sn, cs) = angle.sin_cos();
         for &i in self.order.iter().take(keep.min(room)) {
-            let r = detections[i].range_m;
-            self.current.push([sensor.x + r * cs, sensor.y + r * sn]);
+            self.current
+                .push(sensor.point_at(detections[i].range_m, bearing_rad));
         }
     }
 
