@@ -134,6 +134,12 @@ pub struct RawModel {
     pub noise_floor_weibull_scale: f64,
     /// Target-absent Weibull shape, > 0. Default 5.333.
     pub noise_floor_weibull_shape: f64,
+    /// FMCW range-Doppler coupling, s in `[-1, 1]`: a return closing on the radar at `v` m/s
+    /// reads `v` times this many metres short, so each detection's range is corrected by
+    /// it with the vehicle's speed along the beam. Default 0 (the simulator renders no
+    /// Doppler shift); a Navtech CTS350-X's sawtooth chirp gives about 0.049 (Burnett et
+    /// al., 2021, measured on the Oxford Radar RobotCar scans).
+    pub doppler_range_coupling_s: f64,
 }
 
 impl Default for RawModel {
@@ -155,6 +161,7 @@ impl Default for RawModel {
             noise_floor_transition_m: 45.0,
             noise_floor_weibull_scale: 26.706,
             noise_floor_weibull_shape: 5.333,
+            doppler_range_coupling_s: 0.0,
         }
     }
 }
@@ -206,6 +213,9 @@ pub struct ModelSettings {
     pub sigma_power_db: PositiveF64,
     /// Target-absent noise floor.
     pub noise_floor: NoiseFloor,
+    /// FMCW range-Doppler coupling, s: a return closing at `v` m/s reads `v` times this
+    /// short.
+    pub doppler_range_coupling_s: FiniteF64,
 }
 
 impl ModelSettings {
@@ -338,7 +348,27 @@ impl RawModel {
                 PositiveF64::new(self.sigma_power_db),
             ),
             noise_floor: self.check_noise_floor(c),
+            doppler_range_coupling_s: self.check_doppler(c),
         }
+    }
+
+    /// The range-Doppler coupling: finite and at most 1 s either way (a CTS350-X's is 0.049).
+    fn check_doppler(&self, c: &mut Checker) -> FiniteF64 {
+        let v = c.check(
+            "model.doppler_range_coupling_s",
+            FiniteF64::new(self.doppler_range_coupling_s),
+        );
+        if v.get().abs() > 1.0 {
+            c.fail(
+                "model.doppler_range_coupling_s",
+                ValueError::OutOfRange {
+                    range: "[-1, 1]".into(),
+                    got: v.get().to_string(),
+                },
+            );
+            return FiniteF64::ZERO;
+        }
+        v
     }
 
     /// The target-absent floor; the close-in fit must end before the Weibull starts.
@@ -427,6 +457,7 @@ impl From<&ModelSettings> for RawModel {
             noise_floor_transition_m: s.noise_floor.transition_m.get(),
             noise_floor_weibull_scale: s.noise_floor.weibull_scale.get(),
             noise_floor_weibull_shape: s.noise_floor.weibull_shape.get(),
+            doppler_range_coupling_s: s.doppler_range_coupling_s.get(),
         }
     }
 }

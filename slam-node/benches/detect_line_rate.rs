@@ -64,7 +64,7 @@ fn front_end_rotation(
     for az in azimuths {
         let index = az.geometry.azimuth_index(az.encoder).unwrap_or(0);
         detections += fe
-            .process(az, index, az.angle_rad, beams, |_| false)
+            .process(az, index, az.angle_rad, 0.0, beams, |_| false)
             .detections;
         beams.clear();
     }

@@ -9,9 +9,8 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use kiddo::ImmutableKdTree;
 use radar_model::geometry::Pose2;
-use slam_node::pipeline::scan_match::{in_frame_of, register};
+use slam_node::pipeline::scan_match::{in_frame_of, register, ReferenceCloud};
 
 /// About 2400 points: what the strongest 6 detections of 400 azimuths make. Fronts with
 /// set-backs every few metres, cars and posts at irregular places (a street without
@@ -70,14 +69,17 @@ fn bench(c: &mut Criterion) {
     let reference = in_frame_of(&Pose2::new(0.0, 0.0, 0.0), &world);
     let current = in_frame_of(&Pose2::new(2.0, 0.03, 0.01), &world);
     let start = Pose2::new(2.1, 0.0, 0.0);
-    c.bench_function("register 2 rotations (tree build included)", |b| {
-        b.iter(|| {
-            let tree = ImmutableKdTree::new_from_slice(black_box(&reference));
-            register(&tree, &reference, black_box(&current), start, 1.5, 100)
-        })
-    });
-    let tree = ImmutableKdTree::new_from_slice(&reference);
-    let reg = register(&tree, &reference, &current, start, 1.5, 100);
+    c.bench_function(
+        "register 2 rotations (tree and normals of the reference included)",
+        |b| {
+            b.iter(|| {
+                let cloud = ReferenceCloud::new(black_box(reference.clone()), 1.5);
+                register(&cloud, black_box(&current), start, 1.5, 100)
+            })
+        },
+    );
+    let cloud = ReferenceCloud::new(reference.clone(), 1.5);
+    let reg = register(&cloud, &current, start, 1.5, 100);
     println!(
         "{} reference points, {} current points: {reg:?} (truth x 2.0, y 0.03, theta 0.01)",
         reference.len(),

@@ -268,12 +268,20 @@ pub(super) async fn start_replay(
     options.ground_truth_path = None;
     options.start_time_ns = None;
     let mut settings = recorded_settings_for(settings, geometry.max_range_m(), geometry.bin_size_m);
+    // RADIATE's unit runs another chirp (0.17 m bins) whose coupling is not published.
+    let coupling_s = match format {
+        sim_sensor::replay::ReplayFormat::Oxford => super::replay::OXFORD_DOPPLER_COUPLING_S,
+        sim_sensor::replay::ReplayFormat::Boreas => super::replay::BOREAS_DOPPLER_COUPLING_S,
+        sim_sensor::replay::ReplayFormat::Radiate => 0.0,
+    };
+    settings = super::replay::with_doppler_coupling(settings, coupling_s);
     if recorded.radar_odometry {
         settings = super::replay::with_radar_odometry(settings);
     }
     let samples = truth.odometry(&recorded.errors);
     let mut figures = ReplayFigures::new(&truth, &samples, recorded.errors);
     figures.format = Some(format);
+    figures.doppler_range_coupling_s = settings.doppler_range_coupling_s;
     let start_time_s = truth.times_s().first().copied();
     let truth_overlay = TruthOverlay {
         features: Vec::new(),

@@ -319,9 +319,31 @@ impl OdometrySource for MemoryOdometry {
 }
 
 /// The daemon's settings for a CTS350-X's recorded Oxford scans ([`recorded_settings_for`]
-/// with [`OXFORD_BIN_M`]).
+/// with [`OXFORD_BIN_M`], and its range-Doppler coupling [`OXFORD_DOPPLER_COUPLING_S`]).
 pub fn recorded_settings(settings: PipelineSettings, max_range_m: f64) -> PipelineSettings {
-    recorded_settings_for(settings, max_range_m, OXFORD_BIN_M)
+    with_doppler_coupling(
+        recorded_settings_for(settings, max_range_m, OXFORD_BIN_M),
+        OXFORD_DOPPLER_COUPLING_S,
+    )
+}
+
+/// The range-Doppler coupling of the Oxford Radar RobotCar's CTS350-X (s): Burnett et al.
+/// ("Do we need to compensate for motion distortion and Doppler effects in spinning radar
+/// navigation?", RA-L 2021) use 0.0488 on these scans. On the eight scans here it takes
+/// radar odometry's speed correction with exact odometry from -0.019 to -0.003, and the
+/// opposite sign makes every figure worse (`slam-node/README.md`, "Range-Doppler coupling").
+pub const OXFORD_DOPPLER_COUPLING_S: f64 = 0.0488;
+/// The same for Boreas' Navtech (s): the University of Toronto's radar odometry on Boreas
+/// uses 0.049.
+pub const BOREAS_DOPPLER_COUPLING_S: f64 = 0.049;
+
+/// `settings` with the range-Doppler coupling `coupling_s` where the configuration gave
+/// none (0); a configured coupling is kept.
+pub fn with_doppler_coupling(mut settings: PipelineSettings, coupling_s: f64) -> PipelineSettings {
+    if settings.doppler_range_coupling_s == 0.0 {
+        settings.doppler_range_coupling_s = coupling_s;
+    }
+    settings
 }
 
 /// The daemon's settings for a Navtech unit's recorded scans: its 1.8-degree beam (the
@@ -414,6 +436,8 @@ pub struct ReplayFigures {
     pub scans: usize,
     /// Scans the simulator skipped as damaged.
     pub scans_skipped: u64,
+    /// The range-Doppler coupling the detections were corrected with (s).
+    pub doppler_range_coupling_s: f64,
 }
 
 impl ReplayFigures {
@@ -433,6 +457,7 @@ impl ReplayFigures {
             format: None,
             scans: truth.times_s().len(),
             scans_skipped: 0,
+            doppler_range_coupling_s: 0.0,
         }
     }
 }

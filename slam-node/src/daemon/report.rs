@@ -257,9 +257,10 @@ pub fn summary_text(r: &DaemonReport) -> String {
         let e = &rp.errors;
         let _ = writeln!(
             t,
-            "  recorded drive ({}, {} scans, {} skipped as damaged): {:.1} m; odometry from the ground truth x{:.3} speed, {:+.3} rad/s yaw rate, noise {:.3} m/s / {:.4} rad/s (seed {})",
+            "  recorded drive ({}, {} scans, {} skipped as damaged): {:.1} m; odometry from the ground truth x{:.3} speed, {:+.3} rad/s yaw rate, noise {:.3} m/s / {:.4} rad/s (seed {}); ranges corrected for a range-Doppler coupling of {:.4} s",
             rp.format.map_or("-", |f| f.name()), rp.scans, rp.scans_skipped,
-            rp.distance_m, e.speed_scale, e.yaw_rate_bias_rps, e.sigma_speed_mps, e.sigma_yaw_rate_rps, e.seed
+            rp.distance_m, e.speed_scale, e.yaw_rate_bias_rps, e.sigma_speed_mps, e.sigma_yaw_rate_rps, e.seed,
+            rp.doppler_range_coupling_s
         );
         let filter = s
             .pose

@@ -20,7 +20,7 @@ use tracing::{debug, info, warn};
 
 use super::beams::OfferedBeam;
 use super::clock::{Verdict, WireClock};
-use super::frontend::{FrontEnd, GeometryError};
+use super::frontend::{doppler_range_shift_m, FrontEnd, GeometryError};
 use super::gate::{worth_logging, OdometryGate};
 use super::scan_match::ScanMatcher;
 use super::settings::PipelineSettings;
@@ -302,9 +302,10 @@ impl Pipeline {
         let ekf = &self.ekf;
         let radius = self.settings.detector.landmarks.reobserve_radius_m;
         let near_map = |o: &crate::detect::Observation| near_a_feature(ekf, o, radius);
+        let speed = self.sensor_speed_mps();
         let counts = self
             .front_end
-            .process(az, index, bearing, &mut self.beams, near_map);
+            .process(az, index, bearing, speed, &mut self.beams, near_map);
         self.summary.extended_returns += counts.extended as u64;
         if self.scan_match.enabled() {
             let sensor = self.ekf.motion_since_mark(az.timestamp_s);
@@ -382,6 +383,14 @@ impl Pipeline {
         self.ekf.pose_at(time_s)
     }
 
+    /// The vehicle's forward speed as the filter has it (the held odometry times its speed
+    /// correction; 0 without odometry), for the range-Doppler correction.
+    fn sensor_speed_mps(&self) -> f64 {
+        self.ekf.held_odometry().map_or(0.0, |o| {
+            slam_filter::predict::corrected_input(&o, self.ekf.state().odometry_bias()).0
+        })
+    }
+
     /// Whole-spectrum prediction against the measurement, on every k-th azimuth of the
     /// rotation (k counts azimuths, not encoder values).
     fn check_spectrum(&mut self, az: &Azimuth, index: u16, bearing: f64) {
@@ -392,9 +401,21 @@ impl Pipeline {
         if !spectrum_due(index, every) {
             return;
         }
-        let Some(pose) = self.predicted_pose(az.timestamp_s) else {
+        let Some(mut pose) = self.predicted_pose(az.timestamp_s) else {
             return;
         };
+        // The measured spectrum reads every return on this beam `shift` short (range-Doppler
+        // coupling; the detections were corrected, the bins were not): predict it from the
+        // radar moved `shift` along the beam, which shortens every range on it by `shift`.
+        let shift = doppler_range_shift_m(
+            self.settings.doppler_range_coupling_s,
+            self.sensor_speed_mps(),
+            bearing,
+        );
+        if shift != 0.0 {
+            let [x, y] = pose.point_at(shift, bearing);
+            pose = Pose2::new(x, y, pose.theta);
+        }
         let (Some(spectrum), Some(axis), Some(geometry)) = (
             self.front_end.spectrum(),
             self.front_end.axis(),

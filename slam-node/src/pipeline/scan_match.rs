@@ -17,7 +17,7 @@
 //! rotation.
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Vector3};
 use radar_model::geometry::{wrap_angle, Pose2};
 
 use crate::detect::Detection;
@@ -46,6 +46,8 @@ pub struct ScanMatchSettings {
     pub pair_gate_m: f64,
     /// A registration with fewer pairs is not used.
     pub min_pairs: usize,
+    /// A reference point's normal is fitted to its neighbours within this distance (m).
+    pub normal_radius_m: f64,
 }
 
 impl Default for ScanMatchSettings {
@@ -59,8 +61,102 @@ impl Default for ScanMatchSettings {
             sigma_theta_rad: 0.003,
             pair_gate_m: 0.6,
             min_pairs: 100,
+            normal_radius_m: 1.5,
         }
     }
+}
+
+/// The previous rotation's cloud as registrations use it: its points, a k-d tree over them,
+/// and each point's surface normal where its neighbours lie along a line (a wall, a fence,
+/// a car's side), so that points on a surface pair with the surface, not with whichever
+/// sample of it the radar happened to take in the other rotation.
+#[derive(Debug)]
+pub struct ReferenceCloud {
+    points: Vec<[f64; 2]>,
+    tree: ImmutableKdTree<f64, 2>,
+    /// Unit normal of the local line through each point, `None` where the neighbourhood is
+    /// not line-like (an isolated return, a corner, a blob).
+    normals: Vec<Option<[f64; 2]>>,
+}
+
+/// Neighbours (the point itself included) a normal is fitted to at most.
+const NORMAL_NEIGHBOURS: usize = 8;
+/// Fewest neighbours (the point itself included) for a normal.
+const NORMAL_MIN_NEIGHBOURS: usize = 4;
+/// A neighbourhood is a line when its spread across is at most this fraction of its
+/// spread along (the ratio of the scatter matrix's eigenvalues).
+const LINE_EIGEN_RATIO: f64 = 0.05;
+
+impl ReferenceCloud {
+    /// Builds the tree and the normals: O(n log n), once a rotation. Neighbours are taken
+    /// within `radius_m`.
+    pub fn new(points: Vec<[f64; 2]>, radius_m: f64) -> Self {
+        let tree = ImmutableKdTree::new_from_slice(&points);
+        let k = std::num::NonZero::new(NORMAL_NEIGHBOURS).expect("non-zero constant");
+        let normals = points
+            .iter()
+            .map(|p| {
+                let near =
+                    tree.nearest_n_within::<SquaredEuclidean>(p, radius_m * radius_m, k, false);
+                if near.len() < NORMAL_MIN_NEIGHBOURS {
+                    return None;
+                }
+                line_normal(near.iter().filter_map(|nb| points.get(nb.item as usize)))
+            })
+            .collect();
+        Self {
+            points,
+            tree,
+            normals,
+        }
+    }
+
+    /// The points.
+    pub fn points(&self) -> &[[f64; 2]] {
+        &self.points
+    }
+
+    /// How many points have a normal (lie on a line-like surface).
+    pub fn with_normals(&self) -> usize {
+        self.normals.iter().filter(|n| n.is_some()).count()
+    }
+}
+
+/// The unit normal of the line fitted to `points` (principal axes of their scatter), or
+/// `None` when they are not line-like.
+fn line_normal<'a>(points: impl Iterator<Item = &'a [f64; 2]>) -> Option<[f64; 2]> {
+    let (mut n, mut s, mut sxx, mut sxy, mut syy) = (0.0, [0.0; 2], 0.0, 0.0, 0.0);
+    for p in points {
+        n += 1.0;
+        s = [s[0] + p[0], s[1] + p[1]];
+        sxx += p[0] * p[0];
+        sxy += p[0] * p[1];
+        syy += p[1] * p[1];
+    }
+    if n < 2.0 {
+        return None;
+    }
+    let m = [s[0] / n, s[1] / n];
+    let (a, b, c) = (
+        sxx / n - m[0] * m[0],
+        sxy / n - m[0] * m[1],
+        syy / n - m[1] * m[1],
+    );
+    // Eigenvalues of [[a, b], [b, c]].
+    let half_trace = 0.5 * (a + c);
+    let root = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let (large, small) = (half_trace + root, half_trace - root);
+    if large.is_nan() || large <= 0.0 || small > LINE_EIGEN_RATIO * large {
+        return None;
+    }
+    // The eigenvector of the small eigenvalue: (b, small - a) or (small - c, b).
+    let v = if (small - a).abs() + b.abs() > (small - c).abs() + b.abs() {
+        [b, small - a]
+    } else {
+        [small - c, b]
+    };
+    let norm = v[0].hypot(v[1]);
+    (norm > 0.0 && norm.is_finite()).then(|| [v[0] / norm, v[1] / norm])
 }
 
 /// A registration's result.
@@ -70,75 +166,108 @@ pub struct Registration {
     pub pose: Pose2,
     /// Pairs used at the last iteration.
     pub pairs: usize,
-    /// Root-mean-square distance of those pairs (m).
+    /// Of those, pairs with a point on a line-like surface (point-to-line).
+    pub line_pairs: usize,
+    /// Root-mean-square residual of those pairs (m): distance to the line, or to the point.
     pub rms_m: f64,
     /// Iterations run.
     pub iterations: usize,
+    /// The Gauss-Newton information of the last iteration, `sum J^T w J` over the pairs
+    /// (per m^2 in translation): the directions the clouds constrain. Its smallest
+    /// eigenvalue is what a corridor lacks.
+    pub information: Matrix3<f64>,
 }
 
-/// Trimmed point-to-point ICP in the plane: the pose `T` of `current`'s frame in
-/// `reference`'s frame such that `T (p) ~ q` for paired points, started at `initial`.
-/// `None` when fewer than `min_pairs` pairs survive or the clouds are empty.
+/// Trimmed, robust point-to-line ICP in the plane (points on a line-like surface of the
+/// reference are pulled onto the surface, the others onto the nearest point): the pose `T`
+/// of `current`'s frame in `reference`'s frame such that `T (p) ~ q` for paired points,
+/// started at `initial`, by Gauss-Newton with Cauchy weights. Pairs farther apart than the
+/// gate are not paired; the gate narrows from `gate_m` to a fifth of it. `None` when fewer
+/// than `min_pairs` pairs survive, the clouds are empty, or the pairs do not constrain all
+/// three degrees of freedom.
 pub fn register(
-    reference: &ImmutableKdTree<f64, 2>,
-    reference_points: &[[f64; 2]],
+    reference: &ReferenceCloud,
     current: &[[f64; 2]],
     initial: Pose2,
     gate_m: f64,
     min_pairs: usize,
 ) -> Option<Registration> {
     const ITERATIONS: usize = 40;
-    if reference_points.is_empty() || current.is_empty() {
+    if reference.points.is_empty() || current.is_empty() {
         return None;
     }
     let mut t = initial;
     let mut last = None;
     for it in 0..ITERATIONS {
-        // The gate narrows from `gate_m` to a fifth of it over the first iterations.
         let gate = gate_m * (0.85f64.powi(it as i32)).max(0.2);
         let gate2 = gate * gate;
+        // Cauchy weights with a scale of half the gate: pairs near the gate count little.
+        let scale2 = 0.25 * gate2;
         let (s, c) = t.theta.sin_cos();
-        // Sums over the pairs: n, p, q, and the raw cross-products for the centred ones.
-        let (mut n, mut sp, mut sq) = (0usize, [0.0; 2], [0.0; 2]);
-        let (mut sdot, mut scross, mut sum_d2) = (0.0, 0.0, 0.0);
+        let mut h = Matrix3::<f64>::zeros();
+        let mut g = Vector3::<f64>::zeros();
+        let (mut n, mut lines, mut sum_r2) = (0usize, 0usize, 0.0);
         for p in current {
             let moved = [t.x + c * p[0] - s * p[1], t.y + s * p[0] + c * p[1]];
-            let nn = reference.nearest_one::<SquaredEuclidean>(&moved);
+            let nn = reference.tree.nearest_one::<SquaredEuclidean>(&moved);
             if nn.distance > gate2 {
                 continue;
             }
-            let Some(q) = reference_points.get(nn.item as usize) else {
+            let i = nn.item as usize;
+            let (Some(q), Some(normal)) = (reference.points.get(i), reference.normals.get(i))
+            else {
                 continue;
             };
+            // d(moved)/d(theta).
+            let dm = [-s * p[0] - c * p[1], c * p[0] - s * p[1]];
+            let d = [moved[0] - q[0], moved[1] - q[1]];
             n += 1;
-            sum_d2 += nn.distance;
-            sp = [sp[0] + p[0], sp[1] + p[1]];
-            sq = [sq[0] + q[0], sq[1] + q[1]];
-            sdot += p[0] * q[0] + p[1] * q[1];
-            scross += p[0] * q[1] - p[1] * q[0];
+            match normal {
+                Some(nv) => {
+                    lines += 1;
+                    let r = nv[0] * d[0] + nv[1] * d[1];
+                    let j = Vector3::new(nv[0], nv[1], nv[0] * dm[0] + nv[1] * dm[1]);
+                    let w = 1.0 / (1.0 + r * r / scale2);
+                    h += w * j * j.transpose();
+                    g += w * r * j;
+                    sum_r2 += r * r;
+                }
+                None => {
+                    let r2 = d[0] * d[0] + d[1] * d[1];
+                    let w = 1.0 / (1.0 + r2 / scale2);
+                    for (axis, r) in d.iter().enumerate() {
+                        let j = if axis == 0 {
+                            Vector3::new(1.0, 0.0, dm[0])
+                        } else {
+                            Vector3::new(0.0, 1.0, dm[1])
+                        };
+                        h += w * j * j.transpose();
+                        g += w * r * j;
+                    }
+                    sum_r2 += r2;
+                }
+            }
         }
         if n < min_pairs.max(3) {
             return None;
         }
-        let nf = n as f64;
-        let (mp, mq) = ([sp[0] / nf, sp[1] / nf], [sq[0] / nf, sq[1] / nf]);
-        // Closed-form rotation: atan2 of the cross- and dot-sums of the centred pairs.
-        let dot = sdot - nf * (mp[0] * mq[0] + mp[1] * mq[1]);
-        let cross = scross - nf * (mp[0] * mq[1] - mp[1] * mq[0]);
-        let theta = cross.atan2(dot);
-        let (s, c) = theta.sin_cos();
-        let next = Pose2::new(
-            mq[0] - (c * mp[0] - s * mp[1]),
-            mq[1] - (s * mp[0] + c * mp[1]),
-            wrap_angle(theta),
+        let delta = -h.cholesky()?.solve(&g);
+        if !delta.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        t = Pose2::new(
+            t.x + delta[0],
+            t.y + delta[1],
+            wrap_angle(t.theta + delta[2]),
         );
-        let step = (next.x - t.x).hypot(next.y - t.y) + wrap_angle(next.theta - t.theta).abs();
-        t = next;
+        let step = delta[0].hypot(delta[1]) + delta[2].abs();
         last = Some(Registration {
             pose: t,
             pairs: n,
-            rms_m: (sum_d2 / nf).sqrt(),
+            line_pairs: lines,
+            rms_m: (sum_r2 / n as f64).sqrt(),
             iterations: it + 1,
+            information: h,
         });
         if step < 1e-6 && gate <= 0.2 * gate_m + 1e-12 {
             break;
@@ -180,8 +309,8 @@ pub struct ScanMatcher {
     settings: ScanMatchSettings,
     /// This rotation's points in the frame at the last mark.
     current: Vec<[f64; 2]>,
-    /// The previous rotation's points in the vehicle's frame at its end, and its tree.
-    previous: Option<(Vec<[f64; 2]>, ImmutableKdTree<f64, 2>)>,
+    /// The previous rotation's points in the vehicle's frame at its end.
+    previous: Option<ReferenceCloud>,
     /// Scratch for one azimuth's strongest detections.
     order: Vec<usize>,
     counts: ScanMatchCounts,
@@ -256,11 +385,10 @@ impl ScanMatcher {
         };
         let local = in_frame_of(&end, &points);
         let mut out = None;
-        if let Some((reference_points, tree)) = self.previous.as_ref() {
+        if let Some(reference) = self.previous.as_ref() {
             self.counts.tried += 1;
             match register(
-                tree,
-                reference_points,
+                reference,
                 &local,
                 end,
                 self.settings.pair_gate_m,
@@ -281,8 +409,7 @@ impl ScanMatcher {
         self.previous = if local.is_empty() {
             None
         } else {
-            let tree = ImmutableKdTree::new_from_slice(&local);
-            Some((local, tree))
+            Some(ReferenceCloud::new(local, self.settings.normal_radius_m))
         };
         out
     }
@@ -323,11 +450,13 @@ mod tests {
         let world = street();
         let a = Pose2::new(0.0, 0.0, 0.0);
         let b = Pose2::new(2.2, 0.05, 0.012);
-        let reference = in_frame_of(&a, &world);
+        let reference = ReferenceCloud::new(in_frame_of(&a, &world), 1.5);
+        assert!(
+            reference.with_normals() > world.len() / 2,
+            "walls have normals"
+        );
         let current = in_frame_of(&b, &world);
-        let tree = ImmutableKdTree::new_from_slice(&reference);
         let reg = register(
-            &tree,
             &reference,
             &current,
             Pose2::new(2.2 * 1.05, 0.0, 0.0),
@@ -338,21 +467,68 @@ mod tests {
         assert!((reg.pose.x - b.x).abs() < 1e-3, "{reg:?}");
         assert!((reg.pose.y - b.y).abs() < 1e-3, "{reg:?}");
         assert!((reg.pose.theta - b.theta).abs() < 1e-4, "{reg:?}");
+        assert!(reg.line_pairs > 0 && reg.line_pairs < reg.pairs, "{reg:?}");
+    }
+
+    /// Two walls sampled at fixed bearings from each pose (as a radar samples them): the
+    /// samples move with the sensor, so pairing points with points pulls the motion along
+    /// the walls towards zero; pairing them with the walls' lines does not. A few posts fix
+    /// the along-track motion.
+    #[test]
+    fn walls_sampled_at_fixed_bearings_do_not_shrink_the_motion() {
+        let scan = |pose: &Pose2| -> Vec<[f64; 2]> {
+            let mut pts = Vec::new();
+            for k in 0..400 {
+                let bearing = std::f64::consts::TAU * f64::from(k) / 400.0;
+                let (s, c) = (pose.theta + bearing).sin_cos();
+                // Walls y = 8 and y = -7.5 (world), where the beam meets them within 60 m.
+                for wall_y in [8.0, -7.5] {
+                    if s.abs() > 1e-9 {
+                        let r = (wall_y - pose.y) / s;
+                        if r > 4.0 && r < 60.0 {
+                            let world = [pose.x + r * c, pose.y + r * s];
+                            pts.push(world);
+                        }
+                    }
+                }
+            }
+            for k in 0..8 {
+                pts.push([-20.0 + 6.0 * f64::from(k), 5.0 - 0.7 * f64::from(k % 3)]);
+            }
+            in_frame_of(pose, &pts)
+        };
+        let a = Pose2::new(0.0, 0.0, 0.0);
+        let b = Pose2::new(2.0, 0.0, 0.0);
+        let reference = ReferenceCloud::new(scan(&a), 1.5);
+        let reg =
+            register(&reference, &scan(&b), Pose2::new(2.1, 0.0, 0.0), 0.6, 50).expect("registers");
+        assert!((reg.pose.x - b.x).abs() < 0.01, "{reg:?}");
+        assert!(
+            reg.pose.y.abs() < 0.01 && reg.pose.theta.abs() < 1e-3,
+            "{reg:?}"
+        );
+    }
+
+    #[test]
+    fn a_straight_line_has_a_normal_and_a_blob_has_none() {
+        let line: Vec<[f64; 2]> = (0..8).map(|i| [f64::from(i) * 0.2, 1.0]).collect();
+        let n = line_normal(line.iter()).expect("a line");
+        assert!(
+            n[0].abs() < 1e-9 && (n[1].abs() - 1.0).abs() < 1e-9,
+            "{n:?}"
+        );
+        let tilted: Vec<[f64; 2]> = (0..8).map(|i| [f64::from(i), f64::from(i)]).collect();
+        let n = line_normal(tilted.iter()).expect("a line");
+        assert!((n[0] + n[1]).abs() < 1e-9, "{n:?}");
+        let blob = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]];
+        assert!(line_normal(blob.iter()).is_none());
     }
 
     #[test]
     fn too_few_pairs_is_no_registration() {
-        let reference = vec![[0.0, 0.0], [1.0, 0.0]];
-        let tree = ImmutableKdTree::new_from_slice(&reference);
-        assert!(register(
-            &tree,
-            &reference,
-            &reference,
-            Pose2::new(0.0, 0.0, 0.0),
-            1.0,
-            3
-        )
-        .is_none());
-        assert!(register(&tree, &reference, &[], Pose2::new(0.0, 0.0, 0.0), 1.0, 1).is_none());
+        let points = vec![[0.0, 0.0], [1.0, 0.0]];
+        let reference = ReferenceCloud::new(points.clone(), 1.5);
+        assert!(register(&reference, &points, Pose2::new(0.0, 0.0, 0.0), 1.0, 3).is_none());
+        assert!(register(&reference, &[], Pose2::new(0.0, 0.0, 0.0), 1.0, 1).is_none());
     }
 }

@@ -53,6 +53,10 @@ pub struct PipelineSettings {
     pub grouping_max_width_beams: f64,
     /// Beam width, radians.
     pub beam_width_rad: f64,
+    /// FMCW range-Doppler coupling (s): a return closing at `v` m/s reads `v` times this
+    /// short; each detection's range is corrected with the vehicle's speed along its beam
+    /// (`[model] doppler_range_coupling_s`).
+    pub doppler_range_coupling_s: f64,
     /// Receiver compensation (to remove from measured spectra).
     pub compensation: Compensation,
     /// Noise model (for predicted spectra).
@@ -280,6 +284,7 @@ impl PipelineSettings {
             grouping_range_gate_m: (2.0 * c.model.range_resolution_m.get()).max(0.5),
             grouping_max_width_beams: 3.0,
             beam_width_rad,
+            doppler_range_coupling_s: c.model.doppler_range_coupling_s.get(),
             compensation,
             noise,
             power,
@@ -313,6 +318,7 @@ impl PipelineSettings {
             grouping_range_gate_m: self.grouping_range_gate_m,
             grouping_max_width_beams: self.grouping_max_width_beams,
             beam_width_rad: self.beam_width_rad,
+            doppler_range_coupling_s: self.doppler_range_coupling_s,
             compensation: self.compensation.clone(),
             noise: self.noise,
             max_detector_state_bytes: self.max_detector_state_bytes,
