@@ -377,7 +377,7 @@ pub fn recorded_settings_for(
     settings.detector.landmarks.min_snr_db = settings.detector.landmarks.min_snr_db.max(32.0);
     settings.filter.confirm_after = settings.filter.confirm_after.max(CONFIRM_AFTER_LOOKS);
     settings.filter.confirm_min_separation_s = settings.filter.confirm_min_separation_s.max(0.2);
-    settings.spectrum_every_azimuths = settings.spectrum_every_azimuths.max(4);
+    settings.spectrum_every_azimuths = settings.spectrum_every_azimuths.max(1);
     // A real landmark's return (a trunk, a post, a car's corner) is not the ideal point
     // the paper's unit was modelled with: its peak moves with the viewing angle. Measured on
     // the Oxford scans (the nearest point-like observation within 2 m of each mapped
