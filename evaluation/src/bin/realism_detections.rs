@@ -17,7 +17,8 @@
 //! Then which simulated objects make the learned front end's targets, by removal: the
 //! street rendered again without one kind of object at a time (ground clutter on the
 //! streets, clutter inside the blocks, hedges, crowns, parked and moving vehicles,
-//! building fronts, the point features), and the targets that go with it. Removing an
+//! building fronts, the point features, and the multipath ghosts, which are no object but
+//! which the fronts form as mirrors), and the targets that go with it. Removing an
 //! occluder (a front, a hedge, a vehicle) also uncovers what it hid, so its row is what it
 //! makes less what it hides.
 
@@ -221,6 +222,13 @@ fn main() -> anyhow::Result<()> {
     let mut points = scene.clone();
     points.features.clear();
     variants.push(("point features (trunks, lamp posts)".into(), points));
+    // Not an object: the multipath ghosts, which the fronts and walls form as mirrors (so
+    // the fronts' row above includes them).
+    let mut no_ghosts = scene.clone();
+    if let Some(realism) = no_ghosts.realism.as_mut() {
+        realism.multipath = false;
+        variants.push(("multipath ghosts (`multipath = false`)".into(), no_ghosts));
+    }
     for (name, variant) in &variants {
         let scans = render_scans(variant, None, 4, real.rotations.len() as u64)?;
         let (a, p) = learned(&scans);

@@ -56,16 +56,16 @@ pub const FITTED_LOG_SCALE: f64 = 0.9860;
 pub const FITTED_SATURATION_DB: f64 = 68.0;
 /// Range width (FWHM) of the kernel, metres, fitted so that the simulated street's median
 /// peak width matches the real one.
-pub const FITTED_RANGE_FWHM_M: f64 = 0.351;
+pub const FITTED_RANGE_FWHM_M: f64 = 0.340;
 /// Two-way azimuth width (FWHM) of the antenna pattern, degrees, fitted likewise.
-pub const FITTED_BEAM_FWHM_DEG: f64 = 1.39;
+pub const FITTED_BEAM_FWHM_DEG: f64 = 1.46;
 /// Wire level of a 1 m^2 target at 10 m, dB.
-pub const FITTED_SIGNAL_GAIN_DB: f64 = 64.22;
+pub const FITTED_SIGNAL_GAIN_DB: f64 = 62.20;
 /// Net slope of a fixed target's level with range, dB per decade.
-pub const FITTED_SIGNAL_SLOPE_DB_PER_DECADE: f64 = -20.86;
+pub const FITTED_SIGNAL_SLOPE_DB_PER_DECADE: f64 = -17.54;
 
 /// Corner of the receiver's near-range high-pass filter, metres.
-pub const FITTED_HIGHPASS_M: f64 = 18.0;
+pub const FITTED_HIGHPASS_M: f64 = 15.0;
 
 /// Range bands of the floor fit, metres.
 pub const FLOOR_BAND_EDGES_M: [f64; 19] = [

@@ -342,8 +342,8 @@ pub struct RealisticCursor {
     signal: Vec<f32>,
     touched: Vec<u64>,
     power: Vec<u32>,
-    mirrors: Vec<([f64; 2], [f64; 2])>,
-    sources: Vec<(usize, f32)>,
+    mirrors: Vec<([f64; 2], [f64; 2], u32)>,
+    sources: Vec<(usize, u32)>,
 }
 
 /// Where range shell `k` starts for candidates the motion can move by `shift_m`, metres.
@@ -610,7 +610,7 @@ impl RealisticCursor {
                     if let Shape::Segment { a, b } = shape {
                         let (c, half) = shape.centre_and_reach();
                         if (c[0] - o[0]).hypot(c[1] - o[1]) - half <= spec.ghost_range_m {
-                            self.mirrors.push((a, b));
+                            self.mirrors.push((a, b, id));
                         }
                     }
                 }
@@ -758,7 +758,7 @@ impl RealisticCursor {
                 && r <= spec.ghost_range_m
                 && self.sources.len() < MAX_GHOSTS
             {
-                self.sources.push((all.len(), vis));
+                self.sources.push((all.len(), s.outline));
             }
             all.push(Candidate {
                 bearing_mid: wrap_angle(mid.theta - world_angle),
@@ -772,9 +772,9 @@ impl RealisticCursor {
         // 3. Ghosts.
         let mut ghosts = 0;
         let r2 = spec.ghost_reflectance * spec.ghost_reflectance;
-        'sources: for &(ci, _) in &self.sources {
+        'sources: for &(ci, source_outline) in &self.sources {
             let src = all[ci];
-            for &(a, b) in &self.mirrors {
+            for &(a, b, mirror_id) in &self.mirrors {
                 if ghosts >= MAX_GHOSTS {
                     break 'sources;
                 }
@@ -793,18 +793,30 @@ impl RealisticCursor {
                 let foot = [a[0] + t * ex, a[1] + t * ey];
                 let img = [2.0 * foot[0] - src.pos[0], 2.0 * foot[1] - src.pos[1]];
                 let phi_g = (img[1] - o[1]).atan2(img[0] - o[0]);
-                if ray_segment(o, phi_g, a, b).is_none() {
+                let Some(rm) = ray_segment(o, phi_g, a, b) else {
                     continue;
-                }
+                };
                 let rg = (img[0] - o[0]).hypot(img[1] - o[1]);
                 if rg > reach {
+                    continue;
+                }
+                // The mirror point must be in view: the two-way transmission of the outlines
+                // in front of it along the ghost's ray, but for the source's own (the leg
+                // from the mirror to the source is not traced).
+                let mirror_vis = if spec.occlusion {
+                    self.transmission_but(cell_of(phi_g), rm, [mirror_id, source_outline])
+                } else {
+                    1.0
+                };
+                let power = src.power * r2 as f32 * mirror_vis;
+                if power * max_gain * 9.0 < NEGLIGIBLE_POWER {
                     continue;
                 }
                 all.push(Candidate {
                     bearing_mid: wrap_angle(mid.theta - phi_g),
                     pos: img,
                     vel: [0.0, 0.0],
-                    power: src.power * r2 as f32,
+                    power,
                     per_look: src.per_look,
                 });
                 ghosts += 1;
@@ -901,6 +913,11 @@ impl RealisticCursor {
 
     /// Two-way transmission to range `r` in `cell` through every outline but `own`.
     fn transmission(&self, cell: usize, r: f64, own: u32) -> f32 {
+        self.transmission_but(cell, r, [own, own])
+    }
+
+    /// [`Self::transmission`] leaving out two outlines (a ghost's mirror and source).
+    fn transmission_but(&self, cell: usize, r: f64, own: [u32; 2]) -> f32 {
         let (Some(&lo), Some(&hi)) = (self.cell_starts.get(cell), self.cell_starts.get(cell + 1))
         else {
             return 1.0;
@@ -914,7 +931,7 @@ impl RealisticCursor {
             if f64::from(c.range) >= r - SELF_MARGIN_M {
                 break;
             }
-            if c.outline != own {
+            if c.outline != own[0] && c.outline != own[1] {
                 t *= c.tau;
             }
         }
