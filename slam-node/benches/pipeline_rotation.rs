@@ -8,7 +8,10 @@
 //! by the simulator's renderer (`sim_sensor::render`, untimed) and decoded from the 8-bit
 //! frames it sends; only `Pipeline::process_azimuth` is timed.
 //!
-//! Run: `cargo bench -p slam-node --bench pipeline_rotation`.
+//! The CTS350-X-like unit runs twice: with the paper's TPP detector, and through the front
+//! end for current units (`slam_node::daemon::replay::recorded_settings_for`).
+//!
+//! Run: `cargo bench -p slam-node --bench pipeline_rotation` (one unit: add `-- current`).
 
 #[path = "../tests/support/mod.rs"]
 mod support;
@@ -31,17 +34,29 @@ use support::SimRadar;
 struct Unit {
     name: &'static str,
     preset: RadarPreset,
+    /// The front end for current units (learned floor and gain, line-rate detection, only
+    /// point-like returns mapped: what `--replay-dir` and `vehicle.toml` run) instead of the
+    /// paper's TPP detector.
+    current_front_end: bool,
 }
 
 /// 200 azimuths x 800 bins of 0.25 m, 2.5 Hz.
 const PAPER: Unit = Unit {
     name: "paper-200",
     preset: RadarPreset::Paper200,
+    current_front_end: false,
 };
 /// 400 azimuths x 3768 bins of 0.0438 m, 4 Hz.
 const CTS: Unit = Unit {
     name: "cts350x-400",
     preset: RadarPreset::Cts350x400,
+    current_front_end: false,
+};
+/// The same unit through the front end for current units.
+const CTS_CURRENT: Unit = Unit {
+    name: "cts350x-400, front end for current units",
+    preset: RadarPreset::Cts350x400,
+    current_front_end: true,
 };
 
 const SPEED_MPS: f64 = 3.0;
@@ -102,6 +117,14 @@ impl Rig {
         settings.initial_pose_std = [0.0; 3];
         settings.map_every_rotations = 0;
         settings.spectrum_sample_every_rotations = 0;
+        if unit.current_front_end {
+            settings = slam_node::daemon::replay::recorded_settings_for(
+                settings,
+                scene.radar.max_range_m(),
+                bin_m,
+            );
+            settings.initial_pose_std = [0.0; 3];
+        }
         let t0 = T0_NS as f64 * 1e-9;
         let pipeline = Pipeline::new(settings, Some(t0), None).unwrap();
         Self {
@@ -144,7 +167,7 @@ fn bench(c: &mut Criterion) {
     group.measurement_time(Duration::from_secs(8));
     group.warm_up_time(Duration::from_secs(1));
     let mut table = Vec::new();
-    for unit in [&PAPER, &CTS] {
+    for unit in [&PAPER, &CTS, &CTS_CURRENT] {
         for features in [20usize, 100, 500] {
             let mut rig = Rig::new(unit, features);
             // Map the world first: a few rotations so the map holds what is in view.
@@ -157,7 +180,7 @@ fn bench(c: &mut Criterion) {
             let s = rig.pipeline.summary();
             let n = s.rotations.max(1) as f64;
             table.push(format!(
-                "{:<12} {:>5} features: map {:>4}, per rotation {:>7.2} ms (detection {:>6.2}, filter {:>6.2}, spectrum {:>5.2}), real-time factor {:>6.1}x",
+                "{:<41} {:>5} features: map {:>4}, per rotation {:>7.2} ms (detection {:>6.2}, filter {:>6.2}, spectrum {:>5.2}), real-time factor {:>6.1}x",
                 unit.name,
                 features,
                 rig.pipeline.ekf().feature_count(),
