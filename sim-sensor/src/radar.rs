@@ -41,6 +41,10 @@ impl DataWidth {
     }
 }
 
+/// The CTS350-X's range-Doppler coupling, seconds: a return closing on the radar at `v`
+/// m/s reads `0.049 v` metres short (Burnett et al., RA-L 2021).
+pub const CTS350X_DOPPLER_RANGE_COUPLING_S: f64 = 0.049;
+
 /// A named radar preset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 pub enum RadarPreset {
@@ -80,7 +84,10 @@ impl RadarPreset {
     ///
     /// The CTS350-X-like unit: 400 azimuths, encoder 5600 (steps of 14), 3768 bins of
     /// 0.0438 m (165 m), 4 Hz, 1600 azimuths a second, and the same 1.8 degree beam as the
-    /// paper's (Navtech quotes 1.8 degrees horizontal beam width for the CTS350-X).
+    /// paper's (Navtech quotes 1.8 degrees horizontal beam width for the CTS350-X), and its
+    /// sawtooth chirp's range-Doppler coupling of 0.049 s (Burnett et al., "Do we need to
+    /// compensate for motion distortion and Doppler effects in spinning radar navigation?",
+    /// RA-L 2021). The paper's unit renders no coupling.
     pub fn params(self) -> RadarParams {
         match self {
             RadarPreset::Paper200 => RadarParams {
@@ -93,6 +100,7 @@ impl RadarPreset {
                 range_offset_m: 0.0,
                 data_width: DataWidth::Bits8,
                 beam_width_rad: 1.8_f64.to_radians(),
+                doppler_range_coupling_s: 0.0,
             },
             RadarPreset::Cts350x400 => RadarParams {
                 azimuths: 400,
@@ -104,6 +112,7 @@ impl RadarPreset {
                 range_offset_m: 0.0,
                 data_width: DataWidth::Bits8,
                 beam_width_rad: 1.8_f64.to_radians(),
+                doppler_range_coupling_s: CTS350X_DOPPLER_RANGE_COUPLING_S,
             },
         }
     }
@@ -133,6 +142,12 @@ pub struct RadarParams {
     pub data_width: DataWidth,
     /// Beam width used to decide which features a beam sees, radians.
     pub beam_width_rad: f64,
+    /// FMCW range-Doppler coupling, seconds: a return closing on the radar at `v` m/s is
+    /// rendered `doppler_range_coupling_s x v` metres short (receding: long). A sawtooth
+    /// chirp's beat frequency adds the Doppler shift to the range's; 0.049 s for a CTS350-X,
+    /// 0 for the paper's unit. A client undoes it with its own estimate of the coupling
+    /// (the daemon's `[model] doppler_range_coupling_s`).
+    pub doppler_range_coupling_s: f64,
 }
 
 impl RadarParams {
@@ -206,6 +221,17 @@ impl RadarParams {
         {
             return bad("beam_width_deg", "must be in (0, 180) degrees".into());
         }
+        if !(self.doppler_range_coupling_s.is_finite()
+            && self.doppler_range_coupling_s.abs() <= 1.0)
+        {
+            return bad(
+                "doppler_range_coupling_s",
+                format!(
+                    "must be finite and in [-1, 1] s, got {}",
+                    self.doppler_range_coupling_s
+                ),
+            );
+        }
         Ok(())
     }
 
@@ -260,6 +286,15 @@ impl RadarParams {
     pub fn range_of_bin_m(&self, bin: usize) -> f64 {
         f64::from(self.range_gain) * (bin as f64) * self.bin_size_m()
             + f64::from(self.range_offset_m)
+    }
+
+    /// How much nearer than its range a return closing on the radar at `closing_mps`
+    /// (m/s; negative: receding) is rendered, metres: `doppler_range_coupling_s x
+    /// closing_mps`. For a static return seen from a vehicle moving forward at `speed`,
+    /// along a beam at bearing `b` (clockwise from forward), the closing speed is `speed x
+    /// cos(b)`.
+    pub fn doppler_range_shift_m(&self, closing_mps: f64) -> f64 {
+        self.doppler_range_coupling_s * closing_mps
     }
 
     /// The far end of the rendered range, metres.

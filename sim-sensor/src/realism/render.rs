@@ -26,7 +26,8 @@
 //! Per azimuth: the pose at the azimuth's own time; each candidate in its lists' buckets
 //! within the window (the list's offset plus its shell's margin) gets its exact range and
 //! offset from the beam's axis from that pose (movers at that time), its two-way antenna
-//! gain, its speckle draw (Swerling 2 and 4) and the receiver's gain at its range, and is
+//! gain, its speckle draw (Swerling 2 and 4) and the receiver's gain at its range (the
+//! range read short by the radar's range-Doppler coupling times its closing speed), and is
 //! deposited into the range line (split linearly between the two bins about it, which are
 //! marked as touched); the touched bins are convolved with the range kernel (each deposit
 //! only as far as its sidelobes matter, in loops of a few fixed lengths); a floor draw
@@ -188,6 +189,11 @@ struct Deposit<'a> {
     /// The beam's world direction.
     cphi: f64,
     sphi: f64,
+    /// The radar's range-Doppler coupling, seconds.
+    coupling_s: f64,
+    /// The coupling times the radar's world velocity, metres.
+    ux: f64,
+    uy: f64,
     inv_bin: f64,
     max_fb: f64,
 }
@@ -215,7 +221,12 @@ impl Deposit<'_> {
         }
         let g = rx.pattern_at(cross / along);
         let r = (px * px + py * py).sqrt();
-        let fb = (r - rx.first_bin_m) * self.inv_bin;
+        // Range-Doppler coupling: the return reads `coupling x closing speed` short, the
+        // closing speed being the relative velocity along the line of sight.
+        let shift = ((self.ux - self.coupling_s * c.vel[0]) * px
+            + (self.uy - self.coupling_s * c.vel[1]) * py)
+            / r;
+        let fb = (r - shift - rx.first_bin_m) * self.inv_bin;
         if g <= 0.0 || !(0.0..self.max_fb).contains(&fb) {
             return 0;
         }
@@ -407,6 +418,10 @@ impl RealisticCursor {
             wrap_angle(radar.angle_of_encoder(radar.encoder_of(azimuth_in_rotation(radar, index))));
         let phi = pose.theta - bearing;
         let (sphi, cphi) = phi.sin_cos();
+        // The radar moves forward at the scene's speed at this time.
+        let coupling_s = radar.doppler_range_coupling_s;
+        let forward = coupling_s * trajectory.controls_at(offset_ns).0;
+        let (sth, cth) = pose.theta.sin_cos();
         let rx = &model.receiver;
         let bins = out_db.len();
         // The line, the signal and the touched-bin marks are left zeroed by the azimuth
@@ -427,6 +442,9 @@ impl RealisticCursor {
             y: pose.y,
             cphi,
             sphi,
+            coupling_s,
+            ux: forward * cth,
+            uy: forward * sth,
             inv_bin: 1.0 / rx.bin_m,
             max_fb: (bins as f64 - 1.0).max(0.0),
         };
@@ -548,11 +566,14 @@ impl RealisticCursor {
         self.mid_offset_s = mid_t;
         let mut travel_m: f64 = 0.0;
         let mut turn_rad: f64 = 0.0;
+        let mut speed_mps: f64 = 0.0;
         for s in 0..=MOTION_SAMPLES {
             let k = first + n.saturating_sub(1) * s / MOTION_SAMPLES;
-            let p = trajectory.pose_with(cursor, crate::render::offset_ns(radar, k))?;
+            let offset_ns = crate::render::offset_ns(radar, k);
+            let p = trajectory.pose_with(cursor, offset_ns)?;
             travel_m = travel_m.max((p.x - mid.x).hypot(p.y - mid.y));
             turn_rad = turn_rad.max(wrap_angle(p.theta - mid.theta).abs());
+            speed_mps = speed_mps.max(trajectory.controls_at(offset_ns).0.abs());
         }
         // Movers move too: their candidates' bearings are bounded with the fastest one's
         // travel in half a rotation added.
@@ -566,6 +587,13 @@ impl RealisticCursor {
         travel_m = travel_m * 1.25 + 0.05;
         turn_rad = turn_rad * 1.25 + 1e-3;
         let shift_m = [travel_m, travel_m + fastest * half_rot_s];
+        // How far the range-Doppler coupling can move a return in range (the controls are
+        // piecewise constant between the samples, near enough: padded as the travel is).
+        let coupling_m = radar.doppler_range_coupling_s.abs() * 1.25;
+        let range_shift_m = [
+            shift_m[0] + coupling_m * speed_mps,
+            shift_m[1] + coupling_m * (speed_mps + fastest),
+        ];
         let reach = radar.max_range_m() + travel_m + 1.0;
         let o = [mid.x, mid.y];
         let w = &model.world;
@@ -826,7 +854,7 @@ impl RealisticCursor {
 
         // 4. Lists by how far off the beam's axis each candidate still matters (its largest
         // deposit: its power, the receiver's largest gain within the distance the motion
-        // can move it in range, the largest speckle draw), by whether it moves, and by
+        // and the range-Doppler coupling can move it in range, the largest speckle draw), by whether it moves, and by
         // range shell: the bearing of a candidate at range `r` from the middle pose moves
         // by at most `turn + asin(shift / r)` during the rotation. Within a list the
         // candidates are grouped by bearing bucket (a counting sort, no comparisons).
@@ -850,7 +878,7 @@ impl RealisticCursor {
         // A deposit of `power` (integer units on the beam's axis) stays negligible beyond
         // a tier's tangent when `power < threshold`.
         let thresholds = tier_tans.map(|t| rx.pattern_threshold(t));
-        let envelopes = shift_m.map(|shift| rx.gain_envelope(shift));
+        let envelopes = range_shift_m.map(|shift| rx.gain_envelope(shift));
         self.always.clear();
         self.keys.clear();
         self.starts.clear();

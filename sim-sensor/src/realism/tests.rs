@@ -286,3 +286,69 @@ fn the_windowed_candidate_lists_render_what_testing_every_candidate_renders() {
         "{differ} of {bins} bins differ (worst {worst} dB)"
     );
 }
+
+/// The lag (metres, positive: `b` further) that best aligns `b`'s levels with `a`'s within
+/// 40 bins of `range_m`, to a bin.
+fn range_lag_m(a: &[f64], b: &[f64], range_m: f64) -> f64 {
+    let c = bin(range_m);
+    let ssd = |lag: i64| -> f64 {
+        (c - 40..=c + 40)
+            .map(|i| {
+                let j = (i as i64 + lag) as usize;
+                (a[i] - b[j]).powi(2)
+            })
+            .sum()
+    };
+    let best = (-20..=20)
+        .min_by(|&x, &y| ssd(x).total_cmp(&ssd(y)))
+        .expect("lags");
+    best as f64 * 0.0438
+}
+
+/// Azimuths 0 (dead ahead at t = 0), 100 (abeam to the right at 0.0625 s) and 200 (behind
+/// at 0.125 s) of `body` from a vehicle driving along +x at `speed` from the origin, with
+/// the preset's range-Doppler coupling and without it.
+fn with_and_without_coupling(body: &str, speed: f64) -> [Vec<Vec<f64>>; 2] {
+    let drive = format!("[[control]]\nt_s = 0.0\nspeed_mps = {speed}\nsteer_rad = 0.0\n{body}");
+    let with = scene(STEADY, &drive);
+    assert_eq!(with.radar.doppler_range_coupling_s, 0.049);
+    let text = format!("{HEAD}doppler_range_coupling_s = 0.0\n[realism]\n{STEADY}\n{drive}");
+    let without = Scene::from_toml_str("test", &text).expect("scene");
+    [with, without].map(|s| render_many(&s, [0u64, 100, 200].into_iter()))
+}
+
+#[test]
+fn the_range_doppler_coupling_renders_returns_ahead_short_and_behind_long() {
+    // At 8 m/s the vehicle is at x = 0.5 m for azimuth 100 and 1 m for azimuth 200.
+    let body = "[[features]]\nkind = \"reflector\"\nx_m = 20.0\ny_m = 0.0\nrho = 0.002\n\
+                [[features]]\nkind = \"reflector\"\nx_m = 0.5\ny_m = -20.0\nrho = 0.002\n\
+                [[features]]\nkind = \"reflector\"\nx_m = -19.0\ny_m = 0.0\nrho = 0.002\n";
+    let [with, without] = with_and_without_coupling(body, 8.0);
+    let ahead = range_lag_m(&without[0], &with[0], 20.0);
+    let abeam = range_lag_m(&without[1], &with[1], 20.0);
+    let behind = range_lag_m(&without[2], &with[2], 20.0);
+    println!("moved by the coupling: ahead {ahead:.3} m, abeam {abeam:.3} m, behind {behind:.3} m");
+    // 0.049 s x 8 m/s = 0.392 m.
+    assert!((ahead + 0.392).abs() < 0.03, "{ahead}");
+    assert!((behind - 0.392).abs() < 0.03, "{behind}");
+    assert_eq!(abeam, 0.0);
+    // Stopped, nothing moves: the renderings are identical.
+    let [with, without] = with_and_without_coupling(body, 0.0);
+    assert_eq!(with, without);
+}
+
+#[test]
+fn a_moving_vehicle_is_shifted_by_its_speed_relative_to_the_radar() {
+    // A vehicle 30 m ahead driving away at 8 m/s: from a still radar it recedes (rendered
+    // 0.392 m long); from a radar following it at 8 m/s it keeps its distance (unmoved).
+    let body = "[[objects]]\nkind = \"vehicle\"\nat = [30.0, 0.0]\nspeed_mps = 8.0\n";
+    let [with, without] = with_and_without_coupling(body, 0.0);
+    let still = range_lag_m(&without[0], &with[0], 30.0);
+    let [with, without] = with_and_without_coupling(body, 8.0);
+    let following = range_lag_m(&without[0], &with[0], 30.0);
+    println!(
+        "a vehicle receding at 8 m/s moved by {still:.3} m; followed at 8 m/s by {following:.3} m"
+    );
+    assert!((still - 0.392).abs() < 0.03, "{still}");
+    assert_eq!(following, 0.0);
+}

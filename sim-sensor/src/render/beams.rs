@@ -33,6 +33,24 @@ struct Candidate {
     apparent: [f64; 2],
 }
 
+/// A feature inside a beam.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Hit {
+    /// True range from the azimuth's pose to the feature's apparent position, metres.
+    pub range_m: f64,
+    /// The feature's index in the scene.
+    pub index: usize,
+    /// How much nearer the radar's range-Doppler coupling renders it, metres.
+    pub doppler_shift_m: f64,
+}
+
+impl Hit {
+    /// The range its return is rendered at, metres.
+    pub fn rendered_range_m(&self) -> f64 {
+        self.range_m - self.doppler_shift_m
+    }
+}
+
 /// One client's beam selection state: the current rotation's candidates and the last hits.
 #[derive(Debug, Default)]
 pub(crate) struct BeamSelector {
@@ -42,8 +60,8 @@ pub(crate) struct BeamSelector {
     margin_rad: f64,
     /// Occluding segments near the current rotation.
     occluders: Vec<[[f64; 2]; 2]>,
-    /// `(range_m, feature index)` of the last selected beam, nearest first.
-    pub(super) hits: Vec<(f64, usize)>,
+    /// The features in the last selected beam, nearest (by true range) first.
+    pub(super) hits: Vec<Hit>,
 }
 
 impl BeamSelector {
@@ -60,7 +78,13 @@ impl BeamSelector {
         if self.rotation != Some(rotation) {
             self.prepare_rotation(r, trajectory, rotation)?;
         }
-        let pose = r.trajectory.pose_with(trajectory, r.offset_ns(index))?;
+        let offset_ns = r.offset_ns(index);
+        let pose = r.trajectory.pose_with(trajectory, offset_ns)?;
+        // The features are static: each closes on the radar at the vehicle's forward speed
+        // times the cosine of its bearing.
+        let coupling_m = r
+            .radar
+            .doppler_range_shift_m(r.trajectory.controls_at(offset_ns).0);
         let bearing = r
             .radar
             .angle_of_encoder(r.radar.encoder_of(azimuth_in_rotation(&r.radar, index)));
@@ -72,10 +96,18 @@ impl BeamSelector {
         };
         self.hits.clear();
         let half = 0.5 * beam.width_rad + self.margin_rad;
-        let test = |c: &Candidate, hits: &mut Vec<(f64, usize)>| {
+        let test = |c: &Candidate, hits: &mut Vec<Hit>| {
             let rb = range_bearing(&pose, c.apparent);
             if beam.contains(&rb) {
-                hits.push((rb.range_m, c.index));
+                hits.push(Hit {
+                    range_m: rb.range_m,
+                    index: c.index,
+                    doppler_shift_m: if coupling_m == 0.0 {
+                        0.0
+                    } else {
+                        coupling_m * rb.bearing_rad.cos()
+                    },
+                });
             }
         };
         for c in &self.near {
@@ -85,7 +117,7 @@ impl BeamSelector {
             test(c, &mut self.hits)
         });
         self.hits
-            .sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            .sort_by(|a, b| a.range_m.total_cmp(&b.range_m).then(a.index.cmp(&b.index)));
         Ok(pose)
     }
 

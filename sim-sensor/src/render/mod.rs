@@ -266,8 +266,10 @@ impl RenderCursor {
             .pose_with(&mut self.trajectory, offset_ns)
     }
 
-    /// Features inside the beam of azimuth `index`, sorted by range, as `(range_m, feature
-    /// id)`; the apparent (bearing-perturbed) positions are used, as for rendering.
+    /// Features inside the beam of azimuth `index`, sorted by true range, as `(range_m,
+    /// feature id)`; the apparent (bearing-perturbed) positions are used, as for rendering,
+    /// and the range is the one the return is rendered at (less the radar's range-Doppler
+    /// shift, [`RadarParams::doppler_range_coupling_s`]).
     pub fn features_in_beam(&mut self, index: u64) -> Result<Vec<(f64, u32)>, SimError> {
         self.beams
             .select(&self.renderer, &mut self.trajectory, index)?;
@@ -275,7 +277,12 @@ impl RenderCursor {
             .beams
             .hits
             .iter()
-            .map(|&(r, i)| (r, self.renderer.ids.get(i).copied().unwrap_or(u32::MAX)))
+            .map(|h| {
+                (
+                    h.rendered_range_m(),
+                    self.renderer.ids.get(h.index).copied().unwrap_or(u32::MAX),
+                )
+            })
             .collect())
     }
 
@@ -315,12 +322,14 @@ impl RenderCursor {
             .select(&self.renderer, &mut self.trajectory, index)?;
         let r = &*self.renderer;
         self.targets.clear();
-        for &(range_m, i) in &self.beams.hits {
-            if let Some(material) = r.materials.get(i) {
+        let mut shifts = false;
+        for h in &self.beams.hits {
+            if let Some(material) = r.materials.get(h.index) {
                 self.targets.push(PowerTarget {
-                    range_m,
+                    range_m: h.range_m,
                     material: *material,
                 });
+                shifts |= h.doppler_shift_m != 0.0;
             }
         }
         beam_spectrum_targets(
@@ -330,6 +339,18 @@ impl RenderCursor {
             &mut self.spectrum_targets,
         )
         .map_err(|e| SimError::Model(e.to_string()))?;
+        // The power is the true range's; the peak sits where the range-Doppler coupling
+        // puts it.
+        if shifts {
+            let with_material = self
+                .beams
+                .hits
+                .iter()
+                .filter(|h| r.materials.get(h.index).is_some());
+            for (t, h) in self.spectrum_targets.iter_mut().zip(with_material) {
+                t.range_m -= h.doppler_shift_m;
+            }
+        }
         if r.noise_enabled {
             let mut rng = ChaCha8Rng::seed_from_u64(r.seed);
             rng.set_stream(index);
@@ -378,6 +399,130 @@ mod tests {
     use super::*;
     use crate::scene::shipped;
     use radar_model::geometry::{range_bearing, wrap_angle, Beam};
+
+    /// Point targets 20 m dead ahead of azimuth 0, abeam to the right of azimuth 100 and
+    /// behind azimuth 200 (a 400-azimuth radar at 4 Hz) of a vehicle driving along +x from
+    /// the origin at `speed` (x = 0.5 m at azimuth 100 and 1 m at 200 for 8 m/s), noise
+    /// off; `radar` is the `[radar]` section.
+    fn three_targets(radar: &str, speed: f64) -> Scene {
+        let x = |t: f64| speed * t;
+        Scene::from_toml_str(
+            "doppler",
+            &format!(
+                "[radar]\n{radar}\n[noise]\nenabled = false\n\
+                 [[control]]\nt_s = 0.0\nspeed_mps = {speed}\nsteer_rad = 0.0\n\
+                 [[features]]\nkind = \"reflector\"\nx_m = 20.0\ny_m = 0.0\n\
+                 [[features]]\nkind = \"reflector\"\nx_m = {}\ny_m = -20.0\n\
+                 [[features]]\nkind = \"reflector\"\nx_m = {}\ny_m = 0.0\n",
+                x(0.0625),
+                x(0.125) - 20.0
+            ),
+        )
+        .expect("scene")
+    }
+
+    /// Renders azimuths 0, 100 and 200: each one's spectrum (dB) and its targets' ranges.
+    fn render_three(scene: &Scene) -> Vec<(Vec<f64>, Vec<f64>)> {
+        let renderer = Arc::new(SceneRenderer::new(scene, None, 10.0).expect("renderer"));
+        let mut cursor = renderer.cursor();
+        let mut frame = BytesMut::new();
+        [0u64, 100, 200]
+            .into_iter()
+            .map(|k| {
+                let ranges = cursor
+                    .features_in_beam(k)
+                    .expect("beam")
+                    .into_iter()
+                    .map(|(r, _)| r)
+                    .collect();
+                frame.clear();
+                cursor
+                    .render(k, 0, Timestamp::EPOCH, &mut frame)
+                    .expect("render");
+                (cursor.last_power_db().to_vec(), ranges)
+            })
+            .collect()
+    }
+
+    /// Where the spectrum peaks within 2 m of `range_m`, metres (three-point interpolation).
+    fn peak_m(db: &[f64], bin_m: f64, range_m: f64) -> f64 {
+        let c = (range_m / bin_m).round() as usize;
+        let reach = (2.0 / bin_m) as usize;
+        let b = (c - reach..=c + reach)
+            .max_by(|&i, &j| db[i].total_cmp(&db[j]))
+            .expect("bins");
+        let (l, m, r) = (db[b - 1], db[b], db[b + 1]);
+        let d = 0.5 * (l - r) / (l - 2.0 * m + r);
+        (b as f64 + d) * bin_m
+    }
+
+    #[test]
+    fn the_cts350x_renders_point_targets_ahead_short_behind_long_and_abeam_unmoved() {
+        let with = render_three(&three_targets("preset = \"cts350x-400\"", 8.0));
+        let without = render_three(&three_targets(
+            "preset = \"cts350x-400\"\ndoppler_range_coupling_s = 0.0",
+            8.0,
+        ));
+        let moved: Vec<f64> = with
+            .iter()
+            .zip(&without)
+            .map(|(w, o)| peak_m(&w.0, 0.0438, 20.0) - peak_m(&o.0, 0.0438, 20.0))
+            .collect();
+        println!("peaks moved by the coupling (ahead, abeam, behind): {moved:?} m");
+        // 0.049 s x 8 m/s = 0.392 m.
+        assert!((moved[0] + 0.392).abs() < 0.01, "{moved:?}");
+        assert!(moved[1].abs() < 1e-9, "{moved:?}");
+        assert!((moved[2] - 0.392).abs() < 0.01, "{moved:?}");
+        // The targets in the beam are reported where they are rendered.
+        let reported: Vec<f64> = with.iter().map(|w| w.1[0]).collect();
+        for (r, expected) in reported.iter().zip([20.0 - 0.392, 20.0, 20.0 + 0.392]) {
+            assert!((r - expected).abs() < 1e-6, "{reported:?}");
+        }
+    }
+
+    #[test]
+    fn a_still_vehicle_and_the_paper_unit_render_no_range_doppler_shift() {
+        let still = render_three(&three_targets("preset = \"cts350x-400\"", 0.0));
+        let still_without = render_three(&three_targets(
+            "preset = \"cts350x-400\"\ndoppler_range_coupling_s = 0.0",
+            0.0,
+        ));
+        assert_eq!(still, still_without);
+        // The paper's unit: no coupling; its targets sit at their true ranges while moving.
+        assert_eq!(
+            crate::radar::RadarPreset::Paper200
+                .params()
+                .doppler_range_coupling_s,
+            0.0
+        );
+        let paper = three_targets(
+            "preset = \"paper-200\"\nazimuths = 400\nrotation_hz = 4.0",
+            8.0,
+        );
+        for (_, ranges) in render_three(&paper) {
+            assert!((ranges[0] - 20.0).abs() < 1e-9, "{ranges:?}");
+        }
+    }
+
+    #[test]
+    fn the_coupling_is_overridable_and_validated_in_a_scene_file() {
+        let s = three_targets(
+            "preset = \"paper-200\"\ndoppler_range_coupling_s = 0.03",
+            1.0,
+        );
+        assert_eq!(s.radar.doppler_range_coupling_s, 0.03);
+        for bad in ["1.5", "-1.01", "nan", "inf"] {
+            let err = Scene::from_toml_str(
+                "bad",
+                &format!("[radar]\npreset = \"cts350x-400\"\ndoppler_range_coupling_s = {bad}\n"),
+            )
+            .expect_err(bad);
+            assert!(
+                err.to_string().contains("radar.doppler_range_coupling_s"),
+                "{bad}: {err}"
+            );
+        }
+    }
 
     #[test]
     fn the_windowed_search_finds_exactly_what_a_full_scan_finds_on_a_moving_vehicle() {

@@ -62,6 +62,7 @@ struct RawRadar {
     range_offset_m: Option<f32>,
     data_width: Option<u32>,
     beam_width_deg: Option<f64>,
+    doppler_range_coupling_s: Option<f64>,
 }
 
 impl Default for RawRadar {
@@ -77,6 +78,7 @@ impl Default for RawRadar {
             range_offset_m: None,
             data_width: None,
             beam_width_deg: None,
+            doppler_range_coupling_s: None,
         }
     }
 }
@@ -214,6 +216,9 @@ impl RawRadar {
         }
         if let Some(deg) = self.beam_width_deg {
             p.beam_width_rad = deg.to_radians();
+        }
+        if let Some(v) = self.doppler_range_coupling_s {
+            p.doppler_range_coupling_s = v;
         }
         p.validate()?;
         Ok(p)
