@@ -419,16 +419,17 @@ fn pair_spec(
 
 /// The daemon's settings for the realistic street: the front end for current units
 /// (`slam_node::daemon::replay::recorded_settings_for`: learned floor and gain, only
-/// point-like returns mapped, the landmark noise measured on the Oxford scans), then the
-/// simulator's adjustments the evaluation always makes (`crate::daemon::scene_settings`).
+/// point-like returns mapped, the landmark noise measured on the Oxford scans) with the
+/// simulated radar's range-Doppler coupling, then the simulator's adjustments the
+/// evaluation always makes (`crate::daemon::scene_settings`).
 pub fn street_settings(scene: &Scene) -> Result<PipelineSettings, EvalError> {
     let shipped = crate::daemon::shipped_settings()?;
     let bin_m = f64::from(scene.radar.range_gain) * scene.radar.bin_size_m();
-    Ok(slam_node::daemon::replay::recorded_settings_for(
-        shipped,
-        scene.radar.max_range_m(),
-        bin_m,
-    ))
+    let mut settings =
+        slam_node::daemon::replay::recorded_settings_for(shipped, scene.radar.max_range_m(), bin_m);
+    // The simulated CTS350-X renders its range-Doppler coupling; the daemon corrects it.
+    settings.doppler_range_coupling_s = scene.radar.doppler_range_coupling_s;
+    Ok(settings)
 }
 
 fn street_spec(

@@ -46,7 +46,8 @@ impl EmbeddedSim {
 }
 
 /// The daemon's settings for running against the simulator's `scene`: its motion model, its
-/// receiver's compensation (unless `keep_compensation`), its beam and bins, its start pose.
+/// receiver's compensation (unless `keep_compensation`), its beam and bins, its range-Doppler
+/// coupling, its start pose.
 pub fn embedded_settings(
     mut settings: PipelineSettings,
     scene: &sim_sensor::scene::Scene,
@@ -70,6 +71,18 @@ pub fn embedded_settings(
         settings.compensation = Compensation::calibrated(slope, &RadarConstants::default());
     }
     settings.beam_width_rad = scene.radar.beam_width_rad;
+    // The simulated radar's range-Doppler coupling is known exactly too (0 for the paper's
+    // unit, a CTS350-X's 0.049 s): detections are corrected with it, as a real unit's
+    // would be with its chirp's.
+    let coupling_s = scene.radar.doppler_range_coupling_s;
+    if coupling_s != settings.doppler_range_coupling_s {
+        info!(
+            scene_s = coupling_s,
+            configured_s = settings.doppler_range_coupling_s,
+            "using the simulated radar's range-Doppler coupling"
+        );
+        settings.doppler_range_coupling_s = coupling_s;
+    }
     // The simulator draws each peak one bin wide (FWHM).
     settings.noise.range.resolution_fwhm_m =
         f64::from(scene.radar.range_gain) * scene.radar.bin_size_m();
@@ -310,4 +323,26 @@ pub(super) async fn start_replay(
         odometry: Some(Box::new(MemoryOdometry::new(samples))),
         replay: Some(figures),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The simulated radar's range-Doppler coupling replaces the configured one: a
+    /// CTS350-X scene's 0.049 s whatever the configuration says, the paper's unit's 0.
+    #[test]
+    fn the_daemon_corrects_the_range_doppler_coupling_the_simulated_radar_renders() {
+        let mut configured =
+            PipelineSettings::from_config(&config::Config::default()).expect("defaults");
+        configured.doppler_range_coupling_s = 0.02;
+        let cts = sim_sensor::scene::shipped::load("long-loop").expect("shipped scene");
+        let paper = sim_sensor::scene::shipped::load("outdoor-field").expect("shipped scene");
+        assert_eq!(cts.radar.doppler_range_coupling_s, 0.049);
+        let s = embedded_settings(configured.clone(), &cts, false);
+        assert_eq!(s.doppler_range_coupling_s, 0.049);
+        assert_eq!(s.front_end().doppler_range_coupling_s, 0.049);
+        let s = embedded_settings(configured, &paper, false);
+        assert_eq!(s.doppler_range_coupling_s, 0.0);
+    }
 }
