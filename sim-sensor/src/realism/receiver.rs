@@ -32,7 +32,7 @@ pub const FLOOR_QUANTILES: usize = 1024;
 pub const SPECKLE_QUANTILES: usize = 4096;
 /// Entries of the output table (integer powers below this are looked up; 32 KiB, so it
 /// stays in the first-level cache).
-const DB_TABLE: usize = 1 << 12;
+pub(crate) const DB_TABLE: usize = 1 << 12;
 /// Entries of the antenna pattern table.
 const PATTERN_ENTRIES: usize = 8192;
 /// The antenna table reaches this many two-way widths off axis.

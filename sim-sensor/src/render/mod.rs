@@ -8,6 +8,7 @@
 //! Every random draw is a pure function of the scene's seed and the azimuth's (or
 //! rotation's) index, so all clients see identical spectra and a run is reproducible.
 
+use std::cell::OnceCell;
 use std::sync::Arc;
 
 use bytes::BytesMut;
@@ -220,6 +221,7 @@ impl SceneRenderer {
             power_db: vec![0.0; usize::from(self.radar.range_bins)],
             wire: Vec::new(),
             realistic: Box::default(),
+            realistic_db: OnceCell::new(),
         }
     }
 }
@@ -256,6 +258,8 @@ pub struct RenderCursor {
     /// The realistic renderer's bins as the wire carries them.
     wire: Vec<u8>,
     realistic: Box<RealisticCursor>,
+    /// The realistic renderer's last levels in dB, computed when first asked for.
+    realistic_db: OnceCell<Vec<f64>>,
 }
 
 impl RenderCursor {
@@ -306,9 +310,11 @@ impl RenderCursor {
                 r.seed,
                 index,
                 width,
-                &mut self.power_db,
+                self.power_db.len(),
                 &mut self.wire,
             )?;
+            // The levels in dB only when asked for (`last_power_db`).
+            self.realistic_db = OnceCell::new();
             let encoder = r.radar.encoder_of(azimuth_in_rotation(&r.radar, index));
             encode_fft_frame(dst, width, sweep_counter, encoder, timestamp, &self.wire)
                 .map_err(|e| SimError::Model(format!("encoding azimuth {index}: {e}")))?;
@@ -383,9 +389,17 @@ impl RenderCursor {
         self.realistic.test_every_candidate();
     }
 
-    /// The last rendered spectrum in dB (before quantisation).
+    /// The last rendered spectrum in dB (before quantisation; the realistic renderer's
+    /// output levels).
     pub fn last_power_db(&self) -> &[f64] {
-        &self.power_db
+        match &self.renderer.realistic {
+            Some(model) => self.realistic_db.get_or_init(|| {
+                let mut db = vec![0.0; self.power_db.len()];
+                self.realistic.levels_db(&model.receiver, &mut db);
+                db
+            }),
+            None => &self.power_db,
+        }
     }
 }
 
