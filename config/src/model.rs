@@ -136,9 +136,9 @@ pub struct RawModel {
     pub noise_floor_weibull_shape: f64,
     /// FMCW range-Doppler coupling, s in `[-1, 1]`: a return closing on the radar at `v` m/s
     /// reads `v` times this many metres short, so each detection's range is corrected by
-    /// it with the vehicle's speed along the beam. Default 0 (the simulator renders no
-    /// Doppler shift); a Navtech CTS350-X's sawtooth chirp gives about 0.049 (Burnett et
-    /// al., 2021, measured on the Oxford Radar RobotCar scans).
+    /// it with the vehicle's speed along the beam. Default 0 (the paper's unit); a Navtech
+    /// CTS350-X's sawtooth chirp gives about 0.049 (Burnett et al., 2021, on the Oxford Radar
+    /// RobotCar scans). Against the embedded simulator the scene radar's own value is used.
     pub doppler_range_coupling_s: f64,
 }
 
