@@ -18,27 +18,7 @@ use sim_sensor::render::SceneRenderer;
 use sim_sensor::scene::{shipped, Scene};
 
 /// The benchmark's grid (`benches/realistic.rs`).
-const GRID: &str = r#"
-name = "street-grid-100k"
-seed = 3
-[radar]
-preset = "cts350x-400"
-[realism]
-[street]
-seed = 17
-blocks_x = 4
-blocks_y = 4
-block_x_m = 100.0
-block_y_m = 60.0
-origin_x_m = -120.0
-moving_vehicles = 12
-street_clutter_per_m2 = 0.6
-block_clutter_per_m2 = 0.3
-[[control]]
-t_s = 0.0
-speed_mps = 9.0
-steer_rad = 0.0
-"#;
+const GRID: &str = include_str!("../benches/street-grid-100k.toml");
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
