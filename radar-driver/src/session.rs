@@ -11,7 +11,12 @@
 //!
 //! Watchdog: the link is declared dead when no whole frame (of any type) has been decoded
 //! for `watchdog_timeout`. Bytes alone do not count, so a peer trickling bytes that never
-//! complete a frame is reconnected like a silent one.
+//! complete a frame is reconnected like a silent one. The clock alone does not decide: when
+//! the deadline passes, whatever the socket already holds is read and decoded first, and
+//! only if it holds nothing (or nothing that completes a frame) is the link dead. A process
+//! that was itself frozen (stopped, descheduled, stalled) for longer than the watchdog finds
+//! the radar's frames waiting in its receive buffer on resume: the link is alive and they
+//! are kept, not thrown away with a reconnection.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -201,6 +206,14 @@ impl SessionState {
                 () = shutdown.triggered() => return Ok(SessionEnd::Shutdown),
                 () = &mut expiry => None,
                 r = stream.read_buf(&mut buf) => Some(r),
+            };
+            let read = match read {
+                // The deadline has passed (and stays passed until a frame decodes): judge the
+                // link by what can be read now. Bytes already in the socket are read and
+                // decoded below; the next turn of the loop comes back here until a frame
+                // decodes (the watchdog is re-armed) or nothing is left (the link is dead).
+                None if bytes_waiting(stream) => Some(stream.read_buf(&mut buf).await),
+                other => other,
             };
             let n = match read {
                 None => {
@@ -461,6 +474,17 @@ impl SessionState {
             self.metrics.add_rotations_delivered(1);
         }
         self.metrics.add_rotation_drops(delivery.dropped());
+    }
+}
+
+/// Whether the socket's receive buffer holds bytes (or the peer's close) now, asked of the
+/// kernel without waiting and without tokio's cached readiness, which may not yet have seen
+/// what arrived while this process was not running.
+fn bytes_waiting(stream: &TcpStream) -> bool {
+    let mut probe = [std::mem::MaybeUninit::<u8>::uninit(); 1];
+    match socket2::SockRef::from(stream).peek(&mut probe) {
+        Ok(_) => true, // a byte, or 0 for the peer's close: the read reports it
+        Err(e) => e.kind() != std::io::ErrorKind::WouldBlock, // an error: the read reports it
     }
 }
 
