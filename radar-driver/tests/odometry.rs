@@ -148,3 +148,67 @@ async fn the_configured_source_is_opened_from_the_odometry_section() {
             .is_none()
     );
 }
+
+// The pipeline polls its odometry with a zero timeout for every azimuth. On a loaded machine
+// (every core busy) such a poll must answer at once: crossbeam's recv_timeout spins and then
+// yields the thread four times before it looks at its deadline, and each yield hands the
+// core to a busy thread for a scheduler slice (11.5 ms an azimuth: the README's first command
+// took 43 s instead of about 12 on one contended core). Here every core is kept busy by
+// spinning threads while 50 zero-timeout polls of a connected, silent source are timed
+// (before: 1.7 s and more; each poll gave the core away four times).
+#[test]
+fn a_zero_timeout_poll_of_a_silent_tcp_source_answers_at_once_on_a_busy_machine() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()
+        .unwrap();
+    let listener = runtime.block_on(TcpListener::bind("127.0.0.1:0")).unwrap();
+    let settings = TcpOdometrySettings::new(listener.local_addr().unwrap());
+    let (trigger, shutdown) = shutdown_pair();
+    let mut src = TcpOdometry::spawn(runtime.handle(), settings, shutdown);
+    // Connected, header sent, then silent.
+    let _conn = runtime.block_on(async {
+        let (mut conn, _) = tokio::time::timeout(STEP, listener.accept())
+            .await
+            .unwrap()
+            .unwrap();
+        conn.write_all(format!("{ODOMETRY_HEADER}\n").as_bytes())
+            .await
+            .unwrap();
+        conn
+    });
+    let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+    let stop = Arc::new(AtomicBool::new(false));
+    let busy: Vec<_> = (0..2 * cores)
+        .map(|_| {
+            let stop = Arc::clone(&stop);
+            std::thread::spawn(move || {
+                let deadline = std::time::Instant::now() + BOUND;
+                while !stop.load(Ordering::Relaxed) && std::time::Instant::now() < deadline {
+                    std::hint::spin_loop();
+                }
+            })
+        })
+        .collect();
+    std::thread::sleep(Duration::from_millis(50));
+    let started = std::time::Instant::now();
+    for _ in 0..50 {
+        assert_eq!(
+            src.poll_next(Duration::ZERO).unwrap(),
+            OdometryPoll::Pending
+        );
+    }
+    let took = started.elapsed();
+    stop.store(true, Ordering::Relaxed);
+    for b in busy {
+        b.join().unwrap();
+    }
+    trigger.trigger();
+    assert!(
+        took < Duration::from_millis(100),
+        "50 zero-timeout polls took {took:?} on a busy machine"
+    );
+}

@@ -120,7 +120,7 @@ impl Drop for TcpOdometry {
 
 impl OdometrySource for TcpOdometry {
     fn poll_next(&mut self, timeout: Duration) -> Result<OdometryPoll, OdometryError> {
-        match self.rx.recv_timeout(timeout) {
+        match super::recv_within(&self.rx, timeout) {
             Ok(Ok(record)) => Ok(OdometryPoll::Record(record)),
             Ok(Err(e)) => Err(e),
             Err(RecvTimeoutError::Timeout) => Ok(OdometryPoll::Pending),
