@@ -9,7 +9,10 @@
 //! half second): records stamped at or before the newest one taken, by at most
 //! [`ODOMETRY_REPLAY_WINDOW_S`], are dropped as duplicates (counted, logged at most once per
 //! 5 s of stream) without touching the stream's clock or the odometry held. A step back
-//! beyond that window is a clock that jumped: refused until confirmed, then resynchronised.
+//! beyond that window is a clock that jumped: refused until confirmed, then resynchronised
+//! with the pending records dropped (they lie ahead of the new clock). A step forward past
+//! the clock's limit (records missing) is confirmed the same way, and the pending records,
+//! earlier than the new clock, are kept.
 
 use slam_filter::{Ekf, OdometrySample, ProcessModel};
 use tracing::{info, warn};
@@ -181,12 +184,27 @@ impl OdometryGate {
         match self.clock.observe(s.timestamp_s) {
             Verdict::Accept => Ok(()),
             Verdict::Outlier => Err(OdometryRejection::WildTime),
-            Verdict::Jump { from_s, to_s } => {
+            Verdict::Jump { from_s, to_s } if to_s < from_s => {
+                // Back: the pending records lie ahead of the new clock.
                 warn!(
                     from_s,
-                    to_s, "odometry clock jumped: pending records dropped, clock resynchronised"
+                    to_s,
+                    "odometry clock jumped back: pending records dropped, clock resynchronised"
                 );
                 self.queue.reset();
+                self.last_accepted = None;
+                self.clock_jumps += 1;
+                Ok(())
+            }
+            Verdict::Jump { from_s, to_s } => {
+                // Forward (records missing, or the sender's clock set ahead): the pending
+                // records were taken on the old clock and come before the new ones in time,
+                // so they stay; dropping them refused every beam up to the new clock.
+                warn!(
+                    from_s,
+                    to_s,
+                    "odometry clock jumped forward: clock resynchronised, pending records kept"
+                );
                 self.last_accepted = None;
                 self.clock_jumps += 1;
                 Ok(())
