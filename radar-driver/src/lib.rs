@@ -8,6 +8,8 @@
 //!   set in one place from the `[radar]` settings.
 //! - [`session`]: one connection: read the configuration (10), request data (21 or 140),
 //!   decode, hand off; a keep-alive watchdog declares a silent link dead.
+//! - [`liveness`]: how the watchdog and the odometry link's idle timeout judge a silence:
+//!   by what the socket holds, and with a moment more after this process was not running.
 //! - [`driver`]: reconnection with exponential backoff and jitter, forever by default;
 //!   session state (counters, rotation assembly, geometry) survives reconnections; a
 //!   cancellation handle stops it cleanly (stop FFT data, 22, before closing).
@@ -47,6 +49,7 @@ pub mod clock;
 pub mod driver;
 pub mod error;
 pub mod handoff;
+pub mod liveness;
 pub mod metrics;
 pub mod odometry;
 pub mod ratelimit;

@@ -11,7 +11,14 @@
 //!
 //! Watchdog: the link is declared dead when no whole frame (of any type) has been decoded
 //! for `watchdog_timeout`. Bytes alone do not count, so a peer trickling bytes that never
-//! complete a frame is reconnected like a silent one.
+//! complete a frame is reconnected like a silent one. The clock alone does not decide
+//! ([`crate::liveness`]): when the deadline passes, whatever the socket already holds is
+//! read and decoded first, and only if it holds nothing (or nothing that completes a frame)
+//! is the link dead. A process that was itself frozen (stopped, descheduled, stalled) for
+//! longer than the watchdog finds the radar's frames waiting in its receive buffer on
+//! resume: the link is alive and they are kept, not thrown away with a reconnection. A
+//! deadline noticed late with nothing waiting gives the radar a moment more
+//! ([`crate::liveness::RESUME_GRACE`]): one frozen with this process has not sent yet.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -29,6 +36,7 @@ use crate::budget::AZIMUTH_OVERHEAD_BYTES;
 use crate::clock::Clock;
 use crate::error::{ErrorChain, SessionError};
 use crate::handoff::{Shed, Sink};
+use crate::liveness::{bytes_waiting, resume_grace};
 use crate::metrics::{DecodeErrorKind, Metrics};
 use crate::ratelimit::RateLimiter;
 use crate::record::Recorder;
@@ -201,6 +209,27 @@ impl SessionState {
                 () = shutdown.triggered() => return Ok(SessionEnd::Shutdown),
                 () = &mut expiry => None,
                 r = stream.read_buf(&mut buf) => Some(r),
+            };
+            let read = match read {
+                // The deadline has passed (and stays passed until a frame decodes): judge the
+                // link by what can be read now. Bytes already in the socket are read and
+                // decoded below; the next turn of the loop comes back here until a frame
+                // decodes (the watchdog is re-armed) or nothing is left (the link is dead).
+                None if bytes_waiting(stream) => Some(stream.read_buf(&mut buf).await),
+                // Nothing waiting, but the deadline was noticed late: this process was not
+                // running, and a radar frozen with it has not sent yet. A moment more.
+                None => match resume_grace(expiry.deadline(), watchdog) {
+                    Some(grace) => {
+                        tracing::debug!(
+                            ?grace,
+                            "watchdog deadline noticed late (this process was not running): waiting a moment for the radar"
+                        );
+                        expiry.as_mut().reset(tokio::time::Instant::now() + grace);
+                        continue;
+                    }
+                    None => None,
+                },
+                other => other,
             };
             let n = match read {
                 None => {

@@ -397,3 +397,171 @@ async fn a_peer_trickling_bytes_that_never_complete_a_frame_is_declared_dead_and
     assert!(m.bytes > m.frames, "bytes kept arriving: {m:?}");
     trickle.abort();
 }
+
+/// A radar on a thread of its own (blocking sockets), so that it goes on sending while the
+/// driver's runtime is frozen: the configuration, then, once the client has answered it,
+/// FFT frames `0..count`, one every `every`, holding back while `paused` is set (a radar
+/// frozen with the driver, as the simulator in the daemon's process is). It holds the
+/// connection open until `done` fires (or `BOUND` passes) and returns how many connections
+/// it accepted.
+fn radar_on_its_own_thread(
+    listener: std::net::TcpListener,
+    count: u64,
+    every: Duration,
+    paused: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    done: std::sync::mpsc::Receiver<()>,
+) -> std::thread::JoinHandle<usize> {
+    use std::io::{Read, Write};
+    std::thread::spawn(move || {
+        let config = small_configuration();
+        let deadline = std::time::Instant::now() + BOUND;
+        listener.set_nonblocking(true).unwrap();
+        let mut accepted = Vec::new();
+        let accept = |accepted: &mut Vec<std::net::TcpStream>| -> bool {
+            match listener.accept() {
+                Ok((s, _)) => {
+                    s.set_nonblocking(false).unwrap();
+                    s.set_nodelay(true).unwrap();
+                    s.set_read_timeout(Some(STEP)).unwrap();
+                    accepted.push(s);
+                    true
+                }
+                Err(_) => false,
+            }
+        };
+        while !accept(&mut accepted) {
+            assert!(std::time::Instant::now() < deadline, "the driver connects");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let conn = &mut accepted[0];
+        conn.write_all(&frame(&Message::Configuration(Box::new(config.clone()))))
+            .unwrap();
+        // The start message (21): any bytes back mean the configuration was answered.
+        let mut answer = [0u8; 64];
+        assert!(conn.read(&mut answer).unwrap() > 0, "the client answers");
+        for sweep in 0..count {
+            while paused.load(std::sync::atomic::Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            if conn.write_all(&fft_frame(&config, sweep)).is_err() {
+                break; // The driver dropped the link (the failure this test is about).
+            }
+            std::thread::sleep(every);
+        }
+        // Hold the link (and take any reconnection, so the driver does not wait on a
+        // backlog) until the test is done.
+        while done.try_recv().is_err() && std::time::Instant::now() < deadline {
+            accept(&mut accepted);
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        accepted.len()
+    })
+}
+
+// The driver's process frozen (kill -STOP, or a stall of its runtime) for longer than the
+// watchdog while the radar goes on sending: on resume the frames are in the socket's
+// receive buffer. The watchdog judges the link by whether frames can be read, so the link
+// is alive and every frame is delivered; before, the watchdog fired on resume (it was polled
+// before the socket) and the reconnection threw away what the socket held.
+#[test]
+fn a_driver_frozen_past_its_watchdog_reads_the_frames_waiting_in_its_socket_instead_of_reconnecting(
+) {
+    const FRAMES: u64 = 300;
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let (done_tx, done_rx) = std::sync::mpsc::channel();
+    // 100 frames a second for 3 s.
+    let paused = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let radar =
+        radar_on_its_own_thread(listener, FRAMES, Duration::from_millis(10), paused, done_rx);
+    // One thread: blocking it freezes the driver as a stopped process would be frozen.
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let (metrics, azimuths) = runtime.block_on(async {
+        tokio::time::timeout(BOUND, async {
+            let settings = test_settings(addr); // 1 s watchdog
+            let (driver, rx) = Driver::new(settings);
+            let handle = driver.spawn();
+            assert!(eventually(|| handle.metrics().fft_frames >= 20).await);
+            // Frozen for 1.5 watchdog periods while the radar sends 150 more frames.
+            std::thread::sleep(Duration::from_millis(1500));
+            let delivered = eventually(|| handle.metrics().fft_frames >= FRAMES).await;
+            let metrics = handle.metrics();
+            let exit = handle.stop().await.unwrap().metrics;
+            let azimuths: Vec<_> = rx.azimuths.as_ref().unwrap().try_iter().collect();
+            assert!(delivered, "every frame read: {metrics:?}");
+            (exit, azimuths)
+        })
+        .await
+        .expect("bounded")
+    });
+    done_tx.send(()).unwrap();
+    let connections = radar.join().unwrap();
+    assert_eq!(
+        (metrics.watchdog_timeouts, metrics.reconnects, connections),
+        (0, 0, 1),
+        "{metrics:?}"
+    );
+    assert_eq!(sweeps(&azimuths), (0..FRAMES as u16).collect::<Vec<u16>>());
+}
+
+// The driver and its radar frozen together past the watchdog (the simulator runs in the
+// daemon's process: kill -STOP stops both), the radar resuming a moment after the driver:
+// on resume nothing is in the socket yet. The deadline was noticed late (this process was
+// not running), so the radar is given a moment before the link is judged, and the link
+// stays up; before, the watchdog reconnected at once.
+#[test]
+fn a_driver_frozen_together_with_its_radar_gives_it_a_moment_on_resume_before_judging_the_link() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    const FRAMES: u64 = 300;
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let (done_tx, done_rx) = std::sync::mpsc::channel();
+    let paused = Arc::new(AtomicBool::new(false));
+    let radar = radar_on_its_own_thread(
+        listener,
+        FRAMES,
+        Duration::from_millis(10),
+        Arc::clone(&paused),
+        done_rx,
+    );
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let (metrics, azimuths) = runtime.block_on(async {
+        tokio::time::timeout(BOUND, async {
+            let (driver, rx) = Driver::new(test_settings(addr)); // 1 s watchdog
+            let handle = driver.spawn();
+            assert!(eventually(|| handle.metrics().fft_frames >= 20).await);
+            // Both frozen for 1.5 watchdog periods; the radar resumes 100 ms after the driver.
+            paused.store(true, Ordering::Relaxed);
+            std::thread::sleep(Duration::from_millis(1500));
+            let resume = Arc::clone(&paused);
+            let radar_resumes = std::thread::spawn(move || {
+                std::thread::sleep(Duration::from_millis(100));
+                resume.store(false, Ordering::Relaxed);
+            });
+            let delivered = eventually(|| handle.metrics().fft_frames >= FRAMES).await;
+            radar_resumes.join().unwrap();
+            let metrics = handle.metrics();
+            let exit = handle.stop().await.unwrap().metrics;
+            let azimuths: Vec<_> = rx.azimuths.as_ref().unwrap().try_iter().collect();
+            assert!(delivered, "every frame read: {metrics:?}");
+            (exit, azimuths)
+        })
+        .await
+        .expect("bounded")
+    });
+    done_tx.send(()).unwrap();
+    let connections = radar.join().unwrap();
+    assert_eq!(
+        (metrics.watchdog_timeouts, metrics.reconnects, connections),
+        (0, 0, 1),
+        "{metrics:?}"
+    );
+    assert_eq!(sweeps(&azimuths), (0..FRAMES as u16).collect::<Vec<u16>>());
+}

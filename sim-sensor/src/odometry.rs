@@ -16,7 +16,8 @@
 //! the client's queues hold), so a client that reconnects after its link went quiet carries
 //! on exactly where its stream stopped, and one that connects after the radar started still
 //! reads the records from the start. (Starting at the frontier made both depend on the
-//! machine's timing: the odometry was cut short after a reconnect, or began late.)
+//! machine's timing: the odometry was cut short after a reconnect, or began late.) A client
+//! that leaves while its stream waits is noticed at once and gives its slot back.
 
 use std::fmt::Write as _;
 use std::net::SocketAddr;
@@ -234,6 +235,18 @@ async fn serve_odometry(
             tokio::select! {
                 () = cancel.cancelled() => return Ok(()),
                 () = tokio::time::sleep(wait) => {}
+                // A client says nothing on this port: its socket turns readable when it
+                // leaves. Noticed here, not at the next write, which may be long in coming
+                // while the radar stands still, so a gone client gives its slot back.
+                readable = socket.readable() => {
+                    readable?;
+                    match socket.try_read(&mut [0u8; 256]) {
+                        Ok(0) => return Ok(()),
+                        Ok(_) => {} // ignored
+                        Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+                        Err(e) => return Err(e),
+                    }
+                }
             }
         }
         let record = generator.record(j, trajectory.controls_at(t_ns));

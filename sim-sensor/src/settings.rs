@@ -99,7 +99,9 @@ pub struct SimOptions {
     /// Keep-alive interval (1 s like a real radar).
     pub keepalive_interval: Duration,
     /// A client whose socket takes no data for this long is dropped, freeing its slot
-    /// (default 5 s; `[sim] write_timeout_ms`).
+    /// (default 5 s; `[sim] write_timeout_ms`). Counted while the simulator runs: a
+    /// deadline noticed 250 ms or more late (the process was stopped) gives the client 1 s
+    /// more.
     pub write_timeout: Duration,
     /// A client that has not asked for data this long after connecting is dropped, freeing
     /// its slot (default 60 s; `[sim] idle_timeout_ms`).

@@ -235,3 +235,38 @@ async fn a_ground_truth_file_that_is_not_one_is_a_typed_error() {
     std::fs::write(&path, vec![b'a'; 10_000]).expect("write");
     assert!(GroundTruth::read(&path).is_err());
 }
+
+// Odometry clients that go away while their stream waits for the radar's frontier (as fast
+// as possible, no radar client is reading: the daemon's driver is reconnecting, or the
+// pipeline is behind) give their slot back. Before, a client's task noticed it had gone
+// only at its next write, so after eight quiet reconnections every new client was refused
+// ("too many connected") until the radar moved: in a run on one busy core frozen for 8 s,
+// the daemon's odometry client was refused 147 times in 15 s.
+#[tokio::test]
+async fn odometry_clients_that_leave_while_the_radar_stands_still_give_their_slot_back() {
+    tokio::time::timeout(Duration::from_secs(30), async {
+        let scene = shipped::load("outdoor-field").expect("scene");
+        let mut options = SimOptions::for_tests(scene);
+        options.pacing = sim_sensor::Pacing::AsFastAsPossible;
+        let handle = SimServer::spawn(options).await.expect("spawn");
+        let address = handle.odometry_addr().expect("odometry port");
+        for client in 0..2 * sim_sensor::odometry::MAX_ODOMETRY_CLIENTS {
+            let odometry = TcpStream::connect(address).await.expect("connect");
+            let mut reader = BufReader::new(odometry);
+            let mut header = String::new();
+            let n = tokio::time::timeout(STEP, reader.read_line(&mut header))
+                .await
+                .expect("a line in time")
+                .expect("read");
+            assert!(
+                n > 0 && header.starts_with("# odometry v1"),
+                "client {client} was refused"
+            );
+            // Gone before the radar moved.
+            drop(reader);
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    })
+    .await
+    .expect("bounded");
+}

@@ -13,6 +13,7 @@ use tokio::task::JoinHandle;
 
 use super::{LineSplitter, OdometryError, OdometryPoll, OdometrySource, RecordParser};
 use crate::backoff::{Backoff, BackoffPolicy};
+use crate::liveness::{bytes_waiting, resume_grace};
 use crate::shutdown::Shutdown;
 use crate::socket::{connect, SocketOptions};
 
@@ -25,7 +26,8 @@ pub struct TcpOdometrySettings {
     pub socket: SocketOptions,
     /// Reconnection delays.
     pub backoff: BackoffPolicy,
-    /// Nothing received for this long is a dead link: reconnect.
+    /// Nothing received for this long is a dead link: reconnect (unless records are waiting
+    /// in the socket, or the deadline was noticed late: see [`crate::liveness`]).
     pub idle_timeout: Duration,
     /// Records (and line errors) buffered for the reader; beyond it the newest is dropped.
     pub capacity: usize,
@@ -120,7 +122,7 @@ impl Drop for TcpOdometry {
 
 impl OdometrySource for TcpOdometry {
     fn poll_next(&mut self, timeout: Duration) -> Result<OdometryPoll, OdometryError> {
-        match self.rx.recv_timeout(timeout) {
+        match super::recv_within(&self.rx, timeout) {
             Ok(Ok(record)) => Ok(OdometryPoll::Record(record)),
             Ok(Err(e)) => Err(e),
             Err(RecvTimeoutError::Timeout) => Ok(OdometryPoll::Pending),
@@ -173,16 +175,35 @@ async fn run(
         parser.reset();
         let mut line_no = 0u64;
         let mut buf = vec![0u8; 4096];
+        let idle = settings.idle_timeout;
+        let mut idle_deadline = tokio::time::Instant::now() + idle;
         let end = loop {
             let read = tokio::select! {
-                r = tokio::time::timeout(settings.idle_timeout, stream.read(&mut buf)) => r,
+                r = tokio::time::timeout_at(idle_deadline, stream.read(&mut buf)) => r,
                 () = shutdown.triggered() => return,
+            };
+            // An expired idle deadline is judged by what can be read (crate::liveness):
+            // records already in the socket are read; a deadline noticed late (this process
+            // was not running) gives the server a moment more.
+            let read = match read {
+                Err(_) if bytes_waiting(&stream) => Ok(stream.read(&mut buf).await),
+                Err(elapsed) => match resume_grace(idle_deadline, idle) {
+                    Some(grace) => {
+                        idle_deadline = tokio::time::Instant::now() + grace;
+                        continue;
+                    }
+                    None => Err(elapsed),
+                },
+                ok => ok,
             };
             let n = match read {
                 Ok(Ok(0)) => break "closed by the server".to_owned(),
-                Ok(Ok(n)) => n,
+                Ok(Ok(n)) => {
+                    idle_deadline = tokio::time::Instant::now() + idle;
+                    n
+                }
                 Ok(Err(e)) => break format!("read failed: {e}"),
-                Err(_) => break format!("nothing received for {:?}", settings.idle_timeout),
+                Err(_) => break format!("nothing received for {idle:?}"),
             };
             splitter.push(buf.get(..n).unwrap_or_default());
             while let Some(line) = splitter.next_line() {

@@ -276,8 +276,8 @@ impl Writer {
         tokio::select! {
             biased;
             () = self.cancel.cancelled() => return Ok(Flow::Close("server shutting down")),
-            written = tokio::time::timeout(self.timeouts.write, self.out.write_all(bytes)) => {
-                written.map_err(|_| ClientError::NotReading(self.timeouts.write))??
+            written = write_within(&mut self.out, bytes, self.timeouts.write) => {
+                written.ok_or(ClientError::NotReading(self.timeouts.write))??
             }
         }
         self.stats
@@ -300,6 +300,38 @@ impl Writer {
                     () = tokio::time::sleep(duration) => {}
                 }
                 Ok(Flow::Continue)
+            }
+        }
+    }
+}
+
+/// A write deadline noticed this long after it passed was not watched: this process (the
+/// simulator, or the daemon it runs in) was not running (stopped, descheduled).
+const LATE_NOTICE: Duration = Duration::from_millis(250);
+/// After such a late notice, the client gets this long more (at most the write timeout):
+/// one frozen with this process has not had the time to read.
+const RESUME_GRACE: Duration = Duration::from_secs(1);
+
+/// Writes `bytes`; `None` when the client has not taken them within `timeout`, counted
+/// while this process runs: a deadline noticed late gives the client [`RESUME_GRACE`] more.
+async fn write_within(
+    out: &mut OwnedWriteHalf,
+    bytes: &[u8],
+    timeout: Duration,
+) -> Option<std::io::Result<()>> {
+    let write = out.write_all(bytes);
+    tokio::pin!(write);
+    let mut deadline = tokio::time::Instant::now() + timeout;
+    loop {
+        tokio::select! {
+            biased;
+            written = &mut write => return Some(written),
+            () = tokio::time::sleep_until(deadline) => {
+                let now = tokio::time::Instant::now();
+                if now.saturating_duration_since(deadline) < LATE_NOTICE {
+                    return None;
+                }
+                deadline = now + RESUME_GRACE.min(timeout);
             }
         }
     }

@@ -289,11 +289,18 @@ pub fn summary_text(r: &DaemonReport) -> String {
             s.rotations_behind, s.rotations
         );
     }
-    if s.odometry_refused + s.clock_outliers + s.clock_jumps > 0 {
+    if s.odometry_refused + s.odometry_clock_jumps + s.clock_outliers + s.clock_jumps > 0 {
         let _ = writeln!(
             t,
-            "  untrusted input: {} odometry records refused (physical limits or wild time), {} azimuths with wild timestamps dropped, {} radar clock jumps resynchronised",
-            s.odometry_refused, s.clock_outliers, s.clock_jumps
+            "  untrusted input: {} odometry records refused (physical limits or wild time), {} odometry clock jumps resynchronised, {} azimuths with wild timestamps dropped, {} radar clock jumps resynchronised",
+            s.odometry_refused, s.odometry_clock_jumps, s.clock_outliers, s.clock_jumps
+        );
+    }
+    if s.odometry_duplicates > 0 {
+        let _ = writeln!(
+            t,
+            "  odometry sent again (a reconnected source replaying): {} records dropped as duplicates",
+            s.odometry_duplicates
         );
     }
     let names: Vec<String> = r

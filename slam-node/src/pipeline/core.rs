@@ -21,7 +21,7 @@ use tracing::{debug, info, warn};
 use super::beams::OfferedBeam;
 use super::clock::{Verdict, WireClock};
 use super::frontend::{doppler_range_shift_m, FrontEnd, GeometryError};
-use super::gate::{worth_logging, OdometryGate};
+use super::gate::{worth_logging, OdometryGate, OdometryRejection};
 use super::scan_match::ScanMatcher;
 use super::settings::PipelineSettings;
 use super::spectrum::{compare_beam, SpectrumScratch};
@@ -229,8 +229,10 @@ impl Pipeline {
         match self.gate.push(sample) {
             Ok(Some(forced)) => self.apply_odometry(forced),
             Ok(None) => {}
+            Err(OdometryRejection::Duplicate) => self.summary.odometry_duplicates += 1,
             Err(_) => self.summary.odometry_refused += 1,
         }
+        self.summary.odometry_clock_jumps = self.gate.clock_jumps();
     }
 
     fn apply_odometry(&mut self, s: OdometrySample) {

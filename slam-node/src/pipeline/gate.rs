@@ -4,9 +4,18 @@
 //! `stale_after_s` behind the beam, the beam is refused and counted: no motion is
 //! fabricated. The odometry the filter holds is the filter's ([`slam_filter::Ekf::held_odometry`]);
 //! the gate keeps only what is not yet applied.
+//!
+//! A source that reconnects may send again what it sent last (a bridge replaying its last
+//! half second): records stamped at or before the newest one taken, by at most
+//! [`ODOMETRY_REPLAY_WINDOW_S`], are dropped as duplicates (counted, logged at most once per
+//! 5 s of stream) without touching the stream's clock or the odometry held. A step back
+//! beyond that window is a clock that jumped: refused until confirmed, then resynchronised
+//! with the pending records dropped (they lie ahead of the new clock). A step forward past
+//! the clock's limit (records missing) is confirmed the same way, and the pending records,
+//! earlier than the new clock, are kept.
 
 use slam_filter::{Ekf, OdometrySample, ProcessModel};
-use tracing::warn;
+use tracing::{info, warn};
 
 use super::clock::{Verdict, WireClock};
 use super::odometry::OdometryQueue;
@@ -53,6 +62,9 @@ pub enum OdometryRejection {
     WildTime,
     /// Speed, steer or acceleration past the physical limits.
     Implausible,
+    /// Stamped at or before the newest record taken, within the replay window: sent again
+    /// (a source that reconnected replays what it sent last). Dropped, not an error.
+    Duplicate,
 }
 
 /// Odometry waiting for the radar, and the refusal rule.
@@ -65,12 +77,19 @@ pub struct OdometryGate {
     stale_after_s: f64,
     last_warning_s: f64,
     rejected: u64,
+    duplicates: u64,
+    last_duplicate_log_s: f64,
+    clock_jumps: u64,
 }
 
 /// Odometry timestamps may step forward by at most this between records (s); a wilder one
 /// must be confirmed by this many records before the clock follows it.
 const ODOMETRY_MAX_STEP_S: f64 = 2.0;
 const ODOMETRY_JUMP_CONFIRM: u32 = 8;
+/// Records stamped up to this long (s) before the newest record taken are re-sent ones (a
+/// reconnecting source replays what it sent last), dropped as duplicates; further back, the
+/// sender's clock jumped.
+pub const ODOMETRY_REPLAY_WINDOW_S: f64 = 5.0;
 /// The acceleration limit is checked over intervals up to this (s): after a longer silence
 /// any speed is believable.
 const ACCEL_WINDOW_S: f64 = 1.0;
@@ -95,17 +114,35 @@ impl OdometryGate {
             stale_after_s,
             last_warning_s: f64::NEG_INFINITY,
             rejected: 0,
+            duplicates: 0,
+            last_duplicate_log_s: f64::NEG_INFINITY,
+            clock_jumps: 0,
         }
     }
 
     /// Checks a record against the physical limits and the stream's clock, then queues it;
     /// returns a sample that must be applied now (the queue is full). A refused record is
-    /// counted and logged (the 1st, 2nd, 4th... time).
+    /// counted and logged (the 1st, 2nd, 4th... time); a duplicate is counted apart and
+    /// logged at most once per 5 s of stream.
     pub fn push(
         &mut self,
         sample: OdometrySample,
     ) -> Result<Option<OdometrySample>, OdometryRejection> {
         if let Err(why) = self.check(&sample) {
+            if why == OdometryRejection::Duplicate {
+                self.duplicates += 1;
+                let newest_s = self.clock.now_s().unwrap_or(sample.timestamp_s);
+                if newest_s - self.last_duplicate_log_s > WARN_EVERY_S {
+                    self.last_duplicate_log_s = newest_s;
+                    info!(
+                        time_s = sample.timestamp_s,
+                        newest_s,
+                        duplicates = self.duplicates,
+                        "odometry records sent again (a reconnected source replaying?): dropped as duplicates"
+                    );
+                }
+                return Err(why);
+            }
             self.rejected += 1;
             if worth_logging(self.rejected) {
                 warn!(
@@ -132,6 +169,9 @@ impl OdometryGate {
         if !plausible {
             return Err(OdometryRejection::Implausible);
         }
+        if self.is_duplicate(s) {
+            return Err(OdometryRejection::Duplicate);
+        }
         if let Some(last) = self.last_accepted {
             let dt = s.timestamp_s - last.timestamp_s;
             if dt > 0.0
@@ -144,16 +184,54 @@ impl OdometryGate {
         match self.clock.observe(s.timestamp_s) {
             Verdict::Accept => Ok(()),
             Verdict::Outlier => Err(OdometryRejection::WildTime),
-            Verdict::Jump { from_s, to_s } => {
+            Verdict::Jump { from_s, to_s } if to_s < from_s => {
+                // Back: the pending records lie ahead of the new clock.
                 warn!(
                     from_s,
-                    to_s, "odometry clock jumped: pending records dropped, clock resynchronised"
+                    to_s,
+                    "odometry clock jumped back: pending records dropped, clock resynchronised"
                 );
                 self.queue.reset();
                 self.last_accepted = None;
+                self.clock_jumps += 1;
+                Ok(())
+            }
+            Verdict::Jump { from_s, to_s } => {
+                // Forward (records missing, or the sender's clock set ahead): the pending
+                // records were taken on the old clock and come before the new ones in time,
+                // so they stay; dropping them refused every beam up to the new clock.
+                warn!(
+                    from_s,
+                    to_s,
+                    "odometry clock jumped forward: clock resynchronised, pending records kept"
+                );
+                self.last_accepted = None;
+                self.clock_jumps += 1;
                 Ok(())
             }
         }
+    }
+
+    /// A record the stream has already covered: stamped before the newest record taken by
+    /// at most the replay window, or the newest record itself again.
+    fn is_duplicate(&self, s: &OdometrySample) -> bool {
+        let Some(newest_s) = self.clock.now_s() else {
+            return false;
+        };
+        let back_s = newest_s - s.timestamp_s;
+        (back_s > 0.0 && back_s <= ODOMETRY_REPLAY_WINDOW_S)
+            || (back_s == 0.0 && self.last_accepted.as_ref() == Some(s))
+    }
+
+    /// Records dropped as sent again (at or before the newest record taken, within the
+    /// replay window).
+    pub fn duplicates(&self) -> u64 {
+        self.duplicates
+    }
+
+    /// Jumps of the odometry's clock resynchronised to (pending records dropped each time).
+    pub fn clock_jumps(&self) -> u64 {
+        self.clock_jumps
     }
 
     /// Records refused (wild time or past the physical limits).
@@ -210,5 +288,90 @@ impl OdometryGate {
             }
         }
         Err(refusal)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rec(t: f64) -> OdometrySample {
+        OdometrySample {
+            timestamp_s: t,
+            speed_mps: 1.0,
+            steer_rad: 0.01,
+        }
+    }
+
+    fn gate() -> OdometryGate {
+        OdometryGate::new(1 << 10, 0.5, OdometryLimits::default())
+    }
+
+    #[test]
+    fn records_sent_again_after_a_reconnect_are_duplicates_and_the_clock_holds() {
+        let mut g = gate();
+        for k in 0..100 {
+            assert!(g.push(rec(100.0 + 0.02 * f64::from(k))).is_ok());
+        }
+        // The source reconnects and replays its last half second (25 records), the newest
+        // one included, then carries on.
+        for k in 75..100 {
+            assert_eq!(
+                g.push(rec(100.0 + 0.02 * f64::from(k))),
+                Err(OdometryRejection::Duplicate)
+            );
+        }
+        for k in 100..110 {
+            assert!(g.push(rec(100.0 + 0.02 * f64::from(k))).is_ok());
+        }
+        assert_eq!((g.duplicates(), g.rejected(), g.clock_jumps()), (25, 0, 0));
+        assert_eq!(g.latest_s(), Some(100.0 + 0.02 * 109.0));
+        // Everything taken is still pending, in order: nothing was dropped.
+        let mut pending = 0;
+        while g.next_until(f64::INFINITY).is_some() {
+            pending += 1;
+        }
+        assert_eq!(pending, 110);
+    }
+
+    #[test]
+    fn a_step_back_beyond_the_replay_window_is_still_a_clock_jump_to_confirm() {
+        let mut g = gate();
+        for k in 0..10 {
+            assert!(g.push(rec(5000.0 + 0.05 * f64::from(k))).is_ok());
+        }
+        // The sender's clock was set back an hour: refused until confirmed, then followed.
+        let back = 5000.0 - 3600.0;
+        for k in 0..ODOMETRY_JUMP_CONFIRM - 1 {
+            assert_eq!(
+                g.push(rec(back + 0.05 * f64::from(k))),
+                Err(OdometryRejection::WildTime)
+            );
+        }
+        assert!(g
+            .push(rec(back + 0.05 * f64::from(ODOMETRY_JUMP_CONFIRM - 1)))
+            .is_ok());
+        assert_eq!((g.clock_jumps(), g.duplicates()), (1, 0));
+        assert_eq!(g.rejected(), u64::from(ODOMETRY_JUMP_CONFIRM - 1));
+        // Just beyond the window, too.
+        let mut g = gate();
+        assert!(g.push(rec(100.0)).is_ok());
+        assert_eq!(
+            g.push(rec(100.0 - ODOMETRY_REPLAY_WINDOW_S - 0.1)),
+            Err(OdometryRejection::WildTime)
+        );
+    }
+
+    #[test]
+    fn a_new_record_stamped_as_the_newest_is_taken_and_the_same_record_again_is_not() {
+        let mut g = gate();
+        assert!(g.push(rec(100.0)).is_ok());
+        assert_eq!(g.push(rec(100.0)), Err(OdometryRejection::Duplicate));
+        let changed = OdometrySample {
+            speed_mps: 1.5,
+            ..rec(100.0)
+        };
+        assert!(g.push(changed).is_ok());
+        assert_eq!(g.duplicates(), 1);
     }
 }

@@ -55,6 +55,11 @@ pub struct PipelineSummary {
     /// Odometry records refused: past the physical limits, or stamped far from the
     /// odometry's clock.
     pub odometry_refused: u64,
+    /// Odometry records sent again (stamped at or before the newest one taken, within the
+    /// replay window: a reconnected source replaying), dropped as duplicates.
+    pub odometry_duplicates: u64,
+    /// Odometry clock jumps resynchronised to (the pending records dropped each time).
+    pub odometry_clock_jumps: u64,
     /// Azimuths dropped for a timestamp far from the radar's clock.
     pub clock_outliers: u64,
     /// Radar clock jumps the pipeline resynchronised to.
