@@ -180,7 +180,7 @@ mod tests {
 
     #[test]
     fn a_budget_the_channels_slots_alone_would_fill_is_refused() {
-        let mut s = DriverSettings::new(SocketAddr::from(([127, 0, 0, 1], 1)));
+        let mut s = DriverSettings::new(SocketAddr::from(([127, 0, 0, 1], 0)));
         assert_eq!(s.validate(), Ok(()));
         s.handoff.azimuth_capacity = Some(1 << 20);
         s.max_held_bytes = 1 << 20;
