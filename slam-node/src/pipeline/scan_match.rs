@@ -172,10 +172,6 @@ pub struct Registration {
     pub rms_m: f64,
     /// Iterations run.
     pub iterations: usize,
-    /// The Gauss-Newton information of the last iteration, `sum J^T w J` over the pairs
-    /// (per m^2 in translation): the directions the clouds constrain. Its smallest
-    /// eigenvalue is what a corridor lacks.
-    pub information: Matrix3<f64>,
 }
 
 /// Trimmed, robust point-to-line ICP in the plane (points on a line-like surface of the
@@ -267,7 +263,6 @@ pub fn register(
             line_pairs: lines,
             rms_m: (sum_r2 / n as f64).sqrt(),
             iterations: it + 1,
-            information: h,
         });
         if step < 1e-6 && gate <= 0.2 * gate_m + 1e-12 {
             break;
