@@ -3,8 +3,10 @@
 //! fronts, fences, parked cars and posts, each point jittered by a few centimetres, seen from
 //! two poses 2 m apart, registered from a start 5 % off in distance.
 //!
-//! `cargo bench -p slam-node --bench scan_match`: criterion's time per registration (k-d
-//! tree build of the reference included), then the pairs and residual of one run.
+//! `cargo bench -p slam-node --bench scan_match`: criterion's time per registration (the
+//! reference's k-d tree, pair grid and normals built each time), with the nearest-neighbour
+//! queries answered by the pair grid and by the k-d tree, then the pairs and residual of one
+//! run of each.
 
 use std::hint::black_box;
 
@@ -69,22 +71,32 @@ fn bench(c: &mut Criterion) {
     let reference = in_frame_of(&Pose2::new(0.0, 0.0, 0.0), &world);
     let current = in_frame_of(&Pose2::new(2.0, 0.03, 0.01), &world);
     let start = Pose2::new(2.1, 0.0, 0.0);
-    c.bench_function(
-        "register 2 rotations (tree and normals of the reference included)",
-        |b| {
-            b.iter(|| {
-                let cloud = ReferenceCloud::new(black_box(reference.clone()), 1.5);
-                register(&cloud, black_box(&current), start, 1.5, 100)
-            })
-        },
-    );
-    let cloud = ReferenceCloud::new(reference.clone(), 1.5);
-    let reg = register(&cloud, &current, start, 1.5, 100);
-    println!(
-        "{} reference points, {} current points: {reg:?} (truth x 2.0, y 0.03, theta 0.01)",
-        reference.len(),
-        current.len()
-    );
+    // The daemon's pair gate (0.6 m) and a wide one. The nearest-neighbour queries go to the
+    // reference's pair grid, or, with no grid (a cloud built for a zero gate), to its k-d
+    // tree: both paths, the same clouds, one run.
+    for gate in [0.6, 1.5] {
+        for (queries, grid_cell) in [("pair grid", gate), ("k-d tree", 0.0)] {
+            c.bench_function(
+                &format!(
+                    "register 2 rotations, gate {gate} m, {queries} (reference's tree, grid and normals included)"
+                ),
+                |b| {
+                    b.iter(|| {
+                        let cloud =
+                            ReferenceCloud::new(black_box(reference.clone()), 1.5, grid_cell);
+                        register(&cloud, black_box(&current), start, gate, 100)
+                    })
+                },
+            );
+            let cloud = ReferenceCloud::new(reference.clone(), 1.5, grid_cell);
+            let reg = register(&cloud, &current, start, gate, 100);
+            println!(
+                "gate {gate} m, {queries}: {} reference points, {} current points: {reg:?} (truth x 2.0, y 0.03, theta 0.01)",
+                reference.len(),
+                current.len()
+            );
+        }
+    }
 }
 
 criterion_group!(benches, bench);

@@ -157,6 +157,13 @@ pub fn summary_text(r: &DaemonReport) -> String {
             "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {:.2}, 3 dof), {} gated",
             m.tried, m.failed, m.applied, mean_nis, m.gated
         );
+        if let Some([x, y, h]) = m.truth_error() {
+            let _ = writeln!(
+                t,
+                "  radar odometry vs the true motion ({} registrations, mean +- std): x {:+.4} +- {:.4} m, y {:+.4} +- {:.4} m, heading {:+.5} +- {:.5} rad",
+                m.truth_compared, x.0, x.1, y.0, y.1, h.0, h.1
+            );
+        }
     }
     let bound = match s.spectrum_bound_db {
         Some((lo, hi)) => format!("the learned background's 3-sigma bound ({lo:.1}-{hi:.1} dB)"),

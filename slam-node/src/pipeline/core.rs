@@ -573,10 +573,34 @@ impl Pipeline {
             return;
         }
         let started = Instant::now();
-        let end = self.ekf.motion_tally().map(|t| t.rel);
+        let tally = self.ekf.motion_tally();
+        let end = tally.map(|t| t.rel);
         if let Some((motion, cov, reg)) = self.scan_match.end_rotation(end) {
             if let Some(odo) = end {
+                // With ground truth, the true motion over the same interval (scores only).
+                let now_s = self.ekf.state().time_s();
+                let truth = match (self.truth.as_ref(), tally) {
+                    (Some(t), Some(tally)) => {
+                        t.pose_at(tally.since_s)
+                            .zip(t.pose_at(now_s))
+                            .map(|(a, b)| {
+                                let rel = radar_odometry_relative(&a, &b);
+                                [rel.x, rel.y, rel.theta]
+                            })
+                    }
+                    _ => None,
+                };
+                if let Some(t) = truth {
+                    self.scan_match.record_truth_error([
+                        motion.x - t[0],
+                        motion.y - t[1],
+                        wrap_angle(motion.theta - t[2]),
+                    ]);
+                }
                 debug!(
+                    truth_x = truth.map(|t| t[0]),
+                    truth_y = truth.map(|t| t[1]),
+                    truth_theta = truth.map(|t| t[2]),
                     measured_x = motion.x,
                     measured_y = motion.y,
                     measured_theta = motion.theta,
@@ -718,6 +742,17 @@ fn ms(a: Instant, b: Instant) -> f64 {
 /// Whether the azimuth of index `index` in its rotation is one of every `every`-th.
 fn spectrum_due(index: u16, every: usize) -> bool {
     every > 0 && usize::from(index) % every == 0
+}
+
+/// `b` in the frame of `a`.
+fn radar_odometry_relative(a: &Pose2, b: &Pose2) -> Pose2 {
+    let (s, c) = a.theta.sin_cos();
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    Pose2 {
+        x: c * dx + s * dy,
+        y: -s * dx + c * dy,
+        theta: wrap_angle(b.theta - a.theta),
+    }
 }
 
 #[cfg(test)]

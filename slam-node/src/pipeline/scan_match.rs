@@ -74,6 +74,9 @@ impl Default for ScanMatchSettings {
 pub struct ReferenceCloud {
     points: Vec<[f64; 2]>,
     tree: ImmutableKdTree<f64, 2>,
+    /// A uniform grid over the points for the registration's gated nearest-neighbour
+    /// queries (the k-d tree answers the normals' radius queries).
+    grid: PairGrid,
     /// Unit normal of the local line through each point, `None` where the neighbourhood is
     /// not line-like (an isolated return, a corner, a blob).
     normals: Vec<Option<[f64; 2]>>,
@@ -87,11 +90,163 @@ const NORMAL_MIN_NEIGHBOURS: usize = 4;
 /// spread along (the ratio of the scatter matrix's eigenvalues).
 const LINE_EIGEN_RATIO: f64 = 0.05;
 
+/// A gate reaching more cells than this either side is searched with the k-d tree.
+const GRID_MAX_REACH: i64 = 4;
+
+/// Cells a [`PairGrid`] holds at most (a larger cloud or a smaller gate gets larger cells).
+const MAX_GRID_CELLS: usize = 1 << 18;
+
+/// A uniform grid of cells half the pair gate wide, points sorted by cell (a counting sort):
+/// every point within a gate of a query lies within `ceil(gate / cell)` cells of the
+/// query's, so the nearest point there is the nearest in the cloud whenever that one is
+/// within the gate, and the search narrows with the registration's gate. A few contiguous
+/// row slices and distances a query, against a k-d tree's descent; memory 4 bytes a cell
+/// (at most [`MAX_GRID_CELLS`]) and 4 a point.
+#[derive(Debug, Default)]
+struct PairGrid {
+    origin: [f64; 2],
+    cell_m: f64,
+    nx: usize,
+    ny: usize,
+    /// `starts[c]..starts[c + 1]` are cell c's entries in `order` (row-major, y outer).
+    starts: Vec<u32>,
+    /// Point indices sorted by cell.
+    order: Vec<u32>,
+}
+
+impl PairGrid {
+    /// A grid of cells at least `cell_m` wide over the finite points of `points` (wider when
+    /// the cloud is too large for [`MAX_GRID_CELLS`] of them).
+    fn new(points: &[[f64; 2]], cell_m: f64) -> Self {
+        let finite = |p: &&[f64; 2]| p[0].is_finite() && p[1].is_finite();
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in points.iter().filter(finite) {
+            for a in 0..2 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        if !(lo[0] <= hi[0] && cell_m.is_finite() && cell_m > 0.0) {
+            return Self::default();
+        }
+        let (w, h) = (hi[0] - lo[0], hi[1] - lo[1]);
+        // Cells no smaller than the gate, and few enough for the bound.
+        let cell_m = cell_m.max((w * h / MAX_GRID_CELLS as f64).sqrt()).max(
+            w.max(h) / (MAX_GRID_CELLS as f64 / 2.0), // a long thin cloud
+        );
+        let nx = ((w / cell_m) as usize + 1).min(MAX_GRID_CELLS);
+        let ny = ((h / cell_m) as usize + 1).min(MAX_GRID_CELLS / nx).max(1);
+        let mut grid = Self {
+            origin: lo,
+            cell_m,
+            nx,
+            ny,
+            starts: vec![0; nx * ny + 1],
+            order: Vec::new(),
+        };
+        let cells: Vec<Option<usize>> = points.iter().map(|p| grid.cell_of(p)).collect();
+        for c in cells.iter().flatten() {
+            grid.starts[c + 1] += 1;
+        }
+        for c in 0..nx * ny {
+            grid.starts[c + 1] += grid.starts[c];
+        }
+        let mut next = grid.starts.clone();
+        grid.order = vec![0; grid.starts[nx * ny] as usize];
+        for (i, c) in cells.iter().enumerate() {
+            if let Some(c) = *c {
+                grid.order[next[c] as usize] = i as u32;
+                next[c] += 1;
+            }
+        }
+        grid
+    }
+
+    /// The cell holding `p`, `None` outside the grid or for a non-finite point.
+    fn cell_of(&self, p: &[f64; 2]) -> Option<usize> {
+        let (ix, iy) = self.cell_coords(p)?;
+        (ix >= 0 && iy >= 0 && (ix as usize) < self.nx && (iy as usize) < self.ny)
+            .then(|| iy as usize * self.nx + ix as usize)
+    }
+
+    fn cell_coords(&self, p: &[f64; 2]) -> Option<(i64, i64)> {
+        if self.nx == 0 || !(p[0].is_finite() && p[1].is_finite()) {
+            return None;
+        }
+        let fx = ((p[0] - self.origin[0]) / self.cell_m).floor();
+        let fy = ((p[1] - self.origin[1]) / self.cell_m).floor();
+        // Far outside the grid (beyond any i64 cell): nothing near.
+        if fx.abs() > 1e15 || fy.abs() > 1e15 {
+            return None;
+        }
+        Some((fx as i64, fy as i64))
+    }
+
+    /// Cells either side of a query's cell that hold every point within `gate_m` of it;
+    /// `None` for an empty grid.
+    fn reach(&self, gate_m: f64) -> Option<i64> {
+        (self.nx > 0 && gate_m.is_finite() && gate_m >= 0.0)
+            .then(|| (gate_m / self.cell_m).ceil().clamp(1.0, 1e6) as i64)
+    }
+
+    /// The point of `points` nearest to `q` if it is within `gate_m` (`gate2` its square),
+    /// with its squared distance. Rows of cells are searched outwards from the query's and
+    /// skipped once they are farther than the best found; a row's cells are contiguous.
+    fn nearest_within(
+        &self,
+        points: &[[f64; 2]],
+        q: &[f64; 2],
+        gate_m: f64,
+        gate2: f64,
+    ) -> Option<(usize, f64)> {
+        let reach = self.reach(gate_m)?;
+        let (cx, cy) = self.cell_coords(q)?;
+        let x0 = (cx - reach).max(0);
+        let x1 = (cx + reach).min(self.nx as i64 - 1);
+        if x0 > x1 {
+            return None;
+        }
+        let mut best: Option<(usize, f64)> = None;
+        let mut bound = gate2;
+        for k in 0..=2 * reach {
+            // cy, cy + 1, cy - 1, cy + 2, ...
+            let iy = if k % 2 == 1 {
+                cy + (k + 1) / 2
+            } else {
+                cy - k / 2
+            };
+            if iy < 0 || iy >= self.ny as i64 {
+                continue;
+            }
+            // The row's nearest edge to the query.
+            let y_lo = self.origin[1] + iy as f64 * self.cell_m;
+            let dy = (y_lo - q[1]).max(q[1] - (y_lo + self.cell_m)).max(0.0);
+            if dy * dy > bound {
+                continue;
+            }
+            let row = iy as usize * self.nx;
+            let from = self.starts[row + x0 as usize] as usize;
+            let to = self.starts[row + x1 as usize + 1] as usize;
+            for &i in &self.order[from..to] {
+                let p = points[i as usize];
+                let d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]);
+                if d2 <= bound && best.map_or(true, |(_, b)| d2 < b) {
+                    best = Some((i as usize, d2));
+                    bound = d2;
+                }
+            }
+        }
+        best
+    }
+}
+
 impl ReferenceCloud {
-    /// Builds the tree and the normals: O(n log n), once a rotation. Neighbours are taken
-    /// within `radius_m`.
-    pub fn new(points: Vec<[f64; 2]>, radius_m: f64) -> Self {
+    /// Builds the tree, the pair grid (cells half `pair_gate_m` wide; none when that is not
+    /// positive, and every pair query goes to the tree) and the normals: O(n log n), once a
+    /// rotation. Neighbours for the normals are taken within `radius_m`.
+    pub fn new(points: Vec<[f64; 2]>, radius_m: f64, pair_gate_m: f64) -> Self {
         let tree = ImmutableKdTree::new_from_slice(&points);
+        let grid = PairGrid::new(&points, 0.5 * pair_gate_m);
         let k = std::num::NonZero::new(NORMAL_NEIGHBOURS).expect("non-zero constant");
         let normals = points
             .iter()
@@ -107,6 +262,7 @@ impl ReferenceCloud {
         Self {
             points,
             tree,
+            grid,
             normals,
         }
     }
@@ -199,17 +355,32 @@ pub fn register(
         let gate2 = gate * gate;
         // Cauchy weights with a scale of half the gate: pairs near the gate count little.
         let scale2 = 0.25 * gate2;
+        // The grid while the gate spans a few of its cells; the k-d tree for a gate far
+        // wider than the cells it was built for.
+        let use_grid = reference
+            .grid
+            .reach(gate)
+            .is_some_and(|r| r <= GRID_MAX_REACH);
         let (s, c) = t.theta.sin_cos();
         let mut h = Matrix3::<f64>::zeros();
         let mut g = Vector3::<f64>::zeros();
         let (mut n, mut lines, mut sum_r2) = (0usize, 0usize, 0.0);
         for p in current {
             let moved = [t.x + c * p[0] - s * p[1], t.y + s * p[0] + c * p[1]];
-            let nn = reference.tree.nearest_one::<SquaredEuclidean>(&moved);
-            if nn.distance > gate2 {
+            let nearest = if use_grid {
+                reference
+                    .grid
+                    .nearest_within(&reference.points, &moved, gate, gate2)
+            } else {
+                let nn = reference.tree.nearest_one::<SquaredEuclidean>(&moved);
+                Some((nn.item as usize, nn.distance))
+            };
+            let Some((i, distance2)) = nearest else {
+                continue;
+            };
+            if distance2 > gate2 {
                 continue;
             }
-            let i = nn.item as usize;
             let (Some(q), Some(normal)) = (reference.points.get(i), reference.normals.get(i))
             else {
                 continue;
@@ -296,6 +467,29 @@ pub struct ScanMatchCounts {
     pub gated: u64,
     /// Sum of the applied measurements' NIS (3 dof each).
     pub nis_sum: f64,
+    /// Registrations compared with the true motion over the same interval (with ground
+    /// truth only).
+    pub truth_compared: u64,
+    /// Sum of `measured - true` motion, `[x m, y m, heading rad]` in the frame at the mark.
+    pub truth_error_sum: [f64; 3],
+    /// Sum of its squares.
+    pub truth_error_sq_sum: [f64; 3],
+}
+
+impl ScanMatchCounts {
+    /// Mean and standard deviation of the registrations' error against the true motion,
+    /// per component `[x m, y m, heading rad]`; `None` with fewer than two comparisons.
+    pub fn truth_error(&self) -> Option<[(f64, f64); 3]> {
+        if self.truth_compared < 2 {
+            return None;
+        }
+        let n = self.truth_compared as f64;
+        Some(std::array::from_fn(|i| {
+            let mean = self.truth_error_sum[i] / n;
+            let var = (self.truth_error_sq_sum[i] - n * mean * mean) / (n - 1.0);
+            (mean, var.max(0.0).sqrt())
+        }))
+    }
 }
 
 /// The clouds of the current and previous rotation.
@@ -404,9 +598,27 @@ impl ScanMatcher {
         self.previous = if local.is_empty() {
             None
         } else {
-            Some(ReferenceCloud::new(local, self.settings.normal_radius_m))
+            Some(ReferenceCloud::new(
+                local,
+                self.settings.normal_radius_m,
+                self.settings.pair_gate_m,
+            ))
         };
         out
+    }
+
+    /// Records a registration's error against the true motion `[x, y, heading]` (scores
+    /// only; changes nothing).
+    pub fn record_truth_error(&mut self, error: [f64; 3]) {
+        if error.iter().any(|e| !e.is_finite()) {
+            return;
+        }
+        let c = &mut self.counts;
+        c.truth_compared += 1;
+        for (i, e) in error.iter().enumerate() {
+            c.truth_error_sum[i] += e;
+            c.truth_error_sq_sum[i] += e * e;
+        }
     }
 
     /// Records what the filter did with a measurement.
@@ -445,7 +657,7 @@ mod tests {
         let world = street();
         let a = Pose2::new(0.0, 0.0, 0.0);
         let b = Pose2::new(2.2, 0.05, 0.012);
-        let reference = ReferenceCloud::new(in_frame_of(&a, &world), 1.5);
+        let reference = ReferenceCloud::new(in_frame_of(&a, &world), 1.5, 0.6);
         assert!(
             reference.with_normals() > world.len() / 2,
             "walls have normals"
@@ -494,7 +706,7 @@ mod tests {
         };
         let a = Pose2::new(0.0, 0.0, 0.0);
         let b = Pose2::new(2.0, 0.0, 0.0);
-        let reference = ReferenceCloud::new(scan(&a), 1.5);
+        let reference = ReferenceCloud::new(scan(&a), 1.5, 0.6);
         let reg =
             register(&reference, &scan(&b), Pose2::new(2.1, 0.0, 0.0), 0.6, 50).expect("registers");
         assert!((reg.pose.x - b.x).abs() < 0.01, "{reg:?}");
@@ -520,9 +732,86 @@ mod tests {
     }
 
     #[test]
+    fn the_pair_grid_finds_the_k_d_trees_nearest_point_within_the_gate() {
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        let mut uniform = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut points = street();
+        points.extend((0..500).map(|_| [-70.0 + 140.0 * uniform(), -20.0 + 40.0 * uniform()]));
+        let gate = 0.6;
+        let cloud = ReferenceCloud::new(points.clone(), 1.5, gate);
+        assert!(cloud.grid.reach(gate).is_some_and(|r| r <= GRID_MAX_REACH));
+        let (mut within, mut beyond) = (0, 0);
+        for _ in 0..20_000 {
+            let q = [-90.0 + 180.0 * uniform(), -30.0 + 60.0 * uniform()];
+            let nn = cloud.tree.nearest_one::<SquaredEuclidean>(&q);
+            let grid = cloud.grid.nearest_within(&points, &q, gate, gate * gate);
+            if nn.distance <= gate * gate {
+                within += 1;
+                let (i, d2) = grid.expect("a point within the gate is in a neighbouring cell");
+                assert_eq!(d2, nn.distance, "query {q:?}");
+                assert_eq!(points[i], points[nn.item as usize]);
+            } else {
+                beyond += 1;
+                assert!(grid.is_none(), "query {q:?}");
+            }
+        }
+        assert!(
+            within > 1000 && beyond > 1000,
+            "{within} within, {beyond} beyond"
+        );
+    }
+
+    #[test]
+    fn the_pair_grid_stays_bounded_for_a_huge_or_damaged_cloud() {
+        let points = vec![
+            [-1e9, 0.0],
+            [1e9, 3.0],
+            [f64::NAN, 1.0],
+            [0.0, f64::INFINITY],
+            [2.0, 2.0],
+        ];
+        let grid = PairGrid::new(&points, 0.6);
+        assert!(grid.nx * grid.ny <= MAX_GRID_CELLS);
+        assert_eq!(
+            grid.order.len(),
+            3,
+            "the three finite points are in the grid"
+        );
+        let near = |g: &PairGrid, q: [f64; 2]| g.nearest_within(&points, &q, 2.0, 4.0);
+        assert_eq!(near(&grid, [1e9, 2.0]).map(|n| n.0), Some(1));
+        assert!(near(&grid, [f64::NAN, 0.0]).is_none());
+        assert!(near(&grid, [1e300, 0.0]).is_none());
+        assert!(near(&PairGrid::new(&[], 0.6), [0.0, 0.0]).is_none());
+    }
+
+    #[test]
+    fn the_truth_comparison_gives_mean_and_sample_std_and_skips_non_finite() {
+        let mut m = ScanMatcher::new(ScanMatchSettings::default());
+        assert_eq!(m.counts().truth_error(), None);
+        m.record_truth_error([0.1, -0.02, 0.001]);
+        m.record_truth_error([f64::NAN, 0.0, 0.0]);
+        assert_eq!(
+            m.counts().truth_error(),
+            None,
+            "one comparison gives no spread"
+        );
+        m.record_truth_error([0.3, -0.04, 0.003]);
+        let [x, y, h] = m.counts().truth_error().expect("two comparisons");
+        assert_eq!(m.counts().truth_compared, 2);
+        assert!((x.0 - 0.2).abs() < 1e-12 && (x.1 - 0.1 * 2f64.sqrt()).abs() < 1e-12);
+        assert!((y.0 + 0.03).abs() < 1e-12 && (y.1 - 0.01 * 2f64.sqrt()).abs() < 1e-12);
+        assert!((h.0 - 0.002).abs() < 1e-12 && (h.1 - 0.001 * 2f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
     fn too_few_pairs_is_no_registration() {
         let points = vec![[0.0, 0.0], [1.0, 0.0]];
-        let reference = ReferenceCloud::new(points.clone(), 1.5);
+        let reference = ReferenceCloud::new(points.clone(), 1.5, 1.0);
         assert!(register(&reference, &points, Pose2::new(0.0, 0.0, 0.0), 1.0, 3).is_none());
         assert!(register(&reference, &[], Pose2::new(0.0, 0.0, 0.0), 1.0, 1).is_none());
     }
