@@ -3,7 +3,7 @@
 //!
 //! Does IO: sockets on 127.0.0.1:0 and output files in a temporary folder.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
@@ -41,6 +41,11 @@ pub struct Run {
     pub odometry_noise: Option<OdometryNoise>,
     /// The scene's bearing noise, degrees (`None`: the scene's).
     pub bearing_sigma_deg: Option<f64>,
+    /// A scene file to run instead of the shipped scene `scene`.
+    pub scene_file: Option<PathBuf>,
+    /// A configuration file instead of the defaults (its `[detector]` applies; the filter
+    /// switches above still override it; no raw recording is written).
+    pub config_file: Option<PathBuf>,
 }
 
 impl Run {
@@ -60,6 +65,8 @@ impl Run {
             odometry_idle_timeout: None,
             odometry_noise: None,
             bearing_sigma_deg: None,
+            scene_file: None,
+            config_file: None,
         }
     }
 }
@@ -67,7 +74,14 @@ impl Run {
 /// Runs the daemon against the embedded simulator (as fast as possible, 127.0.0.1:0),
 /// outputs in `out`, within `limit` of wall time.
 pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport, DaemonError> {
-    let mut config = config::Config::default();
+    let mut config = match &run.config_file {
+        Some(path) => {
+            let mut c = config::Config::load(path).expect("the run's configuration file loads");
+            c.radar.record_path = None;
+            c
+        }
+        None => config::Config::default(),
+    };
     config.filter.use_power_in_observation = run.use_power;
     config.filter.first_estimate_jacobians = run.first_estimate_jacobians;
     config.filter.repeat_look_decorrelation = run.repeat_look_decorrelation;
@@ -79,8 +93,11 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
     // Likewise a small socket receive buffer (the default 4 MiB holds ten seconds of it).
     config.radar.recv_buffer_bytes =
         config::values::Capacity::new(64 * 1024, 1 << 28).expect("valid size");
-    let mut scene =
-        sim_sensor::scene::shipped::load(run.scene).map_err(sim_sensor::SimError::from)?;
+    let mut scene = match &run.scene_file {
+        Some(path) => sim_sensor::scene::Scene::load(path),
+        None => sim_sensor::scene::shipped::load(run.scene),
+    }
+    .map_err(sim_sensor::SimError::from)?;
     if run.mirror {
         scene = scene.mirrored().map_err(sim_sensor::SimError::from)?;
     }
@@ -114,7 +131,7 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
         figures: false,
         progress_every_rotations: 0,
         stop: Arc::clone(&stop),
-        detector: Some(DetectorSettings::default()),
+        detector: run.config_file.is_none().then(DetectorSettings::default),
         keep_configured_compensation: false,
         spectrum_bearings_deg: Vec::new(),
     };

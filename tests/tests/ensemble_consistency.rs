@@ -12,6 +12,17 @@
 //! the shipped filter alone (no comparison); `ENSEMBLE_MIRROR=1` drives the scene's mirror
 //! image (`Scene::mirrored`: the turns go the other way), so a heading bias that comes from
 //! the turns changes sign and one from the radar's clockwise sweep does not.
+//!
+//! Another scene: `ENSEMBLE_SCENE_FILE` (a scene file), `ENSEMBLE_CONFIG` (a configuration
+//! file: its detector and filter settings, no raw recording), `ENSEMBLE_DURATION_S`
+//! (default 60) and `ENSEMBLE_PARKED_FROM_ROTATION` (default 100, the outdoor field's stop;
+//! past the last rotation for a drive that never stops). The realistic street through the
+//! vehicle's configuration, shipped filter only:
+//! `ENSEMBLE_FILTERS=shipped ENSEMBLE_SEEDS=20 ENSEMBLE_SCENE_FILE=sim-sensor/scenes/urban-street.toml
+//! ENSEMBLE_CONFIG=config/examples/vehicle.toml ENSEMBLE_DURATION_S=20
+//! ENSEMBLE_PARKED_FROM_ROTATION=1000 cargo test --release -p e2e-tests --test
+//! ensemble_consistency -- --ignored --nocapture` (paths relative to `tests/`, where cargo
+//! runs the test: prefix them with `../`).
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -70,19 +81,50 @@ struct Ensemble {
     seed1_nees: f64,
 }
 
-async fn ensemble(
-    label: &'static str,
-    fej: bool,
-    repeat: bool,
+/// What the ensemble runs: the outdoor field for 60 s, or a scene file and a configuration
+/// file from the environment.
+#[derive(Debug, Clone)]
+struct Setup {
     seeds: u64,
     mirror: bool,
-) -> Ensemble {
+    scene_file: Option<std::path::PathBuf>,
+    config_file: Option<std::path::PathBuf>,
+    duration_s: f64,
+    /// First rotation counted as parked.
+    parked_from: u64,
+}
+
+impl Setup {
+    fn from_env() -> Self {
+        let var = |k: &str| std::env::var(k).ok();
+        Self {
+            seeds: var("ENSEMBLE_SEEDS")
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(60),
+            mirror: var("ENSEMBLE_MIRROR").is_some_and(|v| v == "1"),
+            scene_file: var("ENSEMBLE_SCENE_FILE").map(Into::into),
+            config_file: var("ENSEMBLE_CONFIG").map(Into::into),
+            duration_s: var("ENSEMBLE_DURATION_S")
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(60.0),
+            // 2.5 rotations a second: rotation 100 is 40 s in, where the outdoor field's
+            // vehicle stops.
+            parked_from: var("ENSEMBLE_PARKED_FROM_ROTATION")
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(100),
+        }
+    }
+}
+
+async fn ensemble(label: &'static str, fej: bool, repeat: bool, setup: &Setup) -> Ensemble {
     let mut runs = Vec::new();
-    for seed in 1..=seeds {
+    for seed in 1..=setup.seeds {
         let dir = tempfile::tempdir().unwrap();
-        let mut r = Run::new("outdoor-field", 60.0);
+        let mut r = Run::new("outdoor-field", setup.duration_s);
+        r.scene_file = setup.scene_file.clone();
+        r.config_file = setup.config_file.clone();
         r.seed = Some(seed);
-        r.mirror = mirror;
+        r.mirror = setup.mirror;
         r.first_estimate_jacobians = fej;
         r.repeat_look_decorrelation = repeat;
         run(&r, dir.path(), LIMIT).await.unwrap();
@@ -100,10 +142,9 @@ async fn ensemble(
         |k: u64, f: fn(&(f64, f64, f64)) -> f64| runs.iter().map(|r| f(&r[&k])).sum::<f64>() / n;
     let means: Vec<f64> = common.iter().map(|&k| avg(k, |v| v.0)).collect();
     let heading: Vec<f64> = common.iter().map(|&k| avg(k, |v| v.1)).collect();
-    // 2.5 rotations a second: rotation 100 is 40 s in, where the vehicle stops.
     let split = common
         .iter()
-        .position(|&k| k >= 100)
+        .position(|&k| k >= setup.parked_from)
         .unwrap_or(common.len());
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     let run_means: Vec<f64> = runs
@@ -138,8 +179,8 @@ async fn ensemble(
         heading: mean(&heading),
         heading_bias: [
             bias_of(&|_| true),
-            bias_of(&|k| k < 100),
-            bias_of(&|k| k >= 100),
+            bias_of(&|k| k < setup.parked_from),
+            bias_of(&|k| k >= setup.parked_from),
         ],
         runs_above_7_81: run_means.iter().filter(|&&m| m > 7.81).count(),
         seed1_nees: run_means[0],
@@ -159,19 +200,15 @@ async fn ensemble(
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 #[ignore = "Monte Carlo over 60 seeds x 3 filters: run in release (see the module docs)"]
 async fn the_shipped_filter_is_more_consistent_than_the_standard_ekf() {
-    let seeds = std::env::var("ENSEMBLE_SEEDS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(60);
-    let mirror = std::env::var("ENSEMBLE_MIRROR").is_ok_and(|v| v == "1");
+    let setup = Setup::from_env();
     let shipped_only = std::env::var("ENSEMBLE_FILTERS").is_ok_and(|v| v == "shipped");
     if shipped_only {
-        ensemble("FEJ + repeat-look (shipped)", true, true, seeds, mirror).await;
+        ensemble("FEJ + repeat-look (shipped)", true, true, &setup).await;
         return;
     }
-    let standard = ensemble("standard EKF", false, false, seeds, mirror).await;
-    let fej = ensemble("first-estimates Jacobians", true, false, seeds, mirror).await;
-    let shipped = ensemble("FEJ + repeat-look (shipped)", true, true, seeds, mirror).await;
+    let standard = ensemble("standard EKF", false, false, &setup).await;
+    let fej = ensemble("first-estimates Jacobians", true, false, &setup).await;
+    let shipped = ensemble("FEJ + repeat-look (shipped)", true, true, &setup).await;
     assert!(fej.mean_nees <= standard.mean_nees);
     assert!(shipped.mean_nees <= standard.mean_nees);
     assert!(shipped.parked <= standard.parked);

@@ -148,14 +148,14 @@ pub fn summary_text(r: &DaemonReport) -> String {
     }
     if let Some(m) = s.scan_match {
         let mean_nis = if m.applied > 0 {
-            m.nis_sum / m.applied as f64
+            format!("{:.2}", m.nis_sum / m.applied as f64)
         } else {
-            f64::NAN
+            "-".to_string()
         };
         let _ = writeln!(
             t,
-            "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {:.2}, 3 dof), {} gated",
-            m.tried, m.failed, m.applied, mean_nis, m.gated
+            "  radar odometry: {} registrations tried, {} failed (too few pairs, or unconstrained), {} applied (mean NIS {mean_nis}, 3 dof), {} gated",
+            m.tried, m.failed, m.applied, m.gated
         );
         if let Some([x, y, h]) = m.truth_error() {
             let _ = writeln!(
