@@ -98,6 +98,11 @@ pub struct RawDetector {
     /// (every point-like return may start one); 32 for current units (the replay of real
     /// scans and `config/examples/vehicle.toml`).
     pub point_min_snr_db: f64,
+    /// With `points_only`: an extended return near a mapped feature may re-observe it (its
+    /// peak taken as the feature's). Default false: an extended return's peak is where the
+    /// surface faces the radar, which slides along it as the vehicle moves, so it is kept
+    /// out of the filter altogether (slam-node/README.md, "Landmarks, not clutter").
+    pub extended_reobserve: bool,
 }
 
 impl Default for RawDetector {
@@ -121,6 +126,7 @@ impl Default for RawDetector {
             point_max_extent_m: 0.5,
             point_max_width_beams: 2.5,
             point_min_snr_db: 0.0,
+            extended_reobserve: false,
         }
     }
 }
@@ -188,6 +194,8 @@ pub struct DetectorSettings {
     pub point_max_width_beams: PositiveF64,
     /// Weakest point-like return that may start a feature, dB.
     pub point_min_snr_db: NonNegativeF64,
+    /// Extended returns near a mapped feature may re-observe it.
+    pub extended_reobserve: bool,
 }
 
 impl Default for DetectorSettings {
@@ -295,6 +303,7 @@ impl RawDetector {
                 "detector.point_min_snr_db",
                 NonNegativeF64::new(self.point_min_snr_db),
             ),
+            extended_reobserve: self.extended_reobserve,
         }
     }
 }
@@ -325,6 +334,7 @@ impl From<&DetectorSettings> for RawDetector {
             point_max_extent_m: s.point_max_extent_m.get(),
             point_max_width_beams: s.point_max_width_beams.get(),
             point_min_snr_db: s.point_min_snr_db.get(),
+            extended_reobserve: s.extended_reobserve,
         }
     }
 }

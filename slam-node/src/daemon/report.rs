@@ -154,7 +154,7 @@ pub fn summary_text(r: &DaemonReport) -> String {
         };
         let _ = writeln!(
             t,
-            "  radar odometry: {} registrations tried, {} failed (too few pairs, or unconstrained), {} applied (mean NIS {mean_nis}, 3 dof), {} gated",
+            "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated",
             m.tried, m.failed, m.applied, m.gated
         );
         if let Some([x, y, h]) = m.truth_error() {

@@ -111,6 +111,11 @@ pub struct LandmarkSettings {
     /// A weaker point-like return is offered to the filter when it lies within this
     /// distance of a mapped feature (placed from the predicted pose), metres.
     pub reobserve_radius_m: f64,
+    /// Whether an extended return within `reobserve_radius_m` of a mapped feature is
+    /// offered too (its peak may re-observe the feature). Off by default: the peak of a
+    /// wall, fence or car side is where the surface faces the radar, and it slides along the
+    /// surface as the vehicle moves.
+    pub extended_reobserve: bool,
 }
 
 impl Default for LandmarkSettings {
@@ -123,6 +128,7 @@ impl Default for LandmarkSettings {
             max_width_beams: 2.5,
             min_snr_db: 0.0,
             reobserve_radius_m: 2.0,
+            extended_reobserve: false,
         }
     }
 }

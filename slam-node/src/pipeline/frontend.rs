@@ -64,12 +64,29 @@ pub fn doppler_range_shift_m(coupling_s: f64, speed_mps: f64, bearing_rad: f64) 
     }
 }
 
+/// Whether an observation of `class` goes to the filter: a strong point-like return always
+/// (it may start a feature), a weaker point-like one when it lies near a mapped feature
+/// (`near_map`, asked only then), an extended one only with `extended_reobserve` and near
+/// the map.
+pub(crate) fn offered(
+    class: LandmarkClass,
+    extended_reobserve: bool,
+    near_map: impl FnOnce() -> bool,
+) -> bool {
+    match class {
+        LandmarkClass::New => true,
+        LandmarkClass::Reobserve => near_map(),
+        LandmarkClass::Extended => extended_reobserve && near_map(),
+    }
+}
+
 impl FrontEndSettings {
     /// What an observation may do (see [`crate::detect::LandmarkSettings`]): a strong
     /// point-like return may become a feature; a weaker point-like one may only re-observe
     /// a mapped feature (the landmark test is strict for entering the map and lenient for
     /// staying in it, so a landmark whose return hovers near the SNR limit is not lost);
-    /// extended returns do neither.
+    /// an extended return never becomes a feature, and re-observes one only with
+    /// [`crate::detect::LandmarkSettings::extended_reobserve`].
     pub fn landmark_class(&self, o: &Observation) -> LandmarkClass {
         let l = &self.detector.landmarks;
         if !l.points_only {
@@ -412,8 +429,13 @@ impl FrontEnd {
             if class == LandmarkClass::Extended {
                 extended += 1;
             }
-            // Anything but a strong point-like return only re-observes, and only near the map.
-            let offer = class == LandmarkClass::New || near_map(o);
+            // Anything but a strong point-like return only re-observes, and only near the
+            // map; an extended one not even that unless configured.
+            let offer = offered(
+                class,
+                self.settings.detector.landmarks.extended_reobserve,
+                || near_map(o),
+            );
             if offer {
                 let mut o = *o;
                 o.may_start = class == LandmarkClass::New;
@@ -598,6 +620,25 @@ mod tests {
         assert_eq!(doppler_range_shift_m(0.0, v, 0.0), 0.0);
         assert_eq!(doppler_range_shift_m(beta, f64::NAN, 0.0), 0.0);
         assert_eq!(doppler_range_shift_m(beta, f64::INFINITY, 0.0), 0.0);
+    }
+
+    /// Strong point-like returns always reach the filter, weaker ones only near the map,
+    /// extended ones never unless configured (and then only near the map).
+    #[test]
+    fn extended_returns_reach_the_filter_only_when_configured_and_near_the_map() {
+        use LandmarkClass::{Extended, New, Reobserve};
+        for near in [false, true] {
+            assert!(offered(New, false, || near));
+            assert_eq!(offered(Reobserve, false, || near), near);
+            assert!(!offered(Extended, false, || near));
+            assert_eq!(offered(Extended, true, || near), near);
+        }
+        let settings =
+            super::super::PipelineSettings::from_config(&config::Config::default()).unwrap();
+        assert!(
+            !settings.detector.landmarks.extended_reobserve,
+            "off by default"
+        );
     }
 
     fn geometry(azimuths: u16, bins: u16) -> protocol::Geometry {

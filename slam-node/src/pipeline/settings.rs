@@ -401,6 +401,7 @@ pub fn detector_from_config(
         max_width_beams: d.point_max_width_beams.get(),
         min_snr_db: d.point_min_snr_db.get(),
         reobserve_radius_m: 2.0,
+        extended_reobserve: d.extended_reobserve,
     };
     s
 }
