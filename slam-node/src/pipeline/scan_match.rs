@@ -733,13 +733,9 @@ mod tests {
 
     #[test]
     fn the_pair_grid_finds_the_k_d_trees_nearest_point_within_the_gate() {
-        let mut x = 0x9E37_79B9_7F4A_7C15u64;
-        let mut uniform = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut uniform = move || rng.gen::<f64>();
         let mut points = street();
         points.extend((0..500).map(|_| [-70.0 + 140.0 * uniform(), -20.0 + 40.0 * uniform()]));
         let gate = 0.6;
