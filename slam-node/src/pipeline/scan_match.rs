@@ -131,11 +131,17 @@ impl PairGrid {
         }
         let (w, h) = (hi[0] - lo[0], hi[1] - lo[1]);
         // Cells no smaller than the gate, and few enough for the bound.
-        let cell_m = cell_m.max((w * h / MAX_GRID_CELLS as f64).sqrt()).max(
-            w.max(h) / (MAX_GRID_CELLS as f64 / 2.0), // a long thin cloud
-        );
-        let nx = ((w / cell_m) as usize + 1).min(MAX_GRID_CELLS);
-        let ny = ((h / cell_m) as usize + 1).min(MAX_GRID_CELLS / nx).max(1);
+        // Cells no smaller than asked, and few enough for the bound with every finite point
+        // inside the grid (the cloud's far edges included).
+        let cells = |cell: f64| ((w / cell) as usize + 1).saturating_mul((h / cell) as usize + 1);
+        let mut cell_m = cell_m
+            .max((w * h / MAX_GRID_CELLS as f64).sqrt())
+            .max(w.max(h) / (MAX_GRID_CELLS as f64 / 2.0)); // a long thin cloud
+        while cells(cell_m) > MAX_GRID_CELLS {
+            cell_m *= 1.0625;
+        }
+        let nx = (w / cell_m) as usize + 1;
+        let ny = (h / cell_m) as usize + 1;
         let mut grid = Self {
             origin: lo,
             cell_m,
@@ -760,6 +766,24 @@ mod tests {
             within > 1000 && beyond > 1000,
             "{within} within, {beyond} beyond"
         );
+    }
+
+    /// A cloud 160 m across (a radar's 80 m either side) needs more than the bound's cells
+    /// at a 0.3 m cell: the cells grow, and every point, the far edges' too, is in the grid.
+    #[test]
+    fn a_wide_cloud_gets_wider_cells_and_keeps_every_point() {
+        let mut points: Vec<[f64; 2]> = (0..=160)
+            .flat_map(|i| [[-80.0 + f64::from(i), -80.0], [-80.0 + f64::from(i), 80.0]])
+            .collect();
+        points.extend((0..=160).map(|i| [80.0, -80.0 + f64::from(i)]));
+        let grid = PairGrid::new(&points, 0.3);
+        assert!(grid.nx * grid.ny <= MAX_GRID_CELLS);
+        assert!(grid.cell_m > 0.3);
+        assert_eq!(grid.order.len(), points.len(), "every point is in a cell");
+        for (i, p) in points.iter().enumerate() {
+            let (j, d2) = grid.nearest_within(&points, p, 0.3, 0.09).expect("itself");
+            assert_eq!((points[j], d2), (points[i], 0.0));
+        }
     }
 
     #[test]
