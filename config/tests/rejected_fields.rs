@@ -32,7 +32,7 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[radar]\nrecord_path = \"\"", "radar.record_path", "must not be empty"),
     // [odometry]
     ("[odometry]\naddress = \"nowhere\"", "odometry.address", "must be an address"),
-    ("[odometry]\nsource = \"none\"\naddress = \"127.0.0.1:1\"", "odometry.address", "is only used with odometry.source = \"tcp\""),
+    ("[odometry]\nsource = \"none\"\naddress = \"127.0.0.1:0\"", "odometry.address", "is only used with odometry.source = \"tcp\""),
     ("[odometry]\nsource = \"file\"", "odometry.path", "is required with odometry.source = \"file\""),
     ("[odometry]\nsource = \"file\"\npath = \"\"", "odometry.path", "must not be empty"),
     ("[odometry]\npath = \"odo.txt\"", "odometry.path", "is only used with odometry.source = \"file\""),

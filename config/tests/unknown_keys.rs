@@ -24,7 +24,7 @@ fn unknown_key(text: &str) -> (String, Location, String) {
 #[test]
 fn a_misspelt_key_in_every_section_is_named_with_its_line_and_column() {
     for (text, key_path, line, column) in [
-        ("[radar]\naddres = \"127.0.0.1:1\"\n", "radar.addres", 2, 1),
+        ("[radar]\naddres = \"127.0.0.1:0\"\n", "radar.addres", 2, 1),
         (
             "[odometry]\n\nsigma_sped_mps = 0.1\n",
             "odometry.sigma_sped_mps",
@@ -80,7 +80,7 @@ fn an_unknown_section_is_named() {
 
 #[test]
 fn a_misspelt_dotted_key_is_named_in_full() {
-    let (path, location, _) = unknown_key("radar.adress = \"127.0.0.1:1\"\n");
+    let (path, location, _) = unknown_key("radar.adress = \"127.0.0.1:0\"\n");
     assert_eq!(path, "radar.adress");
     assert_eq!(location.line, 1);
 }
