@@ -466,40 +466,11 @@ fn radar_on_its_own_thread(
 #[test]
 fn a_driver_frozen_past_its_watchdog_reads_the_frames_waiting_in_its_socket_instead_of_reconnecting(
 ) {
-    const FRAMES: u64 = 300;
-    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-    let addr = listener.local_addr().unwrap();
-    let (done_tx, done_rx) = std::sync::mpsc::channel();
-    // 100 frames a second for 3 s.
-    let paused = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let radar =
-        radar_on_its_own_thread(listener, FRAMES, Duration::from_millis(10), paused, done_rx);
-    // One thread: blocking it freezes the driver as a stopped process would be frozen.
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .unwrap();
-    let (metrics, azimuths) = runtime.block_on(async {
-        tokio::time::timeout(BOUND, async {
-            let settings = test_settings(addr); // 1 s watchdog
-            let (driver, rx) = Driver::new(settings);
-            let handle = driver.spawn();
-            assert!(eventually(|| handle.metrics().fft_frames >= 20).await);
-            // Frozen for 1.5 watchdog periods while the radar sends 150 more frames.
-            std::thread::sleep(Duration::from_millis(1500));
-            let delivered = eventually(|| handle.metrics().fft_frames >= FRAMES).await;
-            let metrics = handle.metrics();
-            let exit = handle.stop().await.unwrap().metrics;
-            let azimuths: Vec<_> = rx.azimuths.as_ref().unwrap().try_iter().collect();
-            assert!(delivered, "every frame read: {metrics:?}");
-            (exit, azimuths)
-        })
-        .await
-        .expect("bounded")
+    // Frozen for 1.5 watchdog periods while the radar sends 150 more frames.
+    frozen_driver_keeps_its_link_and_every_frame(|_| {
+        std::thread::sleep(Duration::from_millis(1500));
+        None
     });
-    done_tx.send(()).unwrap();
-    let connections = radar.join().unwrap();
-    assert_one_link_and_every_frame(&metrics, connections, &azimuths, FRAMES);
 }
 
 // The driver and its radar frozen together past the watchdog (the simulator runs in the
@@ -509,18 +480,40 @@ fn a_driver_frozen_past_its_watchdog_reads_the_frames_waiting_in_its_socket_inst
 // stays up; before, the watchdog reconnected at once.
 #[test]
 fn a_driver_frozen_together_with_its_radar_gives_it_a_moment_on_resume_before_judging_the_link() {
-    use std::sync::atomic::{AtomicBool, Ordering};
-    use std::sync::Arc;
+    use std::sync::atomic::Ordering;
+    // Both frozen for 1.5 watchdog periods; the radar resumes 100 ms after the driver.
+    frozen_driver_keeps_its_link_and_every_frame(|paused| {
+        paused.store(true, Ordering::Relaxed);
+        std::thread::sleep(Duration::from_millis(1500));
+        let resume = std::sync::Arc::clone(paused);
+        Some(std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(100));
+            resume.store(false, Ordering::Relaxed);
+        }))
+    });
+}
+
+/// The frozen-driver tests: a radar on its own thread sends 300 frames 10 ms apart to a
+/// driver on a one-thread runtime (blocking that thread freezes the driver as a stopped
+/// process is frozen; 1 s watchdog). After 20 frames `freeze` runs on the driver's thread
+/// (it may pause the radar through the flag it is given, and return a thread to join once
+/// every frame is in). The verdict: no watchdog trip, no reconnect, one connection, and
+/// every frame delivered in order.
+fn frozen_driver_keeps_its_link_and_every_frame(
+    freeze: impl FnOnce(
+        &std::sync::Arc<std::sync::atomic::AtomicBool>,
+    ) -> Option<std::thread::JoinHandle<()>>,
+) {
     const FRAMES: u64 = 300;
     let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let addr = listener.local_addr().unwrap();
     let (done_tx, done_rx) = std::sync::mpsc::channel();
-    let paused = Arc::new(AtomicBool::new(false));
+    let paused = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let radar = radar_on_its_own_thread(
         listener,
         FRAMES,
         Duration::from_millis(10),
-        Arc::clone(&paused),
+        std::sync::Arc::clone(&paused),
         done_rx,
     );
     let runtime = tokio::runtime::Builder::new_current_thread()
@@ -532,16 +525,11 @@ fn a_driver_frozen_together_with_its_radar_gives_it_a_moment_on_resume_before_ju
             let (driver, rx) = Driver::new(test_settings(addr)); // 1 s watchdog
             let handle = driver.spawn();
             assert!(eventually(|| handle.metrics().fft_frames >= 20).await);
-            // Both frozen for 1.5 watchdog periods; the radar resumes 100 ms after the driver.
-            paused.store(true, Ordering::Relaxed);
-            std::thread::sleep(Duration::from_millis(1500));
-            let resume = Arc::clone(&paused);
-            let radar_resumes = std::thread::spawn(move || {
-                std::thread::sleep(Duration::from_millis(100));
-                resume.store(false, Ordering::Relaxed);
-            });
+            let after = freeze(&paused);
             let delivered = eventually(|| handle.metrics().fft_frames >= FRAMES).await;
-            radar_resumes.join().unwrap();
+            if let Some(thread) = after {
+                thread.join().unwrap();
+            }
             let metrics = handle.metrics();
             let exit = handle.stop().await.unwrap().metrics;
             let azimuths: Vec<_> = rx.azimuths.as_ref().unwrap().try_iter().collect();
@@ -553,21 +541,10 @@ fn a_driver_frozen_together_with_its_radar_gives_it_a_moment_on_resume_before_ju
     });
     done_tx.send(()).unwrap();
     let connections = radar.join().unwrap();
-    assert_one_link_and_every_frame(&metrics, connections, &azimuths, FRAMES);
-}
-
-/// The frozen-driver tests' verdict: no watchdog trip, no reconnect, one connection, and
-/// every one of the `frames` frames delivered in order.
-fn assert_one_link_and_every_frame(
-    metrics: &radar_driver::MetricsSnapshot,
-    connections: usize,
-    azimuths: &[radar_driver::Azimuth],
-    frames: u64,
-) {
     assert_eq!(
         (metrics.watchdog_timeouts, metrics.reconnects, connections),
         (0, 0, 1),
         "{metrics:?}"
     );
-    assert_eq!(sweeps(azimuths), (0..frames as u16).collect::<Vec<u16>>());
+    assert_eq!(sweeps(&azimuths), (0..FRAMES as u16).collect::<Vec<u16>>());
 }

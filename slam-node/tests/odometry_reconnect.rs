@@ -12,8 +12,7 @@ use std::time::{Duration, Instant};
 
 use radar_driver::odometry::ODOMETRY_HEADER;
 use radar_driver::{Shutdown, TcpOdometry, TcpOdometrySettings};
-use slam_node::output::{OutputFiles, OutputHandle};
-use slam_node::pipeline::{run_pipeline, Pipeline, PipelineInputs, RunControl, RunReport};
+use slam_node::pipeline::{Pipeline, RunControl, RunReport};
 use tokio::io::AsyncWriteExt;
 use tokio::net::TcpListener;
 
@@ -89,16 +88,6 @@ fn run(drop_after: Option<u64>) -> (RunReport, Vec<(f64, f64, f64)>) {
     // what the pipeline is given is then the same however the threads are scheduled.
     settings.odometry_wait = Duration::from_secs(5);
     let pipeline = Pipeline::new(settings, Some(T0), None).expect("pipeline");
-    let azimuths = support::still_radar_azimuths(ROTATIONS, T0_NS);
-    let (tx, rx) = crossbeam_channel::bounded(azimuths.len());
-    for az in azimuths {
-        tx.send(az).expect("room");
-    }
-    drop(tx);
-    let dir = tempfile::tempdir().expect("tempdir");
-    let mut files = OutputFiles::in_dir(dir.path().to_path_buf());
-    files.figures = false;
-    let output = OutputHandle::spawn(files).expect("writer");
     let poses = Arc::new(Mutex::new(Vec::new()));
     let seen = Arc::clone(&poses);
     let stop = Arc::new(AtomicBool::new(false));
@@ -113,13 +102,10 @@ fn run(drop_after: Option<u64>) -> (RunReport, Vec<(f64, f64, f64)>) {
             stop.store(true, Ordering::Relaxed);
         })
     };
-    let report = run_pipeline(
+    let report = support::run_queued(
         pipeline,
-        PipelineInputs {
-            azimuths: rx,
-            odometry: Some(Box::new(odometry)),
-        },
-        &output,
+        support::still_radar_azimuths(ROTATIONS, T0_NS),
+        Box::new(odometry),
         RunControl {
             stop,
             max_stream_s: None,
@@ -132,7 +118,6 @@ fn run(drop_after: Option<u64>) -> (RunReport, Vec<(f64, f64, f64)>) {
     );
     done.store(true, Ordering::Relaxed);
     bound.join().expect("bound");
-    drop(output);
     runtime.shutdown_timeout(Duration::from_secs(1));
     let poses = poses.lock().expect("poses").clone();
     (report, poses)

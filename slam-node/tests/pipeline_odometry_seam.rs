@@ -2,6 +2,8 @@
 //! mocked with mockall: without usable odometry the daemon refuses every beam and counts
 //! why; it never fabricates motion.
 
+mod support;
+
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
@@ -10,10 +12,7 @@ use bytes::Bytes;
 use protocol::{BinWidth, Geometry};
 use radar_driver::odometry::LineError;
 use radar_driver::{Azimuth, OdometryError, OdometryPoll, OdometrySource};
-use slam_node::output::{OutputFiles, OutputHandle};
-use slam_node::pipeline::{
-    run_pipeline, Pipeline, PipelineInputs, PipelineSettings, RunControl, RunReport,
-};
+use slam_node::pipeline::{Pipeline, PipelineSettings, RunControl, RunReport};
 
 mockall::mock! {
     Source {}
@@ -68,31 +67,17 @@ fn run_with(odometry: MockSource) -> RunReport {
     // Do not wait for odometry that never comes: the refusal is what is under test.
     settings.odometry_wait = Duration::from_millis(1);
     let pipeline = Pipeline::new(settings, Some(T0), None).expect("pipeline");
-    let (tx, rx) = crossbeam_channel::bounded(4096);
-    for az in azimuths() {
-        tx.send(az).expect("room");
-    }
-    drop(tx);
-    let dir = tempfile::tempdir().expect("tempdir");
-    let mut files = OutputFiles::in_dir(dir.path().to_path_buf());
-    files.figures = false;
-    let output = OutputHandle::spawn(files).expect("writer");
-    let report = run_pipeline(
+    support::run_queued(
         pipeline,
-        PipelineInputs {
-            azimuths: rx,
-            odometry: Some(Box::new(odometry)),
-        },
-        &output,
+        azimuths(),
+        Box::new(odometry),
         RunControl {
             stop: Arc::new(AtomicBool::new(false)),
             end_after_silence: None,
             max_stream_s: None,
             progress: None,
         },
-    );
-    drop(output);
-    report
+    )
 }
 
 #[test]

@@ -21,7 +21,7 @@ use tracing::{debug, info, warn};
 use super::beams::OfferedBeam;
 use super::clock::{Verdict, WireClock};
 use super::frontend::{doppler_range_shift_m, FrontEnd, GeometryError};
-use super::gate::{worth_logging, OdometryGate, OdometryRejection};
+use super::gate::{worth_logging, OdometryGate};
 use super::scan_match::ScanMatcher;
 use super::settings::PipelineSettings;
 use super::spectrum::{compare_beam, SpectrumScratch};
@@ -226,12 +226,12 @@ impl Pipeline {
     pub fn push_odometry(&mut self, sample: OdometrySample) {
         self.start_at_first_odometry(&sample);
         self.summary.odometry_samples += 1;
-        match self.gate.push(sample) {
-            Ok(Some(forced)) => self.apply_odometry(forced),
-            Ok(None) => {}
-            Err(OdometryRejection::Duplicate) => self.summary.odometry_duplicates += 1,
-            Err(_) => self.summary.odometry_refused += 1,
+        // Refusals, duplicates and clock jumps are the gate's counts.
+        if let Ok(Some(forced)) = self.gate.push(sample) {
+            self.apply_odometry(forced);
         }
+        self.summary.odometry_refused = self.gate.rejected();
+        self.summary.odometry_duplicates = self.gate.duplicates();
         self.summary.odometry_clock_jumps = self.gate.clock_jumps();
     }
 
@@ -584,7 +584,7 @@ impl Pipeline {
                         t.pose_at(tally.since_s)
                             .zip(t.pose_at(now_s))
                             .map(|(a, b)| {
-                                let rel = radar_odometry_relative(&a, &b);
+                                let rel = slam_graph::se2::between(&a, &b);
                                 [rel.x, rel.y, rel.theta]
                             })
                     }
@@ -742,17 +742,6 @@ fn ms(a: Instant, b: Instant) -> f64 {
 /// Whether the azimuth of index `index` in its rotation is one of every `every`-th.
 fn spectrum_due(index: u16, every: usize) -> bool {
     every > 0 && usize::from(index) % every == 0
-}
-
-/// `b` in the frame of `a`.
-fn radar_odometry_relative(a: &Pose2, b: &Pose2) -> Pose2 {
-    let (s, c) = a.theta.sin_cos();
-    let (dx, dy) = (b.x - a.x, b.y - a.y);
-    Pose2 {
-        x: c * dx + s * dy,
-        y: -s * dx + c * dy,
-        theta: wrap_angle(b.theta - a.theta),
-    }
 }
 
 #[cfg(test)]

@@ -229,7 +229,8 @@ impl OdometryGate {
         self.duplicates
     }
 
-    /// Jumps of the odometry's clock resynchronised to (pending records dropped each time).
+    /// Jumps of the odometry's clock resynchronised to (pending records dropped on a jump
+    /// back, kept on a jump forward).
     pub fn clock_jumps(&self) -> u64 {
         self.clock_jumps
     }

@@ -9,12 +9,12 @@
 //! placed in the frame of the vehicle at the last mark with the motion the odometry gives
 //! since (the filter's tally: updates during the rotation do not distort the cloud). At the
 //! end of a rotation the cloud is moved into the vehicle's frame at the state's time and
-//! registered against the previous rotation's with trimmed point-to-point ICP, started at
-//! the odometry's motion. A registration with too few pairs is not used.
+//! registered against the previous rotation's with robust point-to-line ICP ([`register`]),
+//! started at the odometry's motion. A registration with too few pairs is not used.
 //!
 //! Memory: two clouds of at most `points_per_azimuth` x azimuths points (16 bytes each),
-//! bounded by [`MAX_POINTS`], and a k-d tree of the previous cloud, rebuilt once a
-//! rotation.
+//! bounded by [`MAX_POINTS`], and over the previous cloud a k-d tree (for the normals) and
+//! a pair grid of at most 2^18 cells, rebuilt once a rotation.
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::{Matrix3, Vector3};
@@ -130,14 +130,12 @@ impl PairGrid {
             return Self::default();
         }
         let (w, h) = (hi[0] - lo[0], hi[1] - lo[1]);
-        // Cells no smaller than the gate, and few enough for the bound.
         // Cells no smaller than asked, and few enough for the bound with every finite point
         // inside the grid (the cloud's far edges included).
-        let cells = |cell: f64| ((w / cell) as usize + 1).saturating_mul((h / cell) as usize + 1);
-        let mut cell_m = cell_m
-            .max((w * h / MAX_GRID_CELLS as f64).sqrt())
-            .max(w.max(h) / (MAX_GRID_CELLS as f64 / 2.0)); // a long thin cloud
-        while cells(cell_m) > MAX_GRID_CELLS {
+        let cell_count =
+            |cell: f64| ((w / cell) as usize + 1).saturating_mul((h / cell) as usize + 1);
+        let mut cell_m = cell_m.max((w * h / MAX_GRID_CELLS as f64).sqrt());
+        while cell_count(cell_m) > MAX_GRID_CELLS {
             cell_m *= 1.0625;
         }
         let nx = (w / cell_m) as usize + 1;
@@ -195,15 +193,14 @@ impl PairGrid {
             .then(|| (gate_m / self.cell_m).ceil().clamp(1.0, 1e6) as i64)
     }
 
-    /// The point of `points` nearest to `q` if it is within `gate_m` (`gate2` its square),
-    /// with its squared distance. Rows of cells are searched outwards from the query's and
+    /// The point of `points` nearest to `q` if it is within `gate_m`, with its squared
+    /// distance. Rows of cells are searched outwards from the query's and
     /// skipped once they are farther than the best found; a row's cells are contiguous.
     fn nearest_within(
         &self,
         points: &[[f64; 2]],
         q: &[f64; 2],
         gate_m: f64,
-        gate2: f64,
     ) -> Option<(usize, f64)> {
         let reach = self.reach(gate_m)?;
         let (cx, cy) = self.cell_coords(q)?;
@@ -213,7 +210,7 @@ impl PairGrid {
             return None;
         }
         let mut best: Option<(usize, f64)> = None;
-        let mut bound = gate2;
+        let mut bound = gate_m * gate_m;
         for k in 0..=2 * reach {
             // cy, cy + 1, cy - 1, cy + 2, ...
             let iy = if k % 2 == 1 {
@@ -376,7 +373,7 @@ pub fn register(
             let nearest = if use_grid {
                 reference
                     .grid
-                    .nearest_within(&reference.points, &moved, gate, gate2)
+                    .nearest_within(&reference.points, &moved, gate)
             } else {
                 let nn = reference.tree.nearest_one::<SquaredEuclidean>(&moved);
                 Some((nn.item as usize, nn.distance))
@@ -751,7 +748,7 @@ mod tests {
         for _ in 0..20_000 {
             let q = [-90.0 + 180.0 * uniform(), -30.0 + 60.0 * uniform()];
             let nn = cloud.tree.nearest_one::<SquaredEuclidean>(&q);
-            let grid = cloud.grid.nearest_within(&points, &q, gate, gate * gate);
+            let grid = cloud.grid.nearest_within(&points, &q, gate);
             if nn.distance <= gate * gate {
                 within += 1;
                 let (i, d2) = grid.expect("a point within the gate is in a neighbouring cell");
@@ -781,7 +778,7 @@ mod tests {
         assert!(grid.cell_m > 0.3);
         assert_eq!(grid.order.len(), points.len(), "every point is in a cell");
         for (i, p) in points.iter().enumerate() {
-            let (j, d2) = grid.nearest_within(&points, p, 0.3, 0.09).expect("itself");
+            let (j, d2) = grid.nearest_within(&points, p, 0.3).expect("itself");
             assert_eq!((points[j], d2), (points[i], 0.0));
         }
     }
@@ -802,7 +799,7 @@ mod tests {
             3,
             "the three finite points are in the grid"
         );
-        let near = |g: &PairGrid, q: [f64; 2]| g.nearest_within(&points, &q, 2.0, 4.0);
+        let near = |g: &PairGrid, q: [f64; 2]| g.nearest_within(&points, &q, 2.0);
         assert_eq!(near(&grid, [1e9, 2.0]).map(|n| n.0), Some(1));
         assert!(near(&grid, [f64::NAN, 0.0]).is_none());
         assert!(near(&grid, [1e300, 0.0]).is_none());

@@ -58,7 +58,8 @@ pub struct PipelineSummary {
     /// Odometry records sent again (stamped at or before the newest one taken, within the
     /// replay window: a reconnected source replaying), dropped as duplicates.
     pub odometry_duplicates: u64,
-    /// Odometry clock jumps resynchronised to (the pending records dropped each time).
+    /// Odometry clock jumps resynchronised to (pending records dropped on a jump back, kept
+    /// on a jump forward).
     pub odometry_clock_jumps: u64,
     /// Azimuths dropped for a timestamp far from the radar's clock.
     pub clock_outliers: u64,

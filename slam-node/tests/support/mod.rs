@@ -252,3 +252,34 @@ pub fn still(t: f64) -> slam_filter::OdometrySample {
         steer_rad: 0.0,
     }
 }
+
+/// Runs the pipeline thread's loop as the daemon does over `azimuths` (all queued before it
+/// starts) with `odometry` behind the seam, writing its outputs, figures off, to a temporary
+/// folder that is gone when it returns.
+pub fn run_queued(
+    pipeline: slam_node::pipeline::Pipeline,
+    azimuths: Vec<Azimuth>,
+    odometry: Box<dyn radar_driver::OdometrySource>,
+    control: slam_node::pipeline::RunControl,
+) -> slam_node::pipeline::RunReport {
+    let (tx, rx) = crossbeam_channel::bounded(azimuths.len().max(1));
+    for az in azimuths {
+        tx.send(az).expect("room");
+    }
+    drop(tx);
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut files = slam_node::output::OutputFiles::in_dir(dir.path().to_path_buf());
+    files.figures = false;
+    let output = slam_node::output::OutputHandle::spawn(files).expect("writer");
+    let report = slam_node::pipeline::run_pipeline(
+        pipeline,
+        slam_node::pipeline::PipelineInputs {
+            azimuths: rx,
+            odometry: Some(odometry),
+        },
+        &output,
+        control,
+    );
+    drop(output);
+    report
+}
