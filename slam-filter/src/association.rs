@@ -11,7 +11,7 @@ use radar_model::geometry::wrap_angle;
 use radar_model::layout::{Component, ObservationRow};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use super::observation::{row_indices, BeamPrediction, Target};
+use super::observation::{nonzero_columns, row_indices, BeamPrediction, Target};
 
 /// Chi-square thresholds for one gate probability, by degrees of freedom.
 #[derive(Debug, Clone)]
@@ -132,7 +132,17 @@ impl BeamContext<'_> {
             .prediction
             .jacobian
             .select_rows(row_indices(&rows).iter());
-        let mut s = &h * self.p_cc * h.transpose();
+        let mut s = match nonzero_columns(&h) {
+            Some(cols) => {
+                let h = h.select_columns(cols.iter());
+                let p = self
+                    .p_cc
+                    .select_rows(cols.iter())
+                    .select_columns(cols.iter());
+                &h * p * h.transpose()
+            }
+            None => &h * self.p_cc * h.transpose(),
+        };
         for (i, r) in rows.iter().enumerate() {
             s[(i, i)] += r.component.of(&self.noise_var);
         }

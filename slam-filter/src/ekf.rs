@@ -801,11 +801,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             .map(|&u| u && self.settings.use_power)
             .collect();
         let columns = state_columns(&slots);
-        let p_cc = self
-            .state
-            .covariance()
-            .select_rows(columns.iter())
-            .select_columns(columns.iter());
+        let p_cc = self.state.covariance_block(&columns);
         Ok(PredictedBeam {
             slots,
             params,

@@ -139,6 +139,19 @@ pub fn row_indices(rows: &[ObservationRow]) -> Vec<usize> {
     rows.iter().map(|r| r.index()).collect()
 }
 
+/// The columns of `h` with at least one nonzero entry, or `None` when every column has one.
+///
+/// A beam's Jacobian spans the pose, L and every candidate feature in the beam, but a row
+/// touches only the pose, L, its own feature and (for power) the features in front of it:
+/// the products with the other columns are exact zeros, so they can be left out of
+/// `H P H^T` and `P H^T` without changing the result.
+pub fn nonzero_columns(h: &DMatrix<f64>) -> Option<Vec<usize>> {
+    let cols: Vec<usize> = (0..h.ncols())
+        .filter(|&j| h.column(j).iter().any(|v| *v != 0.0))
+        .collect();
+    (cols.len() < h.ncols()).then_some(cols)
+}
+
 /// State indices of the beam-local columns, given the features' slots in beam order.
 pub fn state_columns(slots: &[usize]) -> Vec<usize> {
     let mut cols = Vec::with_capacity(beam_columns(slots.len()));

@@ -260,6 +260,14 @@ impl SlamState {
         &self.cov
     }
 
+    /// The covariance of the elements `indices` (in that order): `P[indices, indices]`,
+    /// read entry by entry from the columns it needs (a beam's block, without copying whole
+    /// rows of `P`).
+    pub fn covariance_block(&self, indices: &[usize]) -> DMatrix<f64> {
+        let k = indices.len();
+        DMatrix::from_fn(k, k, |i, j| self.cov[(indices[i], indices[j])])
+    }
+
     /// The vehicle pose.
     pub fn pose(&self) -> Pose2 {
         Pose2::new(self.mean[0], self.mean[1], self.mean[2])

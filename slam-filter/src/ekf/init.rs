@@ -181,11 +181,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         let row = ObservationRow::new(local, Component::Power).index();
         let columns = state_columns(&slots);
         let x0: Vec<f64> = columns.iter().map(|&c| self.state.mean()[c]).collect();
-        let p_cc = self
-            .state
-            .covariance()
-            .select_rows(columns.iter())
-            .select_columns(columns.iter());
+        let p_cc = self.state.covariance_block(&columns);
         let r = self.settings.power_std_db.powi(2);
         // Iterated EKF (Gauss-Newton on the beam's columns): a new feature's material starts
         // from a prior that may be tens of dB from what it shows, and one linearisation there

@@ -513,11 +513,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             columns.extend([fi, fi + 1]);
         }
         let x0: Vec<f64> = columns.iter().map(|&c| self.state.mean()[c]).collect();
-        let p_cc = self
-            .state
-            .covariance()
-            .select_rows(columns.iter())
-            .select_columns(columns.iter());
+        let p_cc = self.state.covariance_block(&columns);
         let var = [
             self.settings.range_std_m.powi(2),
             self.settings.bearing_std_rad.powi(2),
