@@ -10,6 +10,7 @@ pub mod core;
 pub mod frontend;
 pub mod gate;
 pub mod odometry;
+pub(crate) mod point_grid;
 pub mod run;
 pub mod scan_match;
 #[cfg(feature = "sim")]

@@ -8,6 +8,7 @@ use serde::Serialize;
 
 use slam_filter::{BeamObservation, BeamReport, FeatureEstimate, RadarEkf};
 
+use super::point_grid::PointGrid;
 use super::summary::PipelineSummary;
 use crate::output::RotationDiagnostics;
 
@@ -129,6 +130,10 @@ pub struct TruthObserver {
     observation_errors: Option<ObservationErrorStats>,
     association_errors: u64,
     clutter_associations: u64,
+    /// The true features' positions and a grid over them: each associated observation is
+    /// scored with two nearest-feature queries, and a city has thousands of features.
+    positions: Vec<[f64; 2]>,
+    grid: PointGrid,
 }
 
 /// An observation counts as coming from a true feature within this distance (m).
@@ -139,7 +144,10 @@ const MAPPED_GATE_M: f64 = 2.0;
 impl TruthObserver {
     /// An observer scoring against `oracle`.
     pub fn new(oracle: Box<dyn TruthOracle>) -> Self {
+        let positions: Vec<[f64; 2]> = oracle.features().iter().map(|f| [f.x_m, f.y_m]).collect();
         Self {
+            grid: PointGrid::new(&positions, MAPPED_GATE_M),
+            positions,
             in_range: vec![false; oracle.features().len()],
             oracle,
             pose_errors: PoseErrorStats::default(),
@@ -147,6 +155,14 @@ impl TruthObserver {
             association_errors: 0,
             clutter_associations: 0,
         }
+    }
+
+    /// The index of the true feature nearest to `xy` within `gate_m` ([`nearest_feature`]
+    /// through the grid).
+    fn nearest(&self, xy: [f64; 2], gate_m: f64) -> Option<usize> {
+        self.grid
+            .nearest_within(&self.positions, &xy, gate_m)
+            .map(|(i, _)| i)
     }
 
     /// The true pose at `t_s`.
@@ -176,11 +192,11 @@ impl TruthObserver {
                 continue;
             };
             let xy = true_pose.point_at(t.range_m, t.bearing_rad);
-            let seen = nearest_feature(features, xy, SEEN_GATE_M).map(|(i, _)| i);
+            let seen = self.nearest(xy, SEEN_GATE_M);
             let xy_map = frame.map_or([f.x_m, f.y_m], |fr| {
                 slam_graph::se2::transform_point(fr, [f.x_m, f.y_m])
             });
-            let mapped = nearest_feature(features, xy_map, MAPPED_GATE_M).map(|(i, _)| i);
+            let mapped = self.nearest(xy_map, MAPPED_GATE_M);
             if let Some(tf) = seen.and_then(|a| features.get(a)) {
                 let rb = range_bearing(&true_pose, [tf.x_m, tf.y_m]);
                 self.observation_errors
