@@ -6,13 +6,16 @@
 //! the gate keeps only what is not yet applied.
 //!
 //! A source that reconnects may send again what it sent last (a bridge replaying its last
-//! half second): records stamped at or before the newest one taken, by at most
-//! [`ODOMETRY_REPLAY_WINDOW_S`], are dropped as duplicates (counted, logged at most once per
-//! 5 s of stream) without touching the stream's clock or the odometry held. A step back
-//! beyond that window is a clock that jumped: refused until confirmed, then resynchronised
+//! half second): a record equal to one taken (same time, speed and steer) at most
+//! [`ODOMETRY_REPLAY_WINDOW_S`] before the newest is dropped as a duplicate (counted, logged
+//! at most once per 5 s of stream) without touching the stream's clock or the odometry held;
+//! the gate remembers the records it took over that window (at most [`TAKEN_CAPACITY`], 24
+//! bytes each). Any other step back, within the window or beyond it, is a clock that jumped: refused until confirmed, then resynchronised
 //! with the pending records dropped (they lie ahead of the new clock). A step forward past
 //! the clock's limit (records missing) is confirmed the same way, and the pending records,
 //! earlier than the new clock, are kept.
+
+use std::collections::VecDeque;
 
 use slam_filter::{Ekf, OdometrySample, ProcessModel};
 use tracing::{info, warn};
@@ -62,8 +65,8 @@ pub enum OdometryRejection {
     WildTime,
     /// Speed, steer or acceleration past the physical limits.
     Implausible,
-    /// Stamped at or before the newest record taken, within the replay window: sent again
-    /// (a source that reconnected replays what it sent last). Dropped, not an error.
+    /// Equal to a record taken within the replay window: sent again (a source that
+    /// reconnected replays what it sent last). Dropped, not an error.
     Duplicate,
 }
 
@@ -74,6 +77,9 @@ pub struct OdometryGate {
     clock: WireClock,
     limits: OdometryLimits,
     last_accepted: Option<OdometrySample>,
+    /// The records taken over the last [`ODOMETRY_REPLAY_WINDOW_S`], oldest first (what a
+    /// replay can repeat).
+    taken: VecDeque<OdometrySample>,
     stale_after_s: f64,
     last_warning_s: f64,
     rejected: u64,
@@ -86,10 +92,13 @@ pub struct OdometryGate {
 /// must be confirmed by this many records before the clock follows it.
 const ODOMETRY_MAX_STEP_S: f64 = 2.0;
 const ODOMETRY_JUMP_CONFIRM: u32 = 8;
-/// Records stamped up to this long (s) before the newest record taken are re-sent ones (a
-/// reconnecting source replays what it sent last), dropped as duplicates; further back, the
-/// sender's clock jumped.
+/// A record equal to one taken up to this long (s) before the newest is a re-sent one (a
+/// reconnecting source replays what it sent last), dropped as a duplicate; a new record
+/// stamped back in time, or a step back further than this, is the sender's clock jumping.
 pub const ODOMETRY_REPLAY_WINDOW_S: f64 = 5.0;
+/// Records the gate remembers for recognising replays, at most (100 Hz over the replay
+/// window, twice over): 96 kB.
+pub const TAKEN_CAPACITY: usize = 1000;
 /// The acceleration limit is checked over intervals up to this (s): after a longer silence
 /// any speed is believable.
 const ACCEL_WINDOW_S: f64 = 1.0;
@@ -111,6 +120,7 @@ impl OdometryGate {
             clock: WireClock::new(ODOMETRY_MAX_STEP_S, ODOMETRY_JUMP_CONFIRM),
             limits,
             last_accepted: None,
+            taken: VecDeque::new(),
             stale_after_s,
             last_warning_s: f64::NEG_INFINITY,
             rejected: 0,
@@ -157,6 +167,7 @@ impl OdometryGate {
             return Err(why);
         }
         self.last_accepted = Some(sample);
+        self.remember(sample);
         Ok(self.queue.push(sample))
     }
 
@@ -193,6 +204,7 @@ impl OdometryGate {
                 );
                 self.queue.reset();
                 self.last_accepted = None;
+                self.taken.clear();
                 self.clock_jumps += 1;
                 Ok(())
             }
@@ -212,15 +224,29 @@ impl OdometryGate {
         }
     }
 
-    /// A record the stream has already covered: stamped before the newest record taken by
-    /// at most the replay window, or the newest record itself again.
+    /// A record taken before (equal in time, speed and steer), stamped at most the replay
+    /// window before the newest record taken.
     fn is_duplicate(&self, s: &OdometrySample) -> bool {
         let Some(newest_s) = self.clock.now_s() else {
             return false;
         };
         let back_s = newest_s - s.timestamp_s;
-        (back_s > 0.0 && back_s <= ODOMETRY_REPLAY_WINDOW_S)
-            || (back_s == 0.0 && self.last_accepted.as_ref() == Some(s))
+        (0.0..=ODOMETRY_REPLAY_WINDOW_S).contains(&back_s) && self.taken.contains(s)
+    }
+
+    /// Keeps `sample` among the records a replay can repeat, forgetting those older than
+    /// the window (or past the capacity).
+    fn remember(&mut self, sample: OdometrySample) {
+        self.taken.push_back(sample);
+        let newest_s = self.clock.now_s().unwrap_or(sample.timestamp_s);
+        while self.taken.len() > TAKEN_CAPACITY
+            || self
+                .taken
+                .front()
+                .is_some_and(|t| newest_s - t.timestamp_s > ODOMETRY_REPLAY_WINDOW_S)
+        {
+            self.taken.pop_front();
+        }
     }
 
     /// Records dropped as sent again (at or before the newest record taken, within the
@@ -374,5 +400,53 @@ mod tests {
         };
         assert!(g.push(changed).is_ok());
         assert_eq!(g.duplicates(), 1);
+    }
+
+    /// The sender's clock steps back 2 s (inside the replay window) and goes on with new
+    /// records: not duplicates (they were never taken) but a jump back, confirmed and
+    /// followed, and the records after it are taken again at once.
+    #[test]
+    fn a_genuine_step_back_inside_the_replay_window_is_a_clock_jump_not_duplicates() {
+        let mut g = gate();
+        for k in 0..100 {
+            assert!(g.push(rec(100.0 + 0.02 * f64::from(k))).is_ok());
+        }
+        let newer = |k: u32| OdometrySample {
+            speed_mps: 1.2,
+            ..rec(99.98 - 2.0 + 0.02 * f64::from(k))
+        };
+        for k in 0..ODOMETRY_JUMP_CONFIRM - 1 {
+            assert_eq!(g.push(newer(k)), Err(OdometryRejection::WildTime));
+        }
+        assert!(g.push(newer(ODOMETRY_JUMP_CONFIRM - 1)).is_ok());
+        for k in ODOMETRY_JUMP_CONFIRM..ODOMETRY_JUMP_CONFIRM + 20 {
+            assert!(g.push(newer(k)).is_ok(), "record {k} after the jump");
+        }
+        assert_eq!((g.clock_jumps(), g.duplicates()), (1, 0));
+        // A replay of what was taken after the jump is still recognised.
+        assert_eq!(
+            g.push(newer(ODOMETRY_JUMP_CONFIRM + 19)),
+            Err(OdometryRejection::Duplicate)
+        );
+    }
+
+    /// The records remembered for recognising replays stay within the window and the
+    /// capacity, however fast the source sends.
+    #[test]
+    fn the_replay_memory_is_bounded_by_the_window_and_the_capacity() {
+        let mut g = gate();
+        for k in 0..20_000 {
+            let _ = g.push(rec(100.0 + 0.001 * f64::from(k)));
+        }
+        assert!(g.taken.len() <= TAKEN_CAPACITY);
+        let mut g = gate();
+        for k in 0..2_000 {
+            assert!(g.push(rec(100.0 + 0.05 * f64::from(k))).is_ok());
+        }
+        let newest = g.latest_s().expect("records taken");
+        assert!(g
+            .taken
+            .iter()
+            .all(|t| newest - t.timestamp_s <= ODOMETRY_REPLAY_WINDOW_S));
     }
 }
