@@ -10,14 +10,18 @@
 //! its stamp; as fast as possible, records are released up to [`FAST_LEAD_NS`] ahead of the
 //! radar's frontier, so odometry is always available for the azimuths being served but never
 //! races unboundedly ahead of them. A new client starts, in real time, at the record in
-//! force at the world's current time; as fast as possible, at the first record no client has
-//! been sent yet (the first client at the scene's first record, whenever it connects): there
-//! the radar's frontier is not the consumer's time (it runs ahead by whatever the sockets and
-//! the client's queues hold), so a client that reconnects after its link went quiet carries
-//! on exactly where its stream stopped, and one that connects after the radar started still
-//! reads the records from the start. (Starting at the frontier made both depend on the
-//! machine's timing: the odometry was cut short after a reconnect, or began late.) A client
-//! that leaves while its stream waits is noticed at once and gives its slot back.
+//! force at the world's current time; as fast as possible, [`REPLAY_ON_CONNECT_S`] before the
+//! first record no client has been written yet (the first client at the scene's first
+//! record, whenever it connects): there the radar's frontier is not the consumer's time (it
+//! runs ahead by whatever the sockets and the client's queues hold), so a client that
+//! reconnects carries on where its stream stopped, and one that connects after the radar
+//! started still reads the records from the start. (Starting at the frontier made both
+//! depend on the machine's timing: the odometry was cut short after a reconnect, or began
+//! late.) A record written to a link counts as written, not as delivered: TCP does not say
+//! what the peer read before it closed, so a reconnecting client is sent again the last
+//! [`REPLAY_ON_CONNECT_S`] of records, as a real bridge replays its last records; the
+//! daemon's odometry gate drops the ones it took (same time, speed and steer). A client that
+//! leaves while its stream waits is noticed at once and gives its slot back.
 
 use std::fmt::Write as _;
 use std::net::SocketAddr;
@@ -41,6 +45,10 @@ use crate::settings::{OdometryNoise, Pacing};
 pub const HEADER: &str = "# odometry v1 timestamp_s speed_mps steer_rad";
 /// How far odometry may run ahead of the radar when pacing is as fast as possible.
 pub const FAST_LEAD_NS: u64 = 500_000_000;
+/// As fast as possible, a connecting client is sent again the records written this long
+/// (s) before the first record not yet written to any client: what a closed link may have
+/// held unread. Within the daemon's replay window (5 s), where repeats are dropped.
+pub const REPLAY_ON_CONNECT_S: f64 = 4.0;
 /// Most odometry clients served at once.
 pub const MAX_ODOMETRY_CLIENTS: usize = 8;
 /// Random stream reserved for odometry noise.
@@ -99,6 +107,11 @@ impl OdometryGenerator {
         self.period_ns
     }
 
+    /// Records in [`REPLAY_ON_CONNECT_S`].
+    pub fn replay_records(&self) -> u64 {
+        (REPLAY_ON_CONNECT_S * 1e9 / self.period_ns as f64).ceil() as u64
+    }
+
     /// Scene time of record `j`, nanoseconds after the start.
     pub fn offset_ns(&self, j: u64) -> u64 {
         j.saturating_mul(self.period_ns)
@@ -128,7 +141,8 @@ pub(crate) struct OdometryServer {
     listener: TcpListener,
     world: Arc<World>,
     generator: OdometryGenerator,
-    /// The first record no client has been sent (where a client starts as fast as possible).
+    /// The first record not yet written to any client (as fast as possible a client starts
+    /// [`REPLAY_ON_CONNECT_S`] before it).
     unsent: Arc<AtomicU64>,
 }
 
@@ -209,7 +223,9 @@ async fn serve_odometry(
     socket.write_all(line.as_bytes()).await?;
     let mut j = match world.pacing {
         Pacing::Realtime => world.current_offset_ns() / generator.period_ns(),
-        Pacing::AsFastAsPossible => unsent.load(Ordering::Acquire),
+        Pacing::AsFastAsPossible => unsent
+            .load(Ordering::Acquire)
+            .saturating_sub(generator.replay_records()),
     };
     let end_ns = world.stop_after.map(|n| scene.offset_ns(n));
     loop {
