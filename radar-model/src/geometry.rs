@@ -92,6 +92,54 @@ pub fn bearing_eq4(pose: &Pose2, feature_xy: [f64; 2]) -> f64 {
     wrap_angle(pose.theta - (feature_xy[1] - pose.y).atan2(feature_xy[0] - pose.x))
 }
 
+/// A beam's axis from a pose: rejects the features that surely lie more than a limit off
+/// the axis with a few multiply-adds, no trigonometry (a beam holds a few of a map's
+/// features; testing every feature with [`range_bearing`] costs a `hypot` and an `atan2`
+/// each). Conservative: what it keeps is decided by the exact test.
+#[derive(Debug, Clone, Copy)]
+pub struct BeamAxis {
+    origin: [f64; 2],
+    /// Unit vector along the beam in the map.
+    axis: [f64; 2],
+}
+
+impl BeamAxis {
+    /// The beam at `bearing_rad` (clockwise from forward, as eq. 4) from `pose`.
+    pub fn new(pose: &Pose2, bearing_rad: f64) -> Self {
+        let (s, c) = (pose.theta - bearing_rad).sin_cos();
+        Self {
+            origin: [pose.x, pose.y],
+            axis: [c, s],
+        }
+    }
+
+    /// The squared distance from the radar to `xy` (m^2).
+    pub fn squared_range(&self, xy: [f64; 2]) -> f64 {
+        let (dx, dy) = (xy[0] - self.origin[0], xy[1] - self.origin[1]);
+        dx * dx + dy * dy
+    }
+
+    /// False only when the feature at `xy` is surely more than `limit_rad` off the axis
+    /// (behind the radar, or wider than the limit in front of it). The limit is widened by
+    /// a relative 1e-6 and `tan` bounded from above by Becker and Stark's
+    /// `pi^2 x / (pi^2 - 4 x^2)`; a limit of 1.5 rad or more, or not a number, keeps all.
+    pub fn may_hold(&self, xy: [f64; 2], limit_rad: f64) -> bool {
+        if !(0.0..1.5).contains(&limit_rad) {
+            return true;
+        }
+        let (dx, dy) = (xy[0] - self.origin[0], xy[1] - self.origin[1]);
+        let along = dx * self.axis[0] + dy * self.axis[1];
+        let across = dx * self.axis[1] - dy * self.axis[0];
+        if !(along.is_finite() && across.is_finite()) || (dx == 0.0 && dy == 0.0) {
+            return true;
+        }
+        let x = limit_rad * (1.0 + 1e-6) + 1e-12;
+        let pi2 = std::f64::consts::PI * std::f64::consts::PI;
+        let tan_bound = pi2 * x / (pi2 - 4.0 * x * x);
+        along > 0.0 && across.abs() <= along * tan_bound
+    }
+}
+
 /// Range and bearing of one feature.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RangeBearing {
@@ -295,5 +343,51 @@ mod tests {
         features_in_beam(&pose, &beam, features, &mut out);
         let idx: Vec<usize> = out.iter().map(|h| h.index).collect();
         assert_eq!(idx, vec![1, 6, 0]);
+    }
+
+    /// Whatever the exact test keeps (offset from the beam's bearing within the limit), the
+    /// axis keeps too; most of what lies well off the axis it rejects.
+    #[test]
+    fn the_beam_axis_never_rejects_a_feature_within_the_limit() {
+        let mut rejected = 0;
+        let mut total = 0;
+        for i in 0..60u32 {
+            let t = f64::from(i);
+            let pose = Pose2 {
+                x: 10.0 * (t * 0.37).sin(),
+                y: -5.0 * (t * 0.71).cos(),
+                theta: 7.0 * (t * 0.13).sin(),
+            };
+            let bearing = 3.1 * (t * 0.29).cos();
+            for limit in [0.0, 0.004, 0.02, 0.3, 1.2, 1.4999, 1.6] {
+                let axis = BeamAxis::new(&pose, bearing);
+                for j in 0..400u32 {
+                    let u = f64::from(j);
+                    // Features all around, some exactly on the axis or at the radar.
+                    let xy = match j % 50 {
+                        0 => [pose.x, pose.y],
+                        1 => {
+                            let phi = pose.theta - bearing;
+                            [pose.x + 20.0 * phi.cos(), pose.y + 20.0 * phi.sin()]
+                        }
+                        _ => [
+                            pose.x + 80.0 * (u * 0.618).fract() - 40.0,
+                            pose.y + 60.0 * (u * 0.382).fract() - 30.0,
+                        ],
+                    };
+                    let offset = wrap_angle(range_bearing(&pose, xy).bearing_rad - bearing).abs();
+                    total += 1;
+                    if offset <= limit {
+                        assert!(
+                            axis.may_hold(xy, limit),
+                            "{pose:?} {bearing} {limit} {xy:?}"
+                        );
+                    } else if !axis.may_hold(xy, limit) {
+                        rejected += 1;
+                    }
+                }
+            }
+        }
+        assert!(rejected > total / 2, "{rejected} of {total} rejected");
     }
 }

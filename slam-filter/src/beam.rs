@@ -23,7 +23,9 @@
 //! one merged peak there).
 
 use nalgebra::DMatrix;
-use radar_model::geometry::{range_bearing, range_bearing_with_jacobian, wrap_angle, Pose2};
+use radar_model::geometry::{
+    range_bearing, range_bearing_with_jacobian, wrap_angle, BeamAxis, Pose2,
+};
 use radar_model::layout::{self, Component, ObservationRow};
 
 use super::error::FilterError;
@@ -61,19 +63,27 @@ pub fn candidates_in_beam(
     let half = settings.beam_half_width_rad;
     let base = half + settings.association_margin_rad;
     let k = settings.candidate_sigmas;
+    let meas_var = settings.bearing_std_rad * settings.bearing_std_rad;
+    let axis = BeamAxis::new(&pose, bearing_rad);
     let mut out = Vec::new();
     for slot in 0..state.feature_count() {
         let Some(p) = state.params(slot) else {
             continue;
         };
+        let fi = feature_index(slot);
+        // Cheap bound first: sigma_beta <= |h| sqrt(trace), |h|^2 = 1 + 2 / R^2.
+        let trace = cov[(0, 0)] + cov[(1, 1)] + cov[(2, 2)] + cov[(fi, fi)] + cov[(fi + 1, fi + 1)];
+        // Without trigonometry: the arc that bound allows, off the beam's axis.
+        let r2 = axis.squared_range([p.x_m, p.y_m]);
+        let arc = base + k * (((1.0 + 2.0 / r2) * trace).max(0.0) + meas_var).sqrt();
+        if !axis.may_hold([p.x_m, p.y_m], arc) {
+            continue;
+        }
         let rb = range_bearing(&pose, [p.x_m, p.y_m]);
         if rb.range_m < settings.min_range_m || rb.range_m > settings.max_range_m {
             continue;
         }
         let offset = wrap_angle(rb.bearing_rad - bearing_rad).abs();
-        let fi = feature_index(slot);
-        // Cheap bound first: sigma_beta <= |h| sqrt(trace), |h|^2 = 1 + 2 / R^2.
-        let trace = cov[(0, 0)] + cov[(1, 1)] + cov[(2, 2)] + cov[(fi, fi)] + cov[(fi + 1, fi + 1)];
         let bound = ((1.0 + 2.0 / (rb.range_m * rb.range_m)) * trace)
             .max(0.0)
             .sqrt();
@@ -81,7 +91,6 @@ pub fn candidates_in_beam(
         // measurement's bearing noise does: the arc is sized on the innovation's bearing
         // sigma, not the estimate's alone (or a precise estimate, as at a standstill, loses
         // its noisier sightings to a duplicate).
-        let meas_var = settings.bearing_std_rad * settings.bearing_std_rad;
         if offset > base + k * (bound * bound + meas_var).sqrt() {
             continue;
         }

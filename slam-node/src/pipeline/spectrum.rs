@@ -5,7 +5,7 @@
 //! (the paper's unit) or, with the learned front end, three sigma of the floor learned per
 //! bin.
 
-use radar_model::geometry::{range_bearing, wrap_angle, Pose2};
+use radar_model::geometry::{range_bearing, wrap_angle, BeamAxis, Pose2};
 use radar_model::material::Material;
 use radar_model::power::{PowerModel, PowerTarget};
 use radar_model::spectrum::{
@@ -77,10 +77,14 @@ pub fn compare_beam(
     let g = model.geometry();
     let max_range = g.bin_range_m(g.bins);
     scratch.ranges.clear();
+    let axis = BeamAxis::new(pose, bearing_rad);
     for slot in 0..state.feature_count() {
         let Some(p) = state.params(slot) else {
             continue;
         };
+        if !axis.may_hold([p.x_m, p.y_m], half_width_rad) {
+            continue;
+        }
         let rb = range_bearing(pose, [p.x_m, p.y_m]);
         if rb.range_m > 0.5
             && rb.range_m < max_range
