@@ -25,7 +25,7 @@
 //! of the declared length. The signature is 16 fixed bytes, so a false alarm in real data
 //! is a 2^-128 event per position. [`FrameDecoder::set_cut_short_detection`] turns it off.
 
-use bytes::{Buf, BytesMut};
+use bytes::{Buf, Bytes, BytesMut};
 use memchr::memmem;
 
 use crate::error::{DecodeError, PayloadError};
@@ -197,6 +197,11 @@ impl FrameDecoder {
             // Wait for at most 15 more bytes to tell a cut frame from a whole one.
             return Ok(None);
         }
+        if self.detect_cut_short && !at_eof && self.bad_frame_may_end_in_a_signature(buf, &header) {
+            // A frame that will not decode anyway waits for the bytes that tell whether it
+            // is a stub holding the next frame's first byte.
+            return Ok(None);
+        }
         self.scanned = 0;
         let frame = buf.split_to(frame_len).freeze();
         let payload = frame.slice(HEADER_LEN..);
@@ -265,6 +270,28 @@ impl FrameDecoder {
                 tail.len() >= 2 && tail.len() < SIGNATURE.len() && SIGNATURE.starts_with(tail)
             })
         })
+    }
+
+    /// Whether the whole frame at the front of `buf` ends in a lone 0x00 that may be the
+    /// first byte of the next frame's signature (the bytes received so far do not rule it
+    /// out) and its payload does not decode. Such a frame is typically a stub whose size
+    /// field was cut inside, completed by the next signature's first byte so that it
+    /// declares one byte more than it holds; emitted, it would take that byte and the next
+    /// frame with it. A frame that decodes is never held back by this (a lone 0x00 at the
+    /// end of a good frame is common), and the payload is copied to be tried only in this
+    /// case.
+    fn bad_frame_may_end_in_a_signature(&self, buf: &[u8], header: &FrameHeader) -> bool {
+        let frame_len = header.frame_len();
+        let confirm_end = frame_len + SIGNATURE.len() - 1;
+        if buf.len() >= confirm_end
+            || frame_len <= SIGNATURE.len() + 1
+            || buf.get(frame_len - 1) != Some(&SIGNATURE[0])
+            || !SIGNATURE.starts_with(buf.get(frame_len - 1..).unwrap_or(&[]))
+        {
+            return false;
+        }
+        let payload = Bytes::copy_from_slice(buf.get(HEADER_LEN..frame_len).unwrap_or(&[]));
+        Message::decode_payload(header.message_id, payload).is_err()
     }
 
     /// How many leading bytes of `buf` cannot be the start of a frame: up to the first
@@ -537,6 +564,37 @@ mod tests {
         assert_eq!(out.len(), 2, "{out:?}");
         assert_eq!(out[1], Ok(Some(Message::KeepAlive)));
         assert_eq!(decoder.stats().bytes_consumed(), stream.len() as u64);
+    }
+
+    /// A stub cut inside its size field, completed by the next signature's first byte
+    /// (0x00) into a header that declares one byte more than the stub holds, arriving with
+    /// only that byte of the next frame: its payload does not decode, so it waits for the
+    /// bytes that tell, is found cut short, and the next frame is decoded. (Found by the
+    /// stream property test `a_frame_cut_short_by_the_next_costs_only_itself`: the stub
+    /// was emitted as a bad frame and took the next frame's first byte with it.)
+    #[test]
+    fn a_stub_whose_cut_size_field_claims_the_next_frames_first_byte_costs_only_itself() {
+        let mut whole = BytesMut::new();
+        Message::SetNavThreshold {
+            threshold_db_x10: 8989,
+        }
+        .encode(&mut whole)
+        .unwrap();
+        let mut stream = BytesMut::from(&whole[..HEADER_LEN - 1]);
+        Message::StopNavData.encode(&mut stream).unwrap();
+        let mut decoder = FrameDecoder::new();
+        let mut buf = BytesMut::from(&stream[..HEADER_LEN]);
+        assert_eq!(decoder.decode(&mut buf), Ok(None), "a bad frame waits");
+        buf.extend_from_slice(&stream[HEADER_LEN..]);
+        assert!(matches!(
+            decoder.decode(&mut buf),
+            Err(DecodeError::Payload {
+                source: PayloadError::CutShort { .. },
+                ..
+            })
+        ));
+        assert_eq!(decoder.decode(&mut buf), Ok(Some(Message::StopNavData)));
+        assert!(buf.is_empty());
     }
 
     #[test]
