@@ -8,7 +8,7 @@ use common::{TestClient, STEP};
 use protocol::Message;
 use sim_sensor::scene::shipped;
 use sim_sensor::truth::{GroundTruth, TruthRecord};
-use sim_sensor::{OdometryNoise, SimOptions, SimServer};
+use sim_sensor::{OdometryNoise, SimHandle, SimOptions, SimServer};
 use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::net::TcpStream;
 
@@ -243,6 +243,16 @@ async fn a_ground_truth_file_that_is_not_one_is_a_typed_error() {
     assert!(GroundTruth::read(&path).is_err());
 }
 
+/// The outdoor field served as fast as possible, and its odometry port.
+async fn fast_odometry_server() -> (SimHandle, std::net::SocketAddr) {
+    let scene = shipped::load("outdoor-field").expect("scene");
+    let mut options = SimOptions::for_tests(scene);
+    options.pacing = sim_sensor::Pacing::AsFastAsPossible;
+    let handle = SimServer::spawn(options).await.expect("spawn");
+    let address = handle.odometry_addr().expect("odometry port");
+    (handle, address)
+}
+
 // Odometry clients that go away while their stream waits for the radar's frontier (as fast
 // as possible, no radar client is reading: the daemon's driver is reconnecting, or the
 // pipeline is behind) give their slot back. Before, a client's task noticed it had gone
@@ -252,11 +262,7 @@ async fn a_ground_truth_file_that_is_not_one_is_a_typed_error() {
 #[tokio::test]
 async fn odometry_clients_that_leave_while_the_radar_stands_still_give_their_slot_back() {
     tokio::time::timeout(Duration::from_secs(30), async {
-        let scene = shipped::load("outdoor-field").expect("scene");
-        let mut options = SimOptions::for_tests(scene);
-        options.pacing = sim_sensor::Pacing::AsFastAsPossible;
-        let handle = SimServer::spawn(options).await.expect("spawn");
-        let address = handle.odometry_addr().expect("odometry port");
+        let (_handle, address) = fast_odometry_server().await;
         for client in 0..2 * sim_sensor::odometry::MAX_ODOMETRY_CLIENTS {
             let odometry = TcpStream::connect(address).await.expect("connect");
             let mut reader = BufReader::new(odometry);
@@ -284,11 +290,7 @@ async fn odometry_clients_that_leave_while_the_radar_stands_still_give_their_slo
 #[tokio::test]
 async fn records_written_to_a_link_that_closed_unread_reach_the_next_client() {
     tokio::time::timeout(Duration::from_secs(30), async {
-        let scene = shipped::load("outdoor-field").expect("scene");
-        let mut options = SimOptions::for_tests(scene);
-        options.pacing = sim_sensor::Pacing::AsFastAsPossible;
-        let handle = SimServer::spawn(options).await.expect("spawn");
-        let address = handle.odometry_addr().expect("odometry port");
+        let (handle, address) = fast_odometry_server().await;
         // No radar client: the frontier stays at the start, and the server writes the
         // records up to its lead (0.5 s: 10 records) at once.
         let mut reader = BufReader::new(TcpStream::connect(address).await.expect("connect"));
