@@ -193,13 +193,8 @@ impl FrameDecoder {
             buf.reserve(frame_len - buf.len());
             return Ok(None);
         }
-        if self.detect_cut_short && !at_eof && self.signature_may_straddle_end(buf, frame_len) {
+        if self.detect_cut_short && !at_eof && self.signature_may_straddle_end(buf, &header) {
             // Wait for at most 15 more bytes to tell a cut frame from a whole one.
-            return Ok(None);
-        }
-        if self.detect_cut_short && !at_eof && self.bad_frame_may_end_in_a_signature(buf, &header) {
-            // A frame that will not decode anyway waits for the bytes that tell whether it
-            // is a stub holding the next frame's first byte.
             return Ok(None);
         }
         self.scanned = 0;
@@ -255,9 +250,13 @@ impl FrameDecoder {
     /// a signature that the bytes received so far can neither confirm nor rule out: at
     /// least two bytes of a signature prefix ("00 01") starting inside the frame and
     /// running to the end of the buffer. A one-byte match (a lone 0x00 at the very end) is
-    /// not held back, or every frame ending in a zero byte would wait for the next one;
-    /// the cost is that a frame cut exactly one byte short also loses the next frame.
-    fn signature_may_straddle_end(&self, buf: &[u8], frame_len: usize) -> bool {
+    /// held back only when the frame's payload does not decode (the payload is copied to be
+    /// tried only then): such a frame is typically a stub whose size field was cut inside
+    /// and completed by the next signature's first byte. A good frame ending in a zero byte
+    /// is not held back; the cost is that a good-looking frame cut exactly one byte short
+    /// also loses the next frame.
+    fn signature_may_straddle_end(&self, buf: &[u8], header: &FrameHeader) -> bool {
+        let frame_len = header.frame_len();
         let confirm_end = frame_len + SIGNATURE.len() - 1;
         if buf.len() >= confirm_end {
             return false; // `find_cut` has seen every signature that could straddle.
@@ -265,33 +264,16 @@ impl FrameDecoder {
         let from = frame_len
             .saturating_sub(SIGNATURE.len() - 1)
             .max(SIGNATURE.len() + 1);
-        (from..frame_len).any(|p| {
+        let prefix_from = |p: usize, min: usize| {
             buf.get(p..).is_some_and(|tail| {
-                tail.len() >= 2 && tail.len() < SIGNATURE.len() && SIGNATURE.starts_with(tail)
+                tail.len() >= min && tail.len() < SIGNATURE.len() && SIGNATURE.starts_with(tail)
             })
-        })
-    }
-
-    /// Whether the whole frame at the front of `buf` ends in a lone 0x00 that may be the
-    /// first byte of the next frame's signature (the bytes received so far do not rule it
-    /// out) and its payload does not decode. Such a frame is typically a stub whose size
-    /// field was cut inside, completed by the next signature's first byte so that it
-    /// declares one byte more than it holds; emitted, it would take that byte and the next
-    /// frame with it. A frame that decodes is never held back by this (a lone 0x00 at the
-    /// end of a good frame is common), and the payload is copied to be tried only in this
-    /// case.
-    fn bad_frame_may_end_in_a_signature(&self, buf: &[u8], header: &FrameHeader) -> bool {
-        let frame_len = header.frame_len();
-        let confirm_end = frame_len + SIGNATURE.len() - 1;
-        if buf.len() >= confirm_end
-            || frame_len <= SIGNATURE.len() + 1
-            || buf.get(frame_len - 1) != Some(&SIGNATURE[0])
-            || !SIGNATURE.starts_with(buf.get(frame_len - 1..).unwrap_or(&[]))
-        {
-            return false;
-        }
-        let payload = Bytes::copy_from_slice(buf.get(HEADER_LEN..frame_len).unwrap_or(&[]));
-        Message::decode_payload(header.message_id, payload).is_err()
+        };
+        (from..frame_len).any(|p| prefix_from(p, 2))
+            || (prefix_from(frame_len - 1, 1) && {
+                let payload = Bytes::copy_from_slice(buf.get(HEADER_LEN..frame_len).unwrap_or(&[]));
+                Message::decode_payload(header.message_id, payload).is_err()
+            })
     }
 
     /// How many leading bytes of `buf` cannot be the start of a frame: up to the first

@@ -159,7 +159,7 @@ pub fn batched_update(
     }
     state.mean += &w * &e;
     state.mean[2] = wrap_angle(state.mean[2]);
-    subtract_wwt_lower_and_mirror(&mut state.cov, &w);
+    subtract_wwt(&mut state.cov, &w);
     Ok(UpdateOutcome { nis, dof: m })
 }
 
@@ -181,7 +181,7 @@ const FUSED_MAX_ROWS: usize = 8;
 /// triangle is a blocked matrix product per column block of [`BLOCK`] (nalgebra hands it to
 /// the cache-blocked `matrixmultiply`), about n^2 m / 2 multiply-adds, each block mirrored
 /// into the upper triangle while it is still in cache.
-pub(crate) fn subtract_wwt_lower_and_mirror(cov: &mut DMatrix<f64>, w: &DMatrix<f64>) {
+pub(crate) fn subtract_wwt(cov: &mut DMatrix<f64>, w: &DMatrix<f64>) {
     let n = cov.nrows();
     let m = w.ncols();
     if m <= FUSED_MAX_ROWS {
@@ -291,7 +291,7 @@ mod tests {
                 (a * 0.37 + b * 0.11).cos() + if i == j { 40.0 } else { 0.0 }
             });
             let mut fused = base.clone();
-            subtract_wwt_lower_and_mirror(&mut fused, &w);
+            subtract_wwt(&mut fused, &w);
             let mut scalar = base.clone();
             for j in 0..n {
                 for i in 0..n {
