@@ -99,7 +99,7 @@ fn bench_baselines(c: &mut Criterion) {
         for (local, &col) in obs.columns.iter().enumerate() {
             h.column_mut(col).copy_from(&obs.jacobian.column(local));
         }
-        let cov = base.covariance().clone();
+        let cov = base.covariance().into_owned();
         group.bench_function(
             BenchmarkId::new("dense_joseph", format!("N{features}/batch10")),
             |b| {

@@ -59,7 +59,7 @@ pub fn candidates_in_beam(
     bearing_rad: f64,
 ) -> Vec<BeamCandidate> {
     let pose = *pose;
-    let cov = state.covariance();
+    let entry = |i: usize, j: usize| state.covariance_entry(i, j);
     let half = settings.beam_half_width_rad;
     let base = half + settings.association_margin_rad;
     let k = settings.candidate_sigmas;
@@ -72,7 +72,7 @@ pub fn candidates_in_beam(
         };
         let fi = feature_index(slot);
         // Cheap bound first: sigma_beta <= |h| sqrt(trace), |h|^2 = 1 + 2 / R^2.
-        let trace = cov[(0, 0)] + cov[(1, 1)] + cov[(2, 2)] + cov[(fi, fi)] + cov[(fi + 1, fi + 1)];
+        let trace = entry(0, 0) + entry(1, 1) + entry(2, 2) + entry(fi, fi) + entry(fi + 1, fi + 1);
         // Without trigonometry: the arc that bound allows, off the beam's axis.
         let r2 = axis.squared_range([p.x_m, p.y_m]);
         let arc = base + k * (((1.0 + 2.0 / r2) * trace).max(0.0) + meas_var).sqrt();
@@ -108,7 +108,7 @@ pub fn candidates_in_beam(
         let mut var = 0.0;
         for (a, &ca) in cols.iter().enumerate() {
             for (b, &cb) in cols.iter().enumerate() {
-                var += h[a] * cov[(ca, cb)] * h[b];
+                var += h[a] * entry(ca, cb) * h[b];
             }
         }
         let sigma = var.max(0.0).sqrt();

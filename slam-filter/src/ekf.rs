@@ -326,9 +326,9 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             .filter(|&i| cov[(i, i)] == 0.0)
             .collect();
         if unused.is_empty() {
-            return covariance_health(cov, with_eigenvalues);
+            return covariance_health(&cov, with_eigenvalues);
         }
-        let mut estimated = cov.clone();
+        let mut estimated = cov.into_owned();
         for i in unused {
             estimated = estimated.remove_row(i).remove_column(i);
         }

@@ -143,8 +143,8 @@ pub fn corrected_input(input: &OdometrySample, bias: [f64; 2]) -> (f64, f64) {
 /// `P_vv <- F P_vv F^T + Q_v`, `P_vm <- F P_vm`: the pose rows and columns only.
 fn propagate_pose(state: &mut SlamState, f: &Matrix3<f64>, q_v: &Matrix3<f64>) {
     let n = state.dim();
+    let p_vv = state.pose_covariance();
     let cov = &mut state.cov;
-    let p_vv = cov.fixed_view::<3, 3>(0, 0).into_owned();
     let mut new_vv = f * p_vv * f.transpose() + q_v;
     new_vv = 0.5 * (new_vv + new_vv.transpose());
     cov.fixed_view_mut::<3, 3>(0, 0).copy_from(&new_vv);
@@ -171,14 +171,16 @@ fn propagate_with_bias(
     q_v: &Matrix3<f64>,
 ) {
     let n = state.dim();
-    let cov = &mut state.cov;
     let (bk, bb) = (SPEED_SCALE_INDEX, STEER_BIAS_INDEX);
-    let p_vv = cov.fixed_view::<3, 3>(0, 0).into_owned();
+    // Read from the lower triangle (the upper one may be stale, see `SlamState`).
+    let p_vv = state.pose_covariance();
+    let e = |i: usize, j: usize| state.covariance_entry(i, j);
     let p_vb = Matrix3x2::from_columns(&[
-        Vector3::new(cov[(0, bk)], cov[(1, bk)], cov[(2, bk)]),
-        Vector3::new(cov[(0, bb)], cov[(1, bb)], cov[(2, bb)]),
+        Vector3::new(e(0, bk), e(1, bk), e(2, bk)),
+        Vector3::new(e(0, bb), e(1, bb), e(2, bb)),
     ]);
-    let p_bb = Matrix2::new(cov[(bk, bk)], cov[(bk, bb)], cov[(bb, bk)], cov[(bb, bb)]);
+    let p_bb = Matrix2::new(e(bk, bk), e(bk, bb), e(bb, bk), e(bb, bb));
+    let cov = &mut state.cov;
     let fpvb_fbt = f * p_vb * f_b.transpose();
     let mut new_vv = f * p_vv * f.transpose()
         + fpvb_fbt
@@ -189,7 +191,16 @@ fn propagate_with_bias(
     cov.fixed_view_mut::<3, 3>(0, 0).copy_from(&new_vv);
     for j in POSE_DIM..n {
         let c = Vector3::new(cov[(j, 0)], cov[(j, 1)], cov[(j, 2)]);
-        let fc = f * c + f_b * nalgebra::Vector2::new(cov[(j, bk)], cov[(j, bb)]);
+        // P[j, b] from the lower triangle: row j below the corrections' columns, column j
+        // above them.
+        let lower = |cov: &nalgebra::DMatrix<f64>, i: usize, k: usize| {
+            if i >= k {
+                cov[(i, k)]
+            } else {
+                cov[(k, i)]
+            }
+        };
+        let fc = f * c + f_b * nalgebra::Vector2::new(lower(cov, j, bk), lower(cov, j, bb));
         for r in 0..POSE_DIM {
             cov[(j, r)] = fc[r];
             cov[(r, j)] = fc[r];
@@ -292,5 +303,75 @@ mod tests {
             "got {got}, expected {expected}"
         );
         assert_eq!(state.predicted_pose, p);
+    }
+
+    /// The per-beam update writes only the lower triangle. Everything after it (a
+    /// prediction that moves the pose with the odometry corrections, another update, a new
+    /// feature, a removal) reads the lower triangle or mirrors first, so a filter that lets
+    /// the upper triangle go stale ends bit for bit where one that mirrors after every
+    /// update does.
+    #[test]
+    fn a_stale_upper_triangle_changes_nothing_downstream() {
+        use crate::state::{feature_index, FEATURE_BASE};
+        use crate::update::{batched_update, LinearisedObservation};
+        use nalgebra::{DMatrix, DVector, Matrix4};
+
+        let features = 5;
+        let n = FEATURE_BASE + 4 * features;
+        let a = DMatrix::from_fn(n, n, |i, j| ((i * 31 + j * 17) as f64 * 0.37).sin() * 0.1);
+        let cov = &a * a.transpose() + DMatrix::identity(n, n) * 0.05;
+        let mut mean = DVector::from_fn(n, |i, _| (i as f64 * 0.7).cos() * 5.0);
+        mean[SPEED_SCALE_INDEX] = 0.01;
+        mean[STEER_BIAS_INDEX] = 0.002;
+        let mut stale = SlamState::from_parts(mean, cov, 0.0).unwrap();
+        let mut synced = stale.clone();
+        let settings = FilterSettings::default();
+        let model = MotionModel::Bicycle { wheelbase_m: 2.7 };
+        let input = OdometrySample {
+            timestamp_s: 0.0,
+            speed_mps: 6.0,
+            steer_rad: 0.05,
+        };
+        for step in 0..6 {
+            let slot = step % features;
+            let fi = feature_index(slot);
+            let obs = LinearisedObservation {
+                columns: vec![0, 1, 2, 3, fi, fi + 1, fi + 2],
+                jacobian: DMatrix::from_fn(3, 7, |r, c| ((r * 7 + c + step) as f64).sin()),
+                innovation: DVector::from_fn(3, |r, _| 0.01 * (r as f64 + 1.0)),
+                noise: DMatrix::identity(3, 3) * 0.5,
+            };
+            batched_update(&mut stale, &obs).unwrap();
+            batched_update(&mut synced, &obs).unwrap();
+            assert!(stale.upper_stale);
+            synced.sync_upper();
+            predict_step(&mut stale, &model, &input, 0.01, &settings).unwrap();
+            predict_step(&mut synced, &model, &input, 0.01, &settings).unwrap();
+            if step == 3 {
+                let cross = DMatrix::from_fn(4, stale.dim(), |r, c| {
+                    synced.covariance_entry(c, r.min(2)) * 0.1
+                });
+                let block = Matrix4::identity();
+                for s in [&mut stale, &mut synced] {
+                    s.augment([1.0, 2.0, 0.0, 0.0], &cross, &block, 0.0, 100)
+                        .unwrap();
+                }
+                assert!(!stale.upper_stale);
+            }
+            if step == 4 {
+                let id = stale.tracks()[1].id;
+                stale.remove(id).unwrap();
+                synced.remove(id).unwrap();
+            }
+        }
+        assert_eq!(stale.mean(), synced.mean());
+        assert_eq!(*stale.covariance(), *synced.covariance());
+        let full = stale.covariance();
+        assert_eq!(*full, full.transpose());
+        assert_eq!(stale.pose_covariance(), full.fixed_view::<3, 3>(0, 0));
+        assert_eq!(
+            stale.odometry_bias_covariance(),
+            full.fixed_view::<2, 2>(SPEED_SCALE_INDEX, SPEED_SCALE_INDEX)
+        );
     }
 }

@@ -19,8 +19,13 @@
 //! zero with zero variance and nothing couples to them, so the filter is the paper's. `(rho, alpha, tau) = softmax(u, v, 0)` (radar-model's `material`), so
 //! every value of `u, v` is a valid material and no clamping is ever needed.
 //!
-//! The covariance `P` is kept exactly symmetric: every operation writes one triangle and
-//! mirrors it. Feature ids are stable for the life of the filter; slots are not.
+//! The covariance `P` is symmetric by construction: its lower triangle is always current,
+//! and every operation but the per-beam update writes both triangles. The per-beam update
+//! writes only the lower one (half the work of the filter's dominant cost) and marks the
+//! upper one stale; it is mirrored when something needs the whole matrix (a new feature,
+//! [`SlamState::covariance`]), and every accessor reads the lower triangle. Feature ids are stable for the life of the filter; slots are not.
+
+use std::borrow::Cow;
 
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Matrix4};
 use radar_model::geometry::{wrap_angle, Pose2};
@@ -87,7 +92,11 @@ pub struct FeatureParams {
 #[derive(Debug, Clone)]
 pub struct SlamState {
     pub(crate) mean: DVector<f64>,
+    /// The covariance. Its lower triangle (`i >= j`) is always current; the upper one is
+    /// stale while `upper_stale` (the per-beam updates write only the lower triangle).
     pub(crate) cov: DMatrix<f64>,
+    /// Whether `cov`'s upper triangle lags its lower one (see [`Self::covariance`]).
+    pub(crate) upper_stale: bool,
     tracks: Vec<FeatureTrack>,
     next_id: u64,
     time_s: f64,
@@ -149,6 +158,7 @@ impl SlamState {
         Ok(Self {
             mean,
             cov,
+            upper_stale: false,
             tracks: Vec::new(),
             next_id: 0,
             time_s,
@@ -199,6 +209,7 @@ impl SlamState {
             tally: None,
             mean,
             cov,
+            upper_stale: false,
             tracks,
             next_id: features as u64,
             time_s,
@@ -215,12 +226,13 @@ impl SlamState {
         for r in LOSS_INDEX..FEATURE_BASE {
             mean[r] = self.mean[r];
             for c in LOSS_INDEX..FEATURE_BASE {
-                cov[(r, c)] = self.cov[(r, c)];
+                cov[(r, c)] = self.covariance_entry(r, c);
             }
         }
         let fresh = SlamState {
             mean,
             cov,
+            upper_stale: false,
             tracks: Vec::new(),
             next_id: self.next_id,
             time_s: self.time_s,
@@ -255,17 +267,44 @@ impl SlamState {
         &self.mean
     }
 
-    /// The covariance matrix (exactly symmetric).
-    pub fn covariance(&self) -> &DMatrix<f64> {
-        &self.cov
+    /// The covariance matrix, exactly symmetric. The per-beam updates write only the lower
+    /// triangle, so after one this is a mirrored copy (O(n^2)); otherwise it is borrowed.
+    /// For single entries and blocks use [`Self::covariance_entry`] and
+    /// [`Self::covariance_block`], which never copy the matrix.
+    pub fn covariance(&self) -> Cow<'_, DMatrix<f64>> {
+        if self.upper_stale {
+            let mut full = self.cov.clone();
+            super::symmetric::mirror_lower(&mut full);
+            Cow::Owned(full)
+        } else {
+            Cow::Borrowed(&self.cov)
+        }
+    }
+
+    /// `P[i, j]` (read from the lower triangle). Panics outside the state, like indexing.
+    #[inline]
+    pub fn covariance_entry(&self, i: usize, j: usize) -> f64 {
+        if i >= j {
+            self.cov[(i, j)]
+        } else {
+            self.cov[(j, i)]
+        }
+    }
+
+    /// Brings the upper triangle up to date with the lower one (O(n^2) when stale).
+    pub(crate) fn sync_upper(&mut self) {
+        if self.upper_stale {
+            super::symmetric::mirror_lower(&mut self.cov);
+            self.upper_stale = false;
+        }
     }
 
     /// The covariance of the elements `indices` (in that order): `P[indices, indices]`,
-    /// read entry by entry from the columns it needs (a beam's block, without copying whole
+    /// read entry by entry from the lower triangle (a beam's block, without copying whole
     /// rows of `P`).
     pub fn covariance_block(&self, indices: &[usize]) -> DMatrix<f64> {
         let k = indices.len();
-        DMatrix::from_fn(k, k, |i, j| self.cov[(indices[i], indices[j])])
+        DMatrix::from_fn(k, k, |i, j| self.covariance_entry(indices[i], indices[j]))
     }
 
     /// The vehicle pose.
@@ -275,7 +314,7 @@ impl SlamState {
 
     /// The pose's 3x3 covariance block.
     pub fn pose_covariance(&self) -> Matrix3<f64> {
-        self.cov.fixed_view::<3, 3>(0, 0).into_owned()
+        Matrix3::from_fn(|i, j| self.covariance_entry(i, j))
     }
 
     /// The radar loss L (dB).
@@ -291,9 +330,12 @@ impl SlamState {
 
     /// The odometry corrections' 2x2 covariance.
     pub fn odometry_bias_covariance(&self) -> Matrix2<f64> {
-        self.cov
-            .fixed_view::<2, 2>(SPEED_SCALE_INDEX, SPEED_SCALE_INDEX)
-            .into_owned()
+        self.block2(SPEED_SCALE_INDEX)
+    }
+
+    /// `P[i..i + 2, i..i + 2]` from the lower triangle.
+    pub(crate) fn block2(&self, i: usize) -> Matrix2<f64> {
+        Matrix2::from_fn(|r, c| self.covariance_entry(i + r, i + c))
     }
 
     /// Whether the odometry corrections are estimated (either has a variance).
@@ -399,8 +441,7 @@ impl SlamState {
         if slot >= self.tracks.len() {
             return None;
         }
-        let i = feature_index(slot);
-        Some(self.cov.fixed_view::<2, 2>(i, i).into_owned())
+        Some(self.block2(feature_index(slot)))
     }
 
     /// Appends a feature. `mean` is `[x, y, u, v]`, `cross` its 4 x n covariance with the
@@ -424,6 +465,8 @@ impl SlamState {
         check_finite(&mean, "new feature mean")?;
         check_finite(cross.as_slice(), "new feature cross-covariance")?;
         check_finite(block.as_slice(), "new feature covariance")?;
+        // The enlarged matrix is written whole: bring the upper triangle up to date first.
+        self.sync_upper();
         let old = std::mem::replace(&mut self.cov, DMatrix::zeros(0, 0));
         let mut cov = old.resize(n + FEATURE_DIM, n + FEATURE_DIM, 0.0);
         for r in 0..FEATURE_DIM {
@@ -460,7 +503,8 @@ impl SlamState {
         Ok(id)
     }
 
-    /// Removes a feature's rows and columns; the features after it move down one slot.
+    /// Removes a feature's rows and columns; the features after it move down one slot (the
+    /// lower triangle stays the lower triangle, so a stale upper one stays merely stale).
     pub fn remove(&mut self, id: FeatureId) -> Result<(), FilterError> {
         let slot = self.slot_of(id).ok_or(FilterError::UnknownFeature(id))?;
         let i = feature_index(slot);

@@ -77,7 +77,6 @@ pub struct FrozenSubmap {
 impl FrozenSubmap {
     /// The compact record of a local map's state (marginals only).
     pub fn from_state(state: &SlamState) -> FrozenSubmap {
-        let cov = state.covariance();
         let features = (0..state.feature_count())
             .filter_map(|slot| {
                 let p = state.params(slot)?;
@@ -86,9 +85,9 @@ impl FrozenSubmap {
                 Some(SubmapFeature {
                     id: track.id,
                     xy: [p.x_m, p.y_m],
-                    xy_cov: cov.fixed_view::<2, 2>(i, i).into_owned(),
+                    xy_cov: state.block2(i),
                     uv: [p.u, p.v],
-                    uv_cov: cov.fixed_view::<2, 2>(i + 2, i + 2).into_owned(),
+                    uv_cov: state.block2(i + 2),
                     hits: track.hits,
                 })
             })

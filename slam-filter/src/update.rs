@@ -7,9 +7,11 @@
 //! - `S = H P[c, c] H^T + R`, factorised `S = L_S L_S^T` (never inverted)
 //! - `W = PHt L_S^{-T}` (n x m), so that `K S K^T = W W^T` and `K nu = W (L_S^{-1} nu)`
 //! - `x += W e` with `e = L_S^{-1} nu`, `NIS = e^T e = nu^T S^{-1} nu`
-//! - `P -= W W^T`: for a beam's few rows fused contiguous passes over the whole matrix
-//!   (exactly symmetric without a mirror), O(n^2 m); for big batches the lower triangle
-//!   as blocked matrix products, then mirrored, O(n^2 m / 2)
+//! - `P -= W W^T` on the lower triangle only, O(n^2 m / 2): for a beam's few rows fused
+//!   contiguous passes down each column from the diagonal; for big batches blocked matrix
+//!   products. The upper triangle is left stale and mirrored only when something needs the
+//!   whole matrix (a new feature, [`SlamState::covariance`]); everything on the per-beam
+//!   path reads the lower triangle.
 //!
 //! `P - K S K^T` is the Joseph form `(I - KH) P (I - KH)^T + K R K^T` for the optimal gain,
 //! written so that it is symmetric by construction and never forms the n x n `I - KH`.
@@ -76,10 +78,22 @@ impl LinearisedObservation {
     }
 }
 
-/// `P[:, c] H^T`: n x m, reading only the columns of P that H touches (gathered, then one
-/// matrix product).
-pub(crate) fn p_ht(cov: &DMatrix<f64>, columns: &[usize], h: &DMatrix<f64>) -> DMatrix<f64> {
-    cov.select_columns(columns.iter()) * h.transpose()
+/// `P[:, c] H^T`: n x m, reading only the columns of P that H touches. Only `P`'s lower
+/// triangle is read (the upper one may be stale, see [`SlamState::covariance`]): column `c`
+/// from row `c` down is contiguous, the entries above it are row `c`'s (`P[i, c] = P[c, i]`).
+pub(crate) fn p_ht(state: &SlamState, columns: &[usize], h: &DMatrix<f64>) -> DMatrix<f64> {
+    let cov = &state.cov;
+    let n = cov.nrows();
+    let mut gathered = DMatrix::zeros(n, columns.len());
+    for (k, &c) in columns.iter().enumerate() {
+        let mut dst = gathered.column_mut(k);
+        dst.rows_mut(c, n - c)
+            .copy_from(&cov.view((c, c), (n - c, 1)));
+        for i in 0..c {
+            dst[i] = cov[(c, i)];
+        }
+    }
+    gathered * h.transpose()
 }
 
 /// `S = H P[c, c] H^T + R` from `PHt`, symmetrised.
@@ -121,7 +135,7 @@ pub fn batched_update(
         Some((c, h)) => (c.as_slice(), h),
         None => (obs.columns.as_slice(), &obs.jacobian),
     };
-    let pht = p_ht(&state.cov, columns, jacobian);
+    let pht = p_ht(state, columns, jacobian);
     let s = innovation_covariance(&pht, columns, jacobian, &obs.noise);
     let chol = s
         .cholesky()
@@ -160,27 +174,27 @@ pub fn batched_update(
     state.mean += &w * &e;
     state.mean[2] = wrap_angle(state.mean[2]);
     subtract_wwt(&mut state.cov, &w);
+    state.upper_stale = true;
     Ok(UpdateOutcome { nis, dof: m })
 }
 
 /// Width of the column blocks of the covariance update.
 const BLOCK: usize = 64;
 
-/// Up to this many columns of `W` the update is done on the whole matrix with fused
-/// column passes (no mirror); above it the lower triangle is one blocked matrix product per
-/// column block, then mirrored.
+/// Up to this many columns of `W` the update is done with fused column passes; above it
+/// one blocked matrix product per column block.
 const FUSED_MAX_ROWS: usize = 8;
 
-/// `P -= W W^T`, keeping `P` exactly symmetric.
+/// `P -= W W^T` on the lower triangle (`i >= j`); the upper triangle is not brought up to
+/// date (the big-batch path writes the upper part of its diagonal blocks too).
 ///
 /// For the per-beam updates (m at most [`FUSED_MAX_ROWS`], typically 3: range, bearing,
-/// power of one target) every column of `P` is updated in one contiguous pass with up to
-/// four columns of `W` fused, over the whole matrix: `P[i, j]` and `P[j, i]` get the same
-/// products summed in the same order, so symmetry holds exactly without the strided
-/// mirror, at n^2 m multiply-adds in vectorisable streams. For bigger batches the lower
-/// triangle is a blocked matrix product per column block of [`BLOCK`] (nalgebra hands it to
-/// the cache-blocked `matrixmultiply`), about n^2 m / 2 multiply-adds, each block mirrored
-/// into the upper triangle while it is still in cache.
+/// power of one target) every column `j` of `P` is updated from its diagonal down in one
+/// contiguous pass with up to four columns of `W` fused, at n^2 m / 2 multiply-adds in
+/// vectorisable streams. For bigger batches the lower triangle is a blocked matrix product
+/// per column block of [`BLOCK`] (nalgebra hands it to the cache-blocked `matrixmultiply`).
+/// Each lower entry gets the same products summed in the same order as a full symmetric
+/// update would give it, so mirroring the result gives that update bit for bit.
 pub(crate) fn subtract_wwt(cov: &mut DMatrix<f64>, w: &DMatrix<f64>) {
     let n = cov.nrows();
     let m = w.ncols();
@@ -195,12 +209,12 @@ pub(crate) fn subtract_wwt(cov: &mut DMatrix<f64>, w: &DMatrix<f64>) {
         let b = w_t.columns(j0, jb);
         let mut c = cov.view_mut((j0, j0), (n - j0, jb));
         c.gemm(-1.0, &a, &b, 1.0);
-        mirror_block(cov, j0, jb);
     }
 }
 
-/// `P -= W W^T` over the whole column-major `p` (n x n), `w` column-major n x m: for each
-/// column `j` of `P`, the columns of `W` in groups of up to four, each group one pass.
+/// `P -= W W^T` on the lower triangle of the column-major `p` (n x n), `w` column-major
+/// n x m: for each column `j` of `P`, rows `j..n`, the columns of `W` in groups of up to
+/// four, each group one pass.
 ///
 /// Compiled twice and chosen at run time: with AVX (four doubles a vector) where the CPU
 /// has it, else the baseline (two). The arithmetic is the same element-wise products and
@@ -209,19 +223,29 @@ pub(crate) fn subtract_wwt(cov: &mut DMatrix<f64>, w: &DMatrix<f64>) {
 fn subtract_wwt_fused(p: &mut [f64], w: &[f64], n: usize, m: usize) {
     let cols: Vec<&[f64]> = (0..m).map(|k| &w[k * n..(k + 1) * n]).collect();
     for (j, p_col) in p.chunks_exact_mut(n).enumerate() {
+        let p_low = &mut p_col[j..];
         let mut k = 0;
         while k < m {
             match m - k {
-                1 => axpy1(p_col, cols[k], cols[k][j]),
-                2 => axpy2(p_col, [cols[k], cols[k + 1]], [cols[k][j], cols[k + 1][j]]),
+                1 => axpy1(p_low, &cols[k][j..], cols[k][j]),
+                2 => axpy2(
+                    p_low,
+                    [&cols[k][j..], &cols[k + 1][j..]],
+                    [cols[k][j], cols[k + 1][j]],
+                ),
                 3 => axpy3(
-                    p_col,
-                    [cols[k], cols[k + 1], cols[k + 2]],
+                    p_low,
+                    [&cols[k][j..], &cols[k + 1][j..], &cols[k + 2][j..]],
                     [cols[k][j], cols[k + 1][j], cols[k + 2][j]],
                 ),
                 _ => axpy4(
-                    p_col,
-                    [cols[k], cols[k + 1], cols[k + 2], cols[k + 3]],
+                    p_low,
+                    [
+                        &cols[k][j..],
+                        &cols[k + 1][j..],
+                        &cols[k + 2][j..],
+                        &cols[k + 3][j..],
+                    ],
                     [cols[k][j], cols[k + 1][j], cols[k + 2][j], cols[k + 3][j]],
                 ),
             }
@@ -261,30 +285,18 @@ fn axpy4(p: &mut [f64], w: [&[f64]; 4], a: [f64; 4]) {
     }
 }
 
-/// Copies the lower-triangle part of columns `j0..j0 + jb` onto the upper triangle:
-/// `P[r, c] = P[c, r]` for `r` in the block and `c > r`.
-fn mirror_block(cov: &mut DMatrix<f64>, j0: usize, jb: usize) {
-    let n = cov.nrows();
-    let data = cov.as_mut_slice();
-    for c in j0..n {
-        for r in j0..(j0 + jb).min(c) {
-            // (r, c) is at c * n + r (column-major); (c, r) at r * n + c.
-            data[c * n + r] = data[r * n + c];
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     /// The fused update (vectorised, AVX where the CPU has it) gives bit for bit what a
-    /// plain scalar loop gives for the same grouping of `W`'s columns, and keeps `P`
-    /// exactly symmetric, for every m it handles.
+    /// plain scalar loop over the whole matrix gives for the same grouping of `W`'s
+    /// columns in the lower triangle, leaves the upper triangle as it was, and mirrored is
+    /// exactly symmetric, for every m it handles and for a big batch.
     #[test]
-    fn the_fused_update_is_bitwise_the_scalar_one_and_exactly_symmetric() {
+    fn the_fused_update_is_bitwise_the_scalar_one_on_the_lower_triangle() {
         let n = 37;
-        for m in 1..=FUSED_MAX_ROWS {
+        for m in (1..=FUSED_MAX_ROWS).chain([FUSED_MAX_ROWS + 3]) {
             let w = DMatrix::from_fn(n, m, |i, k| ((i * 7 + k * 13) as f64 * 0.731).sin());
             let base = DMatrix::from_fn(n, n, |i, j| {
                 let (a, b) = (i.min(j) as f64, i.max(j) as f64);
@@ -307,7 +319,25 @@ mod tests {
                     }
                 }
             }
-            assert_eq!(fused, scalar, "m = {m}");
+            for j in 0..n {
+                for i in 0..n {
+                    if i >= j {
+                        if m <= FUSED_MAX_ROWS {
+                            assert_eq!(fused[(i, j)], scalar[(i, j)], "m = {m} ({i}, {j})");
+                        } else {
+                            // The blocked product sums in its own order.
+                            let tol = 1e-12 * scalar[(i, j)].abs().max(1.0);
+                            assert!((fused[(i, j)] - scalar[(i, j)]).abs() <= tol, "m = {m}");
+                        }
+                        assert_eq!(scalar[(i, j)], scalar[(j, i)], "m = {m}");
+                    } else if m <= FUSED_MAX_ROWS {
+                        // (The blocked product also writes the upper part of its diagonal
+                        // blocks; the mirror overwrites it.)
+                        assert_eq!(fused[(i, j)], base[(i, j)], "m = {m}: upper written");
+                    }
+                }
+            }
+            crate::symmetric::mirror_lower(&mut fused);
             assert_eq!(fused, fused.transpose(), "m = {m}");
         }
     }

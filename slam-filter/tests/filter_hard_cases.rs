@@ -421,7 +421,7 @@ fn nan_and_infinite_observations_are_rejected_before_touching_the_state() {
     let good = targets(&truth, &lm, 0.0)[0];
     f.initialise_feature(&good, rb.bearing_rad, T0).unwrap();
     let mean = f.state().mean().clone();
-    let cov = f.state().covariance().clone();
+    let cov = f.state().covariance().into_owned();
     let time = f.state().time_s();
     let bad_targets = [
         Target {
@@ -487,7 +487,7 @@ fn nan_and_infinite_observations_are_rejected_before_touching_the_state() {
     ));
     // Bit for bit unchanged.
     assert_eq!(f.state().mean(), &mean);
-    assert_eq!(f.state().covariance(), &cov);
+    assert_eq!(*f.state().covariance(), cov);
     assert_eq!(f.state().time_s(), time);
     assert_eq!(f.stats().updates, 0);
 }
@@ -539,7 +539,7 @@ fn a_vehicle_started_exactly_known_and_parked_keeps_updating() {
 /// exactly known.
 fn assert_healthy_or_exactly_known(f: &Filter) {
     let p = f.state().covariance();
-    assert_eq!(p, &p.transpose());
+    assert_eq!(*p, p.transpose());
     let known: Vec<usize> = (0..p.nrows()).filter(|&i| p[(i, i)] == 0.0).collect();
     assert!(known.iter().all(|&i| p.row(i).iter().all(|&v| v == 0.0)));
     let free: Vec<usize> = (0..p.nrows()).filter(|i| !known.contains(i)).collect();

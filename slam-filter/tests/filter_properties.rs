@@ -101,10 +101,10 @@ proptest! {
         let mut x_ref = DVector::from_vec(mean.clone()) + &k * &nu;
         x_ref[2] = radar_model::geometry::wrap_angle(x_ref[2]);
         let nis_ref = (nu.transpose() * lu.solve(&nu).unwrap())[(0, 0)];
-        prop_assert!(relative_error(state.covariance(), &p_ref) < 1e-8, "P differs: {}", relative_error(state.covariance(), &p_ref));
+        prop_assert!(relative_error(&state.covariance(), &p_ref) < 1e-8, "P differs: {}", relative_error(&state.covariance(), &p_ref));
         prop_assert!((state.mean() - &x_ref).abs().max() < 1e-9);
         prop_assert!((out.nis - nis_ref).abs() <= 1e-8 * nis_ref.max(1.0));
-        prop_assert_eq!(state.covariance().clone(), state.covariance().transpose());
+        prop_assert_eq!(state.covariance().into_owned(), state.covariance().transpose());
     }
 
     #[test]
@@ -158,8 +158,8 @@ proptest! {
             q[(i + 3, i + 3)] = 1e-3 * dt;
         }
         let p_ref = &f_full * &cov * f_full.transpose() + q;
-        prop_assert!(relative_error(state.covariance(), &p_ref) < 1e-12);
-        prop_assert_eq!(state.covariance().clone(), state.covariance().transpose());
+        prop_assert!(relative_error(&state.covariance(), &p_ref) < 1e-12);
+        prop_assert_eq!(state.covariance().into_owned(), state.covariance().transpose());
         prop_assert!((state.pose().x - step.pose.x).abs() < 1e-12);
     }
 }

@@ -150,7 +150,7 @@ fn run() -> Run {
     assert_eq!((k, b), (0.0, 0.0));
     let p = state
         .covariance()
-        .clone()
+        .into_owned()
         .remove_rows(SPEED_SCALE_INDEX, 2)
         .remove_columns(SPEED_SCALE_INDEX, 2);
     assert!(state

@@ -199,7 +199,7 @@ fn wide_variances(updates: usize, seed: u64) -> Result<(u64, HealthExtremes), Ev
     let mut state = SlamState::from_parts(mean, cov, 0.0)?;
     let mut health = HealthExtremes::default();
     health.add(&slam_filter::health::covariance_health(
-        state.covariance(),
+        &state.covariance(),
         true,
     ));
     let mut errors = 0u64;
@@ -223,7 +223,7 @@ fn wide_variances(updates: usize, seed: u64) -> Result<(u64, HealthExtremes), Ev
         }
         if k % 100 == 0 || k + 1 == updates {
             health.add(&slam_filter::health::covariance_health(
-                state.covariance(),
+                &state.covariance(),
                 true,
             ));
         }

@@ -107,7 +107,10 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             Material::from_rho_alpha(self.settings.initial_rho, self.settings.initial_alpha)
                 .map_err(FilterError::Model)?;
         let n = self.state.dim();
-        let cov = self.state.covariance();
+        // The pose rows are read whole: bring the upper triangle up to date (augment
+        // would next).
+        self.state.sync_upper();
+        let cov = &self.state.cov;
         let mut cross = DMatrix::zeros(FEATURE_DIM, n);
         let pose_rows = cov.rows(0, 3);
         let gx = g_pose * pose_rows; // 2 x n

@@ -75,7 +75,6 @@ impl MapSnapshot {
     /// state holds them: call `Ekf::settle_material_noise` first so that they include the
     /// random walk of features not seen lately.
     pub fn from_state(state: &SlamState) -> MapSnapshot {
-        let p = state.covariance();
         let mut features = Vec::with_capacity(state.feature_count());
         for slot in 0..state.feature_count() {
             let (Some(params), Some(track)) = (state.params(slot), state.tracks().get(slot)) else {
@@ -86,7 +85,7 @@ impl MapSnapshot {
             let j = material.shares_jacobian();
             let base = feature_index(slot);
             // Covariance of (x, y, u, v) from the state.
-            let c = |r: usize, k: usize| p.get((base + r, base + k)).copied().unwrap_or(0.0);
+            let c = |r: usize, k: usize| state.covariance_entry(base + r, base + k);
             // Transform T = diag(I2, J): cov' = T C T^T.
             let t = |r: usize, k: usize| -> f64 {
                 match (r, k) {
@@ -121,7 +120,7 @@ impl MapSnapshot {
                 observations: track.hits,
             });
         }
-        let loss_var = p.get((LOSS_INDEX, LOSS_INDEX)).copied().unwrap_or(0.0);
+        let loss_var = state.covariance_entry(LOSS_INDEX, LOSS_INDEX);
         MapSnapshot {
             format: MapSnapshot::FORMAT.into(),
             timestamp_s: state.time_s(),
