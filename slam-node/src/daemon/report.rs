@@ -248,6 +248,16 @@ pub fn summary_text(r: &DaemonReport) -> String {
         s.max_rotation_ms,
         s.real_time_factor()
     );
+    if let Some(mean) = s.mean_cpu_ms() {
+        let _ = writeln!(
+            t,
+            "  pipeline thread CPU per rotation (its own work, without waits for a core): mean {:.2} ms, p50 {:.2}, p99 {:.2} over {} rotations",
+            mean,
+            s.cpu_ms_percentile(50.0),
+            s.cpu_ms_percentile(99.0),
+            s.cpu_rotations
+        );
+    }
     let _ = writeln!(
         t,
         "  refused beams: {} without odometry, {} with stale odometry, {} late; filter errors {}; radar stalls {}; odometry errors {}; output events dropped {}",

@@ -80,6 +80,8 @@ pub struct Pipeline {
     summary: PipelineSummary,
     filter_started: bool,
     scan_match: ScanMatcher,
+    /// This thread's CPU clock when the last rotation closed (see `measure_cpu`).
+    cpu_mark: Option<std::time::Duration>,
 }
 
 fn filter_at(
@@ -140,6 +142,7 @@ impl Pipeline {
             summary: PipelineSummary::default(),
             filter_started: false,
             scan_match: ScanMatcher::new(settings.scan_match),
+            cpu_mark: None,
             settings,
         })
     }
@@ -530,6 +533,7 @@ impl Pipeline {
             events,
         );
         self.warn_if_behind(d.total_ms);
+        self.measure_cpu();
         let (pose, cov) = self.world_pose();
         events.push(OutputEvent::Pose(PoseSample {
             timestamp_s: self.ekf.state().time_s(),
@@ -563,6 +567,20 @@ impl Pipeline {
             let t = self.ekf.state().time_s();
             s.end_rotation(&mut self.ekf, t);
             self.summary.current_submap = s.current();
+        }
+    }
+
+    /// Adds the CPU time this thread spent since the last rotation closed to the summary
+    /// (the first rotation only sets the mark: the pipeline may have been built on another
+    /// thread). Nothing when the platform has no per-thread CPU clock.
+    fn measure_cpu(&mut self) {
+        let Ok(now) = cpu_time::ThreadTime::try_now() else {
+            return;
+        };
+        let now = now.as_duration();
+        if let Some(mark) = self.cpu_mark.replace(now) {
+            let spent = now.saturating_sub(mark);
+            self.summary.add_cpu_ms(spent.as_secs_f64() * 1e3);
         }
     }
 

@@ -118,6 +118,13 @@ pub struct PipelineSummary {
     pub map: Option<MapScore>,
     #[serde(skip)]
     recent_ms: VecDeque<f64>,
+    /// CPU time of the pipeline's thread summed over the rotations it was measured for, ms:
+    /// its own work, without the time it waited for a core (see [`Self::add_cpu_ms`]).
+    pub cpu_ms: f64,
+    /// Rotations whose CPU time was measured.
+    pub cpu_rotations: u64,
+    #[serde(skip)]
+    recent_cpu_ms: VecDeque<f64>,
 }
 
 impl PipelineSummary {
@@ -164,19 +171,68 @@ impl PipelineSummary {
         }
     }
 
+    /// Adds one rotation's CPU time of the pipeline's thread, ms. Unlike the stage times
+    /// (wall clock, which count the time the thread waited for a core while another process
+    /// or the embedded simulator ran), this is the work itself.
+    pub fn add_cpu_ms(&mut self, ms: f64) {
+        if !(ms.is_finite() && ms >= 0.0) {
+            return;
+        }
+        self.cpu_ms += ms;
+        self.cpu_rotations += 1;
+        if self.recent_cpu_ms.len() == TIMES_KEPT {
+            self.recent_cpu_ms.pop_front();
+        }
+        self.recent_cpu_ms.push_back(ms);
+    }
+
+    /// Mean CPU time per measured rotation, ms (`None`: none measured).
+    pub fn mean_cpu_ms(&self) -> Option<f64> {
+        (self.cpu_rotations > 0).then(|| self.cpu_ms / self.cpu_rotations as f64)
+    }
+
+    /// A percentile (0-100) of the recent rotations' CPU times, ms.
+    pub fn cpu_ms_percentile(&self, p: f64) -> f64 {
+        percentile(&self.recent_cpu_ms, p)
+    }
+
     /// A percentile (0-100) of the recent rotation times, ms.
     pub fn rotation_ms_percentile(&self, p: f64) -> f64 {
-        let mut v: Vec<f64> = self.recent_ms.iter().copied().collect();
-        if v.is_empty() {
-            return 0.0;
+        percentile(&self.recent_ms, p)
+    }
+}
+
+/// A percentile (0-100) of `values` (nearest rank), 0 when empty.
+fn percentile(values: &VecDeque<f64>, p: f64) -> f64 {
+    let mut v: Vec<f64> = values.iter().copied().collect();
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let k = ((p / 100.0) * (v.len() - 1) as f64).round();
+    let k = if k.is_finite() && k >= 0.0 {
+        k as usize
+    } else {
+        0
+    };
+    v.get(k.min(v.len() - 1)).copied().unwrap_or(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cpu_times_skip_nonsense_and_give_nearest_rank_percentiles() {
+        let mut s = PipelineSummary::default();
+        assert_eq!(s.mean_cpu_ms(), None);
+        for ms in [3.0, f64::NAN, 1.0, -2.0, 2.0, f64::INFINITY, 10.0] {
+            s.add_cpu_ms(ms);
         }
-        v.sort_by(f64::total_cmp);
-        let k = ((p / 100.0) * (v.len() - 1) as f64).round();
-        let k = if k.is_finite() && k >= 0.0 {
-            k as usize
-        } else {
-            0
-        };
-        v.get(k.min(v.len() - 1)).copied().unwrap_or(0.0)
+        assert_eq!(s.cpu_rotations, 4);
+        assert_eq!(s.mean_cpu_ms(), Some(4.0));
+        assert_eq!(s.cpu_ms_percentile(50.0), 3.0);
+        assert_eq!(s.cpu_ms_percentile(99.0), 10.0);
+        assert_eq!(s.cpu_ms_percentile(0.0), 1.0);
     }
 }
