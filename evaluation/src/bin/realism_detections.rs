@@ -9,7 +9,9 @@
 //!
 //! Rows: the daemon's default detector (TPP), and the front end for current units
 //! (`[detector] kind = "learned"`, with the settings `slam-node --replay-dir` uses):
-//! every target it finds, and the point-like ones.
+//! every target it finds, and the point-like ones. Then the learned front end's extended
+//! targets by range extent, its targets by SNR band with their median range extent, and
+//! the strong point-like targets that may start a feature (the replay's landmark test).
 //!
 //! The detector's default (TPP) keeps a per-bin minimum over scans, so the first two
 //! rotations of each set are warm-up and are not counted.
@@ -67,21 +69,36 @@ fn per_rotation(scans: &Scans, settings: DetectorSettings, warmup: usize) -> f64
 /// rotations after `warmup`, all of them and the point-like ones (at most the landmark
 /// extent in range, the others being what the daemon keeps out of the map as extended).
 fn learned_per_rotation(scans: &Scans, settings: &DetectorSettings, warmup: usize) -> (f64, f64) {
-    let (all, points, _) = learned_with_extents(scans, settings, warmup);
-    (all, points)
+    let t = learned_with_extents(scans, settings, warmup);
+    (t.all, t.points)
 }
 
 /// Range extents (m) of extended targets: the upper edges of [`extent_histogram`]'s bins.
 const EXTENT_EDGES_M: [f64; 5] = [1.0, 2.0, 4.0, 8.0, f64::INFINITY];
 
-/// [`learned_per_rotation`] and the extended targets per rotation by range extent
-/// (`EXTENT_EDGES_M`).
+/// What the learned front end finds over the rotations after the warm-up.
+struct LearnedTargets {
+    /// Targets per rotation.
+    all: f64,
+    /// Point-like ones (at most the landmark extent in range) per rotation.
+    points: f64,
+    /// Extended targets per rotation by range extent (`EXTENT_EDGES_M`).
+    extended: [f64; 5],
+    /// Every target's SNR (dB) and range extent (m).
+    snr_extent: Vec<(f64, f64)>,
+    /// Rotations counted.
+    rotations: usize,
+}
+
+/// Targets the learned front end finds: [`learned_per_rotation`], the extended ones by
+/// range extent, and every target's SNR and extent.
 fn learned_with_extents(
     scans: &Scans,
     settings: &DetectorSettings,
     warmup: usize,
-) -> (f64, f64, [f64; 5]) {
+) -> LearnedTargets {
     let mut hist = [0usize; 5];
+    let mut snr_extent = Vec::new();
     let mut floor = LearnedFloor::new(settings.floor, scans.bins);
     let mut line = LineDetector::new();
     let axis = RangeAxis {
@@ -103,6 +120,7 @@ fn learned_with_extents(
                 all += peaks.len();
                 for p in &peaks {
                     let extent = p.extent_bins as f64 * scans.bin_m;
+                    snr_extent.push((p.snr_db, extent));
                     if extent <= settings.landmarks.max_extent_m {
                         points += 1;
                     } else if let Some(h) = EXTENT_EDGES_M
@@ -120,11 +138,36 @@ fn learned_with_extents(
         }
     }
     let n = counted.max(1) as f64;
-    (
-        all as f64 / n,
-        points as f64 / n,
-        hist.map(|h| h as f64 / n),
-    )
+    LearnedTargets {
+        all: all as f64 / n,
+        points: points as f64 / n,
+        extended: hist.map(|h| h as f64 / n),
+        snr_extent,
+        rotations: counted,
+    }
+}
+
+/// Lower edges of the SNR bands (dB) of the extent-by-SNR table; the last is open.
+const SNR_EDGES_DB: [f64; 9] = [12.0, 15.0, 20.0, 25.0, 30.0, 35.0, 40.0, 45.0, 50.0];
+
+/// Per SNR band: targets, median range extent (m) and the share longer than `point_m`.
+fn extent_by_snr(targets: &[(f64, f64)], point_m: f64) -> Vec<(usize, f64, f64)> {
+    SNR_EDGES_DB
+        .iter()
+        .enumerate()
+        .map(|(k, &lo)| {
+            let hi = SNR_EDGES_DB.get(k + 1).copied().unwrap_or(f64::INFINITY);
+            let mut e: Vec<f64> = targets
+                .iter()
+                .filter(|(s, _)| *s >= lo && *s < hi)
+                .map(|&(_, x)| x)
+                .collect();
+            e.sort_by(f64::total_cmp);
+            let median = e.get(e.len() / 2).copied().unwrap_or(f64::NAN);
+            let long = e.iter().filter(|&&x| x > point_m).count();
+            (e.len(), median, long as f64 / e.len().max(1) as f64)
+        })
+        .collect()
 }
 
 fn main() -> anyhow::Result<()> {
@@ -183,16 +226,60 @@ fn main() -> anyhow::Result<()> {
             scans.bins as f64 * scans.bin_m,
             scans.bin_m,
         );
-        learned_with_extents(scans, &settings.detector, 2).2
+        (
+            learned_with_extents(scans, &settings.detector, 2),
+            settings.detector.landmarks,
+        )
     };
-    let (re, se) = (extents(&real), extents(&sim));
+    let ((rt, landmarks), (st, _)) = (extents(&real), extents(&sim));
     println!("\n| extended targets by range extent (m) | real / rotation | simulated |");
     println!("|---|---|---|");
     let mut lower = 0.5;
-    for ((edge, r), s) in EXTENT_EDGES_M.iter().zip(re).zip(se) {
+    for ((edge, r), s) in EXTENT_EDGES_M.iter().zip(rt.extended).zip(st.extended) {
         println!("| {lower}-{edge} | {r:.0} | {s:.0} |");
         lower = *edge;
     }
+    // How long a target is in range against how strong it is: what decides whether a
+    // strong return is point-like enough to start a feature.
+    let point_m = landmarks.max_extent_m;
+    println!(
+        "\n| SNR (dB) | real targets / rotation | median range extent (m) | longer than {point_m} m | simulated targets / rotation | median extent | longer than {point_m} m |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    let per = |t: &LearnedTargets, n: usize| n as f64 / t.rotations.max(1) as f64;
+    for (k, (r, s)) in extent_by_snr(&rt.snr_extent, point_m)
+        .into_iter()
+        .zip(extent_by_snr(&st.snr_extent, point_m))
+        .enumerate()
+    {
+        let lo = SNR_EDGES_DB[k];
+        let band = SNR_EDGES_DB
+            .get(k + 1)
+            .map_or(format!("{lo:.0}+"), |hi| format!("{lo:.0}-{hi:.0}"));
+        println!(
+            "| {band} | {:.0} | {:.2} | {:.0} % | {:.0} | {:.2} | {:.0} % |",
+            per(&rt, r.0),
+            r.1,
+            100.0 * r.2,
+            per(&st, s.0),
+            s.1,
+            100.0 * s.2
+        );
+    }
+    let starts = |t: &LearnedTargets| {
+        let n = t
+            .snr_extent
+            .iter()
+            .filter(|&&(snr, x)| snr >= landmarks.min_snr_db && x <= point_m)
+            .count();
+        per(t, n)
+    };
+    let (rs, ss) = (starts(&rt), starts(&st));
+    println!(
+        "\nstrong point-like targets (SNR >= {} dB, extent <= {point_m} m: what may start a feature) per rotation: real {rs:.0}, simulated {ss:.0} ({:.2})",
+        landmarks.min_snr_db,
+        ss / rs.max(f64::MIN_POSITIVE)
+    );
     // Attribution by removal.
     println!("\n| simulated street without | every target / rotation | point-like | extended | extended less than the whole street |");
     println!("|---|---|---|---|---|");
