@@ -88,6 +88,10 @@ struct LearnedTargets {
     snr_extent: Vec<(f64, f64)>,
     /// Rotations counted.
     rotations: usize,
+    /// The learned floor at the end: per bin, its median and spread (dB).
+    floor_median_db: Vec<f64>,
+    /// Its per-bin spread (dB).
+    floor_sigma_db: Vec<f64>,
 }
 
 /// Targets the learned front end finds: [`learned_per_rotation`], the extended ones by
@@ -144,6 +148,8 @@ fn learned_with_extents(
         extended: hist.map(|h| h as f64 / n),
         snr_extent,
         rotations: counted,
+        floor_median_db: floor.median_db().to_vec(),
+        floor_sigma_db: floor.sigma_db().to_vec(),
     }
 }
 
@@ -264,6 +270,45 @@ fn main() -> anyhow::Result<()> {
             per(&st, s.0),
             s.1,
             100.0 * s.2
+        );
+    }
+    // The detection threshold sits at the learned median plus the larger of k sigma and
+    // the minimum SNR: the per-bin spread decides how long a strong return's run is.
+    println!(
+        "\n| range (m) | real floor median / sigma (dB, median over the band's bins) | simulated |"
+    );
+    println!("|---|---|---|");
+    let band = |t: &LearnedTargets, v: &[f64], lo: f64, hi: f64| {
+        let bin_m = t.floor_median_db.len().max(1) as f64;
+        let _ = bin_m;
+        let mut x: Vec<f64> = v
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| {
+                let r = *i as f64 * real.bin_m;
+                r >= lo && r < hi
+            })
+            .map(|(_, &y)| y)
+            .collect();
+        x.sort_by(f64::total_cmp);
+        x.get(x.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    for (lo, hi) in [
+        (2.0, 5.0),
+        (5.0, 10.0),
+        (10.0, 20.0),
+        (20.0, 30.0),
+        (30.0, 45.0),
+        (45.0, 60.0),
+        (60.0, 80.0),
+        (80.0, 130.0),
+    ] {
+        println!(
+            "| {lo:.0}-{hi:.0} | {:.1} / {:.1} | {:.1} / {:.1} |",
+            band(&rt, &rt.floor_median_db, lo, hi),
+            band(&rt, &rt.floor_sigma_db, lo, hi),
+            band(&st, &st.floor_median_db, lo, hi),
+            band(&st, &st.floor_sigma_db, lo, hi)
         );
     }
     let starts = |t: &LearnedTargets| {

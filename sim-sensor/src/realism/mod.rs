@@ -104,6 +104,11 @@ pub struct RealismSpec {
     pub ghost_min_rcs_m2: f64,
     /// Ghosts are formed only in reflectors and by sources within this range (m).
     pub ghost_range_m: f64,
+    /// `true`: the floor is correlated in range as receiver noise through the range window
+    /// is (the real floor's correlation between bins 1 to 4 apart, 131-162 m out: 0.94,
+    /// 0.87, 0.77, 0.65); `false`: an independent draw a bin. Either way each bin's level
+    /// has the fitted gamma distribution (see `receiver`).
+    pub floor_correlated: bool,
 }
 
 impl Default for RealismSpec {
@@ -131,6 +136,7 @@ impl Default for RealismSpec {
             ghost_reflectance: 0.3,
             ghost_min_rcs_m2: 2.0,
             ghost_range_m: 60.0,
+            floor_correlated: true,
         }
     }
 }

@@ -41,7 +41,7 @@ use rand_chacha::ChaCha8Rng;
 use radar_model::geometry::{wrap_angle, Pose2};
 
 use super::objects::{Mover, Shape, Swerling, World, SPECULAR_LOBE_RAD};
-use super::receiver::{Receiver, DB_TABLE, FLOOR_QUANTILES, NEGLIGIBLE_POWER};
+use super::receiver::{Receiver, COPULA_REACH, DB_TABLE, FLOOR_QUANTILES, NEGLIGIBLE_POWER};
 use super::RealismSpec;
 use crate::error::{SceneError, SimError};
 use crate::radar::RadarParams;
@@ -69,6 +69,54 @@ const SELF_MARGIN_M: f64 = 0.15;
 pub const ROUGH_FLOOR: f64 = 0.2;
 /// Cosine of five specular lobe widths.
 const SPECULAR_COS_LIMIT: f64 = 0.984_7;
+/// Independent stretches of a row the floor's recursions run in side by side (the
+/// correlation restarts at their 7 joins, out of thousands of bins).
+const FLOOR_LANES: usize = 8;
+
+/// Smooths the standard normal draws `d` along the range with two first-order recursions
+/// of coefficient `rho`, rescales them to unit variance and replaces each by the floor draw
+/// at its normal probability (`floor_of_normal`, see `receiver`'s module docs). The row is
+/// cut into [`FLOOR_LANES`] equal stretches whose recursions advance together (the last
+/// few bins continue the last stretch), each started in its stationary distribution: the
+/// recursions' latency is paid once for all of them.
+fn correlate_floor(d: &mut [f32], rho: f32, floor_of_normal: &[f32]) {
+    let n = d.len();
+    let len = n / FLOOR_LANES;
+    if len == 0 || floor_of_normal.is_empty() {
+        return;
+    }
+    let c = (1.0 - rho * rho).sqrt();
+    // Two stages of unit-variance input: the second's variance is (1 + rho^2) / (1 - rho^2).
+    let second_sd = ((1.0 + rho * rho) / (1.0 - rho * rho)).sqrt();
+    let mut s1: [f32; FLOOR_LANES] = std::array::from_fn(|k| d[k * len]);
+    let mut s2 = s1.map(|v| v * second_sd);
+    let (bulk, tail) = d.split_at_mut(len * FLOOR_LANES);
+    for i in 0..len {
+        for k in 0..FLOOR_LANES {
+            let v = &mut bulk[k * len + i];
+            s1[k] = rho * s1[k] + c * *v;
+            s2[k] = rho * s2[k] + c * s1[k];
+            *v = s2[k];
+        }
+    }
+    let (mut t1, mut t2) = (s1[FLOOR_LANES - 1], s2[FLOOR_LANES - 1]);
+    for v in tail.iter_mut() {
+        t1 = rho * t1 + c * *v;
+        t2 = rho * t2 + c * t1;
+        *v = t2;
+    }
+    // To the floor's distribution: the nearest table entry, found by adding 2^23 (the sum's
+    // low mantissa bits are the rounded index; the clamp keeps it in the table).
+    let last = (floor_of_normal.len() - 1) as f32;
+    let per = last / (2.0 * COPULA_REACH);
+    let (a, b) = (per / second_sd, COPULA_REACH * per);
+    for v in d.iter_mut() {
+        let t = (*v * a + b).clamp(0.0, last) + 8_388_608.0;
+        let index = (t.to_bits() & 0x007f_ffff) as usize;
+        *v = floor_of_normal.get(index).copied().unwrap_or(1.0);
+    }
+}
+
 /// Random bits of one floor draw (an index into the floor's quantile table).
 const FLOOR_BITS: u32 = FLOOR_QUANTILES.trailing_zeros();
 /// Floor draws taken from one 64-bit random word.
@@ -620,17 +668,30 @@ impl RealisticCursor {
         // The draws first (a table lookup a bin), then `k` in a loop the compiler can
         // vectorise.
         let mask = (FLOOR_QUANTILES - 1) as u64;
+        let correlated = rx.floor_rho > 0.0;
+        // Correlated: the words index standard normal draws, smoothed and mapped below.
+        let table: &[f32; FLOOR_QUANTILES] = if correlated {
+            rx.normal_quantiles
+                .as_slice()
+                .try_into()
+                .map_err(|_| SimError::Model("normal quantile table of the wrong size".into()))?
+        } else {
+            quantiles
+        };
         self.draws.resize(n, 0.0);
         let mut d6 = self.draws.chunks_exact_mut(FLOOR_DRAWS_PER_WORD);
         for (d, &word) in (&mut d6).zip(&self.words) {
             for (j, d) in d.iter_mut().enumerate() {
-                *d = quantiles[((word >> (j as u32 * FLOOR_BITS)) & mask) as usize];
+                *d = table[((word >> (j as u32 * FLOOR_BITS)) & mask) as usize];
             }
         }
         if let Some(&word) = self.words.last() {
             for (j, d) in d6.into_remainder().iter_mut().enumerate() {
-                *d = quantiles[((word >> (j as u32 * FLOOR_BITS)) & mask) as usize];
+                *d = table[((word >> (j as u32 * FLOOR_BITS)) & mask) as usize];
             }
+        }
+        if correlated {
+            correlate_floor(&mut self.draws, rx.floor_rho, &rx.floor_of_normal);
         }
         for ((k, s), (&m, d)) in self.power[..n]
             .iter_mut()
