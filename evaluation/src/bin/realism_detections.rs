@@ -278,16 +278,12 @@ fn main() -> anyhow::Result<()> {
         "\n| range (m) | real floor median / sigma (dB, median over the band's bins) | simulated |"
     );
     println!("|---|---|---|");
-    let band = |t: &LearnedTargets, v: &[f64], lo: f64, hi: f64| {
-        let bin_m = t.floor_median_db.len().max(1) as f64;
-        let _ = bin_m;
+    // The median over the bins of `lo..hi` m of a per-bin table on `bin_m` bins.
+    let band = |v: &[f64], bin_m: f64, lo: f64, hi: f64| {
         let mut x: Vec<f64> = v
             .iter()
             .enumerate()
-            .filter(|(i, _)| {
-                let r = *i as f64 * real.bin_m;
-                r >= lo && r < hi
-            })
+            .filter(|&(i, _)| (lo..hi).contains(&(i as f64 * bin_m)))
             .map(|(_, &y)| y)
             .collect();
         x.sort_by(f64::total_cmp);
@@ -305,10 +301,10 @@ fn main() -> anyhow::Result<()> {
     ] {
         println!(
             "| {lo:.0}-{hi:.0} | {:.1} / {:.1} | {:.1} / {:.1} |",
-            band(&rt, &rt.floor_median_db, lo, hi),
-            band(&rt, &rt.floor_sigma_db, lo, hi),
-            band(&st, &st.floor_median_db, lo, hi),
-            band(&st, &st.floor_sigma_db, lo, hi)
+            band(&rt.floor_median_db, real.bin_m, lo, hi),
+            band(&rt.floor_sigma_db, real.bin_m, lo, hi),
+            band(&st.floor_median_db, sim.bin_m, lo, hi),
+            band(&st.floor_sigma_db, sim.bin_m, lo, hi)
         );
     }
     let starts = |t: &LearnedTargets| {
