@@ -21,6 +21,7 @@ use radar_model::geometry::{wrap_angle, Pose2};
 use super::error::FilterError;
 use super::settings::FilterSettings;
 use super::state::{SlamState, POSE_DIM, SPEED_SCALE_INDEX, STEER_BIAS_INDEX};
+use super::symmetric::lower_entry;
 
 /// One odometry sample: what the vehicle reports at `timestamp_s`, held until the next.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -191,16 +192,9 @@ fn propagate_with_bias(
     cov.fixed_view_mut::<3, 3>(0, 0).copy_from(&new_vv);
     for j in POSE_DIM..n {
         let c = Vector3::new(cov[(j, 0)], cov[(j, 1)], cov[(j, 2)]);
-        // P[j, b] from the lower triangle: row j below the corrections' columns, column j
-        // above them.
-        let lower = |cov: &nalgebra::DMatrix<f64>, i: usize, k: usize| {
-            if i >= k {
-                cov[(i, k)]
-            } else {
-                cov[(k, i)]
-            }
-        };
-        let fc = f * c + f_b * nalgebra::Vector2::new(lower(cov, j, bk), lower(cov, j, bb));
+        // P[j, b] from the lower triangle (the pose rows written here are not read).
+        let fc =
+            f * c + f_b * nalgebra::Vector2::new(lower_entry(cov, j, bk), lower_entry(cov, j, bb));
         for r in 0..POSE_DIM {
             cov[(j, r)] = fc[r];
             cov[(r, j)] = fc[r];

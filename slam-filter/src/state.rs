@@ -284,11 +284,7 @@ impl SlamState {
     /// `P[i, j]` (read from the lower triangle). Panics outside the state, like indexing.
     #[inline]
     pub fn covariance_entry(&self, i: usize, j: usize) -> f64 {
-        if i >= j {
-            self.cov[(i, j)]
-        } else {
-            self.cov[(j, i)]
-        }
+        super::symmetric::lower_entry(&self.cov, i, j)
     }
 
     /// Brings the upper triangle up to date with the lower one (O(n^2) when stale).

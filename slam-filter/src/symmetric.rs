@@ -2,6 +2,16 @@
 
 use nalgebra::DMatrix;
 
+/// `P[i, j]` read from the lower triangle (the only one the per-beam update keeps current).
+#[inline]
+pub(crate) fn lower_entry(cov: &DMatrix<f64>, i: usize, j: usize) -> f64 {
+    if i >= j {
+        cov[(i, j)]
+    } else {
+        cov[(j, i)]
+    }
+}
+
 /// Copies the lower triangle onto the upper one, in square tiles so that the strided
 /// writes stay in cache.
 pub(crate) fn mirror_lower(cov: &mut DMatrix<f64>) {

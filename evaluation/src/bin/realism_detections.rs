@@ -64,19 +64,11 @@ fn per_rotation(scans: &Scans, settings: DetectorSettings, warmup: usize) -> f64
     total as f64 / counted.max(1) as f64
 }
 
-/// Mean targets per rotation found by the learned front end (`[detector] kind =
-/// "learned"`: the floor learned from the stream, the line-rate detector) over the
-/// rotations after `warmup`, all of them and the point-like ones (at most the landmark
-/// extent in range, the others being what the daemon keeps out of the map as extended).
-fn learned_per_rotation(scans: &Scans, settings: &DetectorSettings, warmup: usize) -> (f64, f64) {
-    let t = learned_with_extents(scans, settings, warmup);
-    (t.all, t.points)
-}
-
 /// Range extents (m) of extended targets: the upper edges of [`extent_histogram`]'s bins.
 const EXTENT_EDGES_M: [f64; 5] = [1.0, 2.0, 4.0, 8.0, f64::INFINITY];
 
-/// What the learned front end finds over the rotations after the warm-up.
+/// What the learned front end finds over the rotations after the warm-up
+/// ([`learned_with_extents`]).
 struct LearnedTargets {
     /// Targets per rotation.
     all: f64,
@@ -94,8 +86,11 @@ struct LearnedTargets {
     floor_sigma_db: Vec<f64>,
 }
 
-/// Targets the learned front end finds: [`learned_per_rotation`], the extended ones by
-/// range extent, and every target's SNR and extent.
+/// Targets the learned front end finds (`[detector] kind = "learned"`: the floor learned
+/// from the stream, the line-rate detector) over the rotations after `warmup`: all of them
+/// and the point-like ones per rotation (at most the landmark extent in range, the others
+/// being what the daemon keeps out of the map as extended), the extended ones by range
+/// extent, every target's SNR and extent, and the learned floor.
 fn learned_with_extents(
     scans: &Scans,
     settings: &DetectorSettings,
@@ -209,24 +204,8 @@ fn main() -> anyhow::Result<()> {
     );
     // The front end for current units, with the settings the replay runs it with.
     let shipped = evaluation::daemon::shipped_settings()?;
+    // Run once on each set: the counts, the extents and the floor all come from this.
     let learned = |scans: &Scans| {
-        let settings = slam_node::daemon::replay::recorded_settings_for(
-            shipped.clone(),
-            scans.bins as f64 * scans.bin_m,
-            scans.bin_m,
-        );
-        learned_per_rotation(scans, &settings.detector, 2)
-    };
-    let ((ra, rp), (sa, sp)) = (learned(&real), learned(&sim));
-    println!(
-        "| learned front end (current units), every target | {ra:.0} | {sa:.0} | {:.2} |",
-        sa / ra
-    );
-    println!(
-        "| learned front end, point-like targets (extent <= 0.5 m) | {rp:.0} | {sp:.0} | {:.2} |",
-        sp / rp
-    );
-    let extents = |scans: &Scans| {
         let settings = slam_node::daemon::replay::recorded_settings_for(
             shipped.clone(),
             scans.bins as f64 * scans.bin_m,
@@ -237,7 +216,16 @@ fn main() -> anyhow::Result<()> {
             settings.detector.landmarks,
         )
     };
-    let ((rt, landmarks), (st, _)) = (extents(&real), extents(&sim));
+    let ((rt, landmarks), (st, _)) = (learned(&real), learned(&sim));
+    let ((ra, rp), (sa, sp)) = ((rt.all, rt.points), (st.all, st.points));
+    println!(
+        "| learned front end (current units), every target | {ra:.0} | {sa:.0} | {:.2} |",
+        sa / ra
+    );
+    println!(
+        "| learned front end, point-like targets (extent <= 0.5 m) | {rp:.0} | {sp:.0} | {:.2} |",
+        sp / rp
+    );
     println!("\n| extended targets by range extent (m) | real / rotation | simulated |");
     println!("|---|---|---|");
     let mut lower = 0.5;
@@ -359,7 +347,8 @@ fn main() -> anyhow::Result<()> {
     }
     for (name, variant) in &variants {
         let scans = render_scans(variant, None, 4, real.rotations.len() as u64)?;
-        let (a, p) = learned(&scans);
+        let (t, _) = learned(&scans);
+        let (a, p) = (t.all, t.points);
         println!(
             "| {name} | {a:.0} | {p:.0} | {:.0} | {:.0} |",
             a - p,

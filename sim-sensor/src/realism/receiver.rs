@@ -240,11 +240,15 @@ impl Receiver {
         let floor_mean: Vec<f32> = (0..bins)
             .map(|b| interpolate(&spec.floor_mean, first_bin_m + b as f64 * bin_m) as f32)
             .collect();
-        let quantiles = |n: usize, shape: f64| -> Result<Vec<f32>, SceneError> {
-            let g = Gamma::new(shape, shape).map_err(|e| SceneError::Invalid {
+        // A gamma distribution of mean 1 and `shape`.
+        let gamma_of_shape = |shape: f64| {
+            Gamma::new(shape, shape).map_err(|e| SceneError::Invalid {
                 field: "realism.floor_shape".into(),
                 reason: e.to_string(),
-            })?;
+            })
+        };
+        let quantiles = |n: usize, shape: f64| -> Result<Vec<f32>, SceneError> {
+            let g = gamma_of_shape(shape)?;
             Ok((0..n)
                 .map(|i| g.inverse_cdf((i as f64 + 0.5) / n as f64) as f32)
                 .collect())
@@ -257,11 +261,7 @@ impl Receiver {
         let normal_quantiles = (0..FLOOR_QUANTILES)
             .map(|i| normal.inverse_cdf((i as f64 + 0.5) / FLOOR_QUANTILES as f64) as f32)
             .collect();
-        let gamma =
-            Gamma::new(spec.floor_shape, spec.floor_shape).map_err(|e| SceneError::Invalid {
-                field: "realism.floor_shape".into(),
-                reason: e.to_string(),
-            })?;
+        let gamma = gamma_of_shape(spec.floor_shape)?;
         let reach = f64::from(COPULA_REACH);
         let floor_of_normal = (0..COPULA_ENTRIES)
             .map(|i| {

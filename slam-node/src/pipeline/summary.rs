@@ -139,10 +139,7 @@ impl PipelineSummary {
         self.filter_ms += d.filter_ms;
         self.spectrum_ms += d.spectrum_ms;
         self.max_rotation_ms = self.max_rotation_ms.max(d.total_ms);
-        if self.recent_ms.len() == TIMES_KEPT {
-            self.recent_ms.pop_front();
-        }
-        self.recent_ms.push_back(d.total_ms);
+        keep_recent(&mut self.recent_ms, d.total_ms);
     }
 
     /// Stream time covered, seconds.
@@ -180,10 +177,7 @@ impl PipelineSummary {
         }
         self.cpu_ms += ms;
         self.cpu_rotations += 1;
-        if self.recent_cpu_ms.len() == TIMES_KEPT {
-            self.recent_cpu_ms.pop_front();
-        }
-        self.recent_cpu_ms.push_back(ms);
+        keep_recent(&mut self.recent_cpu_ms, ms);
     }
 
     /// Mean CPU time per measured rotation, ms (`None`: none measured).
@@ -200,6 +194,14 @@ impl PipelineSummary {
     pub fn rotation_ms_percentile(&self, p: f64) -> f64 {
         percentile(&self.recent_ms, p)
     }
+}
+
+/// Appends `value`, dropping the oldest beyond [`TIMES_KEPT`].
+fn keep_recent(values: &mut VecDeque<f64>, value: f64) {
+    if values.len() == TIMES_KEPT {
+        values.pop_front();
+    }
+    values.push_back(value);
 }
 
 /// A percentile (0-100) of `values` (nearest rank), 0 when empty.
