@@ -116,17 +116,23 @@ pub fn predict_step<M: ProcessModel + ?Sized>(
     if let Some(tally) = state.tally.as_mut() {
         tally.step(model, input, [k, b], &q, dt_s)?;
     }
+    let q_v = g * q * g.transpose();
     if with_bias {
         // The corrections k and b are inputs too: d pose / d k = G_speed * speed,
         // d pose / d b = G_steer.
         let f_b = Matrix3x2::from_columns(&[g.column(0) * input.speed_mps, g.column(1).into()]);
-        propagate_with_bias(state, &f, &f_b, &(g * q * g.transpose()));
+        // What the step adds to the pose error's change (see `SlamState::pose_churn`): the
+        // inputs' noise and the corrections' own uncertainty over the step.
+        let p_bb = state.odometry_bias_covariance();
+        state.pose_churn += q_v + f_b * p_bb * f_b.transpose();
+        propagate_with_bias(state, &f, &f_b, &q_v);
         state.walk_odometry_bias([
             settings.speed_scale_walk_per_sqrt_s.powi(2) * dt_s,
             settings.steer_bias_walk_rad_per_sqrt_s.powi(2) * dt_s,
         ]);
     } else {
-        propagate_pose(state, &f, &(g * q * g.transpose()));
+        state.pose_churn += q_v;
+        propagate_pose(state, &f, &q_v);
     }
     state.mean[0] = step.pose.x;
     state.mean[1] = step.pose.y;
@@ -367,5 +373,55 @@ mod tests {
             stale.odometry_bias_covariance(),
             full.fixed_view::<2, 2>(SPEED_SCALE_INDEX, SPEED_SCALE_INDEX)
         );
+    }
+
+    /// The pose churn (`SlamState::pose_churn`) grows by what each prediction adds beyond
+    /// carrying the pose along, and by the covariance of each update's correction: exactly
+    /// the pose block's reduction.
+    #[test]
+    fn the_pose_churn_sums_the_input_noise_and_the_corrections() {
+        use crate::update::{batched_update, LinearisedObservation};
+        use nalgebra::{DMatrix, DVector};
+
+        let settings = FilterSettings::default();
+        let model = MotionModel::Bicycle { wheelbase_m: 2.7 };
+        let input = OdometrySample {
+            timestamp_s: 0.0,
+            speed_mps: 6.0,
+            steer_rad: 0.05,
+        };
+        let pose_cov = Matrix3::from_diagonal(&Vector3::new(0.5, 0.3, 0.01));
+        let mut state = SlamState::new(Pose2::new(1.0, 2.0, 0.3), pose_cov, 0.0, 1.0, 0.0).unwrap();
+        assert_eq!(*state.pose_churn(), Matrix3::zeros());
+        // Without the corrections in the state: the input noise G Q G^T, whatever P is.
+        let dt = 0.05;
+        let step = model.step(&state.pose(), 6.0, 0.05, dt).unwrap();
+        let q_scale = settings.input_noise_correlation_s / dt;
+        let q = Matrix2::new(
+            settings.speed_std_mps.powi(2) * q_scale,
+            0.0,
+            0.0,
+            settings.steer_std_rad.powi(2) * q_scale,
+        );
+        let expected = step.wrt_input * q * step.wrt_input.transpose();
+        predict_step(&mut state, &model, &input, dt, &settings).unwrap();
+        assert!((state.pose_churn() - expected).abs().max() < 1e-15);
+        // An update adds its correction's covariance: P_vv before minus P_vv after.
+        let before_churn = *state.pose_churn();
+        let before = state.pose_covariance();
+        let obs = LinearisedObservation {
+            columns: vec![0, 1, 2],
+            jacobian: DMatrix::from_row_slice(2, 3, &[1.0, 0.0, 0.5, 0.0, 1.0, -2.0]),
+            innovation: DVector::from_vec(vec![0.1, -0.2]),
+            noise: DMatrix::identity(2, 2) * 0.2,
+        };
+        batched_update(&mut state, &obs).unwrap();
+        let reduction = before - state.pose_covariance();
+        let added = state.pose_churn() - before_churn;
+        assert!(
+            (added - reduction).abs().max() < 1e-12,
+            "added {added}, reduction {reduction}"
+        );
+        assert!(added.symmetric_eigenvalues().min() > -1e-12);
     }
 }

@@ -106,6 +106,23 @@ pub struct SlamState {
     /// The motion since the last mark, advanced by every prediction step (book-keeping, not
     /// part of the estimate): see [`crate::motion_tally`].
     pub(crate) tally: Option<MotionTally>,
+    /// How much the pose estimate may have moved relative to the truth since the start
+    /// (book-keeping, not part of the estimate): the sum of what every prediction step added
+    /// to the pose covariance beyond carrying it along (the inputs' noise and the odometry
+    /// corrections' uncertainty over the step), what every update took out of it (the
+    /// covariance of its correction) and every inflation. Between two times, the difference
+    /// is the covariance of the pose error's change, which is what separates two looks at a
+    /// landmark; the error both looks share cancels (see [`crate::lifecycle`]).
+    pub(crate) pose_churn: Matrix3<f64>,
+}
+
+/// A pose-block matrix (x, y, heading) expressed in axes turned by `angle_rad`: the x-y
+/// block rotates, the heading stays.
+pub(crate) fn rotate_pose_block(m: &Matrix3<f64>, angle_rad: f64) -> Matrix3<f64> {
+    let (s, c) = angle_rad.sin_cos();
+    let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+    let out = r * m * r.transpose();
+    0.5 * (out + out.transpose())
 }
 
 /// Index of slot `s`'s first element.
@@ -164,6 +181,7 @@ impl SlamState {
             time_s,
             predicted_pose: Pose2::new(pose.x, pose.y, wrap_angle(pose.theta)),
             tally: None,
+            pose_churn: Matrix3::zeros(),
         })
     }
 
@@ -207,6 +225,7 @@ impl SlamState {
         Ok(Self {
             predicted_pose: Pose2::new(mean[0], mean[1], mean[2]),
             tally: None,
+            pose_churn: Matrix3::zeros(),
             mean,
             cov,
             upper_stale: false,
@@ -239,6 +258,9 @@ impl SlamState {
             predicted_pose: Pose2::new(0.0, 0.0, 0.0),
             // A new local frame: the motion since a mark in the old one is not carried.
             tally: None,
+            // The same book-keeping, turned into the new frame's axes (as the tentative
+            // targets' marks are, see `TentativeList::reframe`).
+            pose_churn: rotate_pose_block(&self.pose_churn, -self.mean[2]),
         };
         std::mem::replace(self, fresh)
     }
@@ -414,8 +436,16 @@ impl SlamState {
         for (i, v) in variances.into_iter().enumerate() {
             if v.is_finite() && v > 0.0 {
                 self.cov[(i, i)] += v;
+                self.pose_churn[(i, i)] += v;
             }
         }
+    }
+
+    /// The pose error's accumulated change since the start (see the field's docs): the
+    /// difference between two readings is the covariance of the pose error's change
+    /// between them.
+    pub fn pose_churn(&self) -> &Matrix3<f64> {
+        &self.pose_churn
     }
 
     /// A feature's parameters by slot.

@@ -26,7 +26,7 @@ use radar_model::geometry::wrap_angle;
 
 use super::error::FilterError;
 use super::observation::nonzero_columns;
-use super::state::SlamState;
+use super::state::{SlamState, POSE_DIM};
 
 /// A linearised observation of some state elements, ready for the update.
 #[derive(Debug, Clone)]
@@ -173,6 +173,17 @@ pub fn batched_update(
     }
     state.mean += &w * &e;
     state.mean[2] = wrap_angle(state.mean[2]);
+    // The correction's covariance in the pose block, `W_v W_v^T` (see
+    // `SlamState::pose_churn`).
+    for i in 0..POSE_DIM {
+        for j in 0..POSE_DIM {
+            let mut sum = 0.0;
+            for k in 0..m {
+                sum += w[(i, k)] * w[(j, k)];
+            }
+            state.pose_churn[(i, j)] += sum;
+        }
+    }
     subtract_wwt(&mut state.cov, &w);
     state.upper_stale = true;
     Ok(UpdateOutcome { nis, dof: m })

@@ -54,7 +54,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             }
             let sighting = self.tentatives.offer(
                 &self.pose(),
-                &self.pose_covariance(),
+                &self.state.pose_churn,
                 [
                     self.settings.range_std_m.powi(2),
                     self.settings.bearing_std_rad.powi(2),
