@@ -161,6 +161,34 @@ impl OpenGroup {
     }
 }
 
+/// [`wrap_angle`] of the difference of two bearings, without its floating-point remainder
+/// on the grouper's inner loop: for `|d| < 2 pi` the remainder is `d` itself (exact), so the
+/// same operations give the same bits; anything else goes to [`wrap_angle`].
+fn wrap_difference(d: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    // NaN and the infinities fail the test too.
+    if d.is_nan() || d.abs() >= TAU {
+        return wrap_angle(d);
+    }
+    // `d.rem_euclid(TAU)` for |d| < 2 pi, then wrap_angle's two corrections.
+    let mut a = if d < 0.0 { d + TAU } else { d };
+    if a > PI {
+        a -= TAU;
+    }
+    if a <= -PI {
+        a += TAU;
+    }
+    a
+}
+
+/// Inserts `o` into `done` (in time order) after every observation not later than it: the
+/// order a stable sort by time of `done` with `o` appended would give, without sorting the
+/// whole list again for every azimuth.
+fn insert_by_time(done: &mut Vec<Observation>, o: Observation) {
+    let at = done.partition_point(|d| d.timestamp_s.total_cmp(&o.timestamp_s).is_le());
+    done.insert(at, o);
+}
+
 /// True when there is no candidate yet or `dr` is closer than the current one.
 fn closer_than(best: Option<(usize, f64)>, dr: f64) -> bool {
     match best {
@@ -216,8 +244,8 @@ impl Grouper {
             let mut best: Option<(usize, f64)> = None;
             let mut too_wide: Option<usize> = None;
             for (k, g) in self.open.iter().enumerate() {
-                let step = wrap_angle(bearing_rad - g.last_bearing_rad).abs();
-                let width = wrap_angle(bearing_rad - g.first_bearing_rad).abs();
+                let step = wrap_difference(bearing_rad - g.last_bearing_rad).abs();
+                let width = wrap_difference(bearing_rad - g.first_bearing_rad).abs();
                 let dr = (d.range_m - g.last_range_m).abs();
                 let free = !extended.get(k).copied().unwrap_or(true);
                 if free && step <= s.max_step_rad && dr <= s.range_gate_m {
@@ -256,7 +284,7 @@ impl Grouper {
             if ext {
                 still_open.push(g);
             } else {
-                self.done.push(g.finish());
+                insert_by_time(&mut self.done, g.finish());
             }
         }
         still_open.append(&mut self.scratch);
@@ -269,7 +297,7 @@ impl Grouper {
     /// Closes every open group and releases everything (end of stream).
     pub fn flush(&mut self, ready: &mut Vec<Observation>) {
         for g in self.open.drain(..) {
-            self.done.push(g.finish());
+            insert_by_time(&mut self.done, g.finish());
         }
         self.release(ready, true);
     }
@@ -288,8 +316,7 @@ impl Grouper {
                 .map(|g| g.first_timestamp_s)
                 .fold(f64::INFINITY, f64::min)
         };
-        self.done
-            .sort_by(|a, b| a.timestamp_s.total_cmp(&b.timestamp_s));
+        // `done` is kept in time order as it is filled (`insert_by_time`).
         let cut = self.done.partition_point(|o| o.timestamp_s <= horizon);
         ready.extend(self.done.drain(..cut));
     }
@@ -409,5 +436,38 @@ mod tests {
         );
         g.flush(&mut out);
         assert!(out.is_empty());
+    }
+
+    #[test]
+    fn the_fast_bearing_difference_is_wrap_angle_to_the_bit() {
+        let mut x = 0x2545_F491_4F6C_DD1Du64;
+        let mut values = vec![
+            0.0,
+            -0.0,
+            std::f64::consts::PI,
+            -std::f64::consts::PI,
+            std::f64::consts::TAU,
+            -std::f64::consts::TAU,
+            1e-300,
+            -1e-300,
+            7.0,
+            -7.0,
+            f64::NAN,
+            f64::INFINITY,
+        ];
+        for _ in 0..100_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            values
+                .push(((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 4.0 * std::f64::consts::TAU);
+        }
+        for d in values {
+            let (fast, slow) = (wrap_difference(d), wrap_angle(d));
+            assert!(
+                fast.to_bits() == slow.to_bits() || (fast.is_nan() && slow.is_nan()),
+                "{d}: {fast} against {slow}"
+            );
+        }
     }
 }

@@ -125,11 +125,18 @@ impl LineDetector {
         if let Some((first, last)) = run {
             close(first, last, sm, median, peaks);
         }
-        if peaks.len() > s.max_peaks {
-            peaks.sort_unstable_by(|a, b| b.snr_db.total_cmp(&a.snr_db));
+        // The runs are closed in bin order, so the peaks already are; only keeping the
+        // strongest reorders them.
+        if peaks.len() > s.max_peaks && s.max_peaks > 0 {
+            // The strongest `max_peaks` (the nearer first among equals), in linear time.
+            peaks.select_nth_unstable_by(s.max_peaks - 1, |a, b| {
+                b.snr_db.total_cmp(&a.snr_db).then(a.bin.total_cmp(&b.bin))
+            });
             peaks.truncate(s.max_peaks);
+            peaks.sort_unstable_by(|a, b| a.bin.total_cmp(&b.bin));
+        } else if s.max_peaks == 0 {
+            peaks.clear();
         }
-        peaks.sort_unstable_by(|a, b| a.bin.total_cmp(&b.bin));
         out.extend_from_slice(peaks);
     }
 }
