@@ -258,6 +258,19 @@ mod tests {
     use nalgebra::Matrix3;
     use radar_model::motion::MotionModel;
 
+    /// Default settings, a 2.7 m wheelbase and 6 m/s with a slight steer.
+    fn car_at_6_mps() -> (FilterSettings, MotionModel, OdometrySample) {
+        (
+            FilterSettings::default(),
+            MotionModel::Bicycle { wheelbase_m: 2.7 },
+            OdometrySample {
+                timestamp_s: 0.0,
+                speed_mps: 6.0,
+                steer_rad: 0.05,
+            },
+        )
+    }
+
     /// Under first-estimates Jacobians the propagation maps the rotation generator at the
     /// pose as last predicted, `(-y, x, 1)`, onto the one at the new prediction, whatever
     /// update moved the estimate in between: the unobservable direction is carried forward
@@ -325,13 +338,7 @@ mod tests {
         mean[STEER_BIAS_INDEX] = 0.002;
         let mut stale = SlamState::from_parts(mean, cov, 0.0).unwrap();
         let mut synced = stale.clone();
-        let settings = FilterSettings::default();
-        let model = MotionModel::Bicycle { wheelbase_m: 2.7 };
-        let input = OdometrySample {
-            timestamp_s: 0.0,
-            speed_mps: 6.0,
-            steer_rad: 0.05,
-        };
+        let (settings, model, input) = car_at_6_mps();
         for step in 0..6 {
             let slot = step % features;
             let fi = feature_index(slot);
@@ -383,19 +390,15 @@ mod tests {
         use crate::update::{batched_update, LinearisedObservation};
         use nalgebra::{DMatrix, DVector};
 
-        let settings = FilterSettings::default();
-        let model = MotionModel::Bicycle { wheelbase_m: 2.7 };
-        let input = OdometrySample {
-            timestamp_s: 0.0,
-            speed_mps: 6.0,
-            steer_rad: 0.05,
-        };
+        let (settings, model, input) = car_at_6_mps();
         let pose_cov = Matrix3::from_diagonal(&Vector3::new(0.5, 0.3, 0.01));
         let mut state = SlamState::new(Pose2::new(1.0, 2.0, 0.3), pose_cov, 0.0, 1.0, 0.0).unwrap();
         assert_eq!(*state.pose_churn(), Matrix3::zeros());
         // Without the corrections in the state: the input noise G Q G^T, whatever P is.
         let dt = 0.05;
-        let step = model.step(&state.pose(), 6.0, 0.05, dt).unwrap();
+        let step = model
+            .step(&state.pose(), input.speed_mps, input.steer_rad, dt)
+            .unwrap();
         let q_scale = settings.input_noise_correlation_s / dt;
         let q = Matrix2::new(
             settings.speed_std_mps.powi(2) * q_scale,
