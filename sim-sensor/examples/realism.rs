@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use sim_sensor::realism::calibrate::{default_oxford_dir, load_polar_dir};
 use sim_sensor::realism::picture::{cartesian, write_side_by_side};
 use sim_sensor::realism::render_scans;
-use sim_sensor::realism::stats::{ks_distance, scan_stats};
+use sim_sensor::realism::stats::{ks_distance, scan_stats, Scans};
 use sim_sensor::scene::{shipped, Scene};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -94,6 +94,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ratio(r.widths.azimuth_fwhm_deg, s.widths.azimuth_fwhm_deg)
     );
     println!("| largest KS distance over the bands | | | {ks_max:.3} | <= 0.1 |");
+    // Where the returns are around the radar: the street's layout relative to the vehicle.
+    println!("\n| each azimuth's median level (dB), mean per 45-degree sector from azimuth 0 | 1 | 2 | 3 | 4 | 5 | 6 | 7 | 8 |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for band in [(10.0, 20.0), (60.0, 80.0)] {
+        for (who, scans) in [("real", &real), ("simulated", &sim)] {
+            let cells: Vec<String> = sector_levels(scans, band)
+                .iter()
+                .map(|v| format!("{v:.1}"))
+                .collect();
+            println!(
+                "| {who}, {:.0}-{:.0} m | {} |",
+                band.0,
+                band.1,
+                cells.join(" | ")
+            );
+        }
+    }
     std::fs::create_dir_all(&out)?;
     let size = 800;
     let images = vec![
@@ -107,4 +124,45 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         path.display()
     );
     Ok(())
+}
+
+/// The mean over rotations of each azimuth's median level (dB) over the range band
+/// `band_m`, averaged per 45-degree sector counted from azimuth 0 (0 where a sector has no
+/// azimuths or the band no bins).
+fn sector_levels(scans: &Scans, band_m: (f64, f64)) -> [f64; 8] {
+    let mut sum = [0.0; 8];
+    let mut count = [0usize; 8];
+    if scans.bin_m <= 0.0 || scans.azimuths == 0 {
+        return sum;
+    }
+    let first = ((band_m.0 / scans.bin_m) as usize).min(scans.bins);
+    let last = ((band_m.1 / scans.bin_m) as usize).min(scans.bins);
+    let mut levels: Vec<u8> = Vec::with_capacity(last.saturating_sub(first));
+    for rotation in &scans.rotations {
+        for a in 0..scans.azimuths {
+            let row = a * scans.bins;
+            let Some(values) = rotation.get(row + first..row + last) else {
+                continue;
+            };
+            if values.is_empty() {
+                continue;
+            }
+            levels.clear();
+            levels.extend_from_slice(values);
+            let mid = levels.len() / 2;
+            let (_, median, _) = levels.select_nth_unstable(mid);
+            let sector = a * 8 / scans.azimuths;
+            if let (Some(s), Some(c)) = (sum.get_mut(sector), count.get_mut(sector)) {
+                // The wire's 8-bit values are 0.5 dB steps.
+                *s += f64::from(*median) / 2.0;
+                *c += 1;
+            }
+        }
+    }
+    for (s, &c) in sum.iter_mut().zip(&count) {
+        if c > 0 {
+            *s /= c as f64;
+        }
+    }
+    sum
 }
