@@ -137,18 +137,21 @@ impl TentativeList {
             let c = tent.covariance + moved;
             0.5 * (c + c.transpose())
         };
-        let mut best: Option<(usize, f64)> = None;
+        // The nearest tentative inside the gate, with its covariance carried to now.
+        let mut best: Option<(usize, f64, Matrix2<f64>)> = None;
         for (idx, tent) in self.items.iter().enumerate() {
             let d = p - tent.position;
-            let s = cov + carried(tent);
-            let Some(ch) = s.cholesky() else { continue };
+            let prior = carried(tent);
+            let Some(ch) = (cov + prior).cholesky() else {
+                continue;
+            };
             let d2 = d.dot(&ch.solve(&d));
-            if d2 <= gate_2dof && best.map_or(true, |(_, b)| d2 < b) {
-                best = Some((idx, d2));
+            if d2 <= gate_2dof && best.map_or(true, |(_, b, _)| d2 < b) {
+                best = Some((idx, d2, prior));
             }
         }
         match best {
-            Some((idx, _)) => {
+            Some((idx, _, prior)) => {
                 let Some(tent) = self.items.get_mut(idx) else {
                     return Sighting::Dropped;
                 };
@@ -168,7 +171,6 @@ impl TentativeList {
                     return Sighting::Confirmed;
                 }
                 // A new look: fuse it with the tentative carried to now.
-                let prior = carried(tent);
                 let Some(s_inv) = (prior + cov).try_inverse() else {
                     return Sighting::Refreshed;
                 };

@@ -106,13 +106,7 @@ pub fn predict_step<M: ProcessModel + ?Sized>(
     {
         return Err(FilterError::NonFiniteInput("process model step"));
     }
-    let q_scale = settings.input_noise_correlation_s / dt_s;
-    let q = Matrix2::new(
-        settings.speed_std_mps.powi(2) * q_scale,
-        0.0,
-        0.0,
-        settings.steer_std_rad.powi(2) * q_scale,
-    );
+    let q = input_noise(settings, dt_s);
     if let Some(tally) = state.tally.as_mut() {
         tally.step(model, input, [k, b], &q, dt_s)?;
     }
@@ -139,6 +133,18 @@ pub fn predict_step<M: ProcessModel + ?Sized>(
     state.mean[2] = wrap_angle(step.pose.theta);
     state.predicted_pose = state.pose();
     Ok(())
+}
+
+/// Covariance of the odometry's (speed, steer) over a step of `dt_s`: the configured
+/// sigmas, scaled by the inputs' correlation time over the step.
+pub(crate) fn input_noise(settings: &FilterSettings, dt_s: f64) -> Matrix2<f64> {
+    let q_scale = settings.input_noise_correlation_s / dt_s;
+    Matrix2::new(
+        settings.speed_std_mps.powi(2) * q_scale,
+        0.0,
+        0.0,
+        settings.steer_std_rad.powi(2) * q_scale,
+    )
 }
 
 /// The inputs the process model is driven by: the odometry corrected by the state's
@@ -399,13 +405,7 @@ mod tests {
         let step = model
             .step(&state.pose(), input.speed_mps, input.steer_rad, dt)
             .unwrap();
-        let q_scale = settings.input_noise_correlation_s / dt;
-        let q = Matrix2::new(
-            settings.speed_std_mps.powi(2) * q_scale,
-            0.0,
-            0.0,
-            settings.steer_std_rad.powi(2) * q_scale,
-        );
+        let q = input_noise(&settings, dt);
         let expected = step.wrt_input * q * step.wrt_input.transpose();
         predict_step(&mut state, &model, &input, dt, &settings).unwrap();
         assert!((state.pose_churn() - expected).abs().max() < 1e-15);
