@@ -37,8 +37,6 @@ pub struct Tentative {
     pub covariance: Matrix2<f64>,
     /// The state's pose churn at the latest look (see the module docs).
     pub churn_mark: Matrix3<f64>,
-    /// probe
-    pub hist: Vec<(f64, f64, f64, f64, f64)>,
     /// Power when last seen (dB).
     pub power_db: f64,
     /// First sighting (s).
@@ -162,11 +160,6 @@ impl TentativeList {
                     return Sighting::Refreshed;
                 }
                 if tent.looks.saturating_add(1) >= confirm_after {
-                    if std::env::var("ZZ").is_ok() {
-                        let mut h = tent.hist.clone();
-                        h.push((now_s, p.x, p.y, t.power_db, t.range_m));
-                        eprintln!("ZZCONF {:?}", h);
-                    }
                     self.items.swap_remove(idx);
                     return Sighting::Confirmed;
                 }
@@ -182,7 +175,6 @@ impl TentativeList {
                 tent.power_db = t.power_db;
                 tent.looks = tent.looks.saturating_add(1);
                 tent.last_look_s = now_s;
-                tent.hist.push((now_s, p.x, p.y, t.power_db, t.range_m));
                 Sighting::Refreshed
             }
             None => {
@@ -196,7 +188,6 @@ impl TentativeList {
                     position: p,
                     covariance: cov,
                     churn_mark: *churn,
-                    hist: vec![(now_s, p.x, p.y, t.power_db, t.range_m)],
                     power_db: t.power_db,
                     first_seen_s: now_s,
                     last_seen_s: now_s,
