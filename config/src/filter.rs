@@ -56,6 +56,15 @@ pub struct RawFilter {
     pub sigma_u: f64,
     /// Random-walk noise on each feature's `v`, per sqrt(second), >= 0. Default 0.01.
     pub sigma_v: f64,
+    /// How far each feature's apparent position (x and y) may wander between looks, m >= 0:
+    /// a return that is not a true point (a crown, a car body, a patch of clutter) peaks at
+    /// a point that moves as the viewpoint moves. Between looks `d` metres of driving apart
+    /// its variances grow by `sigma_wander_m^2 (1 - exp(-d / wander_length_m))`. Default 0
+    /// (point targets).
+    pub sigma_wander_m: f64,
+    /// Distance driven over which a feature's apparent position decorrelates, m > 0.
+    /// Default 2.
+    pub wander_length_m: f64,
     /// Initial radar loss L, dB. Default 0.
     pub initial_loss_db: f64,
     /// Initial loss standard deviation, dB > 0. Default 3.
@@ -98,6 +107,8 @@ impl Default for RawFilter {
             initial_sigma_theta_rad: 0.0,
             sigma_u: 0.01,
             sigma_v: 0.01,
+            sigma_wander_m: 0.0,
+            wander_length_m: 2.0,
             initial_loss_db: 0.0,
             initial_sigma_loss_db: 3.0,
             gate_probability: None,
@@ -140,6 +151,10 @@ pub struct FilterSettings {
     pub sigma_u: NonNegativeF64,
     /// Noise on `v`, per sqrt(second).
     pub sigma_v: NonNegativeF64,
+    /// How far a feature's apparent position may wander between looks, m.
+    pub sigma_wander_m: NonNegativeF64,
+    /// Distance driven over which it decorrelates, m.
+    pub wander_length_m: PositiveF64,
     /// Initial loss, dB.
     pub initial_loss_db: FiniteF64,
     /// Initial loss standard deviation, dB.
@@ -232,6 +247,14 @@ impl RawFilter {
             initial_pose,
             sigma_u: c.check("filter.sigma_u", NonNegativeF64::new(self.sigma_u)),
             sigma_v: c.check("filter.sigma_v", NonNegativeF64::new(self.sigma_v)),
+            sigma_wander_m: c.check(
+                "filter.sigma_wander_m",
+                NonNegativeF64::new(self.sigma_wander_m),
+            ),
+            wander_length_m: c.check(
+                "filter.wander_length_m",
+                PositiveF64::new(self.wander_length_m),
+            ),
             initial_loss_db: c.check(
                 "filter.initial_loss_db",
                 FiniteF64::new(self.initial_loss_db),
@@ -282,6 +305,8 @@ impl From<&FilterSettings> for RawFilter {
             initial_sigma_theta_rad: p.sigma_theta_rad.get(),
             sigma_u: s.sigma_u.get(),
             sigma_v: s.sigma_v.get(),
+            sigma_wander_m: s.sigma_wander_m.get(),
+            wander_length_m: s.wander_length_m.get(),
             initial_loss_db: s.initial_loss_db.get(),
             initial_sigma_loss_db: s.initial_sigma_loss_db.get(),
             gate_probability,

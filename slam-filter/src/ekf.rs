@@ -561,12 +561,19 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         predict_to(&mut self.state, &self.motion, &held, time_s, &self.settings)
     }
 
-    /// Brings every feature's u, v variance up to date (the material random walk is added
-    /// lazily, when a feature is next in a beam). Call before reading the covariance for
-    /// output; O(N).
+    /// Brings every feature's u, v variance (the material random walk) and x, y variance
+    /// (the positional wander) up to date: both are added lazily, when a feature is next
+    /// in a beam. Call before reading the covariance for output; O(N).
     pub fn settle_material_noise(&mut self) {
         self.state
             .settle_all_material(self.settings.material_variance_per_s);
+        for slot in 0..self.state.feature_count() {
+            self.state.settle_wander(
+                slot,
+                self.settings.feature_wander_m,
+                self.settings.feature_wander_length_m,
+            );
+        }
     }
 
     /// Retires every feature within the radar's range of the current pose that no target
@@ -786,6 +793,11 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         for &slot in &slots {
             self.state
                 .settle_material(slot, self.settings.material_variance_per_s);
+            self.state.settle_wander(
+                slot,
+                self.settings.feature_wander_m,
+                self.settings.feature_wander_length_m,
+            );
         }
         let params = self.beam_params(&slots);
         let prediction = predict_candidates(

@@ -3,10 +3,12 @@
 //!
 //! Only the pose rows and columns change: `P_vv <- F P_vv F^T + G Q G^T`, `P_vm <- F P_vm`
 //! (mirrored into `P_mv`); with the odometry corrections estimated (state `k`, `b`) the
-//! pose also moves with them (see [`propagate_with_bias`]) and they random-walk. Features'
-//! positions and L get no process noise. The cost is O(n)
-//! per step. The small random-walk variance growth of every u and v is applied lazily, per
-//! feature, when the feature is next used ([`SlamState::settle_material`]): independent
+//! pose also moves with them (see [`propagate_with_bias`]) and they random-walk. L gets no
+//! process noise; features' positions none beyond their wander (below). The cost is O(n)
+//! per step. The small random-walk variance growth of every u and v, and the positional
+//! wander of every x and y with the distance driven ([`FilterSettings::feature_wander_m`]),
+//! are applied lazily, per feature, when the feature is next used
+//! ([`SlamState::settle_material`], [`SlamState::settle_wander`]): independent
 //! additive noise on a state commutes with every update that does not observe that state,
 //! so deferring it is exact and keeps an empty beam from touching every feature.
 //!
@@ -254,6 +256,17 @@ pub fn predict_to<M: ProcessModel + ?Sized>(
         predict_step(state, model, input, dt, settings)?;
         done += 1.0;
     }
+    // The distance driven, for the features' positional wander (the held speed as the
+    // model uses it, corrected by `k` when that is estimated).
+    let k = if state.estimates_odometry_bias() {
+        state.mean[SPEED_SCALE_INDEX]
+    } else {
+        0.0
+    };
+    let travelled = (input.speed_mps * (1.0 + k) * gap_s).abs();
+    if travelled.is_finite() {
+        state.odometer_m += travelled;
+    }
     state.set_time_s(to_s);
     Ok(())
 }
@@ -426,5 +439,76 @@ mod tests {
             "added {added}, reduction {reduction}"
         );
         assert!(added.symmetric_eigenvalues().min() > -1e-12);
+    }
+
+    /// A feature's positional wander follows the distance driven since it was last settled,
+    /// `sigma^2 (1 - exp(-d / length))`, added once to its x and y variances and to nothing
+    /// else; it saturates at `sigma^2` however far the vehicle drives, and a parked vehicle
+    /// adds none.
+    #[test]
+    fn a_feature_wanders_with_the_distance_driven_not_with_time() {
+        use nalgebra::{DMatrix, Matrix4};
+
+        let (settings, model, input) = car_at_6_mps();
+        let mut state = SlamState::new(
+            Pose2::new(0.0, 0.0, 0.0),
+            Matrix3::identity() * 0.01,
+            0.0,
+            1.0,
+            0.0,
+        )
+        .unwrap();
+        let cross = DMatrix::zeros(4, state.dim());
+        state
+            .augment(
+                [10.0, 2.0, 0.0, 0.0],
+                &cross,
+                &(Matrix4::identity() * 0.04),
+                0.0,
+                10,
+            )
+            .unwrap();
+        let (sigma, length) = (0.3, 2.0);
+        let i = crate::state::FEATURE_BASE;
+        let before = state.covariance()[(i, i)];
+        // 0.5 s at 6 m/s: 3 m.
+        predict_to(&mut state, &model, &input, 0.5, &settings).unwrap();
+        assert!(
+            (state.odometer_m - 3.0).abs() < 1e-9,
+            "{}",
+            state.odometer_m
+        );
+        let predicted = state.covariance().into_owned();
+        // The prediction itself leaves the feature's block alone.
+        assert_eq!(predicted[(i, i)], before);
+        state.settle_wander(0, sigma, length);
+        let after = state.covariance().into_owned();
+        let added = &after - &predicted;
+        let expected = sigma * sigma * (1.0 - (-3.0f64 / length).exp());
+        assert!(
+            (added[(i, i)] - expected).abs() < 1e-12,
+            "{}",
+            added[(i, i)]
+        );
+        assert!((added[(i + 1, i + 1)] - expected).abs() < 1e-12);
+        assert_eq!(added.iter().filter(|v| v.abs() > 0.0).count(), 2, "{added}");
+        // Settled: nothing more until the vehicle drives again; parked, nothing.
+        state.settle_wander(0, sigma, length);
+        assert_eq!(state.covariance()[(i, i)], after[(i, i)]);
+        let parked = OdometrySample {
+            speed_mps: 0.0,
+            ..input
+        };
+        predict_to(&mut state, &model, &parked, 4.0, &settings).unwrap();
+        state.settle_wander(0, sigma, length);
+        assert_eq!(state.covariance()[(i, i)], after[(i, i)]);
+        // A long drive unobserved adds at most sigma^2.
+        predict_to(&mut state, &model, &input, 8.5, &settings).unwrap();
+        state.settle_wander(0, sigma, length);
+        let long = state.covariance()[(i, i)] - after[(i, i)];
+        assert!(
+            long < sigma * sigma && long > 0.99 * sigma * sigma,
+            "{long}"
+        );
     }
 }

@@ -66,6 +66,15 @@ pub struct FilterSettings {
     /// Growth rate of the variance of each feature's u and v (1/s): the paper's Gaussian
     /// change of reflectivity and absorption with viewing angle.
     pub material_variance_per_s: f64,
+    /// How far the apparent position of each feature may wander between looks (m, one
+    /// sigma per axis): a return that is not a true point (a crown, a car body, a patch of
+    /// clutter) peaks at a point that moves as the viewpoint does, so its looks' errors are
+    /// correlated from one rotation to the next. Between two looks `d` metres of driving
+    /// apart its x and y variances grow by `sigma^2 (1 - exp(-d / length))` (see
+    /// [`Self::feature_wander_length_m`]). 0 models every feature as a true point.
+    pub feature_wander_m: f64,
+    /// The distance driven over which a feature's apparent position decorrelates (m > 0).
+    pub feature_wander_length_m: f64,
     /// A beam with no targets does not predict the state (nothing is updated, so nothing
     /// needs it): its candidates come from a mean-only extrapolation of the pose, and the
     /// next beam with targets (or odometry) predicts across the gap in one go. Saves an O(n)
@@ -216,6 +225,8 @@ impl Default for FilterSettings {
             speed_scale_walk_per_sqrt_s: 1e-4,
             steer_bias_walk_rad_per_sqrt_s: 1e-5,
             material_variance_per_s: 1e-4,
+            feature_wander_m: 0.0,
+            feature_wander_length_m: 2.0,
             defer_empty_beams: true,
             max_predict_step_s: 0.05,
             max_predict_gap_s: 5.0,
@@ -392,6 +403,8 @@ impl FilterSettings {
             return Err(SettingsError::SpeedScaleTooUncertain(self.speed_scale_std));
         }
         non_negative("material_variance_per_s", self.material_variance_per_s)?;
+        non_negative("feature_wander_m", self.feature_wander_m)?;
+        positive("feature_wander_length_m", self.feature_wander_length_m)?;
         non_negative("repeat_look_range_m", self.repeat_look_range_m)?;
         non_negative("repeat_look_bearing_rad", self.repeat_look_bearing_rad)?;
         positive("max_predict_step_s", self.max_predict_step_s)?;

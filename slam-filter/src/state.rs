@@ -73,6 +73,8 @@ pub struct FeatureTrack {
     pub last_look_s: f64,
     /// Looks in the current run from within one range-bearing cell of `look_anchor`.
     pub repeat_looks: u32,
+    /// The odometer reading up to which its positional wander has been added (m).
+    pub wander_settled_m: f64,
 }
 
 /// A feature's estimated state elements.
@@ -114,6 +116,8 @@ pub struct SlamState {
     /// is the covariance of the pose error's change, which is what separates two looks at a
     /// landmark; the error both looks share cancels (see [`crate::lifecycle`]).
     pub(crate) pose_churn: Matrix3<f64>,
+    /// Distance the vehicle has driven (m), for the features' positional wander.
+    pub(crate) odometer_m: f64,
 }
 
 /// A pose-block matrix (x, y, heading) expressed in axes turned by `angle_rad`: the x-y
@@ -182,6 +186,7 @@ impl SlamState {
             predicted_pose: Pose2::new(pose.x, pose.y, wrap_angle(pose.theta)),
             tally: None,
             pose_churn: Matrix3::zeros(),
+            odometer_m: 0.0,
         })
     }
 
@@ -218,6 +223,7 @@ impl SlamState {
                 look_anchor: None,
                 repeat_looks: 0,
                 last_look_s: time_s,
+                wander_settled_m: 0.0,
             })
             .collect();
         let mut mean = mean;
@@ -226,6 +232,7 @@ impl SlamState {
             predicted_pose: Pose2::new(mean[0], mean[1], mean[2]),
             tally: None,
             pose_churn: Matrix3::zeros(),
+            odometer_m: 0.0,
             mean,
             cov,
             upper_stale: false,
@@ -261,6 +268,7 @@ impl SlamState {
             // The same book-keeping, turned into the new frame's axes (as the tentative
             // targets' marks are, see `TentativeList::reframe`).
             pose_churn: rotate_pose_block(&self.pose_churn, -self.mean[2]),
+            odometer_m: self.odometer_m,
         };
         std::mem::replace(self, fresh)
     }
@@ -422,6 +430,30 @@ impl SlamState {
         }
     }
 
+    /// Adds the positional wander since it was last settled to slot `slot`'s x and y
+    /// variances: `sigma_m^2 (1 - exp(-d / length_m))` for `d` metres driven since. The
+    /// apparent position of a return that is not a true point moves as the viewpoint does,
+    /// by up to about `sigma_m` (the object's scale), over about `length_m` of travel; a
+    /// parked vehicle adds nothing. Deferred like [`Self::settle_material`] (additive noise
+    /// on states no update in between observes).
+    pub fn settle_wander(&mut self, slot: usize, sigma_m: f64, length_m: f64) {
+        let now = self.odometer_m;
+        let Some(track) = self.tracks.get_mut(slot) else {
+            return;
+        };
+        let d = now - track.wander_settled_m;
+        track.wander_settled_m = now;
+        if !(sigma_m > 0.0 && length_m > 0.0 && d > 0.0) {
+            return;
+        }
+        let q = sigma_m * sigma_m * -(-d / length_m).exp_m1();
+        if q > 0.0 && q.is_finite() {
+            let i = feature_index(slot);
+            self.cov[(i, i)] += q;
+            self.cov[(i + 1, i + 1)] += q;
+        }
+    }
+
     /// [`Self::settle_material`] for every feature: O(N).
     pub fn settle_all_material(&mut self, rate_per_s: f64) {
         for slot in 0..self.tracks.len() {
@@ -525,6 +557,7 @@ impl SlamState {
             look_anchor: None,
             repeat_looks: 0,
             last_look_s: time_s,
+            wander_settled_m: self.odometer_m,
         });
         Ok(id)
     }

@@ -177,6 +177,11 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         for &slot in &slots {
             self.state
                 .settle_material(slot, self.settings.material_variance_per_s);
+            self.state.settle_wander(
+                slot,
+                self.settings.feature_wander_m,
+                self.settings.feature_wander_length_m,
+            );
         }
         let Some(local) = slots.iter().position(|&s| s == new_slot) else {
             return Ok(());

@@ -247,6 +247,8 @@ impl PipelineSettings {
             speed_scale_walk_per_sqrt_s: c.odometry.speed_scale_walk_per_sqrt_s.get(),
             steer_bias_walk_rad_per_sqrt_s: c.odometry.steer_bias_walk_rad_per_sqrt_s.get(),
             material_variance_per_s: f.sigma_u.get().max(f.sigma_v.get()).powi(2),
+            feature_wander_m: f.sigma_wander_m.get(),
+            feature_wander_length_m: f.wander_length_m.get(),
             gate_probability: gate_probability(f.gate),
             jcbb_max_nodes: match f.association {
                 // A budget of one node is nearest neighbour: the first compatible pairing.
