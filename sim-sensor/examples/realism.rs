@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use sim_sensor::realism::calibrate::{default_oxford_dir, load_polar_dir};
 use sim_sensor::realism::picture::{cartesian, write_side_by_side};
 use sim_sensor::realism::render_scans;
-use sim_sensor::realism::stats::{ks_distance, scan_stats, Scans};
+use sim_sensor::realism::stats::{ks_distance, quantile_db, scan_stats, Scans};
 use sim_sensor::scene::{shipped, Scene};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -137,24 +137,22 @@ fn sector_levels(scans: &Scans, band_m: (f64, f64)) -> [f64; 8] {
     }
     let first = ((band_m.0 / scans.bin_m) as usize).min(scans.bins);
     let last = ((band_m.1 / scans.bin_m) as usize).min(scans.bins);
-    let mut levels: Vec<u8> = Vec::with_capacity(last.saturating_sub(first));
     for rotation in &scans.rotations {
         for a in 0..scans.azimuths {
             let row = a * scans.bins;
             let Some(values) = rotation.get(row + first..row + last) else {
                 continue;
             };
-            if values.is_empty() {
-                continue;
+            let mut histogram = [0u64; 256];
+            for &v in values {
+                histogram[usize::from(v)] += 1;
             }
-            levels.clear();
-            levels.extend_from_slice(values);
-            let mid = levels.len() / 2;
-            let (_, median, _) = levels.select_nth_unstable(mid);
+            let median = quantile_db(&histogram, 0.5);
             let sector = a * 8 / scans.azimuths;
-            if let (Some(s), Some(c)) = (sum.get_mut(sector), count.get_mut(sector)) {
-                // The wire's 8-bit values are 0.5 dB steps.
-                *s += f64::from(*median) / 2.0;
+            if let (false, Some(s), Some(c)) =
+                (median.is_nan(), sum.get_mut(sector), count.get_mut(sector))
+            {
+                *s += median;
                 *c += 1;
             }
         }

@@ -311,7 +311,8 @@ mod tests {
     #[test]
     fn the_plain_timeouts_are_the_sim_section_defaults() {
         let scene = crate::scene::shipped::load("penetration-wood").expect("scene");
-        let plain = SimOptions::new(SourceSpec::Scene(Box::new(scene)));
+        // `for_tests` is `new` on 127.0.0.1:0, as fast as possible: the timeouts are `new`'s.
+        let plain = SimOptions::for_tests(scene);
         let section = config::sim::SimSettings::default();
         assert_eq!(plain.write_timeout, section.write_timeout);
         assert_eq!(plain.idle_timeout, section.idle_timeout);

@@ -565,15 +565,21 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// (the positional wander) up to date: both are added lazily, when a feature is next
     /// in a beam. Call before reading the covariance for output; O(N).
     pub fn settle_material_noise(&mut self) {
-        self.state
-            .settle_all_material(self.settings.material_variance_per_s);
         for slot in 0..self.state.feature_count() {
-            self.state.settle_wander(
-                slot,
-                self.settings.feature_wander_m,
-                self.settings.feature_wander_length_m,
-            );
+            self.settle_feature_noise(slot);
         }
+    }
+
+    /// Brings the feature in `slot` up to date with the noise added lazily: its material
+    /// random walk and its positional wander.
+    fn settle_feature_noise(&mut self, slot: usize) {
+        self.state
+            .settle_material(slot, self.settings.material_variance_per_s);
+        self.state.settle_wander(
+            slot,
+            self.settings.feature_wander_m,
+            self.settings.feature_wander_length_m,
+        );
     }
 
     /// Retires every feature within the radar's range of the current pose that no target
@@ -791,13 +797,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     ) -> Result<PredictedBeam, FilterError> {
         let slots: Vec<usize> = candidates.iter().map(|c| c.slot).collect();
         for &slot in &slots {
-            self.state
-                .settle_material(slot, self.settings.material_variance_per_s);
-            self.state.settle_wander(
-                slot,
-                self.settings.feature_wander_m,
-                self.settings.feature_wander_length_m,
-            );
+            self.settle_feature_noise(slot);
         }
         let params = self.beam_params(&slots);
         let prediction = predict_candidates(

@@ -91,6 +91,11 @@ pub fn predict_step<M: ProcessModel + ?Sized>(
     let with_bias = state.estimates_odometry_bias();
     let (speed, steer) = corrected_input(input, [k, b]);
     let step = model.step(&state.pose(), speed, steer, dt_s)?;
+    // The distance driven, for the features' positional wander.
+    let travelled = (speed * dt_s).abs();
+    if travelled.is_finite() {
+        state.odometer_m += travelled;
+    }
     let mut f = step.wrt_pose;
     if settings.first_estimate_jacobians {
         // The process models move the vehicle rigidly with its heading, so the heading
@@ -255,17 +260,6 @@ pub fn predict_to<M: ProcessModel + ?Sized>(
     while done < steps {
         predict_step(state, model, input, dt, settings)?;
         done += 1.0;
-    }
-    // The distance driven, for the features' positional wander (the held speed as the
-    // model uses it, corrected by `k` when that is estimated).
-    let k = if state.estimates_odometry_bias() {
-        state.mean[SPEED_SCALE_INDEX]
-    } else {
-        0.0
-    };
-    let travelled = (input.speed_mps * (1.0 + k) * gap_s).abs();
-    if travelled.is_finite() {
-        state.odometer_m += travelled;
     }
     state.set_time_s(to_s);
     Ok(())

@@ -175,13 +175,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         }
         let slots: Vec<usize> = candidates.iter().map(|c| c.slot).collect();
         for &slot in &slots {
-            self.state
-                .settle_material(slot, self.settings.material_variance_per_s);
-            self.state.settle_wander(
-                slot,
-                self.settings.feature_wander_m,
-                self.settings.feature_wander_length_m,
-            );
+            self.settle_feature_noise(slot);
         }
         let Some(local) = slots.iter().position(|&s| s == new_slot) else {
             return Ok(());
