@@ -115,9 +115,9 @@ pub struct RawOdometry {
     /// checked over intervals up to 1 s) is refused. Default 20 (2 g).
     pub max_accel_mps2: f64,
     /// Radar odometry: register each rotation's detections (walls and fences included)
-    /// against the previous rotation's and give the measured motion to the filter, which
-    /// uses it to estimate the odometry corrections (so it needs `speed_scale_std` or
-    /// `steer_bias_std_rad` > 0). Default false.
+    /// against the previous rotation's and give the measured motion to the filter, an update
+    /// of the pose's change since the previous rotation (and, where they are estimated, of
+    /// the odometry corrections). Default false.
     pub radar_odometry: bool,
     /// Standard deviation of one registration's translation, each axis, m > 0. Default 0.05.
     pub radar_odometry_sigma_m: f64,
@@ -391,19 +391,7 @@ impl RawOdometry {
                 "odometry.max_accel_mps2",
                 PositiveF64::new(self.max_accel_mps2),
             ),
-            radar_odometry: {
-                if self.radar_odometry && self.speed_scale_std == 0.0 && self.steer_bias_std_rad == 0.0
-                {
-                    c.fail(
-                        "odometry.radar_odometry",
-                        ValueError::Rule(
-                            "needs speed_scale_std or steer_bias_std_rad > 0: the measured motion observes the odometry corrections"
-                                .into(),
-                        ),
-                    );
-                }
-                self.radar_odometry
-            },
+            radar_odometry: self.radar_odometry,
             radar_odometry_sigma_m: c.check(
                 "odometry.radar_odometry_sigma_m",
                 PositiveF64::new(self.radar_odometry_sigma_m),

@@ -255,6 +255,16 @@ fn odometry_from_a_file_and_a_fixed_chi2_gate_are_accepted() {
 }
 
 #[test]
+fn radar_odometry_without_estimated_corrections_is_accepted() {
+    // The measured motion updates the pose's change (stochastic cloning in the filter), so
+    // it no longer needs the odometry corrections in the state.
+    let c = Config::from_toml_str("[odometry]\nradar_odometry = true\n").unwrap();
+    assert!(c.odometry.radar_odometry);
+    assert_eq!(c.odometry.speed_scale_std.get(), 0.0);
+    assert_eq!(c.odometry.steer_bias_std_rad.get(), 0.0);
+}
+
+#[test]
 fn a_heading_outside_minus_pi_to_pi_is_wrapped() {
     let c = Config::from_toml_str("[filter]\ninitial_theta_rad = 7.0\n").unwrap();
     let theta = c.filter.initial_pose.theta_rad.get();

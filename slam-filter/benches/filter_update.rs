@@ -3,7 +3,7 @@
 //!
 //! `cargo bench -p slam-filter --bench filter_update`. The state is cloned before and dropped
 //! after the timed region (criterion's `iter_batched`). Expected growth: O(n^2 m) for the covariance
-//! update, n the state dimension (6 + 4 N) and m the rows.
+//! update, n the state dimension (9 + 4 N) and m the rows.
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use nalgebra::{DMatrix, DVector};

@@ -20,14 +20,14 @@ use super::error::FilterError;
 use super::fej::relinearise_at_first_estimates;
 use super::health::{covariance_health, pose_nees, position_nees, CovarianceHealth};
 use super::lifecycle::TentativeList;
-use super::motion_tally::MotionTally;
+use super::motion_tally::{relative_pose, MotionTally};
 use super::observation::{
     row_indices, state_columns, BeamObservation, BeamObservationModel, BeamPrediction,
 };
 use super::predict::{corrected_input, predict_to, OdometrySample, ProcessModel};
 use super::repeat_look::LookCell;
 use super::settings::FilterSettings;
-use super::state::{FeatureId, FeatureParams, SlamState, SPEED_SCALE_INDEX, STEER_BIAS_INDEX};
+use super::state::{FeatureId, FeatureParams, SlamState, CLONE_INDEX};
 use super::submap::FrozenSubmap;
 use super::update::{batched_update, LinearisedObservation, UpdateOutcome};
 use relocalise::Relocalisation;
@@ -126,8 +126,6 @@ pub enum MotionOutcome {
     },
     /// No mark to measure from; nothing changed.
     NoMark,
-    /// The odometry corrections are not estimated, so the measurement observes nothing.
-    NotEstimated,
 }
 
 /// The short and learned rates of targets per second (see
@@ -315,23 +313,19 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     }
 
     /// Covariance health (`with_eigenvalues` adds an O(n^3) eigen-decomposition) of the
-    /// estimated part of the state: odometry corrections that are not estimated (zero mean,
-    /// zero variance, coupled to nothing) are left out.
+    /// estimated part of the state: the clone (a copy of the pose at the last mark, exactly
+    /// collinear with it at the mark) and odometry corrections that are not estimated (zero
+    /// mean, zero variance, coupled to nothing) are left out.
     pub fn covariance_health(&self, with_eigenvalues: bool) -> CovarianceHealth {
-        use crate::state::{SPEED_SCALE_INDEX, STEER_BIAS_INDEX};
+        use crate::state::{FEATURE_BASE, SPEED_SCALE_INDEX, STEER_BIAS_INDEX};
         let cov = self.state.covariance();
-        // Highest index first, so that removing one leaves the other's index in place.
-        let unused: Vec<usize> = [STEER_BIAS_INDEX, SPEED_SCALE_INDEX]
-            .into_iter()
-            .filter(|&i| cov[(i, i)] == 0.0)
+        let kept: Vec<usize> = (0..cov.nrows())
+            .filter(|&i| !(CLONE_INDEX..FEATURE_BASE).contains(&i))
+            .filter(|&i| {
+                !([SPEED_SCALE_INDEX, STEER_BIAS_INDEX].contains(&i) && cov[(i, i)] == 0.0)
+            })
             .collect();
-        if unused.is_empty() {
-            return covariance_health(&cov, with_eigenvalues);
-        }
-        let mut estimated = cov.into_owned();
-        for i in unused {
-            estimated = estimated.remove_row(i).remove_column(i);
-        }
+        let estimated = cov.select_rows(&kept).select_columns(&kept);
         covariance_health(&estimated, with_eigenvalues)
     }
 
@@ -474,10 +468,12 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         Ok(())
     }
 
-    /// Starts tallying the motion from the state's time on (see [`crate::motion_tally`]):
-    /// the reference for the next [`Self::observe_motion_since_mark`]. Any earlier tally is
-    /// dropped.
+    /// Marks the state's time as the reference for the next
+    /// [`Self::observe_motion_since_mark`]: the pose is copied into the state's clone (see
+    /// [`crate::state`]) and the odometry's tally of the motion starts (see
+    /// [`crate::motion_tally`]). Any earlier mark is dropped.
     pub fn mark_motion(&mut self) {
+        self.state.clone_pose();
         self.state.tally = Some(MotionTally::start(self.state.time_s()));
     }
 
@@ -496,15 +492,16 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         self.extrapolate_from(tally.rel, &held, time_s).ok()
     }
 
-    /// Updates the odometry corrections `k`, `b` (and, through their correlations, the
-    /// pose and the map) with a measurement of the motion since the last mark:
-    /// `measured` is the pose at the state's time in the frame of the pose at the mark
-    /// (for example from registering two radar rotations), `cov` its covariance. The
-    /// prediction is the tally (see [`crate::motion_tally`]); the innovation covariance
-    /// adds the odometry's input noise since the mark. A measurement whose normalised
-    /// innovation exceeds `gate_chi2` (3 dof) is refused and changes nothing. Without
-    /// estimated corrections ([`FilterSettings::speed_scale_std`] zero) or without a mark,
-    /// nothing is observable and nothing changes. The mark stays: call
+    /// Updates the state with a measurement of the motion since the last mark: `measured`
+    /// is the pose at the state's time in the frame of the pose at the mark (for example
+    /// from registering two radar rotations), `cov` its covariance. The prediction is the
+    /// estimated pose in the frame of the estimated clone (the pose at the mark, corrected
+    /// since by every update through its correlations): stochastic cloning, so the
+    /// measurement holds the pose's change itself, and through their correlations the
+    /// odometry corrections `k`, `b`, the pose at the mark and the map. The odometry's input
+    /// noise since the mark is in the pose's covariance and not in the clone's, so it is
+    /// counted once. A measurement whose normalised innovation exceeds `gate_chi2` (3 dof) is
+    /// refused and changes nothing; so does one without a mark. The mark stays: call
     /// [`Self::mark_motion`] to start the next interval.
     pub fn observe_motion_since_mark(
         &mut self,
@@ -519,36 +516,35 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         {
             return Err(FilterError::NonFiniteInput("measured motion"));
         }
-        let Some(tally) = self.state.tally else {
+        if self.state.tally.is_none() {
             return Ok(MotionOutcome::NoMark);
-        };
-        if !self.state.estimates_odometry_bias() {
-            return Ok(MotionOutcome::NotEstimated);
         }
+        let (predicted, jacobian) = relative_pose(&self.state.clone_pose_mean(), &self.pose());
         let nu = Vector3::new(
-            measured.x - tally.rel.x,
-            measured.y - tally.rel.y,
-            wrap_angle(measured.theta - tally.rel.theta),
+            measured.x - predicted.x,
+            measured.y - predicted.y,
+            wrap_angle(measured.theta - predicted.theta),
         );
-        // The gate first, on S = J P_kb J^T + noise since the mark + R (3 x 3); then the
-        // filter's one batched update with H = J in the columns of k and b.
-        let j = tally.wrt_bias;
-        let noise = tally.noise + cov;
-        let s = j * self.state.odometry_bias_covariance() * j.transpose() + noise;
-        let chol = (0.5 * (s + s.transpose()))
+        let columns = [0, 1, 2, CLONE_INDEX, CLONE_INDEX + 1, CLONE_INDEX + 2];
+        // The gate first, on S = H P H^T + R (3 x 3); then the filter's one batched update.
+        let p = self.state.covariance_block(&columns);
+        let h = DMatrix::from_fn(3, 6, |r, c| jacobian[(r, c)]);
+        let s = &h * p * h.transpose() + DMatrix::from_fn(3, 3, |r, c| cov[(r, c)]);
+        let chol = (0.5 * (&s + s.transpose()))
             .cholesky()
             .ok_or(FilterError::InnovationNotPositiveDefinite { dim: 3 })?;
-        let nis = nu.dot(&chol.solve(&nu));
+        let nu_d = DVector::from_column_slice(nu.as_slice());
+        let nis = nu_d.dot(&chol.solve(&nu_d));
         if !nis.is_finite() || nis > gate_chi2 {
             return Ok(MotionOutcome::Gated { nis });
         }
         batched_update(
             &mut self.state,
             &LinearisedObservation {
-                columns: vec![SPEED_SCALE_INDEX, STEER_BIAS_INDEX],
-                jacobian: DMatrix::from_fn(3, 2, |r, c| j[(r, c)]),
-                innovation: DVector::from_column_slice(nu.as_slice()),
-                noise: DMatrix::from_fn(3, 3, |r, c| noise[(r, c)]),
+                columns: columns.to_vec(),
+                jacobian: h,
+                innovation: nu_d,
+                noise: DMatrix::from_fn(3, 3, |r, c| 0.5 * (cov[(r, c)] + cov[(c, r)])),
             },
         )?;
         self.stats.motion_updates += 1;

@@ -115,7 +115,7 @@ pub fn predict_step<M: ProcessModel + ?Sized>(
     }
     let q = input_noise(settings, dt_s);
     if let Some(tally) = state.tally.as_mut() {
-        tally.step(model, input, [k, b], &q, dt_s)?;
+        tally.step(model, input, [k, b], dt_s)?;
     }
     let q_v = g * q * g.transpose();
     if with_bias {

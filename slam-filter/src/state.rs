@@ -8,15 +8,22 @@
 //! | 3                | radar loss `L` (dB)                       |
 //! | 4                | odometry speed correction `k` (ratio)     |
 //! | 5                | odometry steering offset `b` (rad)        |
-//! | 6 + 4 s + 0, 1   | feature in slot `s`: `x_s`, `y_s` (m)     |
-//! | 6 + 4 s + 2, 3   | feature in slot `s`: `u_s`, `v_s`         |
+//! | 6, 7, 8          | the pose at the last motion mark (a clone)|
+//! | 9 + 4 s + 0, 1   | feature in slot `s`: `x_s`, `y_s` (m)     |
+//! | 9 + 4 s + 2, 3   | feature in slot `s`: `u_s`, `v_s`         |
 //!
 //! `L` is stored right after the pose (the paper puts it last) so that appending a feature
 //! is a resize that leaves every existing index in place, and removing one shifts only the
 //! features after it. `k` and `b` are the odometry's systematic errors (not in the paper):
 //! the motion model is driven by `speed (1 + k)` and `steer + b` (see
 //! [`super::FilterSettings::speed_scale_std`]). When they are not estimated they stay at
-//! zero with zero variance and nothing couples to them, so the filter is the paper's. `(rho, alpha, tau) = softmax(u, v, 0)` (radar-model's `material`), so
+//! zero with zero variance and nothing couples to them, so the filter is the paper's. The
+//! clone (not in the paper either) is a copy of the pose taken at
+//! [`crate::Ekf::mark_motion`], so that a measurement of the motion since then (radar
+//! odometry) can be an update on the pose at the mark and the pose now together
+//! (stochastic cloning); the prediction never moves it, the updates correct it through its
+//! correlations like any other element. Before the first mark it is zero with zero variance
+//! and, like unestimated corrections, changes nothing. `(rho, alpha, tau) = softmax(u, v, 0)` (radar-model's `material`), so
 //! every value of `u, v` is a valid material and no clamping is ever needed.
 //!
 //! The covariance `P` is symmetric by construction: its lower triangle is always current,
@@ -41,8 +48,10 @@ pub const LOSS_INDEX: usize = 3;
 pub const SPEED_SCALE_INDEX: usize = 4;
 /// Index of the odometry steering offset `b` (the model's steering is `steer + b`).
 pub const STEER_BIAS_INDEX: usize = 5;
+/// Index of the clone's first element: the pose (x, y, heading) at the last motion mark.
+pub const CLONE_INDEX: usize = 6;
 /// Index of the first feature's first element.
-pub const FEATURE_BASE: usize = 6;
+pub const FEATURE_BASE: usize = 9;
 /// Elements per feature: x, y, u, v.
 pub const FEATURE_DIM: usize = 4;
 
@@ -201,7 +210,7 @@ impl SlamState {
     ) -> Result<Self, FilterError> {
         let n = mean.len();
         if n < FEATURE_BASE || (n - FEATURE_BASE) % FEATURE_DIM != 0 {
-            return Err(FilterError::Shape("state length must be 6 + 4 N"));
+            return Err(FilterError::Shape("state length must be 9 + 4 N"));
         }
         if cov.nrows() != n || cov.ncols() != n {
             return Err(FilterError::Shape("covariance must be n x n"));
@@ -244,14 +253,14 @@ impl SlamState {
 
     /// Starts a new local map in place: the vehicle at the origin of its own frame with zero
     /// covariance, no features, the radar loss L and the odometry corrections kept with their
-    /// joint covariance, the time and the id counter kept (ids stay unique across local
-    /// maps). Returns the state as it was.
+    /// joint covariance, no clone, the time and the id counter kept (ids stay unique across
+    /// local maps). Returns the state as it was.
     pub(crate) fn restart_at_origin(&mut self) -> SlamState {
         let mut mean = DVector::zeros(FEATURE_BASE);
         let mut cov = DMatrix::zeros(FEATURE_BASE, FEATURE_BASE);
-        for r in LOSS_INDEX..FEATURE_BASE {
+        for r in LOSS_INDEX..CLONE_INDEX {
             mean[r] = self.mean[r];
-            for c in LOSS_INDEX..FEATURE_BASE {
+            for c in LOSS_INDEX..CLONE_INDEX {
                 cov[(r, c)] = self.covariance_entry(r, c);
             }
         }
@@ -273,7 +282,7 @@ impl SlamState {
         std::mem::replace(self, fresh)
     }
 
-    /// State dimension n = 6 + 4 N.
+    /// State dimension n = 9 + 4 N.
     pub fn dim(&self) -> usize {
         self.mean.len()
     }
@@ -397,6 +406,39 @@ impl SlamState {
                 self.cov[(i, i)] += v;
             }
         }
+    }
+
+    /// Copies the pose into the clone (mean, and its rows and columns of P): afterwards the
+    /// clone is the pose at this time, jointly distributed with the rest of the state as the
+    /// pose is. O(n).
+    pub(crate) fn clone_pose(&mut self) {
+        let n = self.dim();
+        for r in 0..POSE_DIM {
+            self.mean[CLONE_INDEX + r] = self.mean[r];
+        }
+        // Every column but the clone's own: P[c, j] = P[pose, j], read from the lower
+        // triangle, written to both.
+        for j in (0..n).filter(|j| !(CLONE_INDEX..FEATURE_BASE).contains(j)) {
+            for r in 0..POSE_DIM {
+                let v = self.covariance_entry(r, j);
+                self.cov[(CLONE_INDEX + r, j)] = v;
+                self.cov[(j, CLONE_INDEX + r)] = v;
+            }
+        }
+        for r in 0..POSE_DIM {
+            for c in 0..POSE_DIM {
+                self.cov[(CLONE_INDEX + r, CLONE_INDEX + c)] = self.covariance_entry(r, c);
+            }
+        }
+    }
+
+    /// The clone: the pose at the last motion mark as now estimated (see the module docs).
+    pub fn clone_pose_mean(&self) -> Pose2 {
+        Pose2::new(
+            self.mean[CLONE_INDEX],
+            self.mean[CLONE_INDEX + 1],
+            self.mean[CLONE_INDEX + 2],
+        )
     }
 
     /// Feature book-keeping in slot order.

@@ -31,7 +31,7 @@ fn spd(n: usize, entries: &[f64], scales: &[f64]) -> DMatrix<f64> {
     0.5 * (&p + p.transpose())
 }
 
-/// A state whose mean and covariance are `mean` and `cov` (layout `6 + 4 N`). With
+/// A state whose mean and covariance are `mean` and `cov` (layout `9 + 4 N`). With
 /// `bias` false the odometry corrections' rows and columns are zeroed (not estimated).
 fn state_with(cov: &DMatrix<f64>, mean: &[f64], bias: bool) -> (SlamState, DMatrix<f64>) {
     let mut cov = cov.clone();

@@ -20,7 +20,7 @@ use radar_model::power::PowerModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use slam_filter::state::{SPEED_SCALE_INDEX, STEER_BIAS_INDEX};
+use slam_filter::state::{CLONE_INDEX, FEATURE_BASE, SPEED_SCALE_INDEX, STEER_BIAS_INDEX};
 use slam_filter::{
     BeamObservation, Ekf, FilterSettings, OdometrySample, ProcessModel, RadarBeamModel, Target,
 };
@@ -143,27 +143,26 @@ fn run() -> Run {
     f.settle_material_noise();
     let state = f.state();
     // The run does not estimate the odometry corrections (rows 4 and 5: zero, coupled to
-    // nothing); the stored file predates them and holds the state without those rows, so
-    // that it also proves the filter unchanged by their addition.
+    // nothing) and never marks the motion (the clone, rows 6 to 8: zero likewise); the
+    // stored file predates both and holds the state without those rows, so that it also
+    // proves the filter unchanged by their addition.
     assert!(!state.estimates_odometry_bias());
     let [k, b] = state.odometry_bias();
     assert_eq!((k, b), (0.0, 0.0));
+    let extra = FEATURE_BASE - SPEED_SCALE_INDEX;
     let p = state
         .covariance()
         .into_owned()
-        .remove_rows(SPEED_SCALE_INDEX, 2)
-        .remove_columns(SPEED_SCALE_INDEX, 2);
-    assert!(state
-        .covariance()
-        .row(SPEED_SCALE_INDEX)
-        .iter()
-        .all(|&v| v == 0.0));
-    assert!(state
-        .covariance()
-        .row(STEER_BIAS_INDEX)
-        .iter()
-        .all(|&v| v == 0.0));
-    let mean = state.mean().clone().remove_rows(SPEED_SCALE_INDEX, 2);
+        .remove_rows(SPEED_SCALE_INDEX, extra)
+        .remove_columns(SPEED_SCALE_INDEX, extra);
+    for row in [SPEED_SCALE_INDEX, STEER_BIAS_INDEX]
+        .into_iter()
+        .chain(CLONE_INDEX..FEATURE_BASE)
+    {
+        assert!(state.covariance().row(row).iter().all(|&v| v == 0.0));
+        assert_eq!(state.mean()[row], 0.0);
+    }
+    let mean = state.mean().clone().remove_rows(SPEED_SCALE_INDEX, extra);
     let n = p.nrows();
     let mut covariance_upper = Vec::with_capacity(n * (n + 1) / 2);
     for r in 0..n {

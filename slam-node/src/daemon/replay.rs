@@ -404,7 +404,8 @@ pub const RADAR_ODOMETRY_SPEED_SCALE_STD: f64 = 0.05;
 pub const RADAR_ODOMETRY_STEER_BIAS_STD_RAD: f64 = 0.01;
 
 /// `settings` with radar odometry on (rotations registered against each other; see
-/// [`crate::pipeline::scan_match`]) and the odometry corrections it observes estimated, with
+/// [`crate::pipeline::scan_match`]) and the odometry corrections estimated (the measured
+/// motion updates the pose's change and, through it, the corrections), with
 /// [`RADAR_ODOMETRY_SPEED_SCALE_STD`] and [`RADAR_ODOMETRY_STEER_BIAS_STD_RAD`] as priors
 /// where the configuration gave none. What the replay of recorded scans runs by default
 /// (`slam-node --replay-dir`; `--no-radar-odometry` leaves the configuration as it is).
