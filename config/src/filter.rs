@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::check::Checker;
 use crate::error::FieldErrors;
 use crate::values::{
-    Capacity, FiniteF64, NonNegativeF64, OpenProbability, PositiveF64, ValueError,
+    Capacity, FiniteF64, NonNegativeF64, OpenProbability, PositiveF64, Probability, ValueError,
 };
 
 /// Most features the state may be configured to hold.
@@ -83,6 +83,13 @@ pub struct RawFilter {
     /// A feature in the radar's range that nothing was associated with for this long is
     /// retired, s >= 0 (0 = never). Default 4 (ten rotations of the paper's unit).
     pub retire_unseen_after_s: f64,
+    /// A feature re-observed in fewer than this share of the rotations it was in view (once
+    /// in view for `repeatability_min_rotations`) is retired as unrepeatable, `[0, 1]` (0 =
+    /// never). Default 0.5: a landmark is re-observed in most of the rotations it is in
+    /// view; clutter, phantoms and the passing peaks of extended returns are not.
+    pub retire_unrepeatable_below: f64,
+    /// Rotations in view before a feature's repeatability is judged, `[1, 1000]`. Default 8.
+    pub repeatability_min_rotations: i64,
     /// Most features in the state, `[1, 100000]`. Default 1000.
     pub max_features: i64,
     /// Observe power as well as range and bearing. Default true.
@@ -117,6 +124,8 @@ impl Default for RawFilter {
             confirm_after: 2,
             retire_after_misses: 5,
             retire_unseen_after_s: 4.0,
+            retire_unrepeatable_below: 0.5,
+            repeatability_min_rotations: 8,
             max_features: 1000,
             use_power_in_observation: true,
             first_estimate_jacobians: true,
@@ -169,6 +178,10 @@ pub struct FilterSettings {
     pub retire_after_misses: Capacity,
     /// Retire features in range unseen for this long, s (0 = never).
     pub retire_unseen_after_s: NonNegativeF64,
+    /// Retire features re-observed in fewer than this share of rotations in view (0 = never).
+    pub retire_unrepeatable_below: Probability,
+    /// Rotations in view before repeatability is judged.
+    pub repeatability_min_rotations: Capacity,
     /// Most features.
     pub max_features: Capacity,
     /// Observe power.
@@ -277,6 +290,14 @@ impl RawFilter {
                 "filter.retire_unseen_after_s",
                 NonNegativeF64::new(self.retire_unseen_after_s),
             ),
+            retire_unrepeatable_below: c.check(
+                "filter.retire_unrepeatable_below",
+                Probability::new(self.retire_unrepeatable_below),
+            ),
+            repeatability_min_rotations: c.check(
+                "filter.repeatability_min_rotations",
+                Capacity::new(self.repeatability_min_rotations, MAX_LIFE_CYCLE_COUNT),
+            ),
             max_features: c.check(
                 "filter.max_features",
                 Capacity::new(self.max_features, MAX_FEATURES),
@@ -315,6 +336,8 @@ impl From<&FilterSettings> for RawFilter {
             confirm_after: crate::values::as_i64(s.confirm_after.get()),
             retire_after_misses: crate::values::as_i64(s.retire_after_misses.get()),
             retire_unseen_after_s: s.retire_unseen_after_s.get(),
+            retire_unrepeatable_below: s.retire_unrepeatable_below.get(),
+            repeatability_min_rotations: crate::values::as_i64(s.repeatability_min_rotations.get()),
             max_features: crate::values::as_i64(s.max_features.get()),
             use_power_in_observation: s.use_power_in_observation,
             first_estimate_jacobians: s.first_estimate_jacobians,

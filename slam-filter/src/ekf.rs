@@ -109,6 +109,20 @@ pub struct FilterStats {
     /// Measurements of the motion since a mark applied
     /// ([`Ekf::observe_motion_since_mark`]).
     pub motion_updates: u64,
+    /// Features retired for being re-observed too rarely ([`Ekf::score_rotation`]; also
+    /// counted in `retired`).
+    pub retired_unrepeatable: u64,
+}
+
+/// What [`Ekf::score_rotation`] counted over one rotation.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RotationScore {
+    /// Features mapped before the rotation and in view during it.
+    pub in_view: u64,
+    /// Of those, the ones a target was associated with.
+    pub reobserved: u64,
+    /// Features retired as unrepeatable.
+    pub retired: Vec<FeatureId>,
 }
 
 /// What a measurement of the motion since a mark did ([`Ekf::observe_motion_since_mark`]).
@@ -194,6 +208,10 @@ pub struct Ekf<M, O> {
     relocalising: Option<Relocalisation>,
     /// Targets per second, for the burst guard.
     target_rate: TargetRate,
+    /// Time of the latest beam the filter mapped with (predicted to, or took as empty with
+    /// odometry held; not refused, not held for a relocalisation): a rotation with none is
+    /// not scored by [`Self::score_rotation`].
+    last_mapped_beam_s: f64,
 }
 
 impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
@@ -235,6 +253,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             stats: FilterStats::default(),
             relocalising: None,
             target_rate: TargetRate::default(),
+            last_mapped_beam_s: f64::NEG_INFINITY,
         })
     }
 
@@ -616,6 +635,69 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         Ok(stale)
     }
 
+    /// Scores the rotation that began at `start_s` (call once, at its end): every feature
+    /// mapped before it that is within the radar's range of the current pose and in view
+    /// (`in_view(bearing_rad, range_m)` in the radar's frame, eq. 4's bearing) counts a
+    /// rotation in view, and a re-observation if a target was associated with it since
+    /// `start_s`. With [`FilterSettings::retire_unrepeatable_below`] set, a feature whose
+    /// share of re-observations is below it once it has been in view for
+    /// [`FilterSettings::repeatability_min_rotations`] is retired (not while relocalising).
+    /// In view means in range, not predicted visible: a phantom the filter predicts hidden
+    /// (occluded, or too weak) would never be judged otherwise. A rotation in which the
+    /// filter mapped no beam (odometry missing or stale, beams held for a relocalisation)
+    /// is not scored: nothing could be re-observed in it. O(N).
+    pub fn score_rotation(
+        &mut self,
+        start_s: f64,
+        in_view: impl Fn(f64, f64) -> bool,
+    ) -> Result<RotationScore, FilterError> {
+        let pose = self.pose();
+        let (near, far) = (self.settings.min_range_m, self.settings.max_range_m);
+        let below = self.settings.retire_unrepeatable_below;
+        let after = self.settings.repeatability_min_rotations.max(1);
+        let judge = below > 0.0 && self.relocalising.is_none();
+        let mut score = RotationScore::default();
+        if self.last_mapped_beam_s < start_s {
+            return Ok(score);
+        }
+        let mut unrepeatable = Vec::new();
+        for slot in 0..self.state.feature_count() {
+            let Some(p) = self.state.params(slot) else {
+                continue;
+            };
+            let rb = range_bearing(&pose, [p.x_m, p.y_m]);
+            let Some(track) = self.state.track_mut(slot) else {
+                continue;
+            };
+            if track.created_s >= start_s
+                || !(near..=far).contains(&rb.range_m)
+                || !in_view(rb.bearing_rad, rb.range_m)
+            {
+                continue;
+            }
+            score.in_view += 1;
+            track.rotations_in_view = track.rotations_in_view.saturating_add(1);
+            if track.last_seen_s >= start_s {
+                score.reobserved += 1;
+                track.rotations_reobserved = track.rotations_reobserved.saturating_add(1);
+            }
+            if judge
+                && track.rotations_in_view >= after
+                && f64::from(track.rotations_reobserved)
+                    < below * f64::from(track.rotations_in_view)
+            {
+                unrepeatable.push(track.id);
+            }
+        }
+        for &id in &unrepeatable {
+            self.state.remove(id)?;
+            self.stats.retired += 1;
+            self.stats.retired_unrepeatable += 1;
+        }
+        score.retired = unrepeatable;
+        Ok(score)
+    }
+
     /// Closes the current local map and starts a new one where the vehicle is (see
     /// [`crate::submap`]): the vehicle at the new frame's origin with zero covariance, no
     /// features, the radar loss and the held odometry kept, tentative targets re-expressed
@@ -715,6 +797,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         }
         // 1. Prediction.
         self.predict_to(beam.timestamp_s)?;
+        self.last_mapped_beam_s = beam.timestamp_s;
         let mut report = BeamReport::default();
         let in_beam = self.features_in_beam(beam.bearing_rad);
         report.candidates = self.ids_of(&in_beam);
@@ -1003,6 +1086,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             });
         }
         let pose = self.extrapolate_pose(&held, beam.timestamp_s)?;
+        self.last_mapped_beam_s = beam.timestamp_s;
         let candidates = candidates_in_beam(&self.state, &self.settings, &pose, beam.bearing_rad);
         let mut report = BeamReport {
             candidates: candidates

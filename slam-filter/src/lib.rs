@@ -65,7 +65,7 @@ mod symmetric;
 pub mod update;
 
 pub use beam::BeamCandidate;
-pub use ekf::{BeamReport, Ekf, FeatureEstimate, FilterStats, MotionOutcome};
+pub use ekf::{BeamReport, Ekf, FeatureEstimate, FilterStats, MotionOutcome, RotationScore};
 pub use error::FilterError;
 pub use health::CovarianceHealth;
 pub use observation::{BeamObservation, BeamObservationModel, RangeBearingModel, Target};

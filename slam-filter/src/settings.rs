@@ -183,6 +183,14 @@ pub struct FilterSettings {
     /// misses inside beams count only where something else was detected, so without this a
     /// phantom in a direction that stays empty would be kept for ever.
     pub retire_unseen_after_s: f64,
+    /// A feature re-observed in fewer than this fraction of the rotations it was in view
+    /// (counted by [`crate::Ekf::score_rotation`], once it has been in view in
+    /// [`Self::repeatability_min_rotations`] of them) is retired: its returns are not
+    /// repeatable, so it is clutter or an extended return's passing peak, not a landmark
+    /// (`[0, 1]`; 0 switches it off, the default).
+    pub retire_unrepeatable_below: f64,
+    /// Rotations in view before a feature's repeatability is judged (at least 1). Default 8.
+    pub repeatability_min_rotations: u32,
     /// A tentative target not seen again within this time is forgotten (s).
     pub tentative_timeout_s: f64,
     /// A beam with more targets than this is refused (typed error, state untouched): a
@@ -255,6 +263,8 @@ impl Default for FilterSettings {
             confirm_min_separation_s: 0.1,
             confirm_after: 2,
             retire_unseen_after_s: 0.0,
+            retire_unrepeatable_below: 0.0,
+            repeatability_min_rotations: 8,
             tentative_timeout_s: 2.0,
             max_targets_per_beam: 64,
             max_tentatives: 4_096,
@@ -289,6 +299,14 @@ pub enum SettingsError {
     /// The value must be finite and >= 0.
     #[error("{name} must be finite and >= 0, got {value}")]
     Negative {
+        /// Field name.
+        name: &'static str,
+        /// Offending value.
+        value: f64,
+    },
+    /// The value must lie in [0, 1].
+    #[error("{name} must lie in [0, 1], got {value}")]
+    NotAFraction {
         /// Field name.
         name: &'static str,
         /// Offending value.
@@ -446,6 +464,16 @@ impl FilterSettings {
         non_negative("confirm_min_separation_s", self.confirm_min_separation_s)?;
         count("confirm_after", self.confirm_after as usize)?;
         non_negative("retire_unseen_after_s", self.retire_unseen_after_s)?;
+        if !(0.0..=1.0).contains(&self.retire_unrepeatable_below) {
+            return Err(SettingsError::NotAFraction {
+                name: "retire_unrepeatable_below",
+                value: self.retire_unrepeatable_below,
+            });
+        }
+        count(
+            "repeatability_min_rotations",
+            self.repeatability_min_rotations as usize,
+        )?;
         positive("tentative_timeout_s", self.tentative_timeout_s)?;
         count("max_targets_per_beam", self.max_targets_per_beam)?;
         count("max_tentatives", self.max_tentatives)?;

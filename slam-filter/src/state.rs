@@ -84,6 +84,11 @@ pub struct FeatureTrack {
     pub repeat_looks: u32,
     /// The odometer reading up to which its positional wander has been added (m).
     pub wander_settled_m: f64,
+    /// Rotations it was in the radar's view for, whole (counted by
+    /// [`crate::Ekf::score_rotation`]).
+    pub rotations_in_view: u32,
+    /// Of those, the rotations in which a target was associated with it.
+    pub rotations_reobserved: u32,
 }
 
 /// A feature's estimated state elements.
@@ -233,6 +238,8 @@ impl SlamState {
                 repeat_looks: 0,
                 last_look_s: time_s,
                 wander_settled_m: 0.0,
+                rotations_in_view: 0,
+                rotations_reobserved: 0,
             })
             .collect();
         let mut mean = mean;
@@ -600,6 +607,8 @@ impl SlamState {
             repeat_looks: 0,
             last_look_s: time_s,
             wander_settled_m: self.odometer_m,
+            rotations_in_view: 0,
+            rotations_reobserved: 0,
         });
         Ok(id)
     }

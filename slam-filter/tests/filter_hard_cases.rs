@@ -620,6 +620,78 @@ fn phantoms_in_directions_that_stay_empty_are_retired_and_the_seen_feature_kept(
     assert_eq!(f.stats().retired, 1);
 }
 
+/// A post seen every rotation and a flicker (clutter that comes back once after it is
+/// mapped, then no more): with `retire_unrepeatable_below` 0.5 the flicker is retired once
+/// it has been in view for `repeatability_min_rotations`, not before, and the post is kept;
+/// with it off both stay, and the rotation scores are the same either way until then.
+#[test]
+fn a_feature_re_observed_in_too_few_rotations_in_view_is_retired() {
+    let run = |below: f64| {
+        let s = FilterSettings {
+            max_range_m: 100.0,
+            retire_unrepeatable_below: below,
+            repeatability_min_rotations: 8,
+            ..settings()
+        };
+        let truth = Pose2::new(0.0, 0.0, 0.0);
+        let mut f = filter(s, truth, [1e-4, 1e-4, 1e-6]);
+        let power = PowerModel::default();
+        let beam_of = |xy: [f64; 2], t: f64| {
+            let z = observe_beam(&truth, &[feature(xy[0], xy[1], 0.5, 0.2)], 0.0, &power).unwrap();
+            BeamObservation {
+                timestamp_s: t,
+                bearing_rad: z.z[0].bearing_rad,
+                targets: vec![Target {
+                    range_m: z.z[0].range_m,
+                    bearing_rad: z.z[0].bearing_rad,
+                    power_db: z.z[0].power_db,
+                }],
+            }
+        };
+        let (post, flicker) = ([12.0, 3.0], [-9.0, 7.0]);
+        let mut scores = Vec::new();
+        for k in 0..30 {
+            let t = T0 + 0.25 * f64::from(k);
+            f.apply_odometry(OdometrySample {
+                timestamp_s: t,
+                speed_mps: 0.0,
+                steer_rad: 0.0,
+            })
+            .unwrap();
+            f.process_beam(&beam_of(post, t)).unwrap();
+            if k < 3 || k == 5 {
+                f.process_beam(&beam_of(flicker, t + 0.1)).unwrap();
+            }
+            scores.push(f.score_rotation(t, |_, _| true).unwrap());
+        }
+        (f, scores)
+    };
+    let (on, on_scores) = run(0.5);
+    let (off, off_scores) = run(0.0);
+    // Off: both mapped features stay, and nothing is retired.
+    assert_eq!(off.features().len(), 2);
+    assert_eq!(off.stats().retired_unrepeatable, 0);
+    // On: the flicker goes, the post stays.
+    let left: Vec<[f64; 2]> = on.features().iter().map(|e| [e.x_m, e.y_m]).collect();
+    assert_eq!(left.len(), 1, "features left: {left:?}");
+    assert!((left[0][0] - 12.0).abs() < 0.5 && (left[0][1] - 3.0).abs() < 0.5);
+    assert_eq!(on.stats().retired_unrepeatable, 1);
+    assert_eq!(on.stats().retired, 1);
+    // Retired exactly once, at the first rotation it had been in view for 8 of, and the
+    // counts agree with the run that keeps it until then.
+    let when = on_scores
+        .iter()
+        .position(|s| !s.retired.is_empty())
+        .expect("retired");
+    assert_eq!(on_scores[..when], off_scores[..when]);
+    let flicker_in_view = on_scores[..=when].iter().filter(|s| s.in_view == 2).count();
+    assert_eq!(flicker_in_view, 8);
+    assert!(on_scores[when + 1..].iter().all(|s| s.retired.is_empty()));
+    // The post was re-observed in every rotation it was in view.
+    let last = on_scores.last().unwrap();
+    assert_eq!((last.in_view, last.reobserved), (1, 1));
+}
+
 /// A row of six posts 5 m apart and three pillars elsewhere.
 fn map_of_posts() -> Vec<BeamFeature> {
     let mut map: Vec<BeamFeature> = (0..6)

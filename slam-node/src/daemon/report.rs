@@ -199,6 +199,13 @@ pub fn summary_text(r: &DaemonReport) -> String {
             s.features_reobserved,
             s.features_in_view
         );
+        if s.features_retired_unrepeatable > 0 {
+            let _ = writeln!(
+                t,
+                "  unrepeatable features retired: {}",
+                s.features_retired_unrepeatable
+            );
+        }
     }
     if let Some(sm) = &s.submaps {
         let g = &sm.global;

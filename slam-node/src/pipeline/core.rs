@@ -660,32 +660,24 @@ impl Pipeline {
     }
 
     /// Counts, for every feature mapped before this rotation began and in the radar's view
-    /// during it, whether it was associated again (the map's repeatability).
+    /// during it, whether it was associated again (the map's repeatability), and retires
+    /// the features that are not repeatable (`[filter] retire_unrepeatable_below`).
     fn count_reobservations(&mut self) {
         let Some(start_s) = self.rotation_start_s.take() else {
             return;
         };
-        let pose = self.ekf.pose();
-        let f = &self.settings.filter;
-        let state = self.ekf.state();
-        for (slot, track) in state.tracks().iter().enumerate() {
-            if track.created_s >= start_s {
-                continue;
+        let front_end = &self.front_end;
+        match self
+            .ekf
+            .score_rotation(start_s, |bearing, range| front_end.covers(bearing, range))
+        {
+            Ok(score) => {
+                self.summary.features_in_view += score.in_view;
+                self.summary.features_reobserved += score.reobserved;
+                self.summary.features_retired_unrepeatable += score.retired.len() as u64;
+                self.stats.on_retired(score.retired.len());
             }
-            let Some(p) = state.params(slot) else {
-                continue;
-            };
-            let rb = radar_model::geometry::range_bearing(&pose, [p.x_m, p.y_m]);
-            if rb.range_m < f.min_range_m
-                || rb.range_m > f.max_range_m
-                || !self.front_end.covers(rb.bearing_rad, rb.range_m)
-            {
-                continue;
-            }
-            self.summary.features_in_view += 1;
-            if track.last_seen_s >= start_s {
-                self.summary.features_reobserved += 1;
-            }
+            Err(e) => warn!(error = %e, "scoring the map's repeatability failed"),
         }
     }
 

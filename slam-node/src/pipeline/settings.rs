@@ -261,6 +261,9 @@ impl PipelineSettings {
             max_features: f.max_features.get(),
             retire_after_misses: u32::try_from(f.retire_after_misses.get()).unwrap_or(u32::MAX),
             retire_unseen_after_s: f.retire_unseen_after_s.get(),
+            retire_unrepeatable_below: f.retire_unrepeatable_below.get(),
+            repeatability_min_rotations: u32::try_from(f.repeatability_min_rotations.get())
+                .unwrap_or(u32::MAX),
             confirm_after: u32::try_from(f.confirm_after.get()).unwrap_or(u32::MAX),
             initial_loss_db: f.initial_loss_db.get(),
             initial_loss_std_db: f.initial_sigma_loss_db.get(),

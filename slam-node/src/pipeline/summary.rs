@@ -104,6 +104,9 @@ pub struct PipelineSummary {
     pub features_in_view: u64,
     /// Of those, the ones in which it was associated again.
     pub features_reobserved: u64,
+    /// Features retired for being re-observed too rarely (`[filter]
+    /// retire_unrepeatable_below`).
+    pub features_retired_unrepeatable: u64,
     /// The submap the filter runs in now (0 with one dense map); poses in progress lines
     /// are in its frame.
     pub current_submap: usize,
