@@ -575,6 +575,21 @@ fn an_odometry_gap_past_the_limit_is_bridged_not_refused_forever() {
     assert_eq!(f.stats().bridged_gaps, 1);
 }
 
+/// The beam at `xy`'s bearing from `truth`, with its one target where `xy` is, noise-free.
+fn single_target_beam(truth: &Pose2, xy: [f64; 2], t: f64) -> BeamObservation {
+    let power = PowerModel::default();
+    let z = observe_beam(truth, &[feature(xy[0], xy[1], 0.5, 0.2)], 0.0, &power).unwrap();
+    BeamObservation {
+        timestamp_s: t,
+        bearing_rad: z.z[0].bearing_rad,
+        targets: vec![Target {
+            range_m: z.z[0].range_m,
+            bearing_rad: z.z[0].bearing_rad,
+            power_db: z.z[0].power_db,
+        }],
+    }
+}
+
 #[test]
 fn phantoms_in_directions_that_stay_empty_are_retired_and_the_seen_feature_kept() {
     let s = FilterSettings {
@@ -584,19 +599,7 @@ fn phantoms_in_directions_that_stay_empty_are_retired_and_the_seen_feature_kept(
     };
     let truth = Pose2::new(0.0, 0.0, 0.0);
     let mut f = filter(s, truth, [1e-4, 1e-4, 1e-6]);
-    let power = PowerModel::default();
-    let beam_of = |xy: [f64; 2], t: f64| {
-        let z = observe_beam(&truth, &[feature(xy[0], xy[1], 0.5, 0.2)], 0.0, &power).unwrap();
-        BeamObservation {
-            timestamp_s: t,
-            bearing_rad: z.z[0].bearing_rad,
-            targets: vec![Target {
-                range_m: z.z[0].range_m,
-                bearing_rad: z.z[0].bearing_rad,
-                power_db: z.z[0].power_db,
-            }],
-        }
-    };
+    let beam_of = |xy: [f64; 2], t: f64| single_target_beam(&truth, xy, t);
     let post = [12.0, 3.0];
     let phantom = [-9.0, 7.0];
     // A burst: the phantom is seen for a second, the post all along.
@@ -635,19 +638,7 @@ fn a_feature_re_observed_in_too_few_rotations_in_view_is_retired() {
         };
         let truth = Pose2::new(0.0, 0.0, 0.0);
         let mut f = filter(s, truth, [1e-4, 1e-4, 1e-6]);
-        let power = PowerModel::default();
-        let beam_of = |xy: [f64; 2], t: f64| {
-            let z = observe_beam(&truth, &[feature(xy[0], xy[1], 0.5, 0.2)], 0.0, &power).unwrap();
-            BeamObservation {
-                timestamp_s: t,
-                bearing_rad: z.z[0].bearing_rad,
-                targets: vec![Target {
-                    range_m: z.z[0].range_m,
-                    bearing_rad: z.z[0].bearing_rad,
-                    power_db: z.z[0].power_db,
-                }],
-            }
-        };
+        let beam_of = |xy: [f64; 2], t: f64| single_target_beam(&truth, xy, t);
         let (post, flicker) = ([12.0, 3.0], [-9.0, 7.0]);
         let mut scores = Vec::new();
         for k in 0..30 {

@@ -43,15 +43,23 @@ fn between(a: &Pose2, b: &Pose2) -> Pose2 {
     )
 }
 
-/// 60 s at 8 m/s along a gentle S, odometry reading 5 % fast and steering 0.01 rad left of
-/// the truth at 20 Hz, a registration of the true motion (with noise) every 0.25 s.
-/// Returns the final position error and the filter.
-fn drive(settings: FilterSettings, registrations: bool) -> (f64, Filter) {
+/// `steps` odometry samples at 20 Hz from `odometry(i, rng)` = (the true speed and
+/// steering, what the odometry reads), a registration of the true motion every 0.25 s when
+/// `registrations` (with noise of the assumed size when `noisy`). Returns the filter and
+/// the true pose at the end.
+fn drive_with(
+    settings: FilterSettings,
+    steps: u32,
+    registrations: bool,
+    noisy: bool,
+    seed: u64,
+    mut odometry: impl FnMut(u32, &mut ChaCha8Rng) -> ((f64, f64), (f64, f64)),
+) -> (Filter, Pose2) {
     let mut f = filter(settings);
     let model = MotionModel::Bicycle {
         wheelbase_m: WHEELBASE_M,
     };
-    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let nxy = Normal::new(0.0, SIGMA_XY).unwrap();
     let nth = Normal::new(0.0, SIGMA_THETA).unwrap();
     let cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(
@@ -62,24 +70,28 @@ fn drive(settings: FilterSettings, registrations: bool) -> (f64, Filter) {
     let mut truth = Pose2::new(0.0, 0.0, 0.0);
     let mut mark = truth;
     let dt = 0.05;
-    for i in 0..1200 {
+    for i in 0..steps {
         let t = T0 + f64::from(i) * dt;
-        let (speed, steer) = (8.0, 0.03 * (0.1 * f64::from(i) * dt).sin());
+        let ((speed, steer), (read_speed, read_steer)) = odometry(i, &mut rng);
         f.apply_odometry(OdometrySample {
             timestamp_s: t,
-            speed_mps: 1.05 * speed,
-            steer_rad: steer - 0.01,
+            speed_mps: read_speed,
+            steer_rad: read_steer,
         })
         .unwrap();
         if i % 5 == 0 {
             f.predict_to(t).unwrap();
             if registrations && f.motion_tally().is_some() {
                 let rel = between(&mark, &truth);
-                let measured = Pose2::new(
-                    rel.x + nxy.sample(&mut rng),
-                    rel.y + nxy.sample(&mut rng),
-                    rel.theta + nth.sample(&mut rng),
-                );
+                let measured = if noisy {
+                    Pose2::new(
+                        rel.x + nxy.sample(&mut rng),
+                        rel.y + nxy.sample(&mut rng),
+                        rel.theta + nth.sample(&mut rng),
+                    )
+                } else {
+                    rel
+                };
                 let outcome = f.observe_motion_since_mark(measured, &cov, 16.27).unwrap();
                 assert!(
                     matches!(outcome, MotionOutcome::Applied { .. }),
@@ -93,7 +105,18 @@ fn drive(settings: FilterSettings, registrations: bool) -> (f64, Filter) {
             .predict(&truth, &ControlInput::new(speed, steer), dt)
             .unwrap();
     }
-    f.predict_to(T0 + 1200.0 * dt).unwrap();
+    f.predict_to(T0 + f64::from(steps) * dt).unwrap();
+    (f, truth)
+}
+
+/// 60 s at 8 m/s along a gentle S, odometry reading 5 % fast and steering 0.01 rad left of
+/// the truth at 20 Hz, a registration of the true motion (with noise) every 0.25 s.
+/// Returns the final position error and the filter.
+fn drive(settings: FilterSettings, registrations: bool) -> (f64, Filter) {
+    let (f, truth) = drive_with(settings, 1200, registrations, true, 7, |i, _| {
+        let (speed, steer) = (8.0, 0.03 * (0.1 * f64::from(i) * 0.05).sin());
+        ((speed, steer), (1.05 * speed, steer - 0.01))
+    });
     let p = f.pose();
     ((p.x - truth.x).hypot(p.y - truth.y), f)
 }
@@ -156,46 +179,10 @@ fn without_estimated_corrections_a_measurement_holds_the_pose_change() {
             steer_std_rad: 0.05,
             ..FilterSettings::default()
         };
-        let mut f = filter(settings);
-        let model = MotionModel::Bicycle {
-            wheelbase_m: WHEELBASE_M,
-        };
-        let mut rng = ChaCha8Rng::seed_from_u64(11);
         let steer_noise = Normal::new(0.0, 0.05).unwrap();
-        let cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(
-            SIGMA_XY * SIGMA_XY,
-            SIGMA_XY * SIGMA_XY,
-            SIGMA_THETA * SIGMA_THETA,
-        ));
-        let (mut truth, mut mark) = (Pose2::new(0.0, 0.0, 0.0), Pose2::new(0.0, 0.0, 0.0));
-        let dt = 0.05;
-        for i in 0..400 {
-            let t = T0 + f64::from(i) * dt;
-            f.apply_odometry(OdometrySample {
-                timestamp_s: t,
-                speed_mps: 8.0,
-                steer_rad: steer_noise.sample(&mut rng),
-            })
-            .unwrap();
-            if i % 5 == 0 {
-                f.predict_to(t).unwrap();
-                if registrations && f.motion_tally().is_some() {
-                    let outcome = f
-                        .observe_motion_since_mark(between(&mark, &truth), &cov, 16.27)
-                        .unwrap();
-                    assert!(
-                        matches!(outcome, MotionOutcome::Applied { .. }),
-                        "{outcome:?}"
-                    );
-                }
-                f.mark_motion();
-                mark = truth;
-            }
-            truth = model
-                .predict(&truth, &ControlInput::new(8.0, 0.0), dt)
-                .unwrap();
-        }
-        f.predict_to(T0 + 400.0 * dt).unwrap();
+        let (f, truth) = drive_with(settings, 400, registrations, false, 11, |_, rng| {
+            ((8.0, 0.0), (8.0, steer_noise.sample(rng)))
+        });
         assert_healthy(&f);
         let p = f.pose();
         let sigma_theta = f.pose_covariance()[(2, 2)].sqrt();
