@@ -80,9 +80,12 @@ impl Trajectory {
 
     /// A cursor positioned at the start.
     pub fn cursor(&self) -> TrajectoryCursor {
+        let pose = self.checkpoints.first().copied().unwrap_or_default();
         TrajectoryCursor {
             step: 0,
-            pose: self.checkpoints.first().copied().unwrap_or_default(),
+            pose,
+            anchor_step: 0,
+            anchor_pose: pose,
         }
     }
 
@@ -101,6 +104,10 @@ impl Trajectory {
 
     /// The pose `t_ns` nanoseconds after the start, walking `cursor` forward from where it
     /// is (or from the nearest checkpoint when that is closer or the time is earlier).
+    /// Past the horizon the cursor keeps its own checkpoint, the last grid multiple of
+    /// [`CHECKPOINT_STEPS`] it walked through, so that asking for a slightly earlier time
+    /// there costs at most one checkpoint's steps instead of the whole way from the horizon
+    /// (the poses are the same to the bit: the same steps from the same start).
     ///
     /// # Errors
     /// The process model rejects an input.
@@ -110,17 +117,27 @@ impl Trajectory {
         let stored = self.checkpoints.len() as u64;
         let best_checkpoint = checkpoint.min(stored.saturating_sub(1));
         let checkpoint_step = best_checkpoint * CHECKPOINT_STEPS;
-        // Restart from a checkpoint if we are behind it or past the target.
+        // Restart from a checkpoint if we are behind it or past the target: the cursor's own
+        // when it lies between the stored one and the target, else the stored one.
         if cursor.step > target_step || cursor.step < checkpoint_step {
-            let index = usize::try_from(best_checkpoint).unwrap_or(usize::MAX);
-            if let Some(pose) = self.checkpoints.get(index) {
-                cursor.pose = *pose;
-                cursor.step = checkpoint_step;
+            if cursor.anchor_step > checkpoint_step && cursor.anchor_step <= target_step {
+                cursor.pose = cursor.anchor_pose;
+                cursor.step = cursor.anchor_step;
+            } else {
+                let index = usize::try_from(best_checkpoint).unwrap_or(usize::MAX);
+                if let Some(pose) = self.checkpoints.get(index) {
+                    cursor.pose = *pose;
+                    cursor.step = checkpoint_step;
+                }
             }
         }
         while cursor.step < target_step {
             cursor.pose = step_pose(&self.model, &self.schedule, cursor.pose, cursor.step)?;
             cursor.step += 1;
+            if cursor.step % CHECKPOINT_STEPS == 0 {
+                cursor.anchor_step = cursor.step;
+                cursor.anchor_pose = cursor.pose;
+            }
         }
         let remainder_ns = t_ns - target_step * STEP_NS;
         if remainder_ns == 0 {
@@ -161,6 +178,9 @@ fn step_pose(
 pub struct TrajectoryCursor {
     step: u64,
     pose: Pose2,
+    /// The last grid multiple of [`CHECKPOINT_STEPS`] walked through, and the pose there.
+    anchor_step: u64,
+    anchor_pose: Pose2,
 }
 
 #[cfg(test)]
@@ -274,5 +294,39 @@ mod tests {
             short.pose_at(t_ns).expect("pose"),
             long.pose_at(t_ns).expect("pose")
         );
+    }
+
+    #[test]
+    fn past_the_horizon_a_step_back_restarts_from_the_cursors_own_checkpoint() {
+        // A rotation's render asks for its middle first, then its samples from the start:
+        // past the horizon that used to walk from the horizon every time (quadratic in the
+        // run's length). The poses stay those of a trajectory integrated far enough.
+        let scene = circle_scene();
+        let short = Trajectory::new(&scene, 2.0).expect("integrates");
+        let long = Trajectory::new(&scene, 60.0).expect("integrates");
+        let mut cursor = short.cursor();
+        for k in 0..200u64 {
+            let start = 10_000_000_000 + k * 250_000_000;
+            for t_ns in [
+                start + 125_000_000,
+                start,
+                start + 60_000_000,
+                start + 249_000_000,
+            ] {
+                assert_eq!(
+                    short.pose_with(&mut cursor, t_ns).expect("pose"),
+                    long.pose_at(t_ns).expect("pose")
+                );
+            }
+        }
+        // A step back from 15.1 s to 15.05 s walks from the cursor's checkpoint at 15.0 s,
+        // not from the horizon at 2 s: moved 1 m sideways, its pose moves the answer too.
+        let mut cursor = short.cursor();
+        short.pose_with(&mut cursor, 15_100_000_000).expect("pose");
+        assert_eq!(cursor.anchor_step, 1500);
+        cursor.anchor_pose.x += 1.0;
+        let moved = short.pose_with(&mut cursor, 15_050_000_000).expect("pose");
+        let truth = long.pose_at(15_050_000_000).expect("pose");
+        assert!((moved.x - truth.x - 1.0).abs() < 1e-9 && (moved.y - truth.y).abs() < 1e-9);
     }
 }
