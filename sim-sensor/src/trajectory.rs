@@ -84,8 +84,7 @@ impl Trajectory {
         TrajectoryCursor {
             step: 0,
             pose,
-            anchor_step: 0,
-            anchor_pose: pose,
+            anchors: [(0, pose); 2],
         }
     }
 
@@ -104,10 +103,11 @@ impl Trajectory {
 
     /// The pose `t_ns` nanoseconds after the start, walking `cursor` forward from where it
     /// is (or from the nearest checkpoint when that is closer or the time is earlier).
-    /// Past the horizon the cursor keeps its own checkpoint, the last grid multiple of
-    /// [`CHECKPOINT_STEPS`] it walked through, so that asking for a slightly earlier time
-    /// there costs at most one checkpoint's steps instead of the whole way from the horizon
-    /// (the poses are the same to the bit: the same steps from the same start).
+    /// Past the horizon the cursor keeps its own checkpoints, the last two grid multiples
+    /// of [`CHECKPOINT_STEPS`] it walked through, so that asking for a time up to one
+    /// checkpoint interval earlier costs at most two intervals' steps instead of the whole
+    /// way from the horizon (the poses are the same to the bit: the same steps from the
+    /// same start).
     ///
     /// # Errors
     /// The process model rejects an input.
@@ -120,9 +120,14 @@ impl Trajectory {
         // Restart from a checkpoint if we are behind it or past the target: the cursor's own
         // when it lies between the stored one and the target, else the stored one.
         if cursor.step > target_step || cursor.step < checkpoint_step {
-            if cursor.anchor_step > checkpoint_step && cursor.anchor_step <= target_step {
-                cursor.pose = cursor.anchor_pose;
-                cursor.step = cursor.anchor_step;
+            let own = cursor
+                .anchors
+                .iter()
+                .find(|(step, _)| *step > checkpoint_step && *step <= target_step)
+                .copied();
+            if let Some((step, pose)) = own {
+                cursor.pose = pose;
+                cursor.step = step;
             } else {
                 let index = usize::try_from(best_checkpoint).unwrap_or(usize::MAX);
                 if let Some(pose) = self.checkpoints.get(index) {
@@ -134,9 +139,8 @@ impl Trajectory {
         while cursor.step < target_step {
             cursor.pose = step_pose(&self.model, &self.schedule, cursor.pose, cursor.step)?;
             cursor.step += 1;
-            if cursor.step % CHECKPOINT_STEPS == 0 {
-                cursor.anchor_step = cursor.step;
-                cursor.anchor_pose = cursor.pose;
+            if cursor.step % CHECKPOINT_STEPS == 0 && cursor.step > cursor.anchors[0].0 {
+                cursor.anchors = [(cursor.step, cursor.pose), cursor.anchors[0]];
             }
         }
         let remainder_ns = t_ns - target_step * STEP_NS;
@@ -178,9 +182,10 @@ fn step_pose(
 pub struct TrajectoryCursor {
     step: u64,
     pose: Pose2,
-    /// The last grid multiple of [`CHECKPOINT_STEPS`] walked through, and the pose there.
-    anchor_step: u64,
-    anchor_pose: Pose2,
+    /// The last two grid multiples of [`CHECKPOINT_STEPS`] walked through, latest first,
+    /// with the poses there: a step back into the previous checkpoint's interval (a
+    /// rotation that straddles a checkpoint) restarts from the earlier one.
+    anchors: [(u64, Pose2); 2],
 }
 
 #[cfg(test)]
@@ -320,13 +325,16 @@ mod tests {
             }
         }
         // A step back from 15.1 s to 15.05 s walks from the cursor's checkpoint at 15.0 s,
-        // not from the horizon at 2 s: moved 1 m sideways, its pose moves the answer too.
-        let mut cursor = short.cursor();
-        short.pose_with(&mut cursor, 15_100_000_000).expect("pose");
-        assert_eq!(cursor.anchor_step, 1500);
-        cursor.anchor_pose.x += 1.0;
-        let moved = short.pose_with(&mut cursor, 15_050_000_000).expect("pose");
-        let truth = long.pose_at(15_050_000_000).expect("pose");
-        assert!((moved.x - truth.x - 1.0).abs() < 1e-9 && (moved.y - truth.y).abs() < 1e-9);
+        // one back to 14.98 s from the one at 14.0 s, not from the horizon at 2 s: moved
+        // 1 m sideways, the checkpoint's pose moves the answer too.
+        for (back_ns, anchor, which) in [(15_050_000_000, 1500, 0), (14_980_000_000, 1400, 1)] {
+            let mut cursor = short.cursor();
+            short.pose_with(&mut cursor, 15_100_000_000).expect("pose");
+            assert_eq!(cursor.anchors[which].0, anchor);
+            cursor.anchors[which].1.x += 1.0;
+            let moved = short.pose_with(&mut cursor, back_ns).expect("pose");
+            let truth = long.pose_at(back_ns).expect("pose");
+            assert!((moved.x - truth.x - 1.0).abs() < 1e-9 && (moved.y - truth.y).abs() < 1e-9);
+        }
     }
 }
