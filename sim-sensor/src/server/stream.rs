@@ -29,7 +29,7 @@ pub(crate) struct Produced {
 }
 
 pub(crate) enum AzimuthStream {
-    Scene(SceneStream),
+    Scene(Box<SceneStream>),
     Png(PngStream),
     Raw(Box<RawStream>),
 }
@@ -120,11 +120,11 @@ impl AzimuthStream {
         stats: &Arc<SimStats>,
     ) -> Result<AzimuthStream, ClientError> {
         Ok(match &world.source {
-            Source::Scene(renderer) => AzimuthStream::Scene(SceneStream {
+            Source::Scene(renderer) => AzimuthStream::Scene(Box::new(SceneStream {
                 world: Arc::clone(world),
                 cursor: renderer.cursor(),
                 next: world.current_index(),
-            }),
+            })),
             Source::Png(recording) => AzimuthStream::Png(PngStream {
                 world: Arc::clone(world),
                 stats: Arc::clone(stats),
