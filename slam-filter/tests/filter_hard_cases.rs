@@ -590,6 +590,21 @@ fn single_target_beam(truth: &Pose2, xy: [f64; 2], t: f64) -> BeamObservation {
     }
 }
 
+/// One look of a parked radar at `t`: odometry standing still, then a beam for each point
+/// of `seen` (the first at `t`, the others 0.1 s later).
+fn parked_look(f: &mut Filter, truth: &Pose2, t: f64, seen: &[[f64; 2]]) {
+    f.apply_odometry(OdometrySample {
+        timestamp_s: t,
+        speed_mps: 0.0,
+        steer_rad: 0.0,
+    })
+    .unwrap();
+    for (i, &xy) in seen.iter().enumerate() {
+        let at = if i == 0 { t } else { t + 0.1 };
+        f.process_beam(&single_target_beam(truth, xy, at)).unwrap();
+    }
+}
+
 #[test]
 fn phantoms_in_directions_that_stay_empty_are_retired_and_the_seen_feature_kept() {
     let s = FilterSettings {
@@ -599,22 +614,13 @@ fn phantoms_in_directions_that_stay_empty_are_retired_and_the_seen_feature_kept(
     };
     let truth = Pose2::new(0.0, 0.0, 0.0);
     let mut f = filter(s, truth, [1e-4, 1e-4, 1e-6]);
-    let beam_of = |xy: [f64; 2], t: f64| single_target_beam(&truth, xy, t);
     let post = [12.0, 3.0];
     let phantom = [-9.0, 7.0];
     // A burst: the phantom is seen for a second, the post all along.
     for k in 0..40 {
         let t = T0 + 0.25 * f64::from(k);
-        f.apply_odometry(OdometrySample {
-            timestamp_s: t,
-            speed_mps: 0.0,
-            steer_rad: 0.0,
-        })
-        .unwrap();
-        f.process_beam(&beam_of(post, t)).unwrap();
-        if k < 4 {
-            f.process_beam(&beam_of(phantom, t + 0.1)).unwrap();
-        }
+        let seen: &[[f64; 2]] = if k < 4 { &[post, phantom] } else { &[post] };
+        parked_look(&mut f, &truth, t, seen);
         f.retire_unseen().unwrap();
     }
     let left: Vec<[f64; 2]> = f.features().iter().map(|e| [e.x_m, e.y_m]).collect();
@@ -638,21 +644,16 @@ fn a_feature_re_observed_in_too_few_rotations_in_view_is_retired() {
         };
         let truth = Pose2::new(0.0, 0.0, 0.0);
         let mut f = filter(s, truth, [1e-4, 1e-4, 1e-6]);
-        let beam_of = |xy: [f64; 2], t: f64| single_target_beam(&truth, xy, t);
         let (post, flicker) = ([12.0, 3.0], [-9.0, 7.0]);
         let mut scores = Vec::new();
         for k in 0..30 {
             let t = T0 + 0.25 * f64::from(k);
-            f.apply_odometry(OdometrySample {
-                timestamp_s: t,
-                speed_mps: 0.0,
-                steer_rad: 0.0,
-            })
-            .unwrap();
-            f.process_beam(&beam_of(post, t)).unwrap();
-            if k < 3 || k == 5 {
-                f.process_beam(&beam_of(flicker, t + 0.1)).unwrap();
-            }
+            let seen: &[[f64; 2]] = if k < 3 || k == 5 {
+                &[post, flicker]
+            } else {
+                &[post]
+            };
+            parked_look(&mut f, &truth, t, seen);
             scores.push(f.score_rotation(t, |_, _| true).unwrap());
         }
         (f, scores)
