@@ -628,11 +628,17 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 (unseen && in_range && in_view(rb.bearing_rad, rb.range_m)).then_some(track.id)
             })
             .collect();
-        for &id in &stale {
+        self.retire(&stale)?;
+        Ok(stale)
+    }
+
+    /// Removes the features `ids` from the state and counts them retired.
+    fn retire(&mut self, ids: &[FeatureId]) -> Result<(), FilterError> {
+        for &id in ids {
             self.state.remove(id)?;
             self.stats.retired += 1;
         }
-        Ok(stale)
+        Ok(())
     }
 
     /// Scores the rotation that began at `start_s` (call once, at its end): every feature
@@ -651,15 +657,15 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         start_s: f64,
         in_view: impl Fn(f64, f64) -> bool,
     ) -> Result<RotationScore, FilterError> {
+        let mut score = RotationScore::default();
+        if self.last_mapped_beam_s < start_s {
+            return Ok(score);
+        }
         let pose = self.pose();
         let (near, far) = (self.settings.min_range_m, self.settings.max_range_m);
         let below = self.settings.retire_unrepeatable_below;
         let after = self.settings.repeatability_min_rotations.max(1);
         let judge = below > 0.0 && self.relocalising.is_none();
-        let mut score = RotationScore::default();
-        if self.last_mapped_beam_s < start_s {
-            return Ok(score);
-        }
         let mut unrepeatable = Vec::new();
         for slot in 0..self.state.feature_count() {
             let Some(p) = self.state.params(slot) else {
@@ -689,11 +695,8 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 unrepeatable.push(track.id);
             }
         }
-        for &id in &unrepeatable {
-            self.state.remove(id)?;
-            self.stats.retired += 1;
-            self.stats.retired_unrepeatable += 1;
-        }
+        self.retire(&unrepeatable)?;
+        self.stats.retired_unrepeatable += unrepeatable.len() as u64;
         score.retired = unrepeatable;
         Ok(score)
     }
@@ -1057,11 +1060,8 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 }
             }
         }
-        for id in retire {
-            self.state.remove(id)?;
-            self.stats.retired += 1;
-            report.retired.push(id);
-        }
+        self.retire(&retire)?;
+        report.retired.extend(retire);
         Ok(())
     }
 

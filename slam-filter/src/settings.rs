@@ -390,6 +390,14 @@ fn probability(name: &'static str, value: f64) -> Result<(), SettingsError> {
     }
 }
 
+fn fraction(name: &'static str, value: f64) -> Result<(), SettingsError> {
+    if (0.0..=1.0).contains(&value) {
+        Ok(())
+    } else {
+        Err(SettingsError::NotAFraction { name, value })
+    }
+}
+
 fn count(name: &'static str, value: usize) -> Result<(), SettingsError> {
     if value >= 1 {
         Ok(())
@@ -464,12 +472,7 @@ impl FilterSettings {
         non_negative("confirm_min_separation_s", self.confirm_min_separation_s)?;
         count("confirm_after", self.confirm_after as usize)?;
         non_negative("retire_unseen_after_s", self.retire_unseen_after_s)?;
-        if !(0.0..=1.0).contains(&self.retire_unrepeatable_below) {
-            return Err(SettingsError::NotAFraction {
-                name: "retire_unrepeatable_below",
-                value: self.retire_unrepeatable_below,
-            });
-        }
+        fraction("retire_unrepeatable_below", self.retire_unrepeatable_below)?;
         count(
             "repeatability_min_rotations",
             self.repeatability_min_rotations as usize,

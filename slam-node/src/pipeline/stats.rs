@@ -83,7 +83,7 @@ impl RotationStats {
         associated
     }
 
-    /// Counts features retired for going unseen in range.
+    /// Counts features retired for going unseen in range or for being unrepeatable.
     pub fn on_retired(&mut self, n: usize) {
         self.rot.retired += count(n);
     }
