@@ -194,6 +194,17 @@ async fn ensemble(label: &'static str, fej: bool, repeat: bool, setup: &Setup) -
         1e3 * e.heading_bias[1].0, 1e3 * e.heading_bias[1].1,
         1e3 * e.heading_bias[2].0, 1e3 * e.heading_bias[2].1, e.runs_above_7_81, e.seed1_nees
     );
+    // Each run's own time-averaged NEES, by seed, so a heavy tail can be traced to its runs.
+    let per_run: Vec<String> = run_means
+        .iter()
+        .enumerate()
+        .map(|(i, m)| format!("{}: {m:.2}", i + 1))
+        .collect();
+    println!(
+        "{:<32} per run (seed: mean NEES): {}",
+        e.label,
+        per_run.join(", ")
+    );
     e
 }
 
