@@ -25,9 +25,11 @@
 //! - [`clock`]: the [`Clock`] seam.
 //!
 //! ```no_run
-//! # async fn demo() -> Result<(), radar_driver::DriverError> {
+//! // `radar`: the unit's address (a Navtech radar listens on TCP port 6317); in tests, a
+//! // listener bound to 127.0.0.1:0 and its port read back.
+//! # async fn demo(radar: std::net::SocketAddr) -> Result<(), radar_driver::DriverError> {
 //! use radar_driver::{Driver, DriverSettings};
-//! let (driver, receivers) = Driver::new(DriverSettings::new("127.0.0.1:6317".parse().unwrap()));
+//! let (driver, receivers) = Driver::new(DriverSettings::new(radar));
 //! let handle = driver.spawn();
 //! let azimuths = receivers.azimuths.expect("azimuth channel configured");
 //! std::thread::spawn(move || {
