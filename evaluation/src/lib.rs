@@ -19,6 +19,7 @@ pub mod run;
 pub mod scan;
 pub mod sections;
 pub mod source;
+pub mod truth_agreement;
 pub mod world;
 
 pub use error::EvalError;
