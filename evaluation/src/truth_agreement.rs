@@ -410,6 +410,62 @@ pub fn agreement(
     out
 }
 
+/// Scans with their start times (µs).
+pub type TimedScans = Vec<(i64, Scan)>;
+
+/// The same check where the truth is exact: `rotations` rotations of the simulator's
+/// `scene` rendered as the daemon would receive them (motion during each rotation and the
+/// scene radar's range-Doppler coupling included), with each rotation's true pose at its
+/// middle as the ground truth. Returns the scans (each with its start time in µs) and the
+/// relative poses, in the recorded data's form.
+pub fn simulated(
+    scene: &sim_sensor::scene::Scene,
+    rotations: u64,
+) -> Result<(TimedScans, Vec<RelativePose>), crate::error::EvalError> {
+    use std::sync::Arc;
+    let radar = &scene.radar;
+    let n = u64::from(radar.azimuths);
+    let horizon_s = (rotations + 2) as f64 / radar.rotation_hz() + 1.0;
+    let renderer = Arc::new(sim_sensor::render::SceneRenderer::new(
+        scene, None, horizon_s,
+    )?);
+    let mut cursor = renderer.cursor();
+    let mut frame = bytes::BytesMut::new();
+    let mut scans = Vec::new();
+    let mut poses = Vec::new();
+    for rot in 0..rotations {
+        let mut rows = Vec::with_capacity(n as usize);
+        for k in 0..n {
+            let index = rot * n + k;
+            frame.clear();
+            cursor.render(index, 0, protocol::Timestamp::EPOCH, &mut frame)?;
+            rows.push(crate::scan::Row {
+                timestamp_s: sim_sensor::render::offset_ns(radar, index) as f64 * 1e-9,
+                bearing_rad: wrap_angle(k as f64 * std::f64::consts::TAU / n as f64),
+                measured_db: cursor.last_power_db().to_vec(),
+            });
+        }
+        let start_us = (sim_sensor::render::offset_ns(radar, rot * n) / 1000) as i64;
+        let middle_ns = sim_sensor::render::offset_ns(radar, rot * n + n / 2);
+        let pose = renderer.trajectory().pose_at(middle_ns)?;
+        scans.push((start_us, Scan { rows }));
+        poses.push(((middle_ns / 1000) as i64, pose));
+    }
+    let truth = scans
+        .windows(2)
+        .zip(poses.windows(2))
+        .map(|(s, p)| RelativePose {
+            source_us: s[1].0,
+            destination_us: s[0].0,
+            source_pose_us: p[1].0,
+            destination_pose_us: p[0].0,
+            line: 0,
+            pose: sim_sensor::replay::truth::between(&p[0].1, &p[1].1),
+        })
+        .collect();
+    Ok((scans, truth))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -447,6 +503,41 @@ mod tests {
             })
             .collect();
         Scan { rows }
+    }
+
+    #[test]
+    fn on_the_simulated_street_the_dense_registration_finds_the_true_motion() {
+        // The control for the recorded scans: the same registration where the truth is exact
+        // (motion during the rotation and the range-Doppler coupling rendered).
+        let scene = sim_sensor::scene::shipped::load("urban-street").expect("shipped scene");
+        let (scans, truth) = simulated(&scene, 3).expect("renders");
+        let settings = DenseSettings {
+            bin_m: f64::from(scene.radar.range_gain) * scene.radar.bin_size_m(),
+            doppler_coupling_s: scene.radar.doppler_range_coupling_s,
+            ..DenseSettings::default()
+        };
+        let timed: Vec<(i64, &Scan)> = scans.iter().map(|(t, s)| (*t, s)).collect();
+        let pairs = agreement(&timed, &truth, &settings);
+        assert_eq!(pairs.len(), 2);
+        for p in &pairs {
+            let g = p.truth.pose;
+            assert!(g.x > 1.0, "the vehicle moves: {g:?}");
+            assert!(
+                (p.dense.x - g.x).abs() < 0.03,
+                "{:?} against {g:?}",
+                p.dense
+            );
+            assert!(
+                (p.dense.y - g.y).abs() < 0.03,
+                "{:?} against {g:?}",
+                p.dense
+            );
+            assert!(
+                (p.dense.theta - g.theta).abs() < 0.01,
+                "{:?} against {g:?}",
+                p.dense
+            );
+        }
     }
 
     #[test]

@@ -4,15 +4,18 @@
 //! `radar_odometry.csv`.)
 //!
 //! Run: `cargo run --release -p evaluation --bin truth_agreement -- [--dir DIR]
-//! [--threshold-db 15] [--max-range-m 60] [--blur-m 0.15] [--bin-m 0.0438] [--no-deskew]`
+//! [--threshold-db 15] [--max-range-m 60] [--blur-m 0.15] [--bin-m 0.0438] [--no-deskew]
+//! [--simulated ROTATIONS [--scene urban-street]]`. `--simulated` checks the method where
+//! the truth is exact: the simulator's street rendered as the daemon receives it.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::Parser;
 use evaluation::sections::oxford::{default_dir, read_scans};
-use evaluation::truth_agreement::{agreement, DenseSettings, SUBSETS};
+use evaluation::truth_agreement::{agreement, simulated, DenseSettings, SUBSETS};
 use sim_sensor::replay::truth::read_oxford_odometry;
+use sim_sensor::scene::{shipped, Scene};
 
 /// Registers consecutive recorded scans densely and prints them against the ground truth.
 #[derive(Debug, Parser)]
@@ -36,6 +39,13 @@ struct Args {
     /// Leave each rotation's points where they were measured (no motion taken out).
     #[arg(long)]
     no_deskew: bool,
+    /// Check the method instead where the truth is exact: render this many rotations of
+    /// the simulator's `--scene` and register them the same way.
+    #[arg(long)]
+    simulated: Option<u64>,
+    /// The scene for `--simulated`: a shipped scene's name or a scene file.
+    #[arg(long, default_value = "urban-street")]
+    scene: String,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -63,22 +73,46 @@ fn main() -> anyhow::Result<()> {
             && settings.max_range_m <= 500.0,
         "settings out of range: {settings:?}"
     );
-    let scans = read_scans(&dir).with_context(|| {
-        format!(
-            "reading the recorded scans in {} (the Oxford excerpt lives in ../shared/data/oxford-radar-robotcar)",
-            dir.display()
-        )
-    })?;
-    let truth_path = dir.join("radar_odometry.csv");
-    let truth = read_oxford_odometry(&truth_path)
-        .with_context(|| format!("reading {}", truth_path.display()))?;
-    let timed: Vec<(i64, &evaluation::scan::Scan)> =
-        scans.iter().map(|s| (s.time_us, &s.scan)).collect();
+    let (scans, truth, source) = match args.simulated {
+        Some(rotations) => {
+            anyhow::ensure!(
+                (2..=200).contains(&rotations),
+                "--simulated takes 2 to 200 rotations, got {rotations}"
+            );
+            let scene = if shipped::NAMES.contains(&args.scene.as_str()) {
+                shipped::load(&args.scene)?
+            } else {
+                Scene::load(Path::new(&args.scene))?
+            };
+            let settings = DenseSettings {
+                bin_m: f64::from(scene.radar.range_gain) * scene.radar.bin_size_m(),
+                doppler_coupling_s: scene.radar.doppler_range_coupling_s,
+                ..settings
+            };
+            let (scans, truth) = simulated(&scene, rotations)?;
+            let source = format!("the simulator's {} (exact truth)", args.scene);
+            (scans, truth, (source, settings))
+        }
+        None => {
+            let scans = read_scans(&dir).with_context(|| {
+                format!(
+                    "reading the recorded scans in {} (the Oxford excerpt lives in ../shared/data/oxford-radar-robotcar)",
+                    dir.display()
+                )
+            })?;
+            let truth_path = dir.join("radar_odometry.csv");
+            let truth = read_oxford_odometry(&truth_path)
+                .with_context(|| format!("reading {}", truth_path.display()))?;
+            let scans = scans.into_iter().map(|s| (s.time_us, s.scan)).collect();
+            (scans, truth, (dir.display().to_string(), settings))
+        }
+    };
+    let (source, settings) = source;
+    let timed: Vec<(i64, &evaluation::scan::Scan)> = scans.iter().map(|(t, s)| (*t, s)).collect();
     let pairs = agreement(&timed, &truth, &settings);
     anyhow::ensure!(
         !pairs.is_empty(),
-        "no consecutive pair of scans in {} has a ground-truth row",
-        dir.display()
+        "no consecutive pair of scans in {source} has a ground-truth row"
     );
 
     println!(
@@ -87,7 +121,7 @@ fn main() -> anyhow::Result<()> {
          Doppler coupling {} s, {}).\n",
         pairs.len(),
         scans.len(),
-        dir.display(),
+        source,
         settings.threshold_db,
         settings.min_range_m,
         settings.max_range_m,
