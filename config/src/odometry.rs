@@ -114,6 +114,11 @@ pub struct RawOdometry {
     /// A record whose speed changed faster than this since the last accepted one (m/s^2 > 0;
     /// checked over intervals up to 1 s) is refused. Default 20 (2 g).
     pub max_accel_mps2: f64,
+    /// Whether landmark updates may move the odometry's speed correction (`speed_scale_std`),
+    /// or only motion measurements (radar odometry) may: false holds it as a consider
+    /// parameter in every landmark update (its cross-covariances are updated, its estimate
+    /// is not). `slam-node --replay-dir` sets it false with its radar odometry. Default true.
+    pub speed_scale_from_landmarks: bool,
     /// Radar odometry: register each rotation's detections (walls and fences included)
     /// against the previous rotation's and give the measured motion to the filter, an update
     /// of the pose's change since the previous rotation (and, where they are estimated, of
@@ -146,6 +151,7 @@ impl Default for RawOdometry {
             max_speed_mps: DEFAULT_MAX_SPEED_MPS,
             max_steer_rad: DEFAULT_MAX_STEER_RAD,
             max_accel_mps2: DEFAULT_MAX_ACCEL_MPS2,
+            speed_scale_from_landmarks: true,
             radar_odometry: false,
             radar_odometry_sigma_m: 0.05,
             radar_odometry_sigma_rad: 0.003,
@@ -219,6 +225,8 @@ pub struct OdometrySettings {
     pub max_steer_rad: PositiveF64,
     /// Largest believable change of speed, m/s^2.
     pub max_accel_mps2: PositiveF64,
+    /// Landmark updates may move the odometry's speed correction.
+    pub speed_scale_from_landmarks: bool,
     /// Radar odometry on.
     pub radar_odometry: bool,
     /// One registration's translation standard deviation, m.
@@ -391,6 +399,7 @@ impl RawOdometry {
                 "odometry.max_accel_mps2",
                 PositiveF64::new(self.max_accel_mps2),
             ),
+            speed_scale_from_landmarks: self.speed_scale_from_landmarks,
             radar_odometry: self.radar_odometry,
             radar_odometry_sigma_m: c.check(
                 "odometry.radar_odometry_sigma_m",
@@ -444,6 +453,7 @@ impl From<&OdometrySettings> for RawOdometry {
             max_speed_mps: s.max_speed_mps.get(),
             max_steer_rad: s.max_steer_rad.get(),
             max_accel_mps2: s.max_accel_mps2.get(),
+            speed_scale_from_landmarks: s.speed_scale_from_landmarks,
             radar_odometry: s.radar_odometry,
             radar_odometry_sigma_m: s.radar_odometry_sigma_m.get(),
             radar_odometry_sigma_rad: s.radar_odometry_sigma_rad.get(),

@@ -198,6 +198,7 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "odometry.source",
     "odometry.motion_model",
     "odometry.radar_odometry",
+    "odometry.speed_scale_from_landmarks",
     "sim.pacing",
     "sim.radar_preset",
     "sim.faults.no_keepalive",

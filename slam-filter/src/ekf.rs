@@ -27,9 +27,11 @@ use super::observation::{
 use super::predict::{corrected_input, predict_to, OdometrySample, ProcessModel};
 use super::repeat_look::LookCell;
 use super::settings::FilterSettings;
-use super::state::{FeatureId, FeatureParams, SlamState, CLONE_INDEX};
+use super::state::{FeatureId, FeatureParams, SlamState, CLONE_INDEX, SPEED_SCALE_INDEX};
 use super::submap::FrozenSubmap;
-use super::update::{batched_update, LinearisedObservation, UpdateOutcome};
+use super::update::{
+    batched_update, batched_update_considering, LinearisedObservation, UpdateOutcome,
+};
 use relocalise::Relocalisation;
 
 /// A feature as reported: position, material shares (not the logits), uncertainty.
@@ -996,12 +998,30 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             innovation: DVector::from_vec(nu),
             noise,
         };
-        let outcome = batched_update(&mut self.state, &obs)?;
+        let outcome = {
+            let consider = self.landmark_consider();
+            batched_update_considering(&mut self.state, &obs, consider)
+        }?;
         self.stats.updates += 1;
         self.stats.nis_sum += outcome.nis;
         self.stats.nis_dof_sum += outcome.dof as u64;
         report.update = Some(outcome);
         Ok(claimed)
+    }
+
+    /// The elements a landmark update holds as consider parameters: the speed correction `k`
+    /// when [`FilterSettings::speed_scale_from_landmarks`] is off and `k` is estimated.
+    pub(crate) fn landmark_consider(&self) -> &'static [usize] {
+        if self.settings.speed_scale_from_landmarks
+            || self
+                .state
+                .covariance_entry(SPEED_SCALE_INDEX, SPEED_SCALE_INDEX)
+                <= 0.0
+        {
+            &[]
+        } else {
+            &[SPEED_SCALE_INDEX]
+        }
     }
 
     /// Whether each predicted feature would be detectable (power above the threshold); all

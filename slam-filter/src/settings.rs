@@ -63,6 +63,14 @@ pub struct FilterSettings {
     pub speed_scale_walk_per_sqrt_s: f64,
     /// Random walk of `b` (rad per square root of a second). Used only when `b` is estimated.
     pub steer_bias_walk_rad_per_sqrt_s: f64,
+    /// Whether the landmarks' updates may move the odometry's speed correction `k` (the
+    /// default, its only source without radar odometry). False holds `k` as a consider
+    /// parameter in every landmark update (the Schmidt-Kalman update: its cross-covariances
+    /// are updated, its estimate and variance are not), so that only the motion
+    /// measurements ([`crate::Ekf::observe_motion_since_mark`]) learn it: a mapped return
+    /// whose peak slides along with the vehicle (a car body, a hedge's corner) pulls every
+    /// pose it is seen from back along the path, and through the poses the scale.
+    pub speed_scale_from_landmarks: bool,
     /// Growth rate of the variance of each feature's u and v (1/s): the paper's Gaussian
     /// change of reflectivity and absorption with viewing angle.
     pub material_variance_per_s: f64,
@@ -232,6 +240,7 @@ impl Default for FilterSettings {
             steer_bias_std_rad: 0.0,
             speed_scale_walk_per_sqrt_s: 1e-4,
             steer_bias_walk_rad_per_sqrt_s: 1e-5,
+            speed_scale_from_landmarks: true,
             material_variance_per_s: 1e-4,
             feature_wander_m: 0.0,
             feature_wander_length_m: 2.0,

@@ -122,6 +122,22 @@ pub fn batched_update(
     state: &mut SlamState,
     obs: &LinearisedObservation,
 ) -> Result<UpdateOutcome, FilterError> {
+    batched_update_considering(state, obs, &[])
+}
+
+/// [`batched_update`] with the elements at `consider` held as consider parameters (the
+/// Schmidt-Kalman update): their gain rows are zero, so their means and their own block of
+/// the covariance stay as they were, while their cross-covariances with the rest take the
+/// ordinary update. With `K` the optimal gain and `D` zeroing the consider rows, the update
+/// `P - D K H P - P H^T K^T D + D K S K^T D` is, entry by entry, the ordinary `P - W W^T`
+/// except where both indices are consider ones: the covariance stays that of the
+/// estimator's actual error (positive definite), for a gain that is not the optimal one.
+/// Indices outside the state are ignored.
+pub fn batched_update_considering(
+    state: &mut SlamState,
+    obs: &LinearisedObservation,
+    consider: &[usize],
+) -> Result<UpdateOutcome, FilterError> {
     let n = state.dim();
     obs.check(n)?;
     let m = obs.innovation.len();
@@ -153,8 +169,9 @@ pub fn batched_update(
     if !nis.is_finite() || w.iter().any(|v| !v.is_finite()) {
         return Err(FilterError::NonFiniteInput("update gain"));
     }
+    let consider: Vec<usize> = consider.iter().copied().filter(|&c| c < n).collect();
     // Refuse before writing anything if a variance would go non-positive.
-    for i in 0..n {
+    for i in (0..n).filter(|i| !consider.contains(i)) {
         let mut reduction = 0.0;
         for k in 0..m {
             reduction += w[(i, k)] * w[(i, k)];
@@ -171,7 +188,18 @@ pub fn batched_update(
             });
         }
     }
+    // The consider elements' means and their own covariance block (lower triangle), put
+    // back after the ordinary update.
+    let kept_mean: Vec<f64> = consider.iter().map(|&c| state.mean[c]).collect();
+    let kept_cov: Vec<(usize, usize, f64)> = consider
+        .iter()
+        .flat_map(|&a| consider.iter().map(move |&b| (a.max(b), a.min(b))))
+        .map(|(a, b)| (a, b, state.cov[(a, b)]))
+        .collect();
     state.mean += &w * &e;
+    for (&c, &m) in consider.iter().zip(&kept_mean) {
+        state.mean[c] = m;
+    }
     state.mean[2] = wrap_angle(state.mean[2]);
     // The correction's covariance in the pose block, `W_v W_v^T` (see
     // `SlamState::pose_churn`).
@@ -185,6 +213,9 @@ pub fn batched_update(
         }
     }
     subtract_wwt(&mut state.cov, &w);
+    for &(a, b, v) in &kept_cov {
+        state.cov[(a, b)] = v;
+    }
     state.upper_stale = true;
     Ok(UpdateOutcome { nis, dof: m })
 }
@@ -299,6 +330,87 @@ fn axpy4(p: &mut [f64], w: [&[f64]; 4], a: [f64; 4]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 13-element state (pose, loss, k, b, clone, one feature) with a dense, well
+    /// conditioned covariance, and a 2-row observation of the pose and the feature.
+    fn consider_case() -> (SlamState, LinearisedObservation) {
+        let n = 13;
+        let a = DMatrix::from_fn(n, n, |i, j| ((i * 5 + j * 3) as f64 * 0.417).sin() * 0.3);
+        let cov = &a * a.transpose() + DMatrix::from_diagonal_element(n, n, 0.05);
+        let mean = DVector::from_fn(n, |i, _| (i as f64 * 0.3).cos());
+        let state = SlamState::from_parts(mean, cov, 0.0).unwrap();
+        let columns = vec![0, 1, 2, 9, 10];
+        let jacobian = DMatrix::from_fn(2, 5, |r, c| ((r * 5 + c) as f64 * 0.9).cos());
+        let obs = LinearisedObservation {
+            columns,
+            jacobian,
+            innovation: DVector::from_vec(vec![0.3, -0.2]),
+            noise: DMatrix::from_diagonal(&DVector::from_vec(vec![0.04, 0.02])),
+        };
+        (state, obs)
+    }
+
+    /// The Schmidt-Kalman update holds the consider elements' means and their own block,
+    /// updates everything else exactly as the ordinary update does, and equals the explicit
+    /// `P - D K H P - P H^T K^T D + D K S K^T D` with `D` zeroing the consider rows; the
+    /// result stays symmetric positive definite.
+    #[test]
+    fn a_consider_update_holds_its_elements_and_gives_the_schmidt_covariance() {
+        use crate::state::{SPEED_SCALE_INDEX, STEER_BIAS_INDEX};
+        let consider = [SPEED_SCALE_INDEX, STEER_BIAS_INDEX];
+        let (before, obs) = consider_case();
+        let mut ordinary = before.clone();
+        batched_update(&mut ordinary, &obs).unwrap();
+        let mut schmidt = before.clone();
+        batched_update_considering(&mut schmidt, &obs, &consider).unwrap();
+        let (p0, po, ps) = (
+            before.covariance().into_owned(),
+            ordinary.covariance().into_owned(),
+            schmidt.covariance().into_owned(),
+        );
+        let n = p0.nrows();
+        for i in 0..n {
+            let held = consider.contains(&i);
+            let expected_mean = if held {
+                before.mean()[i]
+            } else {
+                ordinary.mean()[i]
+            };
+            assert!(
+                (schmidt.mean()[i] - expected_mean).abs() < 1e-12,
+                "mean {i}"
+            );
+            for j in 0..n {
+                let expected = if held && consider.contains(&j) {
+                    p0[(i, j)]
+                } else {
+                    po[(i, j)]
+                };
+                assert!((ps[(i, j)] - expected).abs() < 1e-12, "P[{i}, {j}]");
+            }
+        }
+        // The explicit Schmidt form, from the full matrices.
+        let mut h = DMatrix::zeros(obs.jacobian.nrows(), n);
+        for (k, &c) in obs.columns.iter().enumerate() {
+            h.set_column(c, &obs.jacobian.column(k));
+        }
+        let s = &h * &p0 * h.transpose() + &obs.noise;
+        let mut gain = &p0 * h.transpose() * s.clone().try_inverse().unwrap();
+        for &c in &consider {
+            gain.row_mut(c).fill(0.0);
+        }
+        let explicit = &p0 - &gain * &h * &p0 - &p0 * h.transpose() * gain.transpose()
+            + &gain * &s * gain.transpose();
+        assert!(
+            (&explicit - &ps).amax() < 1e-10,
+            "{}",
+            (&explicit - &ps).amax()
+        );
+        let expected_mean = before.mean() + &gain * &obs.innovation;
+        assert!((schmidt.mean() - expected_mean).amax() < 1e-12);
+        assert!((&ps - ps.transpose()).amax() < 1e-12);
+        assert!(ps.clone().cholesky().is_some(), "positive definite");
+    }
 
     /// The fused update (vectorised, AVX where the CPU has it) gives bit for bit what a
     /// plain scalar loop over the whole matrix gives for the same grouping of `W`'s

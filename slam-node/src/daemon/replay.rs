@@ -407,10 +407,13 @@ pub const RADAR_ODOMETRY_STEER_BIAS_STD_RAD: f64 = 0.01;
 /// [`crate::pipeline::scan_match`]) and the odometry corrections estimated (the measured
 /// motion updates the pose's change and, through it, the corrections), with
 /// [`RADAR_ODOMETRY_SPEED_SCALE_STD`] and [`RADAR_ODOMETRY_STEER_BIAS_STD_RAD`] as priors
-/// where the configuration gave none. What the replay of recorded scans runs by default
-/// (`slam-node --replay-dir`; `--no-radar-odometry` leaves the configuration as it is).
+/// where the configuration gave none, the speed correction learned from the registrations
+/// alone (`speed_scale_from_landmarks` off: slam-node/README.md, "Odometry corrections").
+/// What the replay of recorded scans runs by default (`slam-node --replay-dir`;
+/// `--no-radar-odometry` leaves the configuration as it is).
 pub fn with_radar_odometry(mut settings: PipelineSettings) -> PipelineSettings {
     settings.scan_match.enabled = true;
+    settings.filter.speed_scale_from_landmarks = false;
     if settings.filter.speed_scale_std == 0.0 {
         settings.filter.speed_scale_std = RADAR_ODOMETRY_SPEED_SCALE_STD;
     }
