@@ -996,3 +996,27 @@ fn odometry_five_percent_fast_and_steering_off_is_learned_and_the_pose_stays_on_
     assert!(with < 0.5, "final error {with} m");
     assert!(without > 2.0 * with, "without the corrections {without} m");
 }
+
+/// With the speed scale held out of the landmarks' updates (`speed_scale_from_landmarks`
+/// off) and no motion measurement, the same drive leaves `k` exactly at its prior while the
+/// steering offset is still learned from the landmarks, and the covariance stays healthy
+/// (the Schmidt-Kalman update keeps it that of the estimator's actual error).
+#[test]
+fn a_speed_scale_held_from_the_landmarks_stays_at_its_prior_and_the_filter_stays_healthy() {
+    let held = FilterSettings {
+        speed_scale_std: 0.1,
+        steer_bias_std_rad: 0.02,
+        speed_scale_from_landmarks: false,
+        ..settings()
+    };
+    let (error, f) = drive_with_biased_odometry(held);
+    let ([k, b], [sk, sb]) = f.odometry_bias().expect("estimated");
+    eprintln!("final error {error:.3} m; k {k:.4} +- {sk:.4}, b {b:.4} +- {sb:.4}");
+    assert_healthy(&f);
+    assert_eq!(k, 0.0, "no landmark update moves k");
+    assert!(sk >= 0.1, "nor shrinks its variance: {sk}");
+    assert!(
+        (b - 0.01).abs() < 0.004 && (b - 0.01).abs() < 4.0 * sb,
+        "b {b}"
+    );
+}
