@@ -17,6 +17,12 @@ use evaluation::truth_agreement::{agreement, simulated, DenseSettings, SUBSETS};
 use sim_sensor::replay::truth::read_oxford_odometry;
 use sim_sensor::scene::{shipped, Scene};
 
+/// Largest `--max-range-m`: the image is `(2 (range + 5 m) / 5 cm)^2` pixels (about 150 MB
+/// at 150 m, twice that while it is blurred).
+const MAX_RANGE_M: f64 = 150.0;
+/// Largest `--simulated`: a CTS350-X rotation held in dB is about 12 MB.
+const MAX_SIMULATED: u64 = 30;
+
 /// Registers consecutive recorded scans densely and prints them against the ground truth.
 #[derive(Debug, Parser)]
 #[command(about)]
@@ -27,10 +33,10 @@ struct Args {
     /// A bin enters a scan's cloud this far above its azimuth's median (dB).
     #[arg(long, default_value_t = DenseSettings::default().threshold_db)]
     threshold_db: f64,
-    /// Bins further than this are left out (m).
+    /// Bins further than this are left out (m, at most 150).
     #[arg(long, default_value_t = DenseSettings::default().max_range_m)]
     max_range_m: f64,
-    /// The Cartesian image's blur (m).
+    /// The Cartesian image's blur (m, at most 2).
     #[arg(long, default_value_t = DenseSettings::default().blur_m)]
     blur_m: f64,
     /// Bin size (m): the daemon's 0.0438, or the data set's SDK's 0.0432.
@@ -39,8 +45,8 @@ struct Args {
     /// Leave each rotation's points where they were measured (no motion taken out).
     #[arg(long)]
     no_deskew: bool,
-    /// Check the method instead where the truth is exact: render this many rotations of
-    /// the simulator's `--scene` and register them the same way.
+    /// Check the method instead where the truth is exact: render this many rotations (2 to
+    /// 30) of the simulator's `--scene` and register them the same way.
     #[arg(long)]
     simulated: Option<u64>,
     /// The scene for `--simulated`: a shipped scene's name or a scene file.
@@ -70,14 +76,15 @@ fn main() -> anyhow::Result<()> {
         .all(|v| v.is_finite() && *v >= 0.0)
             && settings.max_range_m > settings.min_range_m
             && settings.bin_m > 0.0
-            && settings.max_range_m <= 500.0,
+            && settings.max_range_m <= MAX_RANGE_M
+            && settings.blur_m <= 2.0,
         "settings out of range: {settings:?}"
     );
     let (scans, truth, source) = match args.simulated {
         Some(rotations) => {
             anyhow::ensure!(
-                (2..=200).contains(&rotations),
-                "--simulated takes 2 to 200 rotations, got {rotations}"
+                (2..=MAX_SIMULATED).contains(&rotations),
+                "--simulated takes 2 to {MAX_SIMULATED} rotations, got {rotations}"
             );
             let scene = if shipped::NAMES.contains(&args.scene.as_str()) {
                 shipped::load(&args.scene)?
