@@ -1,8 +1,8 @@
 //! Prints every rotation a radar sends: azimuth count, first and last encoder value, the
 //! time it spans, skipped azimuths. The library alone (no configuration files, no CLI
-//! crates): `cargo run --release -p radar-driver --example print_rotations -- 192.168.0.1:6317`
-//! (or the simulator's address: `cargo run --release -p sim-sensor` listens on
-//! 127.0.0.1:6317).
+//! crates): `cargo run --release -p radar-driver --example print_rotations -- ADDRESS`, the
+//! radar's `ip:port` (or the simulator's: `cargo run --release -p sim-sensor` prints the
+//! address it listens on). The address is required: the example dials no port of its own.
 
 use radar_driver::{Driver, DriverSettings};
 
@@ -10,7 +10,7 @@ use radar_driver::{Driver, DriverSettings};
 async fn main() -> Result<(), Box<dyn std::error::Error>> {
     let address = std::env::args()
         .nth(1)
-        .unwrap_or_else(|| "127.0.0.1:6317".into())
+        .ok_or("usage: print_rotations ADDRESS (the radar's ip:port)")?
         .parse()?;
     let mut settings = DriverSettings::new(address);
     // Rotations only: no azimuth stream.
