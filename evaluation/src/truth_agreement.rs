@@ -56,6 +56,17 @@ impl Default for DenseSettings {
     }
 }
 
+impl DenseSettings {
+    /// These settings with a simulated radar's range axis and range-Doppler coupling.
+    pub fn for_radar(self, radar: &sim_sensor::radar::RadarParams) -> DenseSettings {
+        DenseSettings {
+            bin_m: f64::from(radar.range_gain) * radar.bin_size_m(),
+            doppler_coupling_s: radar.doppler_range_coupling_s,
+            ..self
+        }
+    }
+}
+
 /// Constant planar velocity in the vehicle's frame: forward, left (m/s), turn (rad/s, CCW).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Twist {
@@ -359,27 +370,27 @@ pub fn agreement(
             .find(|r| r.destination_us == a && r.source_us == b)
     };
     let mut out = Vec::new();
-    for (k, pair) in scans.windows(2).enumerate() {
+    // The later scan's cloud of one pair is the earlier scan's of the next: the same scan at
+    // the same pose time, moving as it did into it (the first scan moves as it does out).
+    let mut previous: Option<(i64, i64, Cloud)> = None;
+    for pair in scans.windows(2) {
         let (a_us, a) = pair[0];
         let (b_us, b) = pair[1];
         let Some(row) = row_between(a_us, b_us) else {
+            previous = None;
             continue;
         };
         let dt_s = (row.source_pose_us - row.destination_pose_us) as f64 * 1e-6;
-        let twist_b = Twist::from_motion(&row.pose, dt_s);
-        // The earlier scan moves as it did into the later one, unless its own earlier
-        // interval is known.
-        let twist_a = k
-            .checked_sub(1)
-            .and_then(|p| row_between(scans[p].0, a_us))
-            .map_or(twist_b, |r| {
-                Twist::from_motion(
-                    &r.pose,
-                    (r.source_pose_us - r.destination_pose_us) as f64 * 1e-6,
-                )
-            });
-        let cloud_a = cloud(a, row.destination_pose_us as f64 * 1e-6, twist_a, settings);
-        let cloud_b = cloud(b, row.source_pose_us as f64 * 1e-6, twist_b, settings);
+        let twist = Twist::from_motion(&row.pose, dt_s);
+        let cloud_a = match previous.take() {
+            Some((scan_us, pose_us, c))
+                if scan_us == a_us && pose_us == row.destination_pose_us =>
+            {
+                c
+            }
+            _ => cloud(a, row.destination_pose_us as f64 * 1e-6, twist, settings),
+        };
+        let cloud_b = cloud(b, row.source_pose_us as f64 * 1e-6, twist, settings);
         let g = row.pose;
         let starts = [
             g,
@@ -406,6 +417,7 @@ pub fn agreement(
             subsets,
             points: cloud_b.points.len(),
         });
+        previous = Some((b_us, row.source_pose_us, cloud_b));
     }
     out
 }
@@ -511,11 +523,7 @@ mod tests {
         // (motion during the rotation and the range-Doppler coupling rendered).
         let scene = sim_sensor::scene::shipped::load("urban-street").expect("shipped scene");
         let (scans, truth) = simulated(&scene, 3).expect("renders");
-        let settings = DenseSettings {
-            bin_m: f64::from(scene.radar.range_gain) * scene.radar.bin_size_m(),
-            doppler_coupling_s: scene.radar.doppler_range_coupling_s,
-            ..DenseSettings::default()
-        };
+        let settings = DenseSettings::default().for_radar(&scene.radar);
         let timed: Vec<(i64, &Scan)> = scans.iter().map(|(t, s)| (*t, s)).collect();
         let pairs = agreement(&timed, &truth, &settings);
         assert_eq!(pairs.len(), 2);

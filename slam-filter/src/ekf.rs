@@ -998,10 +998,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             innovation: DVector::from_vec(nu),
             noise,
         };
-        let outcome = {
-            let consider = self.landmark_consider();
-            batched_update_considering(&mut self.state, &obs, consider)
-        }?;
+        let outcome = self.landmark_update(&obs)?;
         self.stats.updates += 1;
         self.stats.nis_sum += outcome.nis;
         self.stats.nis_dof_sum += outcome.dof as u64;
@@ -1009,19 +1006,20 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         Ok(claimed)
     }
 
-    /// The elements a landmark update holds as consider parameters: the speed correction `k`
-    /// when [`FilterSettings::speed_scale_from_landmarks`] is off and `k` is estimated.
-    pub(crate) fn landmark_consider(&self) -> &'static [usize] {
-        if self.settings.speed_scale_from_landmarks
-            || self
+    /// One batched update from landmarks (a beam's targets, a new feature's power,
+    /// relocalisation): the speed correction `k` is held as a consider parameter when
+    /// [`FilterSettings::speed_scale_from_landmarks`] is off and `k` is estimated.
+    pub(crate) fn landmark_update(
+        &mut self,
+        obs: &LinearisedObservation,
+    ) -> Result<UpdateOutcome, FilterError> {
+        let hold_k = !self.settings.speed_scale_from_landmarks
+            && self
                 .state
                 .covariance_entry(SPEED_SCALE_INDEX, SPEED_SCALE_INDEX)
-                <= 0.0
-        {
-            &[]
-        } else {
-            &[SPEED_SCALE_INDEX]
-        }
+                > 0.0;
+        let consider: &[usize] = if hold_k { &[SPEED_SCALE_INDEX] } else { &[] };
+        batched_update_considering(&mut self.state, obs, consider)
     }
 
     /// Whether each predicted feature would be detectable (power above the threshold); all

@@ -80,7 +80,7 @@ fn main() -> anyhow::Result<()> {
             && settings.blur_m <= 2.0,
         "settings out of range: {settings:?}"
     );
-    let (scans, truth, source) = match args.simulated {
+    let (scans, truth, source, settings) = match args.simulated {
         Some(rotations) => {
             anyhow::ensure!(
                 (2..=MAX_SIMULATED).contains(&rotations),
@@ -91,14 +91,9 @@ fn main() -> anyhow::Result<()> {
             } else {
                 Scene::load(Path::new(&args.scene))?
             };
-            let settings = DenseSettings {
-                bin_m: f64::from(scene.radar.range_gain) * scene.radar.bin_size_m(),
-                doppler_coupling_s: scene.radar.doppler_range_coupling_s,
-                ..settings
-            };
             let (scans, truth) = simulated(&scene, rotations)?;
             let source = format!("the simulator's {} (exact truth)", args.scene);
-            (scans, truth, (source, settings))
+            (scans, truth, source, settings.for_radar(&scene.radar))
         }
         None => {
             let scans = read_scans(&dir).with_context(|| {
@@ -111,10 +106,9 @@ fn main() -> anyhow::Result<()> {
             let truth = read_oxford_odometry(&truth_path)
                 .with_context(|| format!("reading {}", truth_path.display()))?;
             let scans = scans.into_iter().map(|s| (s.time_us, s.scan)).collect();
-            (scans, truth, (dir.display().to_string(), settings))
+            (scans, truth, dir.display().to_string(), settings)
         }
     };
-    let (source, settings) = source;
     let timed: Vec<(i64, &evaluation::scan::Scan)> = scans.iter().map(|(t, s)| (*t, s)).collect();
     let pairs = agreement(&timed, &truth, &settings);
     anyhow::ensure!(

@@ -12,7 +12,7 @@ use super::super::lifecycle::{inverse_observation, Sighting};
 use super::super::observation::{state_columns, BeamObservation, BeamObservationModel, Target};
 use super::super::predict::ProcessModel;
 use super::super::state::{FeatureId, FeatureParams, FEATURE_DIM};
-use super::super::update::{batched_update_considering, LinearisedObservation};
+use super::super::update::LinearisedObservation;
 use super::{BeamReport, Ekf};
 
 /// Gauss-Newton iterations of a new feature's power update.
@@ -227,10 +227,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             innovation: DVector::from_element(1, nu),
             noise: DMatrix::from_element(1, 1, r),
         };
-        {
-            let consider = self.landmark_consider();
-            batched_update_considering(&mut self.state, &obs, consider)
-        }?;
+        self.landmark_update(&obs)?;
         Ok(())
     }
 }

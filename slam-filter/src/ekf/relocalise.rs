@@ -39,7 +39,7 @@ use super::super::error::FilterError;
 use super::super::observation::{BeamObservation, BeamObservationModel};
 use super::super::predict::ProcessModel;
 use super::super::state::feature_index;
-use super::super::update::{batched_update_considering, LinearisedObservation};
+use super::super::update::LinearisedObservation;
 use super::{BeamReport, Ekf};
 
 /// Gauss-Newton iterations of the relocalisation update.
@@ -450,10 +450,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 return Ok(Attempt::Refused);
             };
             if fit.nis <= self.gates.threshold(fit.obs.innovation.len()) {
-                let outcome = {
-                    let consider = self.landmark_consider();
-                    batched_update_considering(&mut self.state, &fit.obs, consider)
-                }?;
+                let outcome = self.landmark_update(&fit.obs)?;
                 self.stats.updates += 1;
                 self.stats.nis_sum += outcome.nis;
                 self.stats.nis_dof_sum += outcome.dof as u64;
