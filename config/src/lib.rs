@@ -206,8 +206,18 @@ impl Config {
 
     /// Reads, parses and validates a file of at most [`MAX_CONFIG_BYTES`].
     pub fn load(path: impl AsRef<Path>) -> Result<Self, ConfigError> {
+        Self::load_with_written(path).map(|(config, _)| config)
+    }
+
+    /// As [`Config::load`], with the keys the file writes ([`written_keys`]): a key the file
+    /// writes overrides the radar profile's value, an absent one takes the profile's.
+    pub fn load_with_written(
+        path: impl AsRef<Path>,
+    ) -> Result<(Self, std::collections::BTreeSet<String>), ConfigError> {
         let path = path.as_ref();
-        Self::from_toml_str_named(&read_limited(path)?, &path.display().to_string())
+        let text = read_limited(path)?;
+        let config = Self::from_toml_str_named(&text, &path.display().to_string())?;
+        Ok((config, written_keys(&text)))
     }
 
     /// What a binary runs with: the file at `path` (or, without one, the shipped `preset`),
@@ -247,6 +257,32 @@ impl Config {
         let (text, name) = examples::text(preset);
         Self::from_toml_str_named(text, name)
     }
+}
+
+/// The dotted keys a TOML text writes, tables flattened (`model.sigma_range_m`,
+/// `filter.initial_pose.sigma_x_m`); an array counts as one key. Text that does not parse
+/// writes no keys (the parser's own error is reported by [`Config::from_toml_str`]).
+pub fn written_keys(text: &str) -> std::collections::BTreeSet<String> {
+    fn walk(prefix: &str, table: &toml::Table, out: &mut std::collections::BTreeSet<String>) {
+        for (key, value) in table {
+            let path = if prefix.is_empty() {
+                key.clone()
+            } else {
+                format!("{prefix}.{key}")
+            };
+            match value {
+                toml::Value::Table(inner) => walk(&path, inner, out),
+                _ => {
+                    out.insert(path);
+                }
+            }
+        }
+    }
+    let mut out = std::collections::BTreeSet::new();
+    if let Ok(table) = text.parse::<toml::Table>() {
+        walk("", &table, &mut out);
+    }
+    out
 }
 
 /// Reads a UTF-8 file of at most [`MAX_CONFIG_BYTES`], never allocating more.

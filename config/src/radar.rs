@@ -77,6 +77,12 @@ pub struct RawRadar {
     pub max_held_mib: i64,
     /// Record the raw byte stream to this file. Default absent (no recording).
     pub record_path: Option<PathBuf>,
+    /// The radar's model, naming its profile (`paper-2006`, `cts350x`, `cts350x-radiate`,
+    /// `cir204h`, `sim-cts350x`: radar-model's `profile`; `slam-node --radar-profiles` prints
+    /// them). Default absent: the profile is chosen
+    /// from what the radar announces at connection (azimuths, encoder size, bins, bin
+    /// size, rotation rate), the nearest with a WARN when none matches.
+    pub model: Option<String>,
 }
 
 impl Default for RawRadar {
@@ -98,6 +104,7 @@ impl Default for RawRadar {
             drop_policy: DropPolicy::DropNewest,
             max_held_mib: 64,
             record_path: None,
+            model: None,
         }
     }
 }
@@ -178,6 +185,8 @@ pub struct RadarSettings {
     pub max_held_mib: Capacity,
     /// Raw stream recording file.
     pub record_path: Option<PathBuf>,
+    /// The radar's model (its profile's name); `None`: chosen from what the radar announces.
+    pub model: Option<String>,
 }
 
 impl RadarSettings {
@@ -313,6 +322,7 @@ impl RawRadar {
                 self.record_path.as_deref(),
                 values::non_empty_path,
             ),
+            model: c.check_opt("radar.model", self.model.as_deref(), model_name),
         };
         settings
     }
@@ -341,6 +351,28 @@ impl From<&RadarSettings> for RawRadar {
             drop_policy: s.drop_policy,
             max_held_mib: values::as_i64(s.max_held_mib.get()),
             record_path: s.record_path.clone(),
+            model: s.model.clone(),
         }
     }
+}
+
+/// Longest `[radar] model` name accepted.
+const MAX_MODEL_NAME: usize = 64;
+
+/// A radar model's name: letters, digits, `-` and `_`, 1 to 64 of them. Whether it names a
+/// profile is checked by the daemon, which owns the profiles (radar-model's `profile`).
+fn model_name(name: &str) -> Result<String, ValueError> {
+    if name.is_empty() {
+        return Err(ValueError::Empty);
+    }
+    if name.len() > MAX_MODEL_NAME
+        || !name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+    {
+        return Err(ValueError::Rule(format!(
+            "must be a radar model's name (letters, digits, '-', '_', at most {MAX_MODEL_NAME}), got {name:?}"
+        )));
+    }
+    Ok(name.to_owned())
 }

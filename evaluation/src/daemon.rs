@@ -35,7 +35,8 @@ pub fn scene_settings(
     world: &World,
     odometry: &OdometryNoise,
 ) -> PipelineSettings {
-    let mut settings = slam_node::daemon::embedded::embedded_settings(settings, scene, false);
+    let mut settings =
+        settings.with_facts(&slam_node::daemon::embedded::embedded_facts(scene, false));
     settings.motion = world.motion;
     let start = world.start_pose();
     settings.initial_pose = [start.x, start.y, start.theta];

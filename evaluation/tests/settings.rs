@@ -10,7 +10,7 @@ use evaluation::world::World;
 use sim_sensor::scene::shipped;
 use sim_sensor::OdometryNoise;
 use slam_node::daemon::embedded::embedded_settings;
-use slam_node::pipeline::PipelineSettings;
+use slam_node::pipeline::{PipelineSettings, SettingsRecipe};
 
 fn daemon_settings() -> PipelineSettings {
     PipelineSettings::from_config(&config::Config::default()).unwrap()
@@ -31,7 +31,8 @@ fn on_every_shipped_scene_the_evaluation_runs_the_daemons_front_end_and_filter_s
     for name in shipped::NAMES {
         let scene = shipped::load(name).unwrap();
         let world = World::new(scene.clone(), 1, 1.0, odometry).unwrap();
-        let daemon = embedded_settings(daemon_settings(), &scene, false);
+        let recipe = SettingsRecipe::from_config(config::Config::default());
+        let daemon = embedded_settings(&recipe, &scene, false).unwrap().settings;
         let eval = scene_settings(shipped_settings().unwrap(), &scene, &world, &odometry);
         assert_eq!(eval.front_end(), daemon.front_end(), "{name}: front end");
         assert_eq!(eval.power, daemon.power, "{name}: power model");

@@ -33,6 +33,7 @@ pub mod motion;
 pub mod noise;
 pub mod observation;
 pub mod power;
+pub mod profile;
 pub mod spectrum;
 
 pub use compensation::{Compensation, GainCurve, GainTable, RollOff};
@@ -49,4 +50,5 @@ pub use power::{
     beam_powers_db, beam_powers_with_jacobian, BeamPowers, PowerModel, PowerTarget, RadarConstants,
     SpreadingForm,
 };
+pub use profile::{Announced, Choice, RadarProfile};
 pub use spectrum::{SpectrumGeometry, SpectrumModel, SpectrumTarget};

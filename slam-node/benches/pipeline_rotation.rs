@@ -118,12 +118,32 @@ impl Rig {
         settings.map_every_rotations = 0;
         settings.spectrum_sample_every_rotations = 0;
         if unit.current_front_end {
-            settings = slam_node::daemon::replay::recorded_settings_for(
-                settings,
-                scene.radar.max_range_m(),
-                bin_m,
-            );
-            settings.initial_pose_std = [0.0; 3];
+            // The CTS350-X profile's front end and model over this configuration.
+            let none = std::collections::BTreeSet::new();
+            let facts = slam_node::pipeline::SourceFacts {
+                motion: Some(settings.motion),
+                compensation: Some(settings.compensation.clone()),
+                peak_fwhm_m: Some(bin_m),
+                initial_pose: Some((scene.start, [0.0; 3])),
+                detector: Some(slam_node::detect::DetectorSettings::default()),
+                no_radar_odometry: true,
+                max_range_m: Some(scene.radar.max_range_m()),
+                ..Default::default()
+            };
+            let choice = radar_model::profile::Choice {
+                profile: &radar_model::profile::CTS350X,
+                how: radar_model::profile::Chosen::Named,
+            };
+            settings = PipelineSettings::derive(
+                &config,
+                slam_node::pipeline::Written::Keys(&none),
+                choice,
+                &facts,
+            )
+            .unwrap()
+            .settings;
+            settings.map_every_rotations = 0;
+            settings.spectrum_sample_every_rotations = 0;
         }
         let t0 = T0_NS as f64 * 1e-9;
         let pipeline = Pipeline::new(settings, Some(t0), None).unwrap();

@@ -107,10 +107,19 @@ struct Args {
     #[cfg(feature = "sim")]
     #[arg(long, requires = "replay_dir")]
     no_radar_odometry: bool,
+    /// With --replay-dir: also write the odometry made from the ground truth to this file,
+    /// in the odometry stream's format (docs/contracts.md), for `[odometry] source = "file"`
+    /// (the same samples through another door).
+    #[cfg(feature = "sim")]
+    #[arg(long, requires = "replay_dir", value_name = "FILE")]
+    write_odometry: Option<PathBuf>,
     /// Progress line every this many rotations (0 = none; default 10, or none when the
     /// configuration says `[output] progress = false`).
     #[arg(long)]
     progress_every: Option<u64>,
+    /// Print the radar profiles (every value with its source) and exit.
+    #[arg(long)]
+    radar_profiles: bool,
 }
 
 fn main() -> ExitCode {
@@ -131,11 +140,20 @@ fn main() -> ExitCode {
 }
 
 fn run(args: Args) -> anyhow::Result<()> {
-    let mut config = match &args.config {
-        Some(path) => {
-            config::Config::load(path).with_context(|| format!("loading {}", path.display()))?
+    if args.radar_profiles {
+        for p in radar_model::profile::PROFILES
+            .into_iter()
+            .chain(radar_model::profile::SIMULATED)
+        {
+            println!("{p}");
         }
-        None => config::Config::default(),
+        return Ok(());
+    }
+    // The keys the file writes override the radar profile's values; the others take them.
+    let (mut config, written) = match &args.config {
+        Some(path) => config::Config::load_with_written(path)
+            .with_context(|| format!("loading {}", path.display()))?,
+        None => (config::Config::default(), Default::default()),
     };
     if let Some(mcap) = &args.mcap {
         config.output.mcap = Some(mcap.clone());
@@ -197,6 +215,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             .config
             .is_none()
             .then(slam_node::detect::DetectorSettings::default),
+        written: Some(written),
     };
     let every = opts.progress_every_rotations;
     let progress: Option<slam_node::pipeline::run::ProgressFn> = (every > 0).then(|| {
@@ -256,6 +275,9 @@ fn run(args: Args) -> anyhow::Result<()> {
     runtime.shutdown_timeout(std::time::Duration::from_secs(2));
     let report = result.context("running the daemon")?;
     print!("{}", report::summary_text(&report));
+    if let Some(why) = &report.run.start_failure {
+        anyhow::bail!("the pipeline did not start for the radar that connected: {why}");
+    }
     if let Some(e) = report.driver_failure {
         return Err(anyhow::Error::new(e).context("the radar driver failed"));
     }
@@ -371,5 +393,6 @@ fn recorded(args: &Args) -> anyhow::Result<Option<slam_node::daemon::RecordedRep
         format: args.replay_format,
         errors,
         radar_odometry: !args.no_radar_odometry,
+        write_odometry: args.write_odometry.clone(),
     }))
 }

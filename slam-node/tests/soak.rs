@@ -415,6 +415,7 @@ async fn soak(duration_s: f64) {
         keep_configured_compensation: false,
         spectrum_bearings_deg: Vec::new(),
         detector: Some(slam_node::detect::DetectorSettings::default()),
+        written: None,
     };
     let daemon = tokio::spawn(run_daemon(opts, Some(callback)));
     // Resident memory, sampled every 10 ms from after the warm-up.

@@ -112,6 +112,7 @@ fn options(
         keep_configured_compensation: false,
         spectrum_bearings_deg: Vec::new(),
         detector: Some(slam_node::detect::DetectorSettings::default()),
+        written: None,
     };
     (opts, scene)
 }

@@ -74,13 +74,15 @@ impl Run {
 /// Runs the daemon against the embedded simulator (as fast as possible, 127.0.0.1:0),
 /// outputs in `out`, within `limit` of wall time.
 pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport, DaemonError> {
-    let mut config = match &run.config_file {
+    // As the command line: the keys the file writes override the radar profile's values.
+    let (mut config, written) = match &run.config_file {
         Some(path) => {
-            let mut c = config::Config::load(path).expect("the run's configuration file loads");
+            let (mut c, written) = config::Config::load_with_written(path)
+                .expect("the run's configuration file loads");
             c.radar.record_path = None;
-            c
+            (c, written)
         }
-        None => config::Config::default(),
+        None => (config::Config::default(), Default::default()),
     };
     config.filter.use_power_in_observation = run.use_power;
     config.filter.first_estimate_jacobians = run.first_estimate_jacobians;
@@ -132,6 +134,7 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
         progress_every_rotations: 0,
         stop: Arc::clone(&stop),
         detector: run.config_file.is_none().then(DetectorSettings::default),
+        written: Some(written),
         keep_configured_compensation: false,
         spectrum_bearings_deg: Vec::new(),
     };

@@ -203,14 +203,18 @@ fn main() -> anyhow::Result<()> {
         s / r
     );
     // The front end for current units, with the settings the replay runs it with.
-    let shipped = evaluation::daemon::shipped_settings()?;
     // Run once on each set: the counts, the extents and the floor all come from this.
     let learned = |scans: &Scans| {
-        let settings = slam_node::daemon::replay::recorded_settings_for(
-            shipped.clone(),
-            scans.bins as f64 * scans.bin_m,
-            scans.bin_m,
-        );
+        let facts = slam_node::pipeline::SourceFacts {
+            max_range_m: Some(scans.bins as f64 * scans.bin_m),
+            peak_fwhm_m: Some(scans.bin_m),
+            ..Default::default()
+        };
+        let settings = slam_node::pipeline::PipelineSettings::for_profile(
+            &radar_model::profile::CTS350X,
+            &facts,
+        )
+        .expect("the CTS350-X profile's settings");
         (
             learned_with_extents(scans, &settings.detector, 2),
             settings.detector.landmarks,

@@ -418,18 +418,22 @@ fn pair_spec(
 }
 
 /// The daemon's settings for the realistic street: the front end for current units
-/// (`slam_node::daemon::replay::recorded_settings_for`: learned floor and gain, only
+/// (the CTS350-X profile, `radar_model::profile::CTS350X`: learned floor and gain, only
 /// point-like returns mapped, the landmark noise measured on the Oxford scans) with the
 /// simulated radar's range-Doppler coupling, then the simulator's adjustments the
 /// evaluation always makes (`crate::daemon::scene_settings`).
 pub fn street_settings(scene: &Scene) -> Result<PipelineSettings, EvalError> {
-    let shipped = crate::daemon::shipped_settings()?;
     let bin_m = f64::from(scene.radar.range_gain) * scene.radar.bin_size_m();
-    let mut settings =
-        slam_node::daemon::replay::recorded_settings_for(shipped, scene.radar.max_range_m(), bin_m);
     // The simulated CTS350-X renders its range-Doppler coupling; the daemon corrects it.
-    settings.doppler_range_coupling_s = scene.radar.doppler_range_coupling_s;
-    Ok(settings)
+    let facts = slam_node::pipeline::SourceFacts {
+        doppler_range_coupling_s: Some(scene.radar.doppler_range_coupling_s),
+        peak_fwhm_m: Some(bin_m),
+        no_radar_odometry: true,
+        max_range_m: Some(scene.radar.max_range_m()),
+        ..Default::default()
+    };
+    PipelineSettings::for_profile(&radar_model::profile::CTS350X, &facts)
+        .map_err(|e| EvalError::Setting(format!("CTS350-X settings: {e}")))
 }
 
 fn street_spec(

@@ -20,9 +20,7 @@ use radar_model::power::PowerModel;
 use radar_model::spectrum::SpectrumGeometry;
 use sim_sensor::replay::png::read_polar_png;
 use sim_sensor::replay::truth::{chain_pose_times, chain_poses, read_oxford_odometry};
-use slam_node::daemon::replay::{
-    recorded_settings, with_radar_odometry, OdometryErrors, RecordedTruth,
-};
+use slam_node::daemon::replay::{OdometryErrors, RecordedTruth};
 use slam_node::output::OutputEvent;
 use slam_node::pipeline::Pipeline;
 
@@ -126,7 +124,7 @@ pub struct TrackResult {
 /// `speed_scale` and `yaw_rate_bias` (rad/s) added. `truth` holds at `truth_times_s` (s; the
 /// middle of each scan's rotation for Oxford). Only the transport differs: the rows go in as
 /// azimuths directly instead of over TCP. With `radar_odometry` the replay's default radar
-/// odometry runs ([`with_radar_odometry`]).
+/// odometry runs (the CTS350-X profile's).
 pub fn track(
     scans: &[TimedScan],
     truth: &[Pose2],
@@ -151,11 +149,19 @@ pub fn track(
         .first()
         .and_then(|s| s.scan.rows.first())
         .map_or(0, |r| r.measured_db.len());
-    let mut settings =
-        recorded_settings(crate::daemon::shipped_settings()?, bins as f64 * BIN_SIZE_M);
-    if radar_odometry {
-        settings = with_radar_odometry(settings);
-    }
+    // The shipped configuration for a CTS350-X, the recorded odometry's bicycle, the
+    // radar's full range: what `slam-node --replay-dir` derives.
+    let facts = slam_node::pipeline::SourceFacts {
+        motion: Some(radar_model::motion::MotionModel::Bicycle {
+            wheelbase_m: WHEELBASE_M,
+        }),
+        no_radar_odometry: !radar_odometry,
+        max_range_m: Some(bins as f64 * BIN_SIZE_M),
+        ..Default::default()
+    };
+    let settings =
+        slam_node::pipeline::PipelineSettings::for_profile(&radar_model::profile::CTS350X, &facts)
+            .map_err(|e| EvalError::Setting(format!("CTS350-X settings: {e}")))?;
     let cts = Geometry::cts350x();
     let geometry = Arc::new(Geometry {
         azimuth_samples: u16::try_from(scans.first().map_or(400, |s| s.scan.rows.len()))

@@ -17,12 +17,12 @@ use sim_sensor::{SimHandle, SimOptions, SimServer};
 use tracing::info;
 
 use super::replay::{
-    recorded_settings_for, MemoryOdometry, OdometryErrors, RecordedTruth, ReplayError,
-    ReplayFigures,
+    MemoryOdometry, OdometryErrors, RecordedTruth, ReplayError, ReplayFigures, WHEELBASE_M,
 };
 use super::{sink, DaemonError};
 use crate::output::figures::TruthOverlay;
-use crate::pipeline::{Pipeline, PipelineSettings, SceneTruth, TruthOracle};
+use crate::pipeline::run::PipelineStart;
+use crate::pipeline::{Pipeline, SceneTruth, SettingsRecipe, SourceFacts, TruthOracle};
 
 /// The simulator to start in this process.
 #[derive(Debug, Clone)]
@@ -45,20 +45,10 @@ impl EmbeddedSim {
     }
 }
 
-/// The daemon's settings for running against the simulator's `scene`: its motion model, its
-/// receiver's compensation (unless `keep_compensation`), its beam and bins, its range-Doppler
-/// coupling, its start pose.
-pub fn embedded_settings(
-    mut settings: PipelineSettings,
-    scene: &sim_sensor::scene::Scene,
-    keep_compensation: bool,
-) -> PipelineSettings {
-    // The simulator's odometry means what its scene's motion model says.
-    let motion = sim_sensor::trajectory::motion_model(scene.motion);
-    if motion != settings.motion {
-        info!(?motion, configured = ?settings.motion, "using the scene's motion model for its odometry");
-        settings.motion = motion;
-    }
+/// What the simulator's `scene` tells the daemon exactly: its motion model, its receiver's
+/// compensation (unless `keep_compensation`), its beam, its range-Doppler coupling, its peak
+/// width (one bin), its start pose.
+pub fn embedded_facts(scene: &sim_sensor::scene::Scene, keep_compensation: bool) -> SourceFacts {
     // The simulator's receiver compensation is known exactly: use it, as a calibrated gain
     // curve would be used on a real unit.
     let slope = scene.receiver.compensation_db_per_decade;
@@ -67,34 +57,47 @@ pub fn embedded_settings(
             scene_db_per_decade = slope,
             "keeping the configured receiver compensation, not the scene's"
         );
-    } else {
-        settings.compensation = Compensation::calibrated(slope, &RadarConstants::default());
     }
-    settings.beam_width_rad = scene.radar.beam_width_rad;
-    // The simulated radar's range-Doppler coupling is known exactly too (0 for the paper's
-    // unit, a CTS350-X's 0.049 s): detections are corrected with it, as a real unit's
-    // would be with its chirp's.
-    let coupling_s = scene.radar.doppler_range_coupling_s;
-    if coupling_s != settings.doppler_range_coupling_s {
-        info!(
-            scene_s = coupling_s,
-            configured_s = settings.doppler_range_coupling_s,
-            "using the simulated radar's range-Doppler coupling"
-        );
-        settings.doppler_range_coupling_s = coupling_s;
+    SourceFacts {
+        motion: Some(sim_sensor::trajectory::motion_model(scene.motion)),
+        compensation: (!keep_compensation)
+            .then(|| Compensation::calibrated(slope, &RadarConstants::default())),
+        beam_width_rad: Some(scene.radar.beam_width_rad),
+        // The simulated radar's range-Doppler coupling is known exactly too (0 for the
+        // paper's unit, a CTS350-X's 0.049 s): detections are corrected with it.
+        doppler_range_coupling_s: Some(scene.radar.doppler_range_coupling_s),
+        // The simulator draws each peak one bin wide (FWHM).
+        peak_fwhm_m: Some(f64::from(scene.radar.range_gain) * scene.radar.bin_size_m()),
+        initial_pose: Some((scene.start, [0.0; 3])),
+        ..SourceFacts::default()
     }
-    // The simulator draws each peak one bin wide (FWHM).
-    settings.noise.range.resolution_fwhm_m =
-        f64::from(scene.radar.range_gain) * scene.radar.bin_size_m();
-    settings.filter.beam_half_width_rad = 0.5 * scene.radar.beam_width_rad;
-    if settings.filter.repeat_look_range_m > 0.0 && settings.filter.repeat_look_bearing_rad > 0.0 {
-        use crate::pipeline::settings::REPEAT_LOOK_CELL_FRACTION as F;
-        settings.filter.repeat_look_range_m = F * settings.noise.range.resolution_fwhm_m;
-        settings.filter.repeat_look_bearing_rad = F * scene.radar.beam_width_rad;
+}
+
+/// What the simulated radar announces, in the profiles' terms.
+pub fn scene_announced(scene: &sim_sensor::scene::Scene) -> radar_model::profile::Announced {
+    let r = &scene.radar;
+    radar_model::profile::Announced {
+        azimuths: r.azimuths,
+        encoder_size: r.encoder_size,
+        range_bins: r.range_bins,
+        bin_size_m: f64::from(r.range_gain) * r.bin_size_m(),
+        rotation_hz: f64::from(r.rotation_mhz) / 1000.0,
     }
-    settings.initial_pose = scene.start;
-    settings.initial_pose_std = [0.0; 3];
-    settings
+}
+
+/// The daemon's settings against the simulator's `scene`: its radar's profile (the
+/// simulator declares its unit unless `[radar] model` names one) and the scene's facts.
+pub fn embedded_settings(
+    recipe: &SettingsRecipe,
+    scene: &sim_sensor::scene::Scene,
+    keep_compensation: bool,
+) -> Result<crate::pipeline::Derived, DaemonError> {
+    let choice = radar_model::profile::simulated(
+        recipe.config.radar.model.as_deref(),
+        &scene_announced(scene),
+    )
+    .map_err(crate::pipeline::settings::SettingsError::from)?;
+    Ok(recipe.derive(choice, embedded_facts(scene, keep_compensation))?)
 }
 
 /// A driver for the embedded simulator: as fast as possible, a blocking hand-off lets TCP
@@ -118,11 +121,10 @@ fn connect(
 /// What starting the embedded simulator gives the daemon.
 #[allow(missing_debug_implementations)] // holds a `dyn OdometrySource`
 pub(super) struct Started {
-    pub settings: PipelineSettings,
-    pub start_time_s: Option<f64>,
+    pub motion: radar_model::motion::MotionModel,
     pub truth_overlay: TruthOverlay,
     pub scene_name: String,
-    pub pipeline: Pipeline,
+    pub pipeline: PipelineStart,
     pub handle: SimHandle,
     pub azimuths: Receiver<Azimuth>,
     pub driver: Driver,
@@ -163,7 +165,7 @@ async fn unless_stopped<T: Send + 'static>(
 #[allow(clippy::too_many_arguments)]
 pub(super) async fn start(
     sim: EmbeddedSim,
-    settings: PipelineSettings,
+    recipe: &SettingsRecipe,
     mut driver_settings: DriverSettings,
     out_dir: &Path,
     max_stream_s: Option<f64>,
@@ -179,7 +181,8 @@ pub(super) async fn start(
     let sim_sensor::settings::SourceSpec::Scene(scene) = options.source.clone() else {
         return Err(DaemonError::NotAScene);
     };
-    let settings = embedded_settings(settings, &scene, keep_configured_compensation);
+    let settings = embedded_settings(recipe, &scene, keep_configured_compensation)?.settings;
+    let motion = settings.motion;
     let start_s = start_ns as f64 * 1e-9;
     let horizon = max_stream_s.unwrap_or(600.0) + 30.0;
     let build_settings = settings.clone();
@@ -220,11 +223,10 @@ pub(super) async fn start(
     });
     let (azimuths, driver) = connect(driver_settings, fast)?;
     Ok(Started {
-        settings,
-        start_time_s: Some(start_s),
+        motion,
         truth_overlay,
         scene_name,
-        pipeline,
+        pipeline: pipeline.into(),
         handle,
         azimuths,
         driver,
@@ -245,8 +247,10 @@ pub struct RecordedReplay {
     /// The errors put on the ground truth's motion to make the odometry.
     pub errors: OdometryErrors,
     /// Radar odometry with the odometry corrections estimated (see
-    /// [`super::replay::with_radar_odometry`]); `false` leaves the settings as configured.
+    /// the radar profile's `radar_odometry`); `false` turns it off.
     pub radar_odometry: bool,
+    /// Also write the odometry samples to this file (the odometry stream's format).
+    pub write_odometry: Option<std::path::PathBuf>,
 }
 
 /// Replays recorded scans through the simulator's server, with odometry from their ground
@@ -254,7 +258,7 @@ pub struct RecordedReplay {
 pub(super) async fn start_replay(
     mut options: SimOptions,
     recorded: RecordedReplay,
-    settings: PipelineSettings,
+    recipe: &SettingsRecipe,
     mut driver_settings: DriverSettings,
 ) -> Result<Started, DaemonError> {
     let scans = sim_sensor::replay::ScanSet::open(&recorded.dir, recorded.format)
@@ -280,22 +284,46 @@ pub(super) async fn start_replay(
     options.odometry_bind = None;
     options.ground_truth_path = None;
     options.start_time_ns = None;
-    let mut settings = recorded_settings_for(settings, geometry.max_range_m(), geometry.bin_size_m);
-    // RADIATE's unit runs another chirp (0.17 m bins) whose coupling is not published.
-    let coupling_s = match format {
-        sim_sensor::replay::ReplayFormat::Oxford => super::replay::OXFORD_DOPPLER_COUPLING_S,
-        sim_sensor::replay::ReplayFormat::Boreas => super::replay::BOREAS_DOPPLER_COUPLING_S,
-        sim_sensor::replay::ReplayFormat::Radiate => 0.0,
+    // The recorded radar's profile is chosen from what the simulator announces for it, on
+    // its first azimuth, as a radar's on a vehicle is; the odometry made from the ground
+    // truth means the bicycle it was made with.
+    let facts = SourceFacts {
+        motion: Some(radar_model::motion::MotionModel::Bicycle {
+            wheelbase_m: WHEELBASE_M,
+        }),
+        no_radar_odometry: !recorded.radar_odometry,
+        ..SourceFacts::default()
     };
-    settings = super::replay::with_doppler_coupling(settings, coupling_s);
-    if recorded.radar_odometry {
-        settings = super::replay::with_radar_odometry(settings);
-    }
+    let announced = radar_model::profile::Announced {
+        azimuths: geometry.azimuths,
+        encoder_size: geometry.encoder_size,
+        range_bins: geometry.bins,
+        bin_size_m: geometry.bin_size_m,
+        rotation_hz: f64::from(geometry.rotation_mhz) / 1000.0,
+    };
+    let expected = recipe
+        .derive_quietly(
+            radar_model::profile::select(recipe.config.radar.model.as_deref(), &announced)
+                .map_err(crate::pipeline::settings::SettingsError::from)?,
+            SourceFacts {
+                max_range_m: Some(geometry.max_range_m()),
+                ..facts.clone()
+            },
+        )?
+        .settings;
     let samples = truth.odometry(&recorded.errors);
+    if let Some(path) = &recorded.write_odometry {
+        super::replay::write_odometry(path, &samples).map_err(|source| {
+            ReplayError::WriteOdometry {
+                path: path.clone(),
+                source,
+            }
+        })?;
+        info!(path = %path.display(), samples = samples.len(), "odometry written");
+    }
     let mut figures = ReplayFigures::new(&truth, &samples, recorded.errors);
     figures.format = Some(format);
-    figures.doppler_range_coupling_s = settings.doppler_range_coupling_s;
-    let start_time_s = truth.times_s().first().copied();
+    figures.doppler_range_coupling_s = expected.doppler_range_coupling_s;
     let truth_overlay = TruthOverlay {
         features: Vec::new(),
         trajectory: truth
@@ -305,15 +333,18 @@ pub(super) async fn start_replay(
             .map(|p| (p.x, p.y))
             .collect(),
     };
-    let pipeline = Pipeline::new(settings.clone(), None, Some(Box::new(truth)))?;
+    let recipe = recipe.clone();
+    let pipeline = PipelineStart::OnFirstAzimuth(Box::new(move |g: &protocol::Geometry| {
+        let derived = recipe.for_radar(g, facts)?;
+        Pipeline::new(derived.settings, None, Some(Box::new(truth)))
+    }));
     let fast = options.pacing == sim_sensor::settings::Pacing::AsFastAsPossible;
     let handle = SimServer::spawn(options).await?;
     info!(radar = %handle.local_addr(), scans = %scan_dir.display(), "replaying recorded scans");
     driver_settings.address = handle.local_addr();
     let (azimuths, driver) = connect(driver_settings, fast)?;
     Ok(Started {
-        settings,
-        start_time_s,
+        motion: expected.motion,
         truth_overlay,
         scene_name: format!("recorded {format} scans in {}", scan_dir.display()),
         pipeline,
@@ -333,16 +364,18 @@ mod tests {
     /// CTS350-X scene's 0.049 s whatever the configuration says, the paper's unit's 0.
     #[test]
     fn the_daemon_corrects_the_range_doppler_coupling_the_simulated_radar_renders() {
-        let mut configured =
-            PipelineSettings::from_config(&config::Config::default()).expect("defaults");
-        configured.doppler_range_coupling_s = 0.02;
+        let mut config = config::Config::default();
+        config.model.doppler_range_coupling_s = config::values::FiniteF64::new(0.02).unwrap();
+        let recipe = SettingsRecipe::from_config(config);
         let cts = sim_sensor::scene::shipped::load("long-loop").expect("shipped scene");
         let paper = sim_sensor::scene::shipped::load("outdoor-field").expect("shipped scene");
         assert_eq!(cts.radar.doppler_range_coupling_s, 0.049);
-        let s = embedded_settings(configured.clone(), &cts, false);
-        assert_eq!(s.doppler_range_coupling_s, 0.049);
-        assert_eq!(s.front_end().doppler_range_coupling_s, 0.049);
-        let s = embedded_settings(configured, &paper, false);
-        assert_eq!(s.doppler_range_coupling_s, 0.0);
+        let d = embedded_settings(&recipe, &cts, false).unwrap();
+        assert_eq!(d.choice.profile.name, "sim-cts350x");
+        assert_eq!(d.settings.doppler_range_coupling_s, 0.049);
+        assert_eq!(d.settings.front_end().doppler_range_coupling_s, 0.049);
+        let d = embedded_settings(&recipe, &paper, false).unwrap();
+        assert_eq!(d.choice.profile.name, "paper-2006");
+        assert_eq!(d.settings.doppler_range_coupling_s, 0.0);
     }
 }

@@ -20,11 +20,12 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use radar_driver::{shutdown_pair, Driver, DriverSettings, OdometrySource};
-use tracing::{info, warn};
+use tracing::warn;
 
 use crate::output::figures::TruthOverlay;
 use crate::output::writer::WriterSummary;
 use crate::output::{OutputEvent, OutputFiles, OutputHandle, RecordingFile};
+use crate::pipeline::run::PipelineStart;
 use crate::pipeline::run::ProgressFn;
 use crate::pipeline::{
     run_pipeline, Pipeline, PipelineInputs, PipelineSettings, RunControl, RunReport,
@@ -111,9 +112,14 @@ pub struct DaemonOptions {
     /// Bearings (degrees, clockwise from forward) whose predicted and measured spectra are
     /// written and drawn every 25 rotations; empty: the beam with the most mapped features.
     pub spectrum_bearings_deg: Vec<f64>,
-    /// Detection settings replacing the configuration's `[detector]` (the no-argument run
-    /// uses slam-node's measured default, see `detect`).
+    /// Detection settings replacing the configuration's `[detector]` but for the radar
+    /// profile's front end (the no-argument run uses slam-node's measured default, see
+    /// `detect`).
     pub detector: Option<crate::detect::DetectorSettings>,
+    /// The keys the configuration file writes (`config::written_keys`): those override
+    /// the radar profile's values, the others take them. `None`: the configuration was
+    /// built in code and its values win everywhere.
+    pub written: Option<std::collections::BTreeSet<String>>,
 }
 
 /// What a run produced.
@@ -208,37 +214,54 @@ fn zenoh_odometry_source(
     Ok(None)
 }
 
+/// The settings recipe of a run: its configuration, the keys its file writes, and what the
+/// command line adds.
+fn recipe(opts: &DaemonOptions) -> Result<crate::pipeline::SettingsRecipe, DaemonError> {
+    let recipe = crate::pipeline::SettingsRecipe {
+        config: opts.config.clone(),
+        written: opts.written.clone(),
+        facts: crate::pipeline::SourceFacts {
+            detector: opts.detector,
+            spectrum_bearings_rad: opts
+                .spectrum_bearings_deg
+                .iter()
+                .map(|d| radar_model::geometry::wrap_angle(d.to_radians()))
+                .collect(),
+            ..crate::pipeline::SourceFacts::default()
+        },
+    };
+    // An unknown `[radar] model` is refused before anything connects.
+    recipe.named_model()?;
+    Ok(recipe)
+}
+
 /// Runs the daemon to the end of the stream, the duration limit or a stop request.
 pub async fn run_daemon(
     opts: DaemonOptions,
     progress: Option<ProgressFn>,
 ) -> Result<DaemonReport, DaemonError> {
-    let mut settings = PipelineSettings::from_config(&opts.config)?;
-    if let Some(d) = opts.detector {
-        settings.detector = d;
-    }
-    settings.spectrum_bearings_rad = opts
-        .spectrum_bearings_deg
-        .iter()
-        .map(|d| radar_model::geometry::wrap_angle(d.to_radians()))
-        .collect();
-    info!(kind = ?settings.detector.kind, domain = ?settings.detector.domain, "detector");
+    let recipe = recipe(&opts)?;
+    // The motion model the odometry means: the configuration's (the simulator's scene may
+    // say otherwise, below); the radar's profile does not change it.
+    let configured_motion = PipelineSettings::from_config(&opts.config)?.motion;
     let node = open_zenoh(&opts.config).await?;
-    let output = OutputHandle::spawn(output_files(&opts, settings.motion, node.clone()))?;
+    // The simulator writes its ground truth there before the writer starts; a folder that
+    // cannot be made is reported by the writer below.
+    let _ = std::fs::create_dir_all(&opts.out_dir);
     let mut zenoh_stats = None;
     let (odo_trigger, odo_shutdown) = shutdown_pair();
     #[cfg(feature = "sim")]
     let mut sim_handle: Option<sim_sensor::SimHandle> = None;
     #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
-    let mut pipeline: Option<Pipeline> = None;
+    let mut pipeline: Option<PipelineStart> = None;
     #[cfg(feature = "sim")]
     let mut replay_figures = None;
-    #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
-    let mut start_time_s = None;
     #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
     let mut scene_name = None;
     #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
     let mut truth_overlay = TruthOverlay::default();
+    #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
+    let mut motion = configured_motion;
     let mut driver_settings = DriverSettings::from_config(&opts.config.radar);
     // The pipeline takes azimuths and finds rotation ends itself: no rotation channel, so
     // the driver neither assembles rotations nor counts them as dropped.
@@ -254,12 +277,12 @@ pub async fn run_daemon(
         {
             let started = match opts.recorded {
                 Some(recorded) => {
-                    embedded::start_replay(sim.options, recorded, settings, driver_settings).await?
+                    embedded::start_replay(sim.options, recorded, &recipe, driver_settings).await?
                 }
                 None => {
                     embedded::start(
                         sim,
-                        settings,
+                        &recipe,
                         driver_settings,
                         &opts.out_dir,
                         opts.max_stream_s,
@@ -271,27 +294,25 @@ pub async fn run_daemon(
                 }
             };
             replay_figures = started.replay;
-            settings = started.settings;
-            start_time_s = started.start_time_s;
+            motion = started.motion;
             truth_overlay = started.truth_overlay;
             scene_name = Some(started.scene_name);
             pipeline = Some(started.pipeline);
             sim_handle = Some(started.handle);
             // Odometry from Zenoh instead of the simulator's odometry port.
-            let odometry =
-                match zenoh_odometry_source(&opts.config, node.as_ref(), settings.motion)? {
-                    Some((source, stats)) => {
-                        zenoh_stats = Some(stats);
-                        Some(source)
-                    }
-                    None => started.odometry,
-                };
+            let odometry = match zenoh_odometry_source(&opts.config, node.as_ref(), motion)? {
+                Some((source, stats)) => {
+                    zenoh_stats = Some(stats);
+                    Some(source)
+                }
+                None => started.odometry,
+            };
             (started.azimuths, started.driver, odometry)
         }
         #[cfg(not(feature = "sim"))]
         match sim {}
     } else {
-        let odometry = match zenoh_odometry_source(&opts.config, node.as_ref(), settings.motion)? {
+        let odometry = match zenoh_odometry_source(&opts.config, node.as_ref(), motion)? {
             Some((source, stats)) => {
                 zenoh_stats = Some(stats);
                 Some(source)
@@ -309,9 +330,20 @@ pub async fn run_daemon(
         let rx = receivers.azimuths.ok_or(DaemonError::NoAzimuthChannel)?;
         (rx, driver, odometry)
     };
+    let output = OutputHandle::spawn(output_files_for(
+        &opts.config,
+        opts.figures,
+        &opts.out_dir,
+        motion,
+        node.clone(),
+    ))?;
+    // A radar over TCP: its profile is chosen from the geometry of its first azimuth.
     let pipeline = match pipeline {
         Some(p) => p,
-        None => Pipeline::new(settings, start_time_s, None)?,
+        None => PipelineStart::OnFirstAzimuth(Box::new(move |geometry: &protocol::Geometry| {
+            let derived = recipe.for_radar(geometry, crate::pipeline::SourceFacts::default())?;
+            Pipeline::new(derived.settings, None, None)
+        })),
     };
     let driver_handle = driver.spawn();
     #[cfg(feature = "sim")]
@@ -336,6 +368,9 @@ pub async fn run_daemon(
         .await
         .map_err(|_| DaemonError::PipelinePanicked)?;
     let (run, output) = joined.map_err(|_| DaemonError::PipelinePanicked)?;
+    if let Some(why) = &run.start_failure {
+        warn!(error = %why, "the pipeline did not start for this radar");
+    }
     let mut driver_failure = None;
     let driver = match tokio::time::timeout(Duration::from_secs(5), driver_handle.stop()).await {
         Ok(Ok(exit)) => Some(exit.metrics),
@@ -390,15 +425,8 @@ pub fn run_mcap_replay(
     odometry_topic: Option<String>,
     progress: Option<ProgressFn>,
 ) -> Result<DaemonReport, DaemonError> {
-    let mut settings = PipelineSettings::from_config(&opts.config)?;
-    if let Some(d) = opts.detector {
-        settings.detector = d;
-    }
-    settings.spectrum_bearings_rad = opts
-        .spectrum_bearings_deg
-        .iter()
-        .map(|d| radar_model::geometry::wrap_angle(d.to_radians()))
-        .collect();
+    let recipe = recipe(&opts)?;
+    let motion = PipelineSettings::from_config(&opts.config)?.motion;
     // The replay's odometry comes from the file: a session only to publish.
     #[cfg(feature = "zenoh")]
     let node = if opts.config.output.zenoh.enabled {
@@ -411,13 +439,18 @@ pub fn run_mcap_replay(
     };
     #[cfg(not(feature = "zenoh"))]
     let node: Option<crate::output::live::SharedNode> = None;
-    let output = OutputHandle::spawn(output_files(&opts, settings.motion, node.clone()))?;
-    let mut replay = mcap_replay::McapReplaySettings::new(path, settings.motion);
+    let output = OutputHandle::spawn(output_files(&opts, motion, node.clone()))?;
+    let mut replay = mcap_replay::McapReplaySettings::new(path, motion);
     if let Some(topic) = odometry_topic {
         replay.odometry_topic = topic;
     }
     let (azimuths, odometry, reader) = mcap_replay::start(replay)?;
-    let pipeline = Pipeline::new(settings, None, None)?;
+    // The recorded radar's profile is chosen from the geometry of its first azimuth, as a
+    // live radar's is.
+    let pipeline = PipelineStart::OnFirstAzimuth(Box::new(move |geometry: &protocol::Geometry| {
+        let derived = recipe.for_radar(geometry, crate::pipeline::SourceFacts::default())?;
+        Pipeline::new(derived.settings, None, None)
+    }));
     let control = RunControl {
         end_after_silence: None,
         stop: Arc::clone(&opts.stop),
@@ -468,14 +501,25 @@ fn output_files(
     motion: radar_model::motion::MotionModel,
     node: Option<crate::output::live::SharedNode>,
 ) -> OutputFiles {
-    let o = &opts.config.output;
+    output_files_for(&opts.config, opts.figures, &opts.out_dir, motion, node)
+}
+
+/// [`output_files`] from its parts.
+fn output_files_for(
+    config: &config::Config,
+    figures: bool,
+    out_dir: &std::path::Path,
+    motion: radar_model::motion::MotionModel,
+    node: Option<crate::output::live::SharedNode>,
+) -> OutputFiles {
+    let o = &config.output;
     OutputFiles {
-        figures: opts.figures,
+        figures,
         trajectory: o.trajectory.clone(),
         map: o.map.clone(),
         diagnostics: o.diagnostics.clone(),
         recording: o.mcap.as_ref().map(|file| RecordingFile {
-            path: opts.out_dir.join(file),
+            path: out_dir.join(file),
             motion,
         }),
         live: o.zenoh.enabled.then(|| crate::output::LiveOutput {
@@ -483,6 +527,6 @@ fn output_files(
             motion,
             node,
         }),
-        ..OutputFiles::in_dir(opts.out_dir.clone())
+        ..OutputFiles::in_dir(out_dir.to_path_buf())
     }
 }

@@ -24,26 +24,12 @@ use sim_sensor::replay::truth::{
 use sim_sensor::replay::{ReplayFormat, ScanSet};
 use slam_filter::{OdometrySample, ProcessModel};
 
-use crate::pipeline::{PipelineSettings, TrueFeature, TruthOracle};
+use crate::pipeline::{TrueFeature, TruthOracle};
 
 /// Odometry samples a second made from the ground truth.
 pub const ODOMETRY_HZ: f64 = 20.0;
 /// Wheelbase the yaw rate is turned into bicycle steering with (m).
 pub const WHEELBASE_M: f64 = 2.7;
-/// The CTS350-X's horizontal beam width (rad).
-pub const CTS350X_BEAM_WIDTH_RAD: f64 = 1.8 * std::f64::consts::PI / 180.0;
-/// The Oxford data set's bin size (m).
-pub const OXFORD_BIN_M: f64 = 0.0438;
-/// Range noise of a real landmark's return on a CTS350-X, metres (measured on the Oxford
-/// scans; see [`recorded_settings_for`]).
-pub const LANDMARK_RANGE_STD_M: f64 = 0.35;
-/// Bearing noise of a real landmark's return on a CTS350-X, degrees (measured likewise).
-pub const LANDMARK_BEARING_STD_DEG: f64 = 1.3;
-/// Power noise of a real landmark's return about its model, dB (measured likewise).
-pub const LANDMARK_POWER_STD_DB: f64 = 3.5;
-/// Looks in different rotations before a real landmark enters the map.
-pub const CONFIRM_AFTER_LOOKS: u32 = 4;
-
 /// The errors put on the ground truth's motion to make the odometry.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OdometryErrors {
@@ -89,6 +75,28 @@ pub enum ReplayError {
     /// The ground truth could not be read.
     #[error("ground truth")]
     Truth(#[from] TruthError),
+    /// The odometry could not be written (`--write-odometry`).
+    #[error("writing the odometry to {path}")]
+    WriteOdometry {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// Writes `samples` in the odometry stream's format (docs/contracts.md): the header line,
+/// then one `timestamp_s speed_mps steer_rad` line each, every number written so that it
+/// reads back to the same `f64`.
+pub fn write_odometry(path: &Path, samples: &[OdometrySample]) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+    writeln!(out, "# odometry v1 timestamp_s speed_mps steer_rad")?;
+    for s in samples {
+        writeln!(out, "{} {} {}", s.timestamp_s, s.speed_mps, s.steer_rad)?;
+    }
+    out.flush()
 }
 
 /// The ground truth of a recorded drive: the scans' times and poses (the first scan's frame),
@@ -316,111 +324,6 @@ impl OdometrySource for MemoryOdometry {
             None => OdometryPoll::Ended,
         })
     }
-}
-
-/// The daemon's settings for a CTS350-X's recorded Oxford scans ([`recorded_settings_for`]
-/// with [`OXFORD_BIN_M`], and its range-Doppler coupling [`OXFORD_DOPPLER_COUPLING_S`]).
-pub fn recorded_settings(settings: PipelineSettings, max_range_m: f64) -> PipelineSettings {
-    with_doppler_coupling(
-        recorded_settings_for(settings, max_range_m, OXFORD_BIN_M),
-        OXFORD_DOPPLER_COUPLING_S,
-    )
-}
-
-/// The range-Doppler coupling of the Oxford Radar RobotCar's CTS350-X (s): Burnett et al.
-/// ("Do we need to compensate for motion distortion and Doppler effects in spinning radar
-/// navigation?", RA-L 2021) use 0.0488 on these scans. On the eight scans here it takes
-/// radar odometry's speed correction with exact odometry from -0.019 to -0.003, and the
-/// opposite sign makes every figure worse (`slam-node/README.md`, "Range-Doppler coupling").
-pub const OXFORD_DOPPLER_COUPLING_S: f64 = 0.0488;
-/// The same for Boreas' Navtech (s): the University of Toronto's radar odometry on Boreas
-/// uses 0.049.
-pub const BOREAS_DOPPLER_COUPLING_S: f64 = 0.049;
-
-/// `settings` with the range-Doppler coupling `coupling_s` where the configuration gave
-/// none (0); a configured coupling is kept.
-pub fn with_doppler_coupling(mut settings: PipelineSettings, coupling_s: f64) -> PipelineSettings {
-    if settings.doppler_range_coupling_s == 0.0 {
-        settings.doppler_range_coupling_s = coupling_s;
-    }
-    settings
-}
-
-/// The daemon's settings for a Navtech unit's recorded scans: its 1.8-degree beam (the
-/// CTS350-X of Oxford and RADIATE, the CIR204-H of Boreas), bins of `bin_m`, the bicycle
-/// model the odometry was made with.
-pub fn recorded_settings_for(
-    mut settings: PipelineSettings,
-    max_range_m: f64,
-    bin_m: f64,
-) -> PipelineSettings {
-    settings.motion = MotionModel::Bicycle {
-        wheelbase_m: WHEELBASE_M,
-    };
-    settings.beam_width_rad = CTS350X_BEAM_WIDTH_RAD;
-    settings.filter.beam_half_width_rad = 0.5 * CTS350X_BEAM_WIDTH_RAD;
-    settings.noise.range.resolution_fwhm_m = bin_m;
-    settings.power.range_resolution_m = bin_m;
-    settings.filter.max_range_m = settings.filter.max_range_m.min(max_range_m);
-    settings.detector.max_range_m = settings.detector.max_range_m.min(max_range_m);
-    if settings.filter.repeat_look_range_m > 0.0 && settings.filter.repeat_look_bearing_rad > 0.0 {
-        settings.filter.repeat_look_range_m = bin_m;
-        settings.filter.repeat_look_bearing_rad = CTS350X_BEAM_WIDTH_RAD;
-    }
-    settings.initial_pose_std = [1e-3, 1e-3, 1e-4];
-    // A current unit: the floor and gain learned from the stream, detection at line rate,
-    // only point-like returns mapped.
-    settings.detector.kind = crate::detect::DetectorKind::Learned;
-    settings.detector.landmarks.points_only = true;
-    // Only strong returns start features, and only after four looks in different
-    // rotations; weaker point-like ones may re-observe them.
-    settings.detector.landmarks.min_snr_db = settings.detector.landmarks.min_snr_db.max(32.0);
-    settings.filter.confirm_after = settings.filter.confirm_after.max(CONFIRM_AFTER_LOOKS);
-    settings.filter.confirm_min_separation_s = settings.filter.confirm_min_separation_s.max(0.2);
-    settings.spectrum_every_azimuths = settings.spectrum_every_azimuths.max(1);
-    // A real landmark's return (a trunk, a post, a car's corner) is not the ideal point
-    // the paper's unit was modelled with: its peak moves with the viewing angle. Measured on
-    // the Oxford scans (the nearest point-like observation within 2 m of each mapped
-    // feature, in every rotation, 90 pairs): range residual std 0.36 m (robust 0.26),
-    // bearing 1.27 deg (robust 0.76), power about its feature's mean (40 log R removed)
-    // 3.4 dB; with the paper's 0.1 m / 1 deg / 2 dB the gate refused most re-observations.
-    // The tentative gate widens with them (4.6 times the area), so a chance coincidence of
-    // clutter confirms more easily: a fourth look (CONFIRM_AFTER_LOOKS) keeps the map to
-    // repeatable returns.
-    settings.filter.range_std_m = settings.filter.range_std_m.max(LANDMARK_RANGE_STD_M);
-    settings.filter.bearing_std_rad = settings
-        .filter
-        .bearing_std_rad
-        .max(LANDMARK_BEARING_STD_DEG.to_radians());
-    settings.filter.power_std_db = settings.filter.power_std_db.max(LANDMARK_POWER_STD_DB);
-    settings
-}
-
-/// Prior standard deviation of the speed correction radar odometry estimates on recorded
-/// scans when the configuration sets none: a wheel odometry 5 % off is a 1-sigma event.
-pub const RADAR_ODOMETRY_SPEED_SCALE_STD: f64 = 0.05;
-/// The same for the steering offset (rad): 0.02 rad/s of yaw rate at 7 m/s on a 2.7 m
-/// wheelbase is 0.0077 rad.
-pub const RADAR_ODOMETRY_STEER_BIAS_STD_RAD: f64 = 0.01;
-
-/// `settings` with radar odometry on (rotations registered against each other; see
-/// [`crate::pipeline::scan_match`]) and the odometry corrections estimated (the measured
-/// motion updates the pose's change and, through it, the corrections), with
-/// [`RADAR_ODOMETRY_SPEED_SCALE_STD`] and [`RADAR_ODOMETRY_STEER_BIAS_STD_RAD`] as priors
-/// where the configuration gave none, the speed correction learned from the registrations
-/// alone (`speed_scale_from_landmarks` off: slam-node/README.md, "Odometry corrections").
-/// What the replay of recorded scans runs by default (`slam-node --replay-dir`;
-/// `--no-radar-odometry` leaves the configuration as it is).
-pub fn with_radar_odometry(mut settings: PipelineSettings) -> PipelineSettings {
-    settings.scan_match.enabled = true;
-    settings.filter.speed_scale_from_landmarks = false;
-    if settings.filter.speed_scale_std == 0.0 {
-        settings.filter.speed_scale_std = RADAR_ODOMETRY_SPEED_SCALE_STD;
-    }
-    if settings.filter.steer_bias_std_rad == 0.0 {
-        settings.filter.steer_bias_std_rad = RADAR_ODOMETRY_STEER_BIAS_STD_RAD;
-    }
-    settings
 }
 
 /// What the replay adds to the summary.

@@ -59,6 +59,9 @@ pub enum PipelineError {
     /// The global layer's thread could not be started.
     #[error("the global layer's thread could not be started")]
     GlobalLayer(#[source] std::io::Error),
+    /// The settings could not be derived for the radar that connected.
+    #[error(transparent)]
+    Settings(#[from] super::settings::SettingsError),
 }
 
 /// The daemon's processing state.

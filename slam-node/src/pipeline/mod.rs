@@ -7,6 +7,7 @@
 pub mod beams;
 pub mod clock;
 pub mod core;
+pub mod derive;
 pub mod frontend;
 pub mod gate;
 pub mod odometry;
@@ -24,6 +25,7 @@ pub mod summary;
 pub mod truth;
 
 pub use self::core::{DaemonEkf, Pipeline, PipelineError};
+pub use derive::{Derived, SettingsRecipe, SourceFacts, Written};
 pub use frontend::{FrontEnd, FrontEndSettings};
 pub use run::{run_pipeline, PipelineInputs, RunControl, RunReport};
 #[cfg(feature = "sim")]

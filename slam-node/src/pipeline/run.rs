@@ -32,6 +32,35 @@ impl std::fmt::Debug for PipelineInputs {
     }
 }
 
+/// Builds the pipeline for the radar that connected, from the geometry its first azimuth
+/// brings (the radar's profile is chosen from it).
+pub type BuildOnFirstAzimuth =
+    Box<dyn FnOnce(&protocol::Geometry) -> Result<Pipeline, super::PipelineError> + Send>;
+
+/// The pipeline, or how to build it once the radar has said what it is.
+pub enum PipelineStart {
+    /// Built already (the source knew its radar).
+    Ready(Box<Pipeline>),
+    /// Built on the first azimuth (a radar over TCP, a recording): its profile is chosen
+    /// from what it announces.
+    OnFirstAzimuth(BuildOnFirstAzimuth),
+}
+
+impl std::fmt::Debug for PipelineStart {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            PipelineStart::Ready(_) => "PipelineStart::Ready",
+            PipelineStart::OnFirstAzimuth(_) => "PipelineStart::OnFirstAzimuth",
+        })
+    }
+}
+
+impl From<Pipeline> for PipelineStart {
+    fn from(p: Pipeline) -> Self {
+        PipelineStart::Ready(Box::new(p))
+    }
+}
+
 /// Progress callback: called after every rotation with the running totals and the filter.
 pub type ProgressFn = Box<dyn FnMut(&PipelineSummary, &DaemonEkf) + Send>;
 
@@ -72,6 +101,46 @@ pub struct RunReport {
     pub wall_s: f64,
     /// Azimuths the pipeline could not process (bad radar geometry), logged sparsely.
     pub azimuth_errors: u64,
+    /// Why the pipeline could not be built for the radar that connected, if it could not.
+    pub start_failure: Option<String>,
+}
+
+/// How long the pipeline waits for a radar's first azimuth before saying it waits.
+const FIRST_AZIMUTH_NOTICE: Duration = Duration::from_secs(2);
+
+/// Waits for the first azimuth, watching `control`; `None` when stopped or the channel
+/// closed first.
+fn first_azimuth(azimuths: &Receiver<Azimuth>, control: &RunControl) -> Option<Azimuth> {
+    let waiting = Instant::now();
+    let mut said = false;
+    loop {
+        if control.stop.load(Ordering::Relaxed) {
+            info!("stop requested before the radar's first azimuth");
+            return None;
+        }
+        match azimuths.recv_timeout(Duration::from_millis(100)) {
+            Ok(az) => return Some(az),
+            Err(RecvTimeoutError::Timeout) => {
+                if !said && waiting.elapsed() >= FIRST_AZIMUTH_NOTICE {
+                    info!(
+                        "waiting for the radar's first azimuth (its geometry chooses its profile)"
+                    );
+                    said = true;
+                }
+                if control
+                    .end_after_silence
+                    .is_some_and(|limit| waiting.elapsed() >= limit.max(Duration::from_secs(30)))
+                {
+                    warn!("no azimuth came from the recording");
+                    return None;
+                }
+            }
+            Err(RecvTimeoutError::Disconnected) => {
+                info!("the radar driver closed its channel before the first azimuth");
+                return None;
+            }
+        }
+    }
 }
 
 fn to_sample(r: radar_driver::OdometryRecord) -> OdometrySample {
@@ -114,13 +183,35 @@ fn poll_odometry(
 /// Runs the pipeline until the azimuth channel closes, `stop` is set, or the stream
 /// duration is reached; then flushes it and returns its summary.
 pub fn run_pipeline(
-    mut pipeline: Pipeline,
+    start: impl Into<PipelineStart>,
     mut inputs: PipelineInputs,
     output: &OutputHandle,
     mut control: RunControl,
 ) -> RunReport {
     let started = Instant::now();
     let mut report = RunReport::default();
+    let mut held = None;
+    let mut pipeline = match start.into() {
+        PipelineStart::Ready(p) => *p,
+        PipelineStart::OnFirstAzimuth(build) => {
+            let Some(az) = first_azimuth(&inputs.azimuths, &control) else {
+                report.wall_s = started.elapsed().as_secs_f64();
+                return report;
+            };
+            match build(&az.geometry) {
+                Ok(p) => {
+                    held = Some(az);
+                    p
+                }
+                Err(e) => {
+                    error!(error = %e, "the pipeline could not be built for this radar");
+                    report.start_failure = Some(format!("{e}"));
+                    report.wall_s = started.elapsed().as_secs_f64();
+                    return report;
+                }
+            }
+        }
+    };
     let mut events = Vec::new();
     let stall_after = pipeline.settings().radar_stall;
     let odometry_wait = pipeline.settings().odometry_wait;
@@ -155,7 +246,11 @@ pub fn run_pipeline(
                 }
             }
         }
-        let az = match inputs.azimuths.recv_timeout(Duration::from_millis(100)) {
+        let next = match held.take() {
+            Some(az) => Ok(az),
+            None => inputs.azimuths.recv_timeout(Duration::from_millis(100)),
+        };
+        let az = match next {
             Ok(az) => az,
             Err(RecvTimeoutError::Timeout) => {
                 if let Some(limit) = control.end_after_silence {

@@ -30,6 +30,17 @@ pub enum SettingsError {
     /// The configured compensation table was rejected by radar-model.
     #[error("model.compensation_table was rejected by the radar model")]
     CompensationTable(#[source] radar_model::ModelError),
+    /// The configuration with the radar profile's values did not validate.
+    #[error("the configuration with radar profile {profile}'s values is invalid: {errors}")]
+    Profile {
+        /// The profile.
+        profile: &'static str,
+        /// What was invalid.
+        errors: config::FieldErrors,
+    },
+    /// `[radar] model` names no profile.
+    #[error(transparent)]
+    UnknownModel(#[from] radar_model::profile::UnknownModel),
 }
 
 /// Everything the pipeline needs besides the radar's own geometry.

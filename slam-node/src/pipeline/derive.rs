@@ -1,0 +1,587 @@
+//! The pipeline's settings, derived once from the configuration and the radar's profile.
+//!
+//! A radar profile (`radar_model::profile`) holds what a radar model is and what was
+//! measured on it. Every setting the profile owns takes the profile's value unless the
+//! configuration file writes its key; then the file's value wins and the log says which key
+//! did. What a source knows exactly (the simulator's scene: its motion model, its receiver,
+//! its beam, its start pose) is a [`SourceFacts`] and is applied in the same step. Nothing
+//! patches the settings afterwards.
+
+use std::collections::BTreeSet;
+
+use config::detector::DetectorKind as ConfigKind;
+use config::model::CompensationKind;
+use radar_model::compensation::Compensation;
+use radar_model::motion::MotionModel;
+use radar_model::profile::{Choice, CompensationSlope, FrontEndFamily, RadarProfile};
+use tracing::{info, warn};
+
+use super::settings::{PipelineSettings, SettingsError, REPEAT_LOOK_CELL_FRACTION};
+use crate::detect::DetectorSettings;
+
+/// Prior standard deviation of the odometry's speed scale when radar odometry runs and the
+/// configuration writes none: a wheel odometry 5 % off is a 1-sigma event.
+pub const RADAR_ODOMETRY_SPEED_SCALE_STD: f64 = 0.05;
+/// The same for the steering offset (rad): 0.02 rad/s of yaw rate at 7 m/s on a 2.7 m
+/// wheelbase is 0.0077 rad.
+pub const RADAR_ODOMETRY_STEER_BIAS_STD_RAD: f64 = 0.01;
+
+/// Which keys the configuration writes.
+#[derive(Debug, Clone, Copy)]
+pub enum Written<'a> {
+    /// Every key: the configuration's values win everywhere (a configuration built in code).
+    Everything,
+    /// These dotted keys (`model.sigma_range_m`), as `config::written_keys` reads them.
+    Keys(&'a BTreeSet<String>),
+}
+
+impl Written<'_> {
+    fn has(&self, key: &str) -> bool {
+        match self {
+            Written::Everything => true,
+            Written::Keys(keys) => keys.contains(key),
+        }
+    }
+}
+
+/// What a source knows exactly about its radar and its drive, applied over the profile and
+/// the configuration.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SourceFacts {
+    /// The motion model the source's odometry means (the simulator's scene; the bicycle
+    /// the recorded odometry was made with).
+    pub motion: Option<MotionModel>,
+    /// The receiver's compensation, known exactly (the simulator's).
+    pub compensation: Option<Compensation>,
+    /// The beam width (rad), known exactly (the simulator's).
+    pub beam_width_rad: Option<f64>,
+    /// The range-Doppler coupling (s), known exactly (the simulator's).
+    pub doppler_range_coupling_s: Option<f64>,
+    /// A point's peak width in the spectrum (m), known exactly (the simulator draws each
+    /// peak one bin wide).
+    pub peak_fwhm_m: Option<f64>,
+    /// The start pose and its standard deviations, known exactly (the scene's).
+    pub initial_pose: Option<([f64; 3], [f64; 3])>,
+    /// The detector's base, replacing `[detector]` but for the front end's kind, learned
+    /// floor and landmark thresholds (the run without a configuration file uses slam-node's
+    /// measured default).
+    pub detector: Option<DetectorSettings>,
+    /// Radar odometry forced off (`--no-radar-odometry`).
+    pub no_radar_odometry: bool,
+    /// The radar's full range (m), bounding the filter's and the detector's.
+    pub max_range_m: Option<f64>,
+    /// Bearings (rad) whose predicted and measured spectra are drawn (`--spectrum-bearing`).
+    pub spectrum_bearings_rad: Vec<f64>,
+}
+
+/// What the settings are derived from, before the radar is known: the configuration, the
+/// keys it writes, and what the run adds (`--spectrum-bearing`, the measured default
+/// detector of the run without a configuration file).
+#[derive(Debug, Clone)]
+pub struct SettingsRecipe {
+    /// The validated configuration.
+    pub config: config::Config,
+    /// The keys the configuration file writes; `None`: every key (a configuration built in
+    /// code, whose values win everywhere).
+    pub written: Option<BTreeSet<String>>,
+    /// What the run adds.
+    pub facts: SourceFacts,
+}
+
+impl SettingsRecipe {
+    /// A recipe from a configuration built in code: its values win everywhere.
+    pub fn from_config(config: config::Config) -> Self {
+        Self {
+            config,
+            written: None,
+            facts: SourceFacts::default(),
+        }
+    }
+
+    /// `[radar] model`, checked against the profiles.
+    pub fn named_model(&self) -> Result<Option<&'static RadarProfile>, SettingsError> {
+        match self.config.radar.model.as_deref() {
+            None => Ok(None),
+            Some(name) => radar_model::profile::by_name(name)
+                .map(Some)
+                .ok_or_else(|| {
+                    radar_model::profile::UnknownModel {
+                        name: name.to_owned(),
+                        known: radar_model::profile::names().join(", "),
+                    }
+                    .into()
+                }),
+        }
+    }
+
+    /// The settings for a radar that announced `geometry` (the profile chosen from it unless
+    /// `[radar] model` names one), with the source's `facts` over the run's; logged.
+    pub fn for_radar(
+        &self,
+        geometry: &protocol::Geometry,
+        facts: SourceFacts,
+    ) -> Result<Derived, SettingsError> {
+        let choice =
+            radar_model::profile::select(self.config.radar.model.as_deref(), &announced(geometry))?;
+        let facts = SourceFacts {
+            max_range_m: facts.max_range_m.or(Some(full_range_m(geometry))),
+            ..facts
+        };
+        self.derive(choice, facts)
+    }
+
+    /// The settings for `choice` with the source's `facts` over the run's; logged.
+    pub fn derive(&self, choice: Choice, facts: SourceFacts) -> Result<Derived, SettingsError> {
+        let derived = self.derive_quietly(choice, facts)?;
+        derived.log();
+        Ok(derived)
+    }
+
+    /// [`Self::derive`] without the log lines.
+    pub fn derive_quietly(
+        &self,
+        choice: Choice,
+        facts: SourceFacts,
+    ) -> Result<Derived, SettingsError> {
+        let run = &self.facts;
+        let facts = SourceFacts {
+            detector: facts.detector.or(run.detector),
+            no_radar_odometry: facts.no_radar_odometry || run.no_radar_odometry,
+            spectrum_bearings_rad: if facts.spectrum_bearings_rad.is_empty() {
+                run.spectrum_bearings_rad.clone()
+            } else {
+                facts.spectrum_bearings_rad
+            },
+            ..facts
+        };
+        let written = match &self.written {
+            Some(keys) => Written::Keys(keys),
+            None => Written::Everything,
+        };
+        PipelineSettings::derive(&self.config, written, choice, &facts)
+    }
+}
+
+/// The settings and how they were made.
+#[derive(Debug, Clone)]
+pub struct Derived {
+    /// The pipeline's settings.
+    pub settings: PipelineSettings,
+    /// The profile and why it was chosen.
+    pub choice: Choice,
+    /// The profile's keys the configuration wrote (its values won).
+    pub overridden: Vec<&'static str>,
+}
+
+/// The profile's value of `key` unless the configuration writes it: records the override.
+fn take<T>(
+    written: &Written<'_>,
+    overridden: &mut Vec<&'static str>,
+    key: &'static str,
+    slot: &mut T,
+    profile_value: T,
+) {
+    if written.has(key) {
+        if matches!(written, Written::Keys(_)) {
+            overridden.push(key);
+        }
+    } else {
+        *slot = profile_value;
+    }
+}
+
+/// The configuration with the profile's values where it writes no key, and the profile's
+/// keys it does write.
+pub fn effective_config(
+    c: &config::Config,
+    written: Written<'_>,
+    profile: &RadarProfile,
+    no_radar_odometry: bool,
+) -> Result<(config::Config, Vec<&'static str>), SettingsError> {
+    let mut raw = config::RawConfig::from(c);
+    let mut over = Vec::new();
+    let w = &written;
+    let m = &mut raw.model;
+    take(
+        w,
+        &mut over,
+        "model.beam_width_deg",
+        &mut m.beam_width_deg,
+        profile.beam_width_deg.value,
+    );
+    take(
+        w,
+        &mut over,
+        "model.range_resolution_m",
+        &mut m.range_resolution_m,
+        profile.range_resolution_m.value,
+    );
+    take(
+        w,
+        &mut over,
+        "model.sigma_range_m",
+        &mut m.sigma_range_m,
+        profile.sigma_range_m.value,
+    );
+    take(
+        w,
+        &mut over,
+        "model.sigma_bearing_deg",
+        &mut m.sigma_bearing_deg,
+        profile.sigma_bearing_deg.value,
+    );
+    take(
+        w,
+        &mut over,
+        "model.sigma_power_db",
+        &mut m.sigma_power_db,
+        profile.sigma_power_db.value,
+    );
+    take(
+        w,
+        &mut over,
+        "model.doppler_range_coupling_s",
+        &mut m.doppler_range_coupling_s,
+        profile.doppler_range_coupling_s.value,
+    );
+    take(
+        w,
+        &mut over,
+        "model.compensation",
+        &mut m.compensation,
+        match profile.compensation.value {
+            CompensationSlope::Sixty => CompensationKind::Slope60,
+            CompensationSlope::Forty => CompensationKind::Slope40,
+        },
+    );
+    let d = &mut raw.detector;
+    take(
+        w,
+        &mut over,
+        "detector.kind",
+        &mut d.kind,
+        match profile.front_end.value {
+            FrontEndFamily::PaperTpp => ConfigKind::Tpp,
+            FrontEndFamily::Learned => ConfigKind::Learned,
+        },
+    );
+    let floor = profile.learned_floor.value;
+    take(
+        w,
+        &mut over,
+        "detector.floor_sigma",
+        &mut d.floor_sigma,
+        floor.floor_sigma,
+    );
+    take(
+        w,
+        &mut over,
+        "detector.floor_min_snr_db",
+        &mut d.floor_min_snr_db,
+        floor.floor_min_snr_db,
+    );
+    let l = profile.landmarks.value;
+    take(
+        w,
+        &mut over,
+        "detector.points_only",
+        &mut d.points_only,
+        l.points_only,
+    );
+    take(
+        w,
+        &mut over,
+        "detector.point_max_extent_m",
+        &mut d.point_max_extent_m,
+        l.point_max_extent_m,
+    );
+    take(
+        w,
+        &mut over,
+        "detector.point_max_width_beams",
+        &mut d.point_max_width_beams,
+        l.point_max_width_beams,
+    );
+    take(
+        w,
+        &mut over,
+        "detector.point_min_snr_db",
+        &mut d.point_min_snr_db,
+        l.point_min_snr_db,
+    );
+    take(
+        w,
+        &mut over,
+        "detector.extended_reobserve",
+        &mut d.extended_reobserve,
+        l.extended_reobserve,
+    );
+    take(
+        w,
+        &mut over,
+        "filter.confirm_after",
+        &mut raw.filter.confirm_after,
+        i64::from(l.confirm_after),
+    );
+    let o = &mut raw.odometry;
+    take(
+        w,
+        &mut over,
+        "odometry.radar_odometry",
+        &mut o.radar_odometry,
+        profile.radar_odometry.value,
+    );
+    if no_radar_odometry {
+        o.radar_odometry = false;
+    }
+    // With radar odometry, the odometry's corrections are estimated, the speed scale from
+    // the registrations alone (slam-node/README.md, "Odometry corrections"), unless the
+    // configuration says otherwise.
+    if o.radar_odometry {
+        if !written.has("odometry.speed_scale_std") && o.speed_scale_std == 0.0 {
+            o.speed_scale_std = RADAR_ODOMETRY_SPEED_SCALE_STD;
+        }
+        if !written.has("odometry.steer_bias_std_rad") && o.steer_bias_std_rad == 0.0 {
+            o.steer_bias_std_rad = RADAR_ODOMETRY_STEER_BIAS_STD_RAD;
+        }
+        if !written.has("odometry.speed_scale_from_landmarks") {
+            o.speed_scale_from_landmarks = false;
+        }
+    }
+    let effective = raw.validate().map_err(|errors| SettingsError::Profile {
+        profile: profile.name,
+        errors,
+    })?;
+    Ok((effective, over))
+}
+
+impl PipelineSettings {
+    /// The settings for a radar of profile `choice` from configuration `c` (which writes
+    /// `written`) and what the source knows (`facts`): derived once, logged once.
+    pub fn derive(
+        c: &config::Config,
+        written: Written<'_>,
+        choice: Choice,
+        facts: &SourceFacts,
+    ) -> Result<Derived, SettingsError> {
+        let profile = choice.profile;
+        let (effective, overridden) =
+            effective_config(c, written, profile, facts.no_radar_odometry)?;
+        let mut s = Self::from_config(&effective)?;
+        s.filter.confirm_min_separation_s = profile.landmarks.value.confirm_min_separation_s;
+        let s = s.with_facts(facts);
+        Ok(Derived {
+            settings: s,
+            choice,
+            overridden,
+        })
+    }
+}
+
+impl PipelineSettings {
+    /// These settings with what a source knows exactly (`facts`) in place of the profile's
+    /// and the configuration's values: the one step [`PipelineSettings::derive`] ends with.
+    pub fn with_facts(mut self, facts: &SourceFacts) -> Self {
+        let s = &mut self;
+        if let Some(motion) = facts.motion {
+            if motion != s.motion {
+                info!(?motion, configured = ?s.motion, "using the source's motion model for its odometry");
+                s.motion = motion;
+            }
+        }
+        if let Some(compensation) = &facts.compensation {
+            s.compensation = compensation.clone();
+        }
+        if let Some(beam) = facts.beam_width_rad {
+            s.beam_width_rad = beam;
+            s.filter.beam_half_width_rad = 0.5 * beam;
+        }
+        if let Some(coupling) = facts.doppler_range_coupling_s {
+            if coupling != s.doppler_range_coupling_s {
+                info!(
+                    source_s = coupling,
+                    configured_s = s.doppler_range_coupling_s,
+                    "using the source's range-Doppler coupling"
+                );
+            }
+            s.doppler_range_coupling_s = coupling;
+        }
+        if let Some(fwhm) = facts.peak_fwhm_m {
+            s.noise.range.resolution_fwhm_m = fwhm;
+        }
+        if s.filter.repeat_look_range_m > 0.0 && s.filter.repeat_look_bearing_rad > 0.0 {
+            s.filter.repeat_look_range_m =
+                REPEAT_LOOK_CELL_FRACTION * s.noise.range.resolution_fwhm_m;
+            s.filter.repeat_look_bearing_rad = REPEAT_LOOK_CELL_FRACTION * s.beam_width_rad;
+        }
+        if let Some((pose, std)) = facts.initial_pose {
+            s.initial_pose = pose;
+            s.initial_pose_std = std;
+        }
+        // The measured default detector is the base; the profile's front end (its kind, its
+        // learned floor, its landmark thresholds) and the configuration's keys stand on it.
+        if let Some(base) = facts.detector {
+            let chosen = s.detector;
+            s.detector = DetectorSettings {
+                kind: chosen.kind,
+                floor: crate::detect::learned::FloorSettings {
+                    detect_sigma: chosen.floor.detect_sigma,
+                    min_snr_db: chosen.floor.min_snr_db,
+                    ..base.floor
+                },
+                landmarks: chosen.landmarks,
+                ..base
+            };
+        }
+        if facts.no_radar_odometry {
+            s.scan_match.enabled = false;
+        }
+        s.spectrum_bearings_rad = facts.spectrum_bearings_rad.clone();
+        if let Some(range) = facts.max_range_m.filter(|r| r.is_finite() && *r > 0.0) {
+            s.filter.max_range_m = s.filter.max_range_m.min(range);
+            s.detector.max_range_m = s.detector.max_range_m.min(range);
+        }
+        self
+    }
+
+    /// The settings of the shipped configuration for a radar of `profile`, with `facts`:
+    /// what the evaluation and the benchmarks run a profile with.
+    pub fn for_profile(
+        profile: &'static RadarProfile,
+        facts: &SourceFacts,
+    ) -> Result<Self, SettingsError> {
+        let none = BTreeSet::new();
+        let choice = Choice {
+            profile,
+            how: radar_model::profile::Chosen::Named,
+        };
+        Ok(Self::derive(
+            &config::Config::default(),
+            Written::Keys(&none),
+            choice,
+            facts,
+        )?
+        .settings)
+    }
+}
+
+impl Derived {
+    /// Logs the choice of profile and the configuration's overrides (once per run).
+    pub fn log(&self) {
+        match &self.choice.how {
+            radar_model::profile::Chosen::Nearest(_) => {
+                warn!(profile = %self.choice, "no radar profile matches this radar")
+            }
+            _ => info!(profile = %self.choice, "radar profile"),
+        }
+        if !self.overridden.is_empty() {
+            info!(
+                keys = %self.overridden.join(", "),
+                profile = self.choice.profile.name,
+                "the configuration overrides the profile's values"
+            );
+        }
+        info!(kind = ?self.settings.detector.kind, domain = ?self.settings.detector.domain, "detector");
+    }
+}
+
+/// What a radar announced, in the profiles' terms.
+pub fn announced(geometry: &protocol::Geometry) -> radar_model::profile::Announced {
+    radar_model::profile::Announced {
+        azimuths: geometry.azimuth_samples,
+        encoder_size: geometry.encoder_size,
+        range_bins: geometry.range_in_bins,
+        bin_size_m: geometry.range_gain * geometry.bin_size_m,
+        rotation_hz: geometry.rotation_hz,
+    }
+}
+
+/// The radar's full range (m): its bins times its bin size, plus its offset.
+pub fn full_range_m(geometry: &protocol::Geometry) -> f64 {
+    f64::from(geometry.range_in_bins) * geometry.range_gain * geometry.bin_size_m
+        + geometry.range_offset_m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use radar_model::profile::{self, Chosen};
+
+    fn named(p: &'static RadarProfile) -> Choice {
+        Choice {
+            profile: p,
+            how: Chosen::Named,
+        }
+    }
+
+    #[test]
+    fn the_paper_profile_is_the_configuration_defaults() {
+        let c = config::Config::default();
+        let none = BTreeSet::new();
+        let from_profile = PipelineSettings::derive(
+            &c,
+            Written::Keys(&none),
+            named(&profile::PAPER_2006),
+            &SourceFacts::default(),
+        )
+        .unwrap();
+        let from_config = PipelineSettings::from_config(&c).unwrap();
+        assert_eq!(from_profile.settings, from_config);
+        assert!(from_profile.overridden.is_empty());
+    }
+
+    #[test]
+    fn a_cts350x_gets_its_front_end_and_a_written_key_overrides_one_value() {
+        let text = "[model]\nsigma_range_m = 0.2\n";
+        let c = config::Config::from_toml_str(text).unwrap();
+        let keys = config::written_keys(text);
+        let d = PipelineSettings::derive(
+            &c,
+            Written::Keys(&keys),
+            named(&profile::CTS350X),
+            &SourceFacts::default(),
+        )
+        .unwrap();
+        let s = &d.settings;
+        assert_eq!(d.overridden, vec!["model.sigma_range_m"]);
+        assert_eq!(s.filter.range_std_m, 0.2);
+        assert!((s.filter.bearing_std_rad - 1.3f64.to_radians()).abs() < 1e-12);
+        assert_eq!(s.filter.power_std_db, 3.5);
+        assert_eq!(s.detector.kind, crate::detect::DetectorKind::Learned);
+        assert!(s.detector.landmarks.points_only);
+        assert_eq!(s.detector.landmarks.min_snr_db, 32.0);
+        assert_eq!(s.filter.confirm_after, 4);
+        assert_eq!(s.filter.confirm_min_separation_s, 0.2);
+        assert_eq!(s.power.range_resolution_m, 0.0438);
+        assert_eq!(s.noise.range.resolution_fwhm_m, 0.0438);
+        assert_eq!(s.doppler_range_coupling_s, 0.0488);
+        assert!(s.scan_match.enabled);
+        assert_eq!(s.filter.speed_scale_std, RADAR_ODOMETRY_SPEED_SCALE_STD);
+        assert!(!s.filter.speed_scale_from_landmarks);
+        // A configuration that writes a lower threshold gets it (no max() with a constant).
+        let text = "[detector]\npoint_min_snr_db = 20.0\n";
+        let c = config::Config::from_toml_str(text).unwrap();
+        let keys = config::written_keys(text);
+        let d = PipelineSettings::derive(
+            &c,
+            Written::Keys(&keys),
+            named(&profile::CTS350X),
+            &SourceFacts::default(),
+        )
+        .unwrap();
+        assert_eq!(d.settings.detector.landmarks.min_snr_db, 20.0);
+    }
+
+    #[test]
+    fn the_radar_full_range_bounds_the_filter_and_the_detector() {
+        let c = config::Config::default();
+        let facts = SourceFacts {
+            max_range_m: Some(165.0),
+            ..SourceFacts::default()
+        };
+        let d = PipelineSettings::derive(&c, Written::Everything, named(&profile::CTS350X), &facts)
+            .unwrap();
+        assert_eq!(d.settings.filter.max_range_m, 165.0);
+        assert_eq!(d.settings.detector.max_range_m, 165.0);
+    }
+}
