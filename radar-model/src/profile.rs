@@ -536,14 +536,24 @@ pub fn select(named: Option<&str>, announced: &Announced) -> Result<Choice, Unkn
     })
 }
 
-/// The profile of the simulator's radar announcing `announced`, unless `named`: its
-/// CTS350-X-like unit is [`SIM_CTS350X`] (declared by the simulator), any other is chosen as
-/// a real radar's would be.
-pub fn simulated(named: Option<&str>, announced: &Announced) -> Result<Choice, UnknownModel> {
+/// The profile of the simulator's radar announcing `announced`, unless `named`. Its
+/// CTS350-X-like unit rendering ideal points is [`SIM_CTS350X`]; rendering a realistic scene
+/// (`realistic`: extended returns, speckle, the receiver fitted to the Oxford scans) it is a
+/// [`CTS350X`]; both declared by the simulator. Any other unit is chosen as a real radar's
+/// would be.
+pub fn simulated(
+    named: Option<&str>,
+    announced: &Announced,
+    realistic: bool,
+) -> Result<Choice, UnknownModel> {
     if named.is_none() && SIM_CTS350X.differences(announced).is_empty() {
         return Ok(Choice {
-            profile: &SIM_CTS350X,
-            how: Chosen::Declared("the embedded simulator"),
+            profile: if realistic { &CTS350X } else { &SIM_CTS350X },
+            how: Chosen::Declared(if realistic {
+                "the embedded simulator (realistic rendering)"
+            } else {
+                "the embedded simulator (point returns)"
+            }),
         });
     }
     select(named, announced)

@@ -95,6 +95,7 @@ pub fn embedded_settings(
     let choice = radar_model::profile::simulated(
         recipe.config.radar.model.as_deref(),
         &scene_announced(scene),
+        scene.realism.is_some(),
     )
     .map_err(crate::pipeline::settings::SettingsError::from)?;
     Ok(recipe.derive(choice, embedded_facts(scene, keep_compensation))?)

@@ -368,7 +368,11 @@ impl PipelineSettings {
         let (effective, overridden) =
             effective_config(c, written, profile, facts.no_radar_odometry)?;
         let mut s = Self::from_config(&effective)?;
-        s.filter.confirm_min_separation_s = profile.landmarks.value.confirm_min_separation_s;
+        // A setting with no key of its own: the profile's, unless the configuration was
+        // built in code (whose values, and the library's defaults, win everywhere).
+        if let Written::Keys(_) = written {
+            s.filter.confirm_min_separation_s = profile.landmarks.value.confirm_min_separation_s;
+        }
         let s = s.with_facts(facts);
         Ok(Derived {
             settings: s,
