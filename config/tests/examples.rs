@@ -287,3 +287,42 @@ fn non_contoured_data_is_requested_with_message_140() {
     let c = Config::from_toml_str("[radar]\nnon_contoured = true\n").unwrap();
     assert_eq!(c.radar.start_fft_message_id(), 140);
 }
+
+/// The reference file spells out every key: each key the defaults write is written in
+/// `sim.toml` with its default value, and each key without a default (an optional one) is
+/// named there in a comment (`# key = ...`).
+#[test]
+fn the_sim_example_writes_every_key() {
+    let defaults = RawConfig::default().to_toml_string().unwrap();
+    let every = config::written_keys(&defaults);
+    let written = config::written_keys(examples::SIM);
+    let missing: Vec<&String> = every.difference(&written).collect();
+    assert!(
+        missing.is_empty(),
+        "sim.toml does not write these keys: {missing:?}"
+    );
+    // The optional keys: the raw settings' fields that serialise to nothing by default.
+    let mut optional = Vec::new();
+    for (section, keys) in [
+        ("radar", &["tcp_keepalive_s", "record_path", "model"][..]),
+        ("detector", &["pfa", "threshold_db", "os_rank"][..]),
+        ("model", &["compensation_table"][..]),
+        ("odometry", &["path", "wheelbase_m", "topic", "message"][..]),
+    ] {
+        for key in keys {
+            let named = examples::SIM.lines().any(|l| {
+                l.trim_start()
+                    .trim_start_matches('#')
+                    .trim_start()
+                    .starts_with(&format!("{key} ="))
+            });
+            if !named {
+                optional.push(format!("{section}.{key}"));
+            }
+        }
+    }
+    assert!(
+        optional.is_empty(),
+        "sim.toml does not name these optional keys: {optional:?}"
+    );
+}

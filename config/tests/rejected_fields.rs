@@ -185,6 +185,14 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[submaps]\nmax_rival_ratio = 1.0", "submaps.max_rival_ratio", "got 1"),
     ("[submaps]\nmax_rival_ratio = 0.0", "submaps.max_rival_ratio", "got 0"),
     ("[submaps]\nsearch_sigmas = 0.0", "submaps.search_sigmas", "got 0"),
+    // the learned front end and the radar's model
+    ("[detector]\nfloor_sigma = 0.0", "detector.floor_sigma", "got 0"),
+    ("[detector]\nfloor_min_snr_db = -1.0", "detector.floor_min_snr_db", "got -1"),
+    ("[detector]\npoint_max_extent_m = 0.0", "detector.point_max_extent_m", "got 0"),
+    ("[detector]\npoint_max_width_beams = -1.0", "detector.point_max_width_beams", "got -1"),
+    ("[detector]\npoint_min_snr_db = -3.0", "detector.point_min_snr_db", "got -3"),
+    ("[radar]\nmodel = \"cts 350\"", "radar.model", "must be a radar model's name"),
+    ("[radar]\nmodel = \"\"", "radar.model", "must not be empty"),
 ];
 
 /// Keys whose every parseable value is valid (booleans and choices; a misspelt choice is a
@@ -199,6 +207,8 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "odometry.motion_model",
     "odometry.radar_odometry",
     "odometry.speed_scale_from_landmarks",
+    "detector.points_only",
+    "detector.extended_reobserve",
     "sim.pacing",
     "sim.radar_preset",
     "sim.faults.no_keepalive",
