@@ -141,11 +141,16 @@ fn main() -> ExitCode {
 
 fn run(args: Args) -> anyhow::Result<()> {
     if args.radar_profiles {
+        use std::io::Write;
+        let mut out = std::io::stdout().lock();
         for p in radar_model::profile::PROFILES
             .into_iter()
             .chain(radar_model::profile::SIMULATED)
         {
-            println!("{p}");
+            // A closed pipe (`| head`) ends the listing, not the process with a panic.
+            if writeln!(out, "{p}").is_err() {
+                break;
+            }
         }
         return Ok(());
     }

@@ -424,7 +424,10 @@ impl PipelineSettings {
         }
         // The measured default detector is the base; the profile's front end (its kind, its
         // learned floor, its landmark thresholds) and the configuration's keys stand on it.
-        if let Some(base) = facts.detector {
+        if let Some(base) = facts
+            .detector
+            .filter(|_| s.detector.kind == crate::detect::DetectorKind::Tpp)
+        {
             let chosen = s.detector;
             s.detector = DetectorSettings {
                 kind: chosen.kind,
