@@ -25,7 +25,7 @@ pub fn shipped_settings() -> Result<PipelineSettings, EvalError> {
 }
 
 /// The settings the evaluation runs the daemon's pipeline with on `scene`: the daemon's own
-/// adjustment to a simulated scene (`embedded_settings`: motion model, the receiver's
+/// adjustment to a simulated scene (`embedded_facts`: motion model, the receiver's
 /// compensation, beam, bins, start pose), then the two things the evaluation sets on
 /// purpose: the filter's odometry noise matched to the simulator's odometry, and a small
 /// initial pose uncertainty. A test (`tests/settings.rs`) holds them to the daemon's.

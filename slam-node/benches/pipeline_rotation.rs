@@ -9,7 +9,7 @@
 //! frames it sends; only `Pipeline::process_azimuth` is timed.
 //!
 //! The CTS350-X-like unit runs twice: with the paper's TPP detector, and through the front
-//! end for current units (`slam_node::daemon::replay::recorded_settings_for`).
+//! end for current units (the CTS350-X radar profile, `radar_model::profile::CTS350X`).
 //!
 //! Run: `cargo bench -p slam-node --bench pipeline_rotation` (one unit: add `-- current`).
 
