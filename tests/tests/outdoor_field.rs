@@ -94,6 +94,7 @@ async fn consistency(use_power: bool, seeds: std::ops::RangeInclusive<u64>) -> V
 const NEES_UPPER_5_RUNS: f64 = 5.50;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "five end-to-end runs: run by hand, README.md 'Tests'"]
 async fn over_five_seeds_range_bearing_slam_is_consistent() {
     let runs = consistency(false, 1..=5).await;
     let mean = runs.iter().map(|r| r.1).sum::<f64>() / runs.len() as f64;
@@ -102,6 +103,7 @@ async fn over_five_seeds_range_bearing_slam_is_consistent() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "five end-to-end runs: run by hand, README.md 'Tests'"]
 async fn over_five_seeds_the_paper_filter_with_power_is_consistent() {
     let runs = consistency(true, 1..=5).await;
     let mean = runs.iter().map(|r| r.1).sum::<f64>() / runs.len() as f64;
