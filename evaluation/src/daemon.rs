@@ -89,6 +89,8 @@ pub fn run_daemon(
     let mut frame = BytesMut::new();
     let mut decoder = FrameDecoder::new();
     let mut events = Vec::new();
+    let mut numbering = radar_driver::RotationAssembler::new();
+    numbering.set_counting_only(true);
     let mut next_odometry = 0u64;
     let mut rotations = Vec::new();
     let mut work_s = 0.0;
@@ -112,11 +114,9 @@ pub fn run_daemon(
                 "the simulator's frame was not FFT data".into(),
             ));
         };
-        let az = Azimuth {
-            // As the driver numbers rotations.
-            rotation: index / n,
-            ..Azimuth::from_fft(fft, Arc::clone(&geometry))
-        };
+        // Rotations numbered by the driver's own numbering.
+        let mut az = Azimuth::from_fft(fft, Arc::clone(&geometry));
+        numbering.number(&mut az);
         let clock = Instant::now();
         events.clear();
         pipeline

@@ -122,6 +122,15 @@ impl RotationAssembler {
         report
     }
 
+    /// Numbers `azimuth` with its rotation (as [`RotationAssembler::push`] does) without
+    /// holding it: the one place rotations are numbered, for azimuths that reach the daemon
+    /// another way than the driver's session (a recording's replay, the evaluation).
+    pub fn number(&mut self, azimuth: &mut Azimuth) -> PushReport {
+        let report = self.count(azimuth);
+        azimuth.rotation = report.rotation;
+        report
+    }
+
     /// Counts an azimuth that is not held (the driver's byte budget refused it): numbered
     /// and counted as [`RotationAssembler::push`] does, but missing from its rotation
     /// ([`Rotation::dropped_azimuths`]).

@@ -174,6 +174,8 @@ pub fn track(
         .map_err(|e| EvalError::Setting(format!("pipeline: {e}")))?;
     let mut result = TrackResult::default();
     let mut events = Vec::new();
+    let mut numbering = radar_driver::RotationAssembler::new();
+    numbering.set_counting_only(true);
     let mut next_odo = 0;
     let mut next_scan = 0;
     let mut record = |pipeline: &Pipeline, k: usize| {
@@ -189,11 +191,8 @@ pub fn track(
             ));
         }
     };
-    let rows = scans
-        .iter()
-        .enumerate()
-        .flat_map(|(k, s)| s.scan.rows.iter().map(move |r| (k as u64, r)));
-    for (sweep, (scan, row)) in rows.enumerate() {
+    let rows = scans.iter().flat_map(|s| s.scan.rows.iter());
+    for (sweep, row) in rows.enumerate() {
         while times.get(next_scan).is_some_and(|&t| t <= row.timestamp_s) {
             record(&pipeline, next_scan);
             next_scan += 1;
@@ -207,7 +206,7 @@ pub fn track(
         }
         let bearing = row.bearing_rad.rem_euclid(std::f64::consts::TAU);
         let encoder = (bearing * ENCODER_SIZE / std::f64::consts::TAU).round() as u16;
-        let azimuth = Azimuth {
+        let mut azimuth = Azimuth {
             encoder: encoder % ENCODER_SIZE as u16,
             angle_rad: bearing,
             timestamp_s: row.timestamp_s,
@@ -220,8 +219,10 @@ pub fn track(
                     .collect::<Vec<u8>>(),
             ),
             geometry: Arc::clone(&geometry),
-            rotation: scan,
+            rotation: 0,
         };
+        // Rotations numbered by the driver's own numbering.
+        numbering.number(&mut azimuth);
         pipeline
             .process_azimuth(&azimuth, &mut events)
             .map_err(|e| EvalError::Setting(format!("pipeline: {e}")))?;

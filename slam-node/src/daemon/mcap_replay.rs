@@ -201,8 +201,10 @@ struct Reader {
     pending: VecDeque<(f64, Vec<Azimuth>)>,
     pending_bytes: usize,
     latest_odometry_s: f64,
-    rotation: u64,
-    last_fft_encoder: Option<u16>,
+    /// Numbers the azimuths' rotations as the radar driver does.
+    numbering: radar_driver::RotationAssembler,
+    /// The next sweep counter given to a B-scan's rows.
+    next_sweep: u16,
     counts: McapReplayCounts,
     closed: bool,
     odometry_closed: bool,
@@ -225,8 +227,12 @@ impl Reader {
             pending: VecDeque::new(),
             pending_bytes: 0,
             latest_odometry_s: f64::NEG_INFINITY,
-            rotation: 0,
-            last_fft_encoder: None,
+            numbering: {
+                let mut a = radar_driver::RotationAssembler::new();
+                a.set_counting_only(true);
+                a
+            },
+            next_sweep: 0,
             counts: McapReplayCounts::default(),
             closed: false,
             odometry_closed: false,
@@ -427,8 +433,6 @@ impl Reader {
                 ..(*geometry).clone()
             })
         };
-        let rotation = self.rotation;
-        self.rotation += 1;
         let data = Bytes::from(m.b_scan_img.data);
         let mut group = Vec::with_capacity(rows);
         let mut end_s = f64::NEG_INFINITY;
@@ -438,16 +442,20 @@ impl Reader {
             }
             let timestamp_s = Time::from_nanos(ns).as_secs_f64();
             end_s = end_s.max(timestamp_s);
-            group.push(Azimuth {
+            let mut az = Azimuth {
                 encoder,
                 angle_rad: geometry.azimuth_rad(encoder),
                 timestamp_s,
-                sweep_counter: 0,
+                // A B-scan carries no sweep counters: numbered in order, as the radar does.
+                sweep_counter: self.next_sweep,
                 width,
                 bins: data.slice(row * step..row * step + row_bytes),
                 geometry: Arc::clone(&geometry),
-                rotation,
-            });
+                rotation: 0,
+            };
+            self.next_sweep = self.next_sweep.wrapping_add(1);
+            self.numbering.number(&mut az);
+            group.push(az);
         }
         self.counts.rotations += 1;
         self.hold(end_s, group);
@@ -468,10 +476,6 @@ impl Reader {
         } else {
             (BinWidth::Eight, n.min(m.data.len()))
         };
-        if self.last_fft_encoder.is_some_and(|last| m.azimuth <= last) {
-            self.rotation += 1;
-        }
-        self.last_fft_encoder = Some(m.azimuth);
         let timestamp_s = Duration::new(
             u64::from(m.ntp_seconds),
             m.ntp_split_seconds.min(999_999_999),
@@ -479,7 +483,7 @@ impl Reader {
         .as_secs_f64();
         let mut data = m.data;
         data.truncate(bytes);
-        let az = Azimuth {
+        let mut az = Azimuth {
             encoder: m.azimuth,
             angle_rad: geometry.azimuth_rad(m.azimuth),
             timestamp_s,
@@ -487,8 +491,9 @@ impl Reader {
             width,
             bins: Bytes::from(data),
             geometry,
-            rotation: self.rotation,
+            rotation: 0,
         };
+        self.numbering.number(&mut az);
         self.hold(timestamp_s, vec![az]);
     }
 
