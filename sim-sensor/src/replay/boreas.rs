@@ -18,7 +18,8 @@ use std::path::Path;
 
 use radar_model::geometry::Pose2;
 
-use super::truth::{read_text, relative_to_first, TruthError};
+use super::files::FileKind;
+use super::truth::{check_span, read_text, relative_to_first, TruthError};
 
 /// Fields a row has at least.
 pub const FIELDS: usize = 13;
@@ -77,7 +78,7 @@ pub fn x_axis_heading(roll: f64, pitch: f64, yaw: f64) -> Option<f64> {
 /// A file that cannot be read; a row with fewer than 13 fields, a field that is not a finite
 /// number, a time that is not an integer or does not increase; each names the row.
 pub fn read_radar_poses(path: &Path) -> Result<Vec<EnuPose>, TruthError> {
-    let text = read_text(path)?;
+    let text = read_text(path, FileKind::GroundTruth)?;
     let mut out: Vec<EnuPose> = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let row = i + 1;
@@ -131,12 +132,14 @@ pub fn read_radar_poses(path: &Path) -> Result<Vec<EnuPose>, TruthError> {
 /// row with its exact time (rows for other times are ignored).
 ///
 /// # Errors
-/// [`TruthError::NoPose`] naming the first scan without a row.
+/// [`TruthError::TooLong`] when the scans span more than
+/// [`super::truth::MAX_SPAN_US`]; [`TruthError::NoPose`] naming the first scan without a row.
 pub fn boreas_poses(
     path: &Path,
     rows: &[EnuPose],
     scan_times_us: &[i64],
 ) -> Result<Vec<Pose2>, TruthError> {
+    check_span(path, scan_times_us)?;
     let mut world = Vec::with_capacity(scan_times_us.len());
     let (agree, moving) = heading_agreement(rows);
     if moving > 0 && 2 * agree < moving {

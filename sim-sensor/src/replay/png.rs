@@ -16,6 +16,7 @@ use std::path::Path;
 
 use protocol::Timestamp;
 
+use super::files::{read_bounded, FileKind};
 use crate::error::ReplayError;
 
 /// Columns before the bins.
@@ -134,12 +135,14 @@ pub fn decode_polar_png(bytes: &[u8], path: &Path) -> Result<PolarScan, ReplayEr
     })
 }
 
-/// Reads and decodes one polar PNG file.
+/// Reads and decodes one polar PNG file: a regular file of at most
+/// [`super::files::MAX_SCAN_BYTES`] ([`read_bounded`]).
+///
+/// # Errors
+/// A file that is not a regular file ([`super::files::not_a_regular_file`]), is too large
+/// ([`ReplayError::TooLarge`]), cannot be read, or does not decode as a polar scan.
 pub fn read_polar_png(path: &Path) -> Result<PolarScan, ReplayError> {
-    let bytes = std::fs::read(path).map_err(|source| ReplayError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = read_bounded(path, FileKind::Scan)?;
     decode_polar_png(&bytes, path)
 }
 

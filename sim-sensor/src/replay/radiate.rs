@@ -31,9 +31,10 @@ use std::path::{Path, PathBuf};
 
 use radar_model::geometry::{wrap_angle, Pose2};
 
+use super::files::{read_bounded, read_bounded_text, FileKind};
 use super::png::{PolarRow, PolarScan, MAX_IMAGE_BYTES};
-use super::scans::{ScanFile, ENCODER_SIZE, MAX_INDEX_BYTES};
-use super::truth::{read_text, relative_to_first, TruthError};
+use super::scans::{ScanFile, ENCODER_SIZE};
+use super::truth::{check_span, read_text, relative_to_first, TruthError};
 use crate::error::ReplayError;
 
 /// Below this speed (m/s) the course over ground is not a heading; the last one is held.
@@ -81,22 +82,12 @@ fn parse_index_line(line: &str) -> Result<(u32, i64), String> {
 /// must increase.
 ///
 /// # Errors
-/// An index that cannot be read or is too large, a row that does not parse or names a scan
-/// that is not there, a time that does not increase: each names the index and the row.
+/// An index that cannot be read, is not a regular file or is larger than
+/// [`super::files::MAX_INDEX_BYTES`], a row that does not parse or names a scan that is not
+/// there or not a regular file, a time that does not increase: each names the index and the
+/// row.
 pub fn read_scan_index(index: &Path, scan_dir: &Path) -> Result<Vec<ScanFile>, ReplayError> {
-    let io = |source| ReplayError::Io {
-        path: index.to_path_buf(),
-        source,
-    };
-    let bytes = std::fs::metadata(index).map_err(io)?.len();
-    if bytes > MAX_INDEX_BYTES {
-        return Err(ReplayError::TooLarge {
-            path: index.to_path_buf(),
-            bytes,
-            limit: MAX_INDEX_BYTES,
-        });
-    }
-    let text = std::fs::read_to_string(index).map_err(io)?;
+    let text = read_bounded_text(index, FileKind::ScanIndex)?;
     let mut files: Vec<ScanFile> = Vec::new();
     for (i, line) in text.lines().enumerate() {
         if line.trim().is_empty() {
@@ -111,7 +102,12 @@ pub fn read_scan_index(index: &Path, scan_dir: &Path) -> Result<Vec<ScanFile>, R
         let (frame, time_us) = parse_index_line(line).map_err(bad)?;
         let path = scan_dir.join(format!("{frame:06}.png"));
         if !path.is_file() {
-            return Err(bad(format!("its scan {} is not there", path.display())));
+            let reason = if path.exists() {
+                "is not a regular file"
+            } else {
+                "is not there"
+            };
+            return Err(bad(format!("its scan {} {reason}", path.display())));
         }
         if let Some(prev) = files.last() {
             if time_us <= prev.time_us {
@@ -212,15 +208,14 @@ pub fn decode_radiate_png(
     Ok(PolarScan { rows, bins })
 }
 
-/// Reads and decodes one RADIATE scan ([`decode_radiate_png`]).
+/// Reads and decodes one RADIATE scan ([`decode_radiate_png`]): a regular file of at most
+/// [`super::files::MAX_SCAN_BYTES`].
 ///
 /// # Errors
-/// As [`decode_radiate_png`], or the file cannot be read.
+/// As [`decode_radiate_png`], or the file cannot be read, is not a regular file or is too
+/// large.
 pub fn read_radiate_png(file: &ScanFile) -> Result<PolarScan, ReplayError> {
-    let bytes = std::fs::read(&file.path).map_err(|source| ReplayError::Io {
-        path: file.path.clone(),
-        source,
-    })?;
+    let bytes = read_bounded(&file.path, FileKind::Scan)?;
     decode_radiate_png(&bytes, &file.path, file.time_us, file.period_us)
 }
 
@@ -245,7 +240,7 @@ pub struct GpsFix {
 /// # Errors
 /// A file that cannot be read, a row that does not parse, a time that goes back.
 pub fn read_gps_index(path: &Path) -> Result<Vec<(usize, u32, i64)>, TruthError> {
-    let text = read_text(path)?;
+    let text = read_text(path, FileKind::GroundTruth)?;
     let mut out: Vec<(usize, u32, i64)> = Vec::new();
     for (i, line) in text.lines().enumerate() {
         if line.trim().is_empty() {
@@ -279,7 +274,7 @@ pub fn read_gps_index(path: &Path) -> Result<Vec<(usize, u32, i64)>, TruthError>
 /// A file that cannot be read, fewer than 17 lines, a field that is not a finite number;
 /// each names the file and line.
 pub fn read_gps_fix(path: &Path, time_us: i64) -> Result<GpsFix, TruthError> {
-    let text = read_text(path)?;
+    let text = read_text(path, FileKind::GpsRecord)?;
     let lines: Vec<&str> = text.lines().collect();
     let fields = |line: usize, want: usize| -> Result<Vec<f64>, TruthError> {
         let bad = |reason: String| TruthError::Row {
@@ -341,18 +336,22 @@ pub fn local_east_north(origin: &GpsFix, fix: &GpsFix) -> (f64, f64) {
 /// `dir/GPS_IMU_Twist.txt` and the fixes it names within a second of the scans.
 ///
 /// # Errors
-/// The index or a fix file cannot be read or parsed, times go back, or a scan has no fix
-/// within [`MAX_GPS_GAP_US`] on both sides.
+/// The scans span more than [`super::truth::MAX_SPAN_US`], the index or a fix file cannot
+/// be read or parsed, times go back, or a scan has no fix within [`MAX_GPS_GAP_US`] on both
+/// sides.
 pub fn radiate_poses(dir: &Path, scan_times_us: &[i64]) -> Result<Vec<Pose2>, TruthError> {
     let index = dir.join("GPS_IMU_Twist.txt");
     let fix_dir = dir.join("GPS_IMU_Twist");
+    check_span(&index, scan_times_us)?;
     let rows = read_gps_index(&index)?;
     let (Some(&first), Some(&last)) = (scan_times_us.first(), scan_times_us.last()) else {
         return Ok(Vec::new());
     };
     let mut fixes: Vec<GpsFix> = Vec::new();
     for &(_, frame, time_us) in &rows {
-        if time_us < first - MAX_GPS_GAP_US || time_us > last + MAX_GPS_GAP_US {
+        if time_us < first.saturating_sub(MAX_GPS_GAP_US)
+            || time_us > last.saturating_add(MAX_GPS_GAP_US)
+        {
             continue;
         }
         let path: PathBuf = fix_dir.join(format!("{frame:06}.txt"));

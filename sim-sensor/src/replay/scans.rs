@@ -16,8 +16,7 @@ use super::png::{read_polar_png, PolarScan};
 use super::radiate;
 use crate::error::ReplayError;
 
-/// Largest scan index file read (bytes).
-pub const MAX_INDEX_BYTES: u64 = 1 << 26;
+pub use super::files::MAX_INDEX_BYTES;
 /// Rotation rate announced when a recording has a single scan (a CTS350-X's and a
 /// CIR204-H's 4 Hz), millihertz.
 pub const NOMINAL_ROTATION_MHZ: u16 = 4000;
@@ -123,7 +122,7 @@ impl ScanSet {
 fn median_interval_us(files: &[ScanFile]) -> Option<i64> {
     let mut d: Vec<i64> = files
         .windows(2)
-        .map(|w| w[1].time_us - w[0].time_us)
+        .map(|w| w[1].time_us.saturating_sub(w[0].time_us))
         .collect();
     if d.is_empty() {
         return None;
@@ -150,12 +149,15 @@ fn set_periods(files: &mut [ScanFile], from_previous: bool) {
             ) else {
                 return None;
             };
-            other.map(|o| (o.time_us - this.time_us).abs())
+            other.map(|o| o.time_us.saturating_sub(this.time_us).saturating_abs())
         })
         .collect();
+    // In i128: an interval of centuries (a scan named 9000000000000000000) must not
+    // overflow the comparison.
+    let (wide_median, wide) = (i128::from(median), |d: i64| 2 * i128::from(d));
     for (file, interval) in files.iter_mut().zip(neighbour) {
         file.period_us = match interval {
-            Some(d) if 2 * d >= median && 2 * d <= 3 * median => d,
+            Some(d) if wide(d) >= wide_median && wide(d) <= 3 * wide_median => d,
             _ => median,
         };
     }

@@ -6,14 +6,24 @@
 //! are the middle of each scan's rotation (about 126 ms after the scan's name, its first
 //! azimuth), as the data set's SDK interpolates them: [`chain_pose_times`].
 //! Boreas ([`super::boreas`]) and RADIATE ([`super::radiate`]) give absolute poses, which
-//! [`relative_to_first`] puts in the same frame. No IO beyond reading the files named.
+//! [`relative_to_first`] puts in the same frame. No IO beyond reading the files named, each
+//! through [`super::files`] (regular files only, at most [`MAX_TRUTH_BYTES`] each).
+//!
+//! The ground truth of one recording spans at most [`MAX_SPAN_US`] (a day): the odometry
+//! made from it has a sample every 50 ms over its span, so a span of centuries (one row or
+//! one scan named `9000000000000000000`) is refused by name ([`TruthError::TooLong`]) rather
+//! than made into samples.
 
 use std::path::{Path, PathBuf};
 
 use radar_model::geometry::{wrap_angle, Pose2};
 
-/// Largest ground-truth file read (bytes).
-pub const MAX_TRUTH_BYTES: u64 = 1 << 26;
+pub use super::files::MAX_TRUTH_BYTES;
+use super::files::{read_bounded_text, FileKind};
+
+/// Longest span of a recording's ground truth, first pose to last (µs): a day. The data
+/// sets' sequences last minutes (Oxford, RADIATE) to an hour or so (Boreas).
+pub const MAX_SPAN_US: i64 = 86_400 * 1_000_000;
 
 /// Why the ground truth could not be read.
 #[derive(Debug, thiserror::Error)]
@@ -27,13 +37,39 @@ pub enum TruthError {
         #[source]
         source: std::io::Error,
     },
-    /// The file is larger than [`MAX_TRUTH_BYTES`].
-    #[error("{path}: {bytes} bytes is larger than the {MAX_TRUTH_BYTES} read")]
+    /// The file is larger than its kind's limit ([`MAX_TRUTH_BYTES`], or
+    /// [`super::files::MAX_GPS_RECORD_BYTES`] for one GPS record).
+    #[error("{path}: {bytes} bytes is larger than the {limit} read")]
     TooLarge {
         /// The file.
         path: PathBuf,
-        /// Its size.
+        /// Its size (at least this many when it grew while being read).
         bytes: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// The path names something other than a regular file, after following symlinks (a
+    /// FIFO, a device such as `/dev/zero`, a directory): refused before it is opened.
+    #[error(
+        "{path}: not a regular file but {what}; ground truth must be read from a regular file"
+    )]
+    NotRegularFile {
+        /// The file.
+        path: PathBuf,
+        /// What it is: "a FIFO", "a character device", "a directory"...
+        what: &'static str,
+    },
+    /// Poses spanning more than [`MAX_SPAN_US`].
+    #[error("{path}{}: the ground truth would span from {first_us} us to {last_us} us, more than the {} s (a day) a recording may", row.map(|r| format!(", row {r}")).unwrap_or_default(), MAX_SPAN_US / 1_000_000)]
+    TooLong {
+        /// The file.
+        path: PathBuf,
+        /// The 1-based line number of the row that goes past the limit, where one does.
+        row: Option<usize>,
+        /// The first pose's time (µs).
+        first_us: i64,
+        /// The time past the limit (µs).
+        last_us: i64,
     },
     /// A row that does not parse.
     #[error("{path}, row {row}: {reason}")]
@@ -127,25 +163,40 @@ pub fn relative_to_first(world: &[Pose2]) -> Vec<Pose2> {
     world.iter().map(|p| between(&first, p)).collect()
 }
 
-/// Reads a ground-truth file of at most [`MAX_TRUTH_BYTES`].
-pub(crate) fn read_text(path: &Path) -> Result<String, TruthError> {
-    let io = |source| TruthError::Io {
-        path: path.to_path_buf(),
-        source,
+/// Reads a ground-truth file of `kind` ([`FileKind::GroundTruth`] or
+/// [`FileKind::GpsRecord`]): a regular file within the kind's limit ([`super::files`]).
+pub(crate) fn read_text(path: &Path, kind: FileKind) -> Result<String, TruthError> {
+    Ok(read_bounded_text(path, kind)?)
+}
+
+/// Whether `last_us` is within [`MAX_SPAN_US`] of `first_us`.
+fn within_span(first_us: i64, last_us: i64) -> bool {
+    (i128::from(last_us) - i128::from(first_us)).abs() <= i128::from(MAX_SPAN_US)
+}
+
+/// Refuses increasing times `times_us` (the poses' times) that span more than
+/// [`MAX_SPAN_US`], naming `path`.
+///
+/// # Errors
+/// [`TruthError::TooLong`] with the first time and the first one past the limit.
+pub fn check_span(path: &Path, times_us: &[i64]) -> Result<(), TruthError> {
+    let Some(&first_us) = times_us.first() else {
+        return Ok(());
     };
-    let bytes = std::fs::metadata(path).map_err(io)?.len();
-    if bytes > MAX_TRUTH_BYTES {
-        return Err(TruthError::TooLarge {
+    match times_us.iter().find(|&&t| !within_span(first_us, t)) {
+        Some(&last_us) => Err(TruthError::TooLong {
             path: path.to_path_buf(),
-            bytes,
-        });
+            row: None,
+            first_us,
+            last_us,
+        }),
+        None => Ok(()),
     }
-    std::fs::read_to_string(path).map_err(io)
 }
 
 /// Parses `radar_odometry.csv` (header line first; ten comma-separated fields a row).
 pub fn read_oxford_odometry(path: &Path) -> Result<Vec<RelativePose>, TruthError> {
-    let text = read_text(path)?;
+    let text = read_text(path, FileKind::GroundTruth)?;
     let mut out = Vec::new();
     for (i, line) in text.lines().enumerate().skip(1) {
         if line.trim().is_empty() {
@@ -220,7 +271,8 @@ fn link<'a>(
 /// The times (µs) at which the poses of [`chain_poses`] hold: each row's own
 /// `destination_timestamp` for the first scan and `source_timestamp` for the others (the
 /// middle of each rotation, where the data set's radar odometry places its poses). A time
-/// that does not increase is refused by row.
+/// that does not increase, or is more than [`MAX_SPAN_US`] after the first, is refused by
+/// row.
 pub fn chain_pose_times(
     path: &Path,
     rows: &[RelativePose],
@@ -240,6 +292,16 @@ pub fn chain_pose_times(
                 earlier_us: earlier.max(rel.destination_pose_us),
                 later_us: rel.source_pose_us,
             });
+        }
+        if let Some(&first_us) = times.first() {
+            if !within_span(first_us, rel.source_pose_us) {
+                return Err(TruthError::TooLong {
+                    path: path.to_path_buf(),
+                    row: Some(rel.line),
+                    first_us,
+                    last_us: rel.source_pose_us,
+                });
+            }
         }
         times.push(rel.source_pose_us);
     }

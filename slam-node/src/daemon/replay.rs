@@ -191,7 +191,19 @@ impl RecordedTruth {
 
     /// Odometry made from the ground truth with `errors`: samples at [`ODOMETRY_HZ`] from
     /// half a scan before the first scan to the last, bicycle steering from the yaw rate.
+    ///
+    /// At most a day and a half of samples (2,592,001 at 20 Hz, 62 MB): the span of the
+    /// ground truth the readers accept is at most
+    /// [`sim_sensor::replay::truth::MAX_SPAN_US`] (a day, refused by name beyond), and the
+    /// odometry starts at most half a span before it, so a truth read from a recording is
+    /// never cut short. Truth made otherwise ([`RecordedTruth::from_poses`]) that spans
+    /// longer gets that many samples from its start, with a WARN; truth whose times are not
+    /// finite gets none. Nothing is allocated from the span before it is bounded.
     pub fn odometry(&self, errors: &OdometryErrors) -> Vec<OdometrySample> {
+        const MAX_SPAN_S: f64 = sim_sensor::replay::truth::MAX_SPAN_US as f64 * 1e-6;
+        // A day and a half of samples (the span's limit, and half of it before the first
+        // scan), plus the one at the start.
+        let max_samples = (MAX_SPAN_S * 1.5 * ODOMETRY_HZ) as usize + 1;
         let mut rng = ChaCha8Rng::seed_from_u64(errors.seed);
         let speed_noise = Normal::new(0.0, errors.sigma_speed_mps.max(0.0)).ok();
         let yaw_noise = Normal::new(0.0, errors.sigma_yaw_rate_rps.max(0.0)).ok();
@@ -200,7 +212,27 @@ impl RecordedTruth {
             return Vec::new();
         };
         let start = first - 0.5 * (self.times_s.get(1).copied().unwrap_or(first) - first);
-        let steps = ((last - start) * ODOMETRY_HZ).floor() as usize;
+        let span_s = last - start;
+        if !start.is_finite() || !span_s.is_finite() {
+            tracing::warn!(
+                first_s = first,
+                last_s = last,
+                "the ground truth's times are not finite: no odometry made from it"
+            );
+            return Vec::new();
+        }
+        // Samples after the first: at least 0, at most `max_samples - 1` (a float past
+        // usize's range saturates before the bound is applied).
+        let wanted = (span_s * ODOMETRY_HZ).floor().max(0.0);
+        let steps = (wanted as usize).min(max_samples - 1);
+        if wanted > steps as f64 {
+            tracing::warn!(
+                span_s,
+                samples = max_samples,
+                "the ground truth spans longer than a day and a half: the odometry stops after its first {} s",
+                (max_samples - 1) as f64 / ODOMETRY_HZ
+            );
+        }
         let mut out = Vec::with_capacity(steps + 1);
         for i in 0..=steps {
             let t = start + i as f64 / ODOMETRY_HZ;
@@ -439,5 +471,69 @@ mod tests {
         std::fs::write(named.path().join("radar").join("scan-a.png"), b"").unwrap();
         let err = RecordedTruth::read_oxford(named.path()).unwrap_err();
         assert!(err.to_string().contains("scan-a.png"), "{err}");
+    }
+
+    /// The error and its causes, as the daemon prints them.
+    fn chain(err: &ReplayError) -> String {
+        let mut text = err.to_string();
+        let mut source = std::error::Error::source(err);
+        while let Some(s) = source {
+            text = format!("{text}: {s}");
+            source = s.source();
+        }
+        text
+    }
+
+    #[test]
+    fn a_scan_or_a_row_centuries_away_is_refused_by_its_row_before_any_odometry() {
+        // One scan named 9000000000000000000.png, linked by its row: the old code made
+        // odometry over 285,000 years of it (1.8e14 samples preallocated: out of memory).
+        const FAR: i64 = 9_000_000_000_000_000_000;
+        let rows = format!(
+            "1375000,1125000,2.0,0,0,0,0,0,1250000,1000000\n{},1375000,2.0,0,0,0,0,0,{FAR},1250000\n",
+            FAR + 125_000
+        );
+        let dir = folder(&[1_000_000, 1_250_000, FAR], &rows);
+        let err = RecordedTruth::read_oxford(dir.path()).unwrap_err();
+        let text = chain(&err);
+        assert!(
+            text.contains("radar_odometry.csv") && text.contains("row 3") && text.contains("a day"),
+            "{text}"
+        );
+        // One row whose pose time is centuries after its scans'.
+        let dir = folder(
+            &[1_000_000, 1_250_000],
+            &format!("{FAR},1125000,2.0,0,0,0,0,0,1250000,1000000\n"),
+        );
+        let text = chain(&RecordedTruth::read_oxford(dir.path()).unwrap_err());
+        assert!(text.contains("row 2") && text.contains("a day"), "{text}");
+    }
+
+    #[test]
+    fn odometry_stops_at_a_day_and_a_half_of_samples_and_a_day_of_truth_is_not_cut() {
+        let errors = OdometryErrors::default();
+        let poses = vec![Pose2::default(), Pose2::new(10.0, 0.0, 0.0)];
+        let max =
+            (sim_sensor::replay::truth::MAX_SPAN_US as f64 * 1e-6 * 1.5 * ODOMETRY_HZ) as usize + 1;
+        assert_eq!(max, 2_592_001);
+        // 32 years (the old code preallocated 2e10 samples, 480 GB: out of memory).
+        let started = std::time::Instant::now();
+        let truth = RecordedTruth::from_poses(vec![0.0, 1e9], poses.clone()).unwrap();
+        let samples = truth.odometry(&errors);
+        assert_eq!(samples.len(), max);
+        assert!(samples.capacity() <= max);
+        // A day, the longest truth the readers accept, from half a day before it: whole.
+        let truth = RecordedTruth::from_poses(vec![0.0, 86_400.0], poses.clone()).unwrap();
+        let samples = truth.odometry(&errors);
+        assert_eq!(samples.len(), max);
+        assert_eq!(samples.last().map(|s| s.timestamp_s), Some(86_400.0));
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(1),
+            "{:?}",
+            started.elapsed()
+        );
+        // Times that are not finite (the old code: usize::MAX steps, an overflow) give none.
+        let truth = RecordedTruth::from_poses(vec![0.0, f64::INFINITY], poses).unwrap();
+        assert!(truth.odometry(&errors).is_empty());
     }
 }
