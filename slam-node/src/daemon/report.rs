@@ -1,8 +1,16 @@
 //! The end-of-run summary and the progress line, as text for a terminal.
 
-use std::fmt::Write as _;
+use std::fmt::{self, Write as _};
 
-use crate::pipeline::{DaemonEkf, PipelineSummary};
+use crate::daemon::mcap_replay::McapReplayCounts;
+#[cfg(feature = "sim")]
+use crate::daemon::replay::ReplayFigures;
+use crate::daemon::zenoh_odometry::ZenohOdometryCounts;
+use crate::output::{LiveSummary, RecordingSummary};
+use crate::pipeline::scan_match::ScanMatchCounts;
+use crate::pipeline::scores::{MapScore, ObservationErrorStats, PoseErrorStats};
+use crate::pipeline::submaps::SubmapSummary;
+use crate::pipeline::{DaemonEkf, PipelineSummary, RunReport};
 
 use super::DaemonReport;
 
@@ -35,41 +43,132 @@ pub fn progress_line(s: &PipelineSummary, ekf: &DaemonEkf) -> String {
     line
 }
 
-/// The summary printed when a run ends.
+/// The summary printed when a run ends: its parts in order, each line only when its part
+/// has something to say.
 pub fn summary_text(r: &DaemonReport) -> String {
     let s = &r.run.summary;
     let mut t = String::new();
-    let scene = r.scene.as_deref().unwrap_or("live radar");
-    let _ = writeln!(
-        t,
-        "slam-node summary ({scene}): {:.1} s of stream in {:.1} s wall",
-        s.stream_s(),
-        r.run.wall_s
-    );
-    let _ = writeln!(
-        t,
-        "  rotations {}, azimuths {} ({} malformed), detections {} ({:.1}/rotation), observations {}, beams to the filter {}",
-        s.rotations,
-        s.azimuths,
-        s.bad_azimuths,
-        s.detections,
-        s.detections as f64 / s.rotations.max(1) as f64,
-        s.observations,
-        s.beams
-    );
+    // Writing into a String cannot fail.
+    let mut put = |part: &dyn fmt::Display| {
+        let _ = write!(t, "{part}");
+    };
+    put(&Header(r));
+    put(&Counts(s));
     if let Some(d) = &r.driver {
-        let _ = writeln!(
-            t,
+        put(&DriverLine(d));
+    }
+    if let Some(p) = &s.pose {
+        put(&PoseError(p));
+    }
+    if let Some(o) = &s.observation_errors {
+        put(&ObservationErrors(o));
+    }
+    match s.map.as_ref().filter(|m| m.scene_features > 0) {
+        Some(m) => {
+            put(&ScoredMap(m));
+            put(&Materials(m));
+            put(&Associations(s));
+        }
+        None => put(&UnscoredMap(s)),
+    }
+    if let Some(c) = &s.odometry_corrections {
+        put(&OdometryCorrections(c));
+    }
+    if let Some(m) = &s.scan_match {
+        put(&RadarOdometry(m));
+    }
+    put(&Spectrum(s));
+    put(&Landmarks(s));
+    if let Some(sm) = &s.submaps {
+        put(&Submaps(sm));
+    }
+    put(&Timing(s));
+    put(&Refusals(&r.run));
+    #[cfg(feature = "sim")]
+    if let Some(rp) = &r.replay {
+        put(&RecordedDrive { drive: rp, s });
+    }
+    put(&InputHealth(s));
+    put(&Outputs(r));
+    if let Some(c) = &r.mcap_replay {
+        put(&McapReplay(c));
+    }
+    if let Some(z) = &r.zenoh_odometry {
+        put(&ZenohOdometry(z));
+    }
+    if let Some(rec) = &r.writer.recording {
+        put(&Recording(rec));
+    }
+    if let Some(e) = &r.writer.recording_error {
+        put(&RecordingStopped(e));
+    }
+    if let Some(live) = &r.writer.live {
+        put(&LivePublishing(live));
+    }
+    t
+}
+
+/// The first line: the scene, the stream's length and the wall time it took.
+struct Header<'a>(&'a DaemonReport);
+
+impl fmt::Display for Header<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let r = self.0;
+        let scene = r.scene.as_deref().unwrap_or("live radar");
+        writeln!(
+            f,
+            "slam-node summary ({scene}): {:.1} s of stream in {:.1} s wall",
+            r.run.summary.stream_s(),
+            r.run.wall_s
+        )
+    }
+}
+
+/// Rotations, azimuths, detections, observations and beams.
+struct Counts<'a>(&'a PipelineSummary);
+
+impl fmt::Display for Counts<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = self.0;
+        writeln!(
+            f,
+            "  rotations {}, azimuths {} ({} malformed), detections {} ({:.1}/rotation), observations {}, beams to the filter {}",
+            s.rotations,
+            s.azimuths,
+            s.bad_azimuths,
+            s.detections,
+            s.detections as f64 / s.rotations.max(1) as f64,
+            s.observations,
+            s.beams
+        )
+    }
+}
+
+/// The radar driver's counters.
+struct DriverLine<'a>(&'a radar_driver::MetricsSnapshot);
+
+impl fmt::Display for DriverLine<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let d = self.0;
+        writeln!(
+            f,
             "  driver: {} azimuths sent, {} dropped (these counts run until the driver stops, after the pipeline), {} reconnects, {} decode errors",
             d.azimuths_sent,
             d.azimuth_drops,
             d.reconnects,
             d.decode_errors.total()
-        );
+        )
     }
-    if let Some(p) = &s.pose {
-        let _ = writeln!(
-            t,
+}
+
+/// The filter's pose against the true pose.
+struct PoseError<'a>(&'a PoseErrorStats);
+
+impl fmt::Display for PoseError<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let p = self.0;
+        writeln!(
+            f,
             "  pose error vs truth: RMS {:.3} m, max {:.3} m, final {:.3} m / {:.2} deg; inside own 3-sigma in {:.1}% of {} rotations; mean NEES {:.2} (3 dof)",
             p.rms_position_m(),
             p.max_position_m,
@@ -78,24 +177,40 @@ pub fn summary_text(r: &DaemonReport) -> String {
             100.0 * p.inside_fraction(),
             p.samples,
             p.nees_sum / p.samples.max(1) as f64
-        );
+        )
     }
-    if let Some(o) = &s.observation_errors {
-        if let (Some((rm, rs)), Some((bm, bs))) = (o.range_m(), o.bearing_rad()) {
-            let _ = writeln!(
-                t,
-                "  associated observations vs true geometry ({}): range {:+.3} +- {:.3} m, bearing {:+.3} +- {:.3} deg (mean +- std)",
-                o.samples,
-                rm,
-                rs,
-                bm.to_degrees(),
-                bs.to_degrees()
-            );
-        }
+}
+
+/// Associated observations against the true geometry; nothing until both range and
+/// bearing have statistics.
+struct ObservationErrors<'a>(&'a ObservationErrorStats);
+
+impl fmt::Display for ObservationErrors<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let o = self.0;
+        let (Some((rm, rs)), Some((bm, bs))) = (o.range_m(), o.bearing_rad()) else {
+            return Ok(());
+        };
+        writeln!(
+            f,
+            "  associated observations vs true geometry ({}): range {:+.3} +- {:.3} m, bearing {:+.3} +- {:.3} deg (mean +- std)",
+            o.samples,
+            rm,
+            rs,
+            bm.to_degrees(),
+            bs.to_degrees()
+        )
     }
-    if let Some(m) = s.map.as_ref().filter(|m| m.scene_features > 0) {
-        let _ = writeln!(
-            t,
+}
+
+/// The map against a scene with true features.
+struct ScoredMap<'a>(&'a MapScore);
+
+impl fmt::Display for ScoredMap<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let m = self.0;
+        writeln!(
+            f,
             "  map: {} features mapped; scene has {} ({} came within range); {} mapped features match {} distinct scene features (mean error {:.2} m); {} unmatched",
             m.mapped,
             m.scene_features,
@@ -104,9 +219,18 @@ pub fn summary_text(r: &DaemonReport) -> String {
             m.distinct_scene_features_matched,
             m.mean_match_error_m,
             m.mapped.saturating_sub(m.matched)
-        );
-        let _ = writeln!(
-            t,
+        )
+    }
+}
+
+/// The mapped features' materials against the true ones.
+struct Materials<'a>(&'a MapScore);
+
+impl fmt::Display for Materials<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let m = self.0;
+        writeln!(
+            f,
             "  materials: mean |rho - true| {:.3} (initial guess {:.3}), mean |alpha - true| {:.3} (initial {:.3}); L {:.2} dB (true {}); rho with the rho/L offset removed: mean error {}",
             m.mean_rho_error,
             m.initial_rho_error,
@@ -115,102 +239,160 @@ pub fn summary_text(r: &DaemonReport) -> String {
             m.loss_db,
             m.true_loss_db.map_or("unknown".into(), |l| format!("{l:.2} dB")),
             m.mean_rho_error_gauge_fixed.map_or("n/a".into(), |e| format!("{e:.3}"))
-        );
-        let _ = writeln!(
-            t,
+        )
+    }
+}
+
+/// Associations to the wrong scene feature and to clutter.
+struct Associations<'a>(&'a PipelineSummary);
+
+impl fmt::Display for Associations<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = self.0;
+        writeln!(
+            f,
             "  associations {}: {} to the wrong scene feature ({:.2}%), {} of clutter",
             s.associations,
             s.association_errors,
             100.0 * s.association_errors as f64 / s.associations.max(1) as f64,
             s.clutter_associations
-        );
-    } else {
+        )
+    }
+}
+
+/// The map when there are no true features to compare with.
+struct UnscoredMap<'a>(&'a PipelineSummary);
+
+impl fmt::Display for UnscoredMap<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = self.0;
         let loss = s
             .map
             .as_ref()
             .map_or(String::new(), |m| format!("; L {:.2} dB", m.loss_db));
-        let _ = writeln!(
-            t,
+        writeln!(
+            f,
             "  map: {} features (no true features to compare with); associations {}{loss}",
             s.map_size, s.associations
-        );
+        )
     }
-    if let Some(([k, b], [sk, sb])) = s.odometry_corrections {
-        let _ = writeln!(
-            t,
+}
+
+/// The estimated odometry corrections: `([k, b], [std k, std b])`.
+struct OdometryCorrections<'a>(&'a ([f64; 2], [f64; 2]));
+
+impl fmt::Display for OdometryCorrections<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let &([k, b], [sk, sb]) = self.0;
+        writeln!(
+            f,
             "  odometry corrections estimated: speed x {:.4} +- {:.4} (k {:+.4}), steering offset {:+.4} +- {:.4} rad",
             1.0 + k,
             sk,
             k,
             b,
             sb
-        );
+        )
     }
-    if let Some(m) = s.scan_match {
+}
+
+/// Radar odometry (scan registration), and its error against the true motion when known.
+struct RadarOdometry<'a>(&'a ScanMatchCounts);
+
+impl fmt::Display for RadarOdometry<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let m = self.0;
         let mean_nis = if m.applied > 0 {
             format!("{:.2}", m.nis_sum / m.applied as f64)
         } else {
             "-".to_string()
         };
-        let _ = writeln!(
-            t,
+        writeln!(
+            f,
             "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated",
             m.tried, m.failed, m.applied, m.gated
-        );
+        )?;
         if let Some([x, y, h]) = m.truth_error() {
-            let _ = writeln!(
-                t,
+            writeln!(
+                f,
                 "  radar odometry vs the true motion ({} registrations, mean +- std): x {:+.4} +- {:.4} m, y {:+.4} +- {:.4} m, heading {:+.5} +- {:.5} rad",
                 m.truth_compared, x.0, x.1, y.0, y.1, h.0, h.1
-            );
+            )?;
         }
+        Ok(())
     }
-    let bound = match s.spectrum_bound_db {
-        Some((lo, hi)) => format!("the learned background's 3-sigma bound ({lo:.1}-{hi:.1} dB)"),
-        None => "+-16.35 dB".to_string(),
-    };
-    match (s.spectrum.in_bound_fraction(), s.spectrum.bias_db()) {
-        (Some(f), Some(b)) => {
-            let _ = writeln!(
-                t,
+}
+
+/// The predicted spectrum against the measured one.
+struct Spectrum<'a>(&'a PipelineSummary);
+
+impl fmt::Display for Spectrum<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = self.0;
+        let bound = match s.spectrum_bound_db {
+            Some((lo, hi)) => {
+                format!("the learned background's 3-sigma bound ({lo:.1}-{hi:.1} dB)")
+            }
+            None => "+-16.35 dB".to_string(),
+        };
+        match (s.spectrum.in_bound_fraction(), s.spectrum.bias_db()) {
+            (Some(fr), Some(b)) => writeln!(
+                f,
                 "  spectrum prediction: {:.1}% of {} bins inside {bound} over {} beams with mapped features; bias (predicted - measured) {:+.2} dB{}",
-                100.0 * f,
+                100.0 * fr,
                 s.spectrum.bins,
                 s.spectrum.beams,
                 b,
                 s.learned_gain_db_per_decade
                     .map_or(String::new(), |g| format!("; learned compensation {g:.1} dB/decade"))
-            );
-        }
-        _ => {
-            let _ = writeln!(
-                t,
+            ),
+            _ => writeln!(
+                f,
                 "  spectrum prediction: no beam with a mapped feature compared"
-            );
+            ),
         }
     }
-    if s.features_in_view > 0 || s.extended_returns > 0 {
-        let _ = writeln!(
-            t,
+}
+
+/// Extended returns, re-observation of mapped features and retired features; nothing
+/// when there was no extended return and no mapped feature came into view again.
+struct Landmarks<'a>(&'a PipelineSummary);
+
+impl fmt::Display for Landmarks<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = self.0;
+        if s.features_in_view == 0 && s.extended_returns == 0 {
+            return Ok(());
+        }
+        writeln!(
+            f,
             "  landmarks: {} extended returns kept out of the map ({:.1} per rotation); mapped features re-observed in {:.1}% of the later rotations with them in view ({} of {})",
             s.extended_returns,
             s.extended_returns as f64 / s.rotations.max(1) as f64,
             100.0 * s.features_reobserved as f64 / s.features_in_view.max(1) as f64,
             s.features_reobserved,
             s.features_in_view
-        );
+        )?;
         if s.features_retired_unrepeatable > 0 {
-            let _ = writeln!(
-                t,
+            writeln!(
+                f,
                 "  unrepeatable features retired: {}",
                 s.features_retired_unrepeatable
-            );
+            )?;
         }
+        Ok(())
     }
-    if let Some(sm) = &s.submaps {
+}
+
+/// Submaps and the global layer, and the global trajectory against the truth when scored.
+struct Submaps<'a>(&'a SubmapSummary);
+
+impl fmt::Display for Submaps<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let sm = self.0;
         let g = &sm.global;
-        let _ = writeln!(
-            t,
+        writeln!(
+            f,
             "  submaps: {} (largest {} features when closed), {} features frozen in {:.1} kB; global layer: {} loop closures from {} candidates ({} dropped as conflicting, {} after the solve, {} failed solves), {} solutions used, slowest join {:.1} ms",
             sm.submaps,
             sm.largest_submap_features,
@@ -223,10 +405,10 @@ pub fn summary_text(r: &DaemonReport) -> String {
             g.failed_solves,
             sm.solutions,
             g.max_add_ms
-        );
+        )?;
         if let Some(o) = &sm.optimised {
-            let _ = writeln!(
-                t,
+            writeln!(
+                f,
                 "  global trajectory vs truth (trajectory.tum, final frames): RMS {:.3} m, max {:.3} m, final {:.3} m / {:.2} deg, heading RMS {:.2} deg; mean NEES {:.2}, inside 99% bound {:.1}%; drift over 100-800 m segments {} on {:.0} m driven; loop closures true {} / false {}",
                 o.rms_m,
                 o.max_m,
@@ -239,117 +421,177 @@ pub fn summary_text(r: &DaemonReport) -> String {
                 o.length_m,
                 sm.loops_true,
                 sm.loops_false
-            );
+            )?;
         }
+        Ok(())
     }
-    let n = s.rotations.max(1) as f64;
-    let _ = writeln!(
-        t,
-        "  time per rotation: mean {:.2} ms (detection {:.2}, filter {:.2}, spectrum {:.2}), p50 {:.2}, p99 {:.2}, max {:.2} ms; real-time factor {:.1}x on one thread",
-        s.mean_rotation_ms(),
-        s.detect_ms / n,
-        s.filter_ms / n,
-        s.spectrum_ms / n,
-        s.rotation_ms_percentile(50.0),
-        s.rotation_ms_percentile(99.0),
-        s.max_rotation_ms,
-        s.real_time_factor()
-    );
-    if let Some(mean) = s.mean_cpu_ms() {
-        let _ = writeln!(
-            t,
-            "  pipeline thread CPU per rotation (its own work, without waits for a core): mean {:.2} ms, p50 {:.2}, p99 {:.2} over {} rotations",
-            mean,
-            s.cpu_ms_percentile(50.0),
-            s.cpu_ms_percentile(99.0),
-            s.cpu_rotations
-        );
+}
+
+/// Time per rotation, and the pipeline thread's CPU time when measured.
+struct Timing<'a>(&'a PipelineSummary);
+
+impl fmt::Display for Timing<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = self.0;
+        let n = s.rotations.max(1) as f64;
+        writeln!(
+            f,
+            "  time per rotation: mean {:.2} ms (detection {:.2}, filter {:.2}, spectrum {:.2}), p50 {:.2}, p99 {:.2}, max {:.2} ms; real-time factor {:.1}x on one thread",
+            s.mean_rotation_ms(),
+            s.detect_ms / n,
+            s.filter_ms / n,
+            s.spectrum_ms / n,
+            s.rotation_ms_percentile(50.0),
+            s.rotation_ms_percentile(99.0),
+            s.max_rotation_ms,
+            s.real_time_factor()
+        )?;
+        if let Some(mean) = s.mean_cpu_ms() {
+            writeln!(
+                f,
+                "  pipeline thread CPU per rotation (its own work, without waits for a core): mean {:.2} ms, p50 {:.2}, p99 {:.2} over {} rotations",
+                mean,
+                s.cpu_ms_percentile(50.0),
+                s.cpu_ms_percentile(99.0),
+                s.cpu_rotations
+            )?;
+        }
+        Ok(())
     }
-    let _ = writeln!(
-        t,
-        "  refused beams: {} without odometry, {} with stale odometry, {} late; filter errors {}; radar stalls {}; odometry errors {}; output events dropped {}",
-        s.refused.no_odometry,
-        s.refused.stale_odometry,
-        s.refused.late_beams,
-        s.filter_errors,
-        r.run.stalls,
-        r.run.odometry_errors,
-        r.run.output_drops
-    );
-    #[cfg(feature = "sim")]
-    if let Some(rp) = &r.replay {
+}
+
+/// Refused beams, filter errors, stalls, odometry errors and dropped output events.
+struct Refusals<'a>(&'a RunReport);
+
+impl fmt::Display for Refusals<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let run = self.0;
+        let s = &run.summary;
+        writeln!(
+            f,
+            "  refused beams: {} without odometry, {} with stale odometry, {} late; filter errors {}; radar stalls {}; odometry errors {}; output events dropped {}",
+            s.refused.no_odometry,
+            s.refused.stale_odometry,
+            s.refused.late_beams,
+            s.filter_errors,
+            run.stalls,
+            run.odometry_errors,
+            run.output_drops
+        )
+    }
+}
+
+/// A replay of a recorded drive: the recording, the filter and dead reckoning against
+/// the ground truth, and the map's density.
+#[cfg(feature = "sim")]
+struct RecordedDrive<'a> {
+    drive: &'a ReplayFigures,
+    s: &'a PipelineSummary,
+}
+
+#[cfg(feature = "sim")]
+impl fmt::Display for RecordedDrive<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (rp, s) = (self.drive, self.s);
         let e = &rp.errors;
-        let _ = writeln!(
-            t,
+        writeln!(
+            f,
             "  recorded drive ({}, {} scans, {} skipped as damaged): {:.1} m; odometry from the ground truth x{:.3} speed, {:+.3} rad/s yaw rate, noise {:.3} m/s / {:.4} rad/s (seed {}); ranges corrected for a range-Doppler coupling of {:.4} s",
             rp.format.map_or("-", |f| f.name()), rp.scans, rp.scans_skipped,
             rp.distance_m, e.speed_scale, e.yaw_rate_bias_rps, e.sigma_speed_mps, e.sigma_yaw_rate_rps, e.seed,
             rp.doppler_range_coupling_s
-        );
+        )?;
         let filter = s
             .pose
             .as_ref()
             .map(|p| (p.rms_position_m(), p.final_position_m));
-        let _ = writeln!(
-            t,
+        writeln!(
+            f,
             "  against the ground truth: filter RMS {} m, final {} m; dead reckoning with the same odometry RMS {:.3} m, final {:.3} m",
             filter.map_or("-".into(), |f| format!("{:.3}", f.0)),
             filter.map_or("-".into(), |f| format!("{:.3}", f.1)),
             rp.dead_reckoning_rms_m,
             rp.dead_reckoning_final_m
-        );
-        let _ = writeln!(
-            t,
+        )?;
+        writeln!(
+            f,
             "  features in the map {} ({:.0} per 100 m driven), detections {:.1} per rotation",
             s.map_size,
             100.0 * s.map_size as f64 / rp.distance_m.max(1e-9),
             s.detections as f64 / s.rotations.max(1) as f64
-        );
+        )
     }
-    if s.rotations_behind > 0 {
-        let _ = writeln!(
-            t,
-            "  behind real time: {} of {} rotations took longer to process than the radar took to send them",
-            s.rotations_behind, s.rotations
-        );
-    }
-    if s.odometry_refused + s.odometry_clock_jumps + s.clock_outliers + s.clock_jumps > 0 {
-        let _ = writeln!(
-            t,
-            "  untrusted input: {} odometry records refused (physical limits or wild time), {} odometry clock jumps resynchronised, {} azimuths with wild timestamps dropped, {} radar clock jumps resynchronised",
-            s.odometry_refused, s.odometry_clock_jumps, s.clock_outliers, s.clock_jumps
-        );
-    }
-    if s.odometry_duplicates > 0 {
-        let _ = writeln!(
-            t,
-            "  odometry sent again (a reconnected source replaying): {} records dropped as duplicates",
-            s.odometry_duplicates
-        );
-    }
-    let names: Vec<String> = r
-        .writer
-        .files
-        .iter()
-        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-        .collect();
-    let _ = writeln!(
-        t,
-        "  outputs in {}: {}{}",
-        r.out_dir.display(),
-        names.join(", "),
-        if r.writer.figures.is_empty() {
-            String::new()
-        } else {
-            format!(
-                ", {} figures (map.svg, spectrum_*.svg)",
-                r.writer.figures.len()
-            )
+}
+
+/// Falling behind real time, untrusted input and duplicated odometry; each line only
+/// when it happened.
+struct InputHealth<'a>(&'a PipelineSummary);
+
+impl fmt::Display for InputHealth<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = self.0;
+        if s.rotations_behind > 0 {
+            writeln!(
+                f,
+                "  behind real time: {} of {} rotations took longer to process than the radar took to send them",
+                s.rotations_behind, s.rotations
+            )?;
         }
-    );
-    if let Some(c) = &r.mcap_replay {
-        let _ = writeln!(
-            t,
+        if s.odometry_refused + s.odometry_clock_jumps + s.clock_outliers + s.clock_jumps > 0 {
+            writeln!(
+                f,
+                "  untrusted input: {} odometry records refused (physical limits or wild time), {} odometry clock jumps resynchronised, {} azimuths with wild timestamps dropped, {} radar clock jumps resynchronised",
+                s.odometry_refused, s.odometry_clock_jumps, s.clock_outliers, s.clock_jumps
+            )?;
+        }
+        if s.odometry_duplicates > 0 {
+            writeln!(
+                f,
+                "  odometry sent again (a reconnected source replaying): {} records dropped as duplicates",
+                s.odometry_duplicates
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// The output directory, the files written in it and the figures.
+struct Outputs<'a>(&'a DaemonReport);
+
+impl fmt::Display for Outputs<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let r = self.0;
+        let names: Vec<String> = r
+            .writer
+            .files
+            .iter()
+            .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .collect();
+        writeln!(
+            f,
+            "  outputs in {}: {}{}",
+            r.out_dir.display(),
+            names.join(", "),
+            if r.writer.figures.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    ", {} figures (map.svg, spectrum_*.svg)",
+                    r.writer.figures.len()
+                )
+            }
+        )
+    }
+}
+
+/// What a replay of an MCAP file read and refused.
+struct McapReplay<'a>(&'a McapReplayCounts);
+
+impl fmt::Display for McapReplay<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let c = self.0;
+        writeln!(
+            f,
             "  MCAP replay: {} messages, {} configurations, {} rotations, {} azimuths, {} odometry samples; {} on other topics; refused {} (unknown schema {}, wrong encoding {}, malformed {}, before a configuration {}){}",
             c.messages,
             c.configurations,
@@ -365,11 +607,18 @@ pub fn summary_text(r: &DaemonReport) -> String {
             c.file_error
                 .as_ref()
                 .map_or(String::new(), |e| format!("; the file ended early: {e}"))
-        );
+        )
     }
-    if let Some(z) = &r.zenoh_odometry {
-        let _ = writeln!(
-            t,
+}
+
+/// What the Zenoh odometry subscription received and lost.
+struct ZenohOdometry<'a>(&'a ZenohOdometryCounts);
+
+impl fmt::Display for ZenohOdometry<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let z = self.0;
+        writeln!(
+            f,
             "  Zenoh odometry on {}: {} samples received, {} taken; lost {} (malformed {}, another type {}, queue full {})",
             z.key,
             z.received,
@@ -378,25 +627,43 @@ pub fn summary_text(r: &DaemonReport) -> String {
             z.malformed,
             z.wrong_type,
             z.dropped
-        );
+        )
     }
-    if let Some(rec) = &r.writer.recording {
-        let _ = writeln!(t, "{}", recording_line(rec));
+}
+
+/// The MCAP recording's line ([`recording_line`]).
+struct Recording<'a>(&'a RecordingSummary);
+
+impl fmt::Display for Recording<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "{}", recording_line(self.0))
     }
-    if let Some(e) = &r.writer.recording_error {
-        let _ = writeln!(t, "  MCAP recording stopped early: {e}");
+}
+
+/// Why the MCAP recording stopped early.
+struct RecordingStopped<'a>(&'a str);
+
+impl fmt::Display for RecordingStopped<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "  MCAP recording stopped early: {}", self.0)
     }
-    if let Some(live) = &r.writer.live {
-        let _ = writeln!(
-            t,
+}
+
+/// What was published live over Zenoh.
+struct LivePublishing<'a>(&'a LiveSummary);
+
+impl fmt::Display for LivePublishing<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let live = self.0;
+        writeln!(
+            f,
             "  Zenoh: {} messages published on {} keys, {} events dropped (queue full), {} failed",
             live.total(),
             live.published.len(),
             live.dropped,
             live.failed
-        );
+        )
     }
-    t
 }
 
 fn mean(v: &[f64]) -> f64 {
