@@ -47,6 +47,7 @@
 
 pub mod association;
 pub mod beam;
+pub mod drift;
 pub mod ekf;
 pub mod error;
 pub mod fej;
