@@ -161,6 +161,8 @@ async fn run(args: Args) -> anyhow::Result<()> {
     }
 
     let mut configuration = handle.configuration();
+    // A radar that keeps changing its configuration must not print at the rate it sends it.
+    let mut print_limit = radar_driver::RateLimiter::new(std::time::Duration::from_secs(10));
     let mut ticker = tokio::time::interval(args.interval_s);
     ticker.tick().await;
     let mut prev = handle.metrics();
@@ -182,7 +184,12 @@ async fn run(args: Args) -> anyhow::Result<()> {
                     break;
                 }
                 if let Some(c) = configuration.borrow_and_update().clone() {
-                    print_configuration(&c);
+                    if let Some(unprinted) = print_limit.check(tokio::time::Instant::now()) {
+                        if unprinted > 0 {
+                            println!("({unprinted} configuration changes not printed)");
+                        }
+                        print_configuration(&c);
+                    }
                 }
             }
             _ = ticker.tick() => {

@@ -105,6 +105,9 @@ pub struct SessionState {
 pub struct LogLimits {
     /// A configuration re-sent unchanged (INFO).
     pub configuration_repeated: RateLimiter,
+    /// A configuration that differs from the one in force (INFO): a radar that alternates
+    /// between two must not log at the rate it sends them.
+    pub configuration_changed: RateLimiter,
     /// A configuration message that does not decode (WARN).
     pub configuration_undecodable: RateLimiter,
     /// A lost link, about to reconnect (WARN).
@@ -123,6 +126,7 @@ impl LogLimits {
         let limiter = RateLimiter::new(interval);
         Self {
             configuration_repeated: limiter.clone(),
+            configuration_changed: limiter.clone(),
             configuration_undecodable: limiter.clone(),
             link_lost: limiter.clone(),
             stop_failed: limiter.clone(),
@@ -372,15 +376,22 @@ impl SessionState {
             }
             return Reply::StartData;
         }
-        tracing::info!(
-            azimuths = geometry.azimuth_samples,
-            bins = geometry.range_in_bins,
-            bin_size_m = geometry.bin_size_m,
-            encoder_size = geometry.encoder_size,
-            rotation_hz = geometry.rotation_hz,
-            width = geometry.data_width.bits(),
-            "radar configuration"
-        );
+        if let Some(suppressed) = self
+            .logs
+            .configuration_changed
+            .check(tokio::time::Instant::now())
+        {
+            tracing::info!(
+                azimuths = geometry.azimuth_samples,
+                bins = geometry.range_in_bins,
+                bin_size_m = geometry.bin_size_m,
+                encoder_size = geometry.encoder_size,
+                rotation_hz = geometry.rotation_hz,
+                width = geometry.data_width.bits(),
+                changes_not_logged = suppressed,
+                "radar configuration"
+            );
+        }
         let geometry = Arc::new(geometry);
         if let Some(partial) = self.assembler.set_geometry(Arc::clone(&geometry)) {
             self.deliver_rotation(partial);

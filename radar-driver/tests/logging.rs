@@ -85,3 +85,44 @@ async fn ten_identical_configurations_log_once_and_undecodable_ones_warn_once() 
         1
     );
 }
+
+// A radar that alternates between two configurations (issue 38, item 12): each change used
+// to log an INFO line, at the rate the radar sent them. Now the changes are rate-limited as
+// the repeats are.
+#[tokio::test]
+async fn a_radar_alternating_between_two_configurations_logs_once_per_interval() {
+    let captured = Captured::default();
+    let writer = captured.clone();
+    let subscriber = tracing_subscriber::fmt()
+        .with_ansi(false)
+        .with_max_level(tracing::Level::INFO)
+        .with_writer(move || writer.clone())
+        .finish();
+    let _guard = tracing::subscriber::set_default(subscriber);
+    tokio::time::timeout(Duration::from_secs(30), async {
+        let radar = FakeRadar::bind().await;
+        let (driver, receivers) = Driver::new(test_settings(radar.addr));
+        let handle = driver.spawn();
+        let azimuths = receivers.azimuths.unwrap();
+        let mut conn = radar.accept().await;
+        let a = small_configuration();
+        let mut b = a.clone();
+        b.range_in_bins = a.range_in_bins + 8;
+        for _ in 0..20 {
+            assert_eq!(conn.handshake(&a).await, 21);
+            assert_eq!(conn.handshake(&b).await, 21);
+        }
+        assert_eq!(conn.handshake(&a).await, 21);
+        send_ffts(&mut conn, &a, 0..4).await;
+        take_async(&azimuths, 4).await;
+        let m = handle.stop().await.unwrap().metrics;
+        assert_eq!(m.configurations, 41);
+    })
+    .await
+    .expect("bounded");
+    assert_eq!(
+        captured.lines_with("INFO", "radar configuration azimuths=16"),
+        1,
+        "41 changes within the interval log once"
+    );
+}

@@ -215,6 +215,8 @@ pub struct FrontEnd {
     /// Per azimuth index, the range the last azimuth there covered when it was shorter than
     /// the radar's full range (a contour, a blanked sector); `None`: full range.
     short: Vec<Option<f64>>,
+    /// Geometries taken (each logged only at powers of two).
+    geometry_changes: u64,
 }
 
 impl FrontEnd {
@@ -230,6 +232,7 @@ impl FrontEnd {
             beam_detections: Vec::new(),
             released: Vec::new(),
             short: Vec::new(),
+            geometry_changes: 0,
         }
     }
 
@@ -265,13 +268,19 @@ impl FrontEnd {
                 bin_m,
                 source,
             })?;
-        info!(
-            azimuths = geometry.azimuth_samples,
-            bins = geometry.range_in_bins,
-            bin_m,
-            rotation_hz = geometry.rotation_hz,
-            "radar geometry"
-        );
+        // A radar that keeps changing its geometry must not log at the rate it sends it:
+        // the 1st, 2nd, 4th, 8th... change.
+        self.geometry_changes += 1;
+        if self.geometry_changes.is_power_of_two() {
+            info!(
+                azimuths = geometry.azimuth_samples,
+                bins = geometry.range_in_bins,
+                bin_m,
+                rotation_hz = geometry.rotation_hz,
+                changes = self.geometry_changes,
+                "radar geometry"
+            );
+        }
         self.grouper = Some(Grouper::new(
             self.settings.grouping(geometry.azimuth_samples),
         ));

@@ -70,8 +70,13 @@ pub struct TrajectoryScore {
     /// Share of poses with NEES inside the 3-dof 99 % bound (11.34).
     pub inside_99: f64,
     /// Mean translational drift over segments of 100, 200, ..., 800 m (% of the segment),
-    /// the metric of the radar odometry literature; `None` when the drive is shorter.
+    /// the metric of the radar odometry literature (`slam_filter::drift`, as the KITTI devkit
+    /// and the Boreas benchmark define it); `None` when the drive is shorter.
     pub drift_percent: Option<f64>,
+    /// Mean rotational drift over the same segments (degrees per 100 m).
+    pub drift_deg_per_100m: Option<f64>,
+    /// Segments the drift averages.
+    pub drift_segments: usize,
     /// Path length of the true trajectory (m).
     pub length_m: f64,
 }
@@ -109,33 +114,19 @@ pub fn score_trajectory(estimate: &[PoseSample], truth: &[Pose2]) -> TrajectoryS
     s.rms_heading_rad = (sh / n as f64).sqrt();
     s.mean_nees = nees / n as f64;
     s.inside_99 = inside as f64 / n as f64;
-    // Distance along the true path.
-    let mut along = vec![0.0; n];
-    for k in 1..n {
-        along[k] = along[k - 1] + (truth[k].x - truth[k - 1].x).hypot(truth[k].y - truth[k - 1].y);
+    s.length_m = slam_filter::drift::distance_travelled(&truth[..n])
+        .last()
+        .copied()
+        .unwrap_or(0.0);
+    let estimate: Vec<Pose2> = estimate[..n]
+        .iter()
+        .map(|e| Pose2::new(e.x_m, e.y_m, e.theta_rad))
+        .collect();
+    if let Ok(Some(d)) = slam_filter::drift::odometry_drift(&truth[..n], &estimate) {
+        s.drift_percent = Some(d.translation_percent);
+        s.drift_deg_per_100m = Some(d.rotation_deg_per_100m);
+        s.drift_segments = d.segments;
     }
-    s.length_m = along[n - 1];
-    let (mut sum, mut count) = (0.0, 0usize);
-    for len in (1..=8).map(|k| 100.0 * k as f64) {
-        let mut end = 0;
-        for start in (0..n).step_by(5) {
-            while end < n && along[end] - along[start] < len {
-                end += 1;
-            }
-            if end >= n {
-                break;
-            }
-            let rel_t = slam_graph::se2::between(&truth[start], &truth[end]);
-            let (a, b) = (&estimate[start], &estimate[end]);
-            let rel_e = slam_graph::se2::between(
-                &Pose2::new(a.x_m, a.y_m, a.theta_rad),
-                &Pose2::new(b.x_m, b.y_m, b.theta_rad),
-            );
-            sum += (rel_e.x - rel_t.x).hypot(rel_e.y - rel_t.y) / len;
-            count += 1;
-        }
-    }
-    s.drift_percent = (count > 0).then(|| 100.0 * sum / count as f64);
     s
 }
 

@@ -113,6 +113,10 @@ pub struct PipelineSummary {
     /// Local submaps and the global layer (`None`: one dense map).
     #[serde(skip)]
     pub submaps: Option<super::submaps::SubmapSummary>,
+    /// With ground truth: the pose published each rotation (the online pose) scored as a
+    /// trajectory (its drift over 100-800 m segments).
+    #[serde(skip)]
+    pub online: Option<super::submaps::TrajectoryScore>,
     /// Pose error against truth.
     pub pose: Option<PoseErrorStats>,
     /// Associated observations against the true geometry (truth known only).
