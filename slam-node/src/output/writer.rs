@@ -295,6 +295,9 @@ impl OutputHandle {
     }
 }
 
+/// The trajectory in the Boreas benchmark's odometry format, next to `trajectory.tum`.
+pub const BOREAS_ODOMETRY_FILE: &str = "odometry-boreas.txt";
+
 /// The ground-truth trajectory's file name, next to the estimated trajectory (TUM).
 pub const GROUND_TRUTH_FILE: &str = "groundtruth.tum";
 
@@ -479,6 +482,30 @@ fn run(
     }
     diag.flush().map_err(io_err(&diag_path))?;
     spec.flush().map_err(io_err(&spec_path))?;
+    // The trajectory in the Boreas benchmark's odometry format (a row per rotation: the time
+    // in microseconds and the upper 3x4 of T_vk_v0, z up), for its evaluator as it is.
+    if !poses.is_empty() {
+        let frames: Vec<(i64, radar_model::geometry::Pose2)> = poses
+            .iter()
+            .map(|p| {
+                (
+                    (p.timestamp_s * 1e6).round() as i64,
+                    radar_model::geometry::Pose2::new(p.x_m, p.y_m, p.theta_rad),
+                )
+            })
+            .collect();
+        let boreas_path = files.dir.join(BOREAS_ODOMETRY_FILE);
+        match slam_filter::drift::boreas::odometry_file(
+            &frames,
+            slam_filter::drift::boreas::VerticalAxis::Up,
+        ) {
+            Ok(text) => {
+                std::fs::write(&boreas_path, text).map_err(io_err(&boreas_path))?;
+                summary.files.push(boreas_path);
+            }
+            Err(e) => warn!(error = %e, "the Boreas odometry file was not written"),
+        }
+    }
     if files.figures {
         let p = files.dir.join("map.svg");
         let features = last_map.map(|m| m.features).unwrap_or_default();
