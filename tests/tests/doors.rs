@@ -173,7 +173,7 @@ async fn the_replay_the_vehicle_configuration_and_its_mcap_recording_agree() {
 
     // Door 3: the MCAP recording of door 2.
     let out_mcap = work.path().join("mcap");
-    let mut config = config;
+
     config.output.mcap = None;
     let opts = options(config, Some(&text), &out_mcap);
     let recording = out_vehicle.join("run.mcap");
