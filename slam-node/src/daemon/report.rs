@@ -511,7 +511,15 @@ impl fmt::Display for Refusals<'_> {
             run.stalls,
             run.odometry_errors,
             run.output_drops
-        )
+        )?;
+        if run.far_ahead_of_odometry > 0 {
+            writeln!(
+                f,
+                "  azimuths stamped far ahead of the odometry (a radar clock in the future?): {}, processed without waiting for odometry",
+                run.far_ahead_of_odometry
+            )?;
+        }
+        Ok(())
     }
 }
 

@@ -103,7 +103,15 @@ pub struct RunReport {
     pub azimuth_errors: u64,
     /// Why the pipeline could not be built for the radar that connected, if it could not.
     pub start_failure: Option<String>,
+    /// Azimuths stamped more than [`FAR_AHEAD_OF_ODOMETRY_S`] after the latest odometry,
+    /// processed without waiting for odometry to reach them.
+    pub far_ahead_of_odometry: u64,
 }
+
+/// An azimuth stamped this far (s) after the latest odometry is not waited for: waiting
+/// the odometry wait cannot close such a gap, and a radar whose clock runs in the future
+/// would otherwise cost that wait on every azimuth (a queue of them, half an hour).
+pub const FAR_AHEAD_OF_ODOMETRY_S: f64 = 10.0;
 
 /// How long the pipeline waits for a radar's first azimuth before saying it waits.
 const FIRST_AZIMUTH_NOTICE: Duration = Duration::from_secs(2);
@@ -284,8 +292,23 @@ pub fn run_pipeline(
             );
         }
         last_azimuth = Instant::now();
-        // Wait, bounded, for odometry to reach this azimuth's time.
-        if let Some(src) = inputs.odometry.as_mut() {
+        // Wait, bounded, for odometry to reach this azimuth's time, unless it is stamped so
+        // far ahead of the odometry that no wait can close the gap.
+        let far_ahead = pipeline
+            .odometry_latest_s()
+            .is_some_and(|t| az.timestamp_s - t > FAR_AHEAD_OF_ODOMETRY_S);
+        if far_ahead {
+            report.far_ahead_of_odometry += 1;
+            if report.far_ahead_of_odometry.is_power_of_two() {
+                warn!(
+                    azimuth_s = az.timestamp_s,
+                    odometry_s = pipeline.odometry_latest_s(),
+                    count = report.far_ahead_of_odometry,
+                    "azimuth stamped far ahead of the odometry (a radar clock in the future?): not waiting for odometry"
+                );
+            }
+        }
+        if let Some(src) = inputs.odometry.as_mut().filter(|_| !far_ahead) {
             let deadline = Instant::now() + odometry_wait;
             while pipeline
                 .odometry_latest_s()
