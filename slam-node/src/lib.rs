@@ -18,3 +18,4 @@ pub mod daemon;
 pub mod detect;
 pub mod output;
 pub mod pipeline;
+pub mod source;

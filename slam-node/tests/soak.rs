@@ -405,8 +405,8 @@ async fn soak(duration_s: f64) {
     let stop = Arc::new(AtomicBool::new(false));
     let opts = DaemonOptions {
         config,
-        embedded: None,
-        recorded: None,
+        simulator: None,
+        mcap: None,
         max_stream_s: None,
         out_dir: dir.path().to_path_buf(),
         figures: false,

@@ -102,8 +102,11 @@ fn options(
     sim.start_time_ns = Some(START_NS);
     let opts = DaemonOptions {
         config,
-        embedded: Some(EmbeddedSim::new(sim)),
-        recorded: None,
+        simulator: Some(slam_node::daemon::Simulator {
+            sim: EmbeddedSim::new(sim),
+            recorded: None,
+        }),
+        mcap: None,
         max_stream_s: Some(DURATION_S),
         out_dir: out.to_path_buf(),
         figures: false,

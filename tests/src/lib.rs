@@ -99,9 +99,11 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
         Some(path) => sim_sensor::scene::Scene::load(path),
         None => sim_sensor::scene::shipped::load(run.scene),
     }
-    .map_err(sim_sensor::SimError::from)?;
+    .map_err(|e| slam_node::source::SourceError::Sim(e.into()))?;
     if run.mirror {
-        scene = scene.mirrored().map_err(sim_sensor::SimError::from)?;
+        scene = scene
+            .mirrored()
+            .map_err(|e| slam_node::source::SourceError::Sim(e.into()))?;
     }
     if let Some(sigma) = run.bearing_sigma_deg {
         scene.noise.bearing_sigma_deg = sigma;
@@ -126,8 +128,11 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
     let stop = Arc::new(AtomicBool::new(false));
     let opts = DaemonOptions {
         config,
-        embedded: Some(embedded),
-        recorded: None,
+        simulator: Some(slam_node::daemon::Simulator {
+            sim: embedded,
+            recorded: None,
+        }),
+        mcap: None,
         max_stream_s: Some(run.duration_s),
         out_dir: out.to_path_buf(),
         figures: false,

@@ -17,7 +17,9 @@ use radar_model::geometry::{wrap_angle, Pose2};
 use sim_sensor::settings::Pacing;
 use sim_sensor::{SimOptions, SimServer, SourceSpec};
 use slam_node::daemon::replay::OdometryErrors;
-use slam_node::daemon::{run_daemon, run_mcap_replay, DaemonOptions, EmbeddedSim, RecordedReplay};
+use slam_node::daemon::{
+    run_daemon, run_mcap_replay, DaemonOptions, EmbeddedSim, RecordedReplay, Simulator,
+};
 
 fn oxford_dir() -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/oxford-radar-robotcar");
@@ -73,8 +75,8 @@ fn relative(poses: &[(f64, Pose2)]) -> Vec<(f64, Pose2)> {
 fn options(config: config::Config, written: Option<&str>, out: &Path) -> DaemonOptions {
     DaemonOptions {
         config,
-        embedded: None,
-        recorded: None,
+        simulator: None,
+        mcap: None,
         max_stream_s: None,
         out_dir: out.to_path_buf(),
         figures: false,
@@ -116,17 +118,19 @@ async fn the_replay_the_vehicle_configuration_and_its_mcap_recording_agree() {
     let mut opts = options(config::Config::default(), None, &out_replay);
     // As the command line without a file: slam-node's measured default detector.
     opts.detector = Some(slam_node::detect::DetectorSettings::default());
-    opts.embedded = Some(EmbeddedSim::new(sim));
-    opts.recorded = Some(RecordedReplay {
-        dir: dir.clone(),
-        format: None,
-        errors: OdometryErrors {
-            speed_scale: 1.05,
-            yaw_rate_bias_rps: 0.02,
-            ..OdometryErrors::default()
-        },
-        radar_odometry: true,
-        write_odometry: Some(odometry.clone()),
+    opts.simulator = Some(Simulator {
+        sim: EmbeddedSim::new(sim),
+        recorded: Some(RecordedReplay {
+            dir: dir.clone(),
+            format: None,
+            errors: OdometryErrors {
+                speed_scale: 1.05,
+                yaw_rate_bias_rps: 0.02,
+                ..OdometryErrors::default()
+            },
+            radar_odometry: true,
+            write_odometry: Some(odometry.clone()),
+        }),
     });
     let replay = run_daemon(opts, None).await.expect("the replay runs");
     assert_eq!(replay.run.summary.rotations, 8);

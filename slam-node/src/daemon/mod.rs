@@ -5,34 +5,32 @@
 //! client); the pipeline runs on its own thread fed by the driver's lock-free channel; the
 //! writer runs on another, fed by a channel the pipeline never blocks on.
 
-#[cfg(feature = "sim")]
-pub mod embedded;
-pub mod mcap_replay;
-#[cfg(feature = "sim")]
-pub mod replay;
 pub mod report;
-pub mod sink;
 pub mod zenoh_odometry;
+
+// The sources' modules under their earlier names.
+#[cfg(feature = "sim")]
+pub use crate::source::embedded;
+pub use crate::source::mcap as mcap_replay;
+#[cfg(feature = "sim")]
+pub use crate::source::replay;
+#[cfg(feature = "sim")]
+pub use crate::source::{embedded::EmbeddedSim, recorded::RecordedReplay};
+pub use crate::source::{McapSource, Simulator};
 
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
-use radar_driver::{shutdown_pair, Driver, DriverSettings, OdometrySource};
+use radar_driver::{shutdown_pair, DriverSettings, OdometrySource};
 use tracing::warn;
 
-use crate::output::figures::TruthOverlay;
 use crate::output::writer::WriterSummary;
 use crate::output::{OutputEvent, OutputFiles, OutputHandle, RecordingFile};
-use crate::pipeline::run::PipelineStart;
 use crate::pipeline::run::ProgressFn;
-use crate::pipeline::{
-    run_pipeline, Pipeline, PipelineInputs, PipelineSettings, RunControl, RunReport,
-};
-
-#[cfg(feature = "sim")]
-pub use embedded::{EmbeddedSim, RecordedReplay};
+use crate::pipeline::{run_pipeline, PipelineInputs, RunControl, RunReport};
+use crate::source::{Inputs, ReplayFigures, SourceError};
 
 /// Why the daemon could not run.
 #[derive(Debug, thiserror::Error)]
@@ -43,45 +41,28 @@ pub enum DaemonError {
     /// The pipeline could not start.
     #[error(transparent)]
     Pipeline(#[from] crate::pipeline::PipelineError),
-    /// Recorded scans could not be replayed.
-    #[cfg(feature = "sim")]
-    #[error("replay")]
-    Replay(#[from] replay::ReplayError),
-    /// The embedded simulator failed.
-    #[cfg(feature = "sim")]
-    #[error("simulator")]
-    Sim(#[from] sim_sensor::SimError),
+    /// The source (the radar, the simulator, a recording) could not start.
+    #[error(transparent)]
+    Source(#[from] SourceError),
     /// The driver failed.
     #[error("radar driver")]
     Driver(#[from] radar_driver::DriverError),
-    /// The odometry source could not be opened.
-    #[error("odometry")]
-    Odometry(#[from] radar_driver::OdometryError),
-    /// There is no odometry and the daemon will not invent motion.
-    #[error("no odometry source configured ([odometry] source = \"none\"): slam-node needs the vehicle's odometry to predict its motion and will not fabricate it")]
-    NoOdometry,
     /// The output writer failed.
     #[error("output")]
     Output(#[from] crate::output::WriterError),
     /// The pipeline thread panicked.
     #[error("the pipeline thread panicked")]
     PipelinePanicked,
-    /// The embedded simulator must render a scene (replays carry no ground truth).
-    #[cfg(feature = "sim")]
-    #[error("the embedded simulator must run a scene, not a replay")]
-    NotAScene,
-    /// A stop (Ctrl-C) came while the scene was being built: nothing ran.
-    #[error("stopped while building the scene, before the run began")]
-    Stopped,
-    /// The driver was built without an azimuth channel.
-    #[error("the radar driver has no azimuth channel")]
-    NoAzimuthChannel,
-    /// An MCAP replay could not start.
-    #[error("MCAP replay")]
-    McapReplay(#[from] mcap_replay::McapReplayError),
     /// The Zenoh session or the odometry subscription could not start.
     #[error("Zenoh")]
     Zenoh(#[from] crate::output::LiveError),
+}
+
+impl DaemonError {
+    /// Whether a stop (Ctrl-C) came while the scene was being built, before the run began.
+    pub fn is_stopped_before_start(&self) -> bool {
+        matches!(self, DaemonError::Source(SourceError::Stopped))
+    }
 }
 
 /// Everything a daemon run needs.
@@ -89,13 +70,11 @@ pub enum DaemonError {
 pub struct DaemonOptions {
     /// The validated configuration.
     pub config: config::Config,
-    /// Start this simulator and connect to it instead of `[radar] address`.
-    #[cfg(feature = "sim")]
-    pub embedded: Option<EmbeddedSim>,
-    /// With `embedded`: replay these recorded scans (its scene is ignored) with odometry
-    /// from their ground truth.
-    #[cfg(feature = "sim")]
-    pub recorded: Option<RecordedReplay>,
+    /// Start this simulator (its scene, or recorded scans) and connect to it instead of
+    /// `[radar] address`.
+    pub simulator: Option<Simulator>,
+    /// Run on this MCAP recording instead of a radar.
+    pub mcap: Option<McapSource>,
     /// Stop after this much stream time.
     pub max_stream_s: Option<f64>,
     /// Output folder.
@@ -136,8 +115,7 @@ pub struct DaemonReport {
     /// Scene name when the simulator was embedded.
     pub scene: Option<String>,
     /// Replays of recorded scans: dead reckoning and the distance driven.
-    #[cfg(feature = "sim")]
-    pub replay: Option<replay::ReplayFigures>,
+    pub replay: Option<ReplayFigures>,
     /// Why the radar driver failed, if it did (it gave up reconnecting, or its recording
     /// could not be written): the run's job failed even though a summary exists.
     pub driver_failure: Option<radar_driver::DriverError>,
@@ -235,121 +213,74 @@ fn recipe(opts: &DaemonOptions) -> Result<crate::pipeline::SettingsRecipe, Daemo
     Ok(recipe)
 }
 
-/// Runs the daemon to the end of the stream, the duration limit or a stop request.
-pub async fn run_daemon(
-    opts: DaemonOptions,
-    progress: Option<ProgressFn>,
-) -> Result<DaemonReport, DaemonError> {
-    let recipe = recipe(&opts)?;
-    // The motion model the odometry means: the configuration's (the simulator's scene may
-    // say otherwise, below); the radar's profile does not change it.
-    let configured_motion = PipelineSettings::from_config(&opts.config)?.motion;
-    let node = open_zenoh(&opts.config).await?;
-    // The simulator writes its ground truth there before the writer starts; a folder that
-    // cannot be made is reported by the writer below.
-    let _ = std::fs::create_dir_all(&opts.out_dir);
-    let mut zenoh_stats = None;
-    let (odo_trigger, odo_shutdown) = shutdown_pair();
-    #[cfg(feature = "sim")]
-    let mut sim_handle: Option<sim_sensor::SimHandle> = None;
-    #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
-    let mut pipeline: Option<PipelineStart> = None;
-    #[cfg(feature = "sim")]
-    let mut replay_figures = None;
-    #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
-    let mut scene_name = None;
-    #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
-    let mut truth_overlay = TruthOverlay::default();
-    #[cfg_attr(not(feature = "sim"), allow(unused_mut))]
-    let mut motion = configured_motion;
+/// The daemon's inputs from the source `opts` asks for: an MCAP recording, the simulator in
+/// this process (its scene or recorded scans), or the radar at `[radar] address`. Odometry
+/// from Zenoh, when configured, replaces the simulator's and the configured source.
+async fn open_source(
+    opts: &mut DaemonOptions,
+    recipe: crate::pipeline::SettingsRecipe,
+    node: Option<&crate::output::live::SharedNode>,
+    odo_shutdown: radar_driver::Shutdown,
+) -> Result<(Inputs, Option<zenoh_odometry::SharedStats>), DaemonError> {
+    if let Some(mcap) = &opts.mcap {
+        return Ok((crate::source::mcap::open(recipe, mcap)?, None));
+    }
+    let motion = crate::pipeline::PipelineSettings::from_config(&opts.config)?.motion;
+    let (zenoh, stats) = match zenoh_odometry_source(&opts.config, node, motion)? {
+        Some((source, stats)) => (Some(source), Some(stats)),
+        None => (None, None),
+    };
     let mut driver_settings = DriverSettings::from_config(&opts.config.radar);
     // The pipeline takes azimuths and finds rotation ends itself: no rotation channel, so
     // the driver neither assembles rotations nor counts them as dropped.
     driver_settings.handoff.rotation_capacity = None;
-    #[cfg(feature = "sim")]
-    let embedded = opts.embedded;
-    #[cfg(not(feature = "sim"))]
-    let embedded: Option<std::convert::Infallible> = None;
-    let (azimuths, driver, odometry): (_, _, Option<Box<dyn OdometrySource>>) = if let Some(sim) =
-        embedded
-    {
-        #[cfg(feature = "sim")]
-        {
-            let started = match opts.recorded {
-                Some(recorded) => {
-                    embedded::start_replay(sim.options, recorded, &recipe, driver_settings).await?
-                }
-                None => {
-                    embedded::start(
-                        sim,
-                        &recipe,
-                        driver_settings,
-                        &opts.out_dir,
-                        opts.max_stream_s,
-                        opts.keep_configured_compensation,
-                        odo_shutdown.clone(),
-                        &opts.stop,
-                    )
-                    .await?
-                }
-            };
-            replay_figures = started.replay;
-            motion = started.motion;
-            truth_overlay = started.truth_overlay;
-            scene_name = Some(started.scene_name);
-            pipeline = Some(started.pipeline);
-            sim_handle = Some(started.handle);
-            // Odometry from Zenoh instead of the simulator's odometry port.
-            let odometry = match zenoh_odometry_source(&opts.config, node.as_ref(), motion)? {
-                Some((source, stats)) => {
-                    zenoh_stats = Some(stats);
-                    Some(source)
-                }
-                None => started.odometry,
-            };
-            (started.azimuths, started.driver, odometry)
+    let inputs = match opts.simulator.take() {
+        Some(simulator) => {
+            crate::source::start_simulator(
+                simulator,
+                &recipe,
+                driver_settings,
+                &opts.out_dir,
+                opts.max_stream_s,
+                opts.keep_configured_compensation,
+                odo_shutdown,
+                &opts.stop,
+                zenoh,
+            )
+            .await?
         }
-        #[cfg(not(feature = "sim"))]
-        match sim {}
-    } else {
-        let odometry = match zenoh_odometry_source(&opts.config, node.as_ref(), motion)? {
-            Some((source, stats)) => {
-                zenoh_stats = Some(stats);
-                Some(source)
-            }
-            None => radar_driver::odometry::open_configured(
-                &opts.config.odometry,
-                &tokio::runtime::Handle::current(),
-                odo_shutdown.clone(),
-            )?,
-        };
-        if odometry.is_none() {
-            return Err(DaemonError::NoOdometry);
-        }
-        let (driver, receivers) = Driver::new(driver_settings);
-        let rx = receivers.azimuths.ok_or(DaemonError::NoAzimuthChannel)?;
-        (rx, driver, odometry)
+        None => crate::source::radar::open(recipe, driver_settings, zenoh, odo_shutdown)?,
     };
-    let output = OutputHandle::spawn(output_files_for(
-        &opts.config,
-        opts.figures,
-        &opts.out_dir,
+    Ok((inputs, stats))
+}
+
+/// Runs the daemon to the end of the stream, the duration limit or a stop request, on
+/// whichever source `opts` names.
+pub async fn run_daemon(
+    mut opts: DaemonOptions,
+    progress: Option<ProgressFn>,
+) -> Result<DaemonReport, DaemonError> {
+    let recipe = recipe(&opts)?;
+    let node = open_zenoh(&opts.config).await?;
+    // The simulator writes its ground truth there before the writer starts; a folder that
+    // cannot be made is reported by the writer below.
+    let _ = std::fs::create_dir_all(&opts.out_dir);
+    let (odo_trigger, odo_shutdown) = shutdown_pair();
+    let (inputs, zenoh_stats) = open_source(&mut opts, recipe, node.as_ref(), odo_shutdown).await?;
+    let Inputs {
+        azimuths,
+        driver,
+        odometry,
+        pipeline,
         motion,
-        node.clone(),
-    ))?;
-    // A radar over TCP: its profile is chosen from the geometry of its first azimuth.
-    let pipeline = match pipeline {
-        Some(p) => p,
-        None => PipelineStart::OnFirstAzimuth(Box::new(move |geometry: &protocol::Geometry| {
-            let derived = recipe.for_radar(geometry, crate::pipeline::SourceFacts::default())?;
-            Pipeline::new(derived.settings, None, None)
-        })),
-    };
-    let driver_handle = driver.spawn();
-    #[cfg(feature = "sim")]
-    let end_after_silence = replay_figures.is_some().then(|| Duration::from_secs(2));
-    #[cfg(not(feature = "sim"))]
-    let end_after_silence = None;
+        name,
+        truth_overlay,
+        end_after_silence,
+        mut replay,
+        running,
+    } = inputs;
+    let output = OutputHandle::spawn(output_files(&opts, motion, node.clone()))?;
+    let driver_handle = driver.map(radar_driver::Driver::spawn);
     let control = RunControl {
         end_after_silence,
         stop: Arc::clone(&opts.stop),
@@ -372,27 +303,21 @@ pub async fn run_daemon(
         warn!(error = %why, "the pipeline did not start for this radar");
     }
     let mut driver_failure = None;
-    let driver = match tokio::time::timeout(Duration::from_secs(5), driver_handle.stop()).await {
-        Ok(Ok(exit)) => Some(exit.metrics),
-        Ok(Err(e)) => {
-            warn!(error = %e, "radar driver ended with an error");
-            driver_failure = Some(e);
-            None
+    let mut driver_metrics = None;
+    if let Some(handle) = driver_handle {
+        match tokio::time::timeout(Duration::from_secs(5), handle.stop()).await {
+            Ok(Ok(exit)) => driver_metrics = Some(exit.metrics),
+            Ok(Err(e)) => {
+                warn!(error = %e, "radar driver ended with an error");
+                driver_failure = Some(e);
+            }
+            Err(_) => warn!("radar driver did not stop within 5 s"),
         }
-        Err(_) => {
-            warn!("radar driver did not stop within 5 s");
-            None
-        }
-    };
+    }
     odo_trigger.trigger();
-    #[cfg(feature = "sim")]
-    if let Some(h) = sim_handle {
-        if let Some(figures) = replay_figures.as_mut() {
-            figures.scans_skipped = h.stats().scans_skipped;
-        }
-        if let Err(e) = h.shutdown().await {
-            warn!(error = %e, "simulator shutdown");
-        }
+    let end = running.stop().await;
+    if let Some(figures) = replay.as_mut() {
+        figures.scans_skipped = end.scans_skipped;
     }
     if !truth_overlay.trajectory.is_empty() {
         output.send_blocking(OutputEvent::Truth(truth_overlay));
@@ -404,84 +329,37 @@ pub async fn run_daemon(
     close_zenoh(node).await;
     Ok(DaemonReport {
         run,
-        driver,
+        driver: driver_metrics,
         writer,
         out_dir: opts.out_dir,
-        scene: scene_name,
-        #[cfg(feature = "sim")]
-        replay: replay_figures,
+        scene: name,
+        replay,
         driver_failure,
-        mcap_replay: None,
+        mcap_replay: end.mcap,
         zenoh_odometry,
     })
 }
 
 /// Runs the daemon on a rosbag2 MCAP file (Navtech's radar messages and an odometry topic,
 /// see [`mcap_replay`]) as fast as the pipeline goes, to the end of the file, the duration
-/// limit or a stop request. `odometry_topic` defaults to the daemon's own `/odom/twist`.
+/// limit or a stop request, on a runtime of its own. `odometry_topic` defaults to the
+/// daemon's own `/odom/twist`.
 pub fn run_mcap_replay(
-    opts: DaemonOptions,
+    mut opts: DaemonOptions,
     path: PathBuf,
     odometry_topic: Option<String>,
     progress: Option<ProgressFn>,
 ) -> Result<DaemonReport, DaemonError> {
-    let recipe = recipe(&opts)?;
-    let motion = PipelineSettings::from_config(&opts.config)?.motion;
-    // The replay's odometry comes from the file: a session only to publish.
-    #[cfg(feature = "zenoh")]
-    let node = if opts.config.output.zenoh.enabled {
-        Some(Arc::new(crate::output::zenoh_node::ZenohNode::open(
-            &opts.config.output.zenoh,
-            crate::output::live::NODE_NAME,
-        )?))
-    } else {
-        None
-    };
-    #[cfg(not(feature = "zenoh"))]
-    let node: Option<crate::output::live::SharedNode> = None;
-    let output = OutputHandle::spawn(output_files(&opts, motion, node.clone()))?;
-    let mut replay = mcap_replay::McapReplaySettings::new(path, motion);
-    if let Some(topic) = odometry_topic {
-        replay.odometry_topic = topic;
-    }
-    let (azimuths, odometry, reader) = mcap_replay::start(replay)?;
-    // The recorded radar's profile is chosen from the geometry of its first azimuth, as a
-    // live radar's is.
-    let pipeline = PipelineStart::OnFirstAzimuth(Box::new(move |geometry: &protocol::Geometry| {
-        let derived = recipe.for_radar(geometry, crate::pipeline::SourceFacts::default())?;
-        Pipeline::new(derived.settings, None, None)
-    }));
-    let control = RunControl {
-        end_after_silence: None,
-        stop: Arc::clone(&opts.stop),
-        max_stream_s: opts.max_stream_s,
-        progress,
-    };
-    let inputs = PipelineInputs {
-        azimuths,
-        odometry: Some(Box::new(odometry)),
-    };
-    let run = run_pipeline(pipeline, inputs, &output, control);
-    let counts = reader.finish();
-    let writer = output.finish()?;
-    #[cfg(feature = "zenoh")]
-    if let Some(node) = node {
-        node.close();
-    }
-    #[cfg(not(feature = "zenoh"))]
-    let _ = node;
-    Ok(DaemonReport {
-        run,
-        driver: None,
-        writer,
-        out_dir: opts.out_dir,
-        scene: None,
-        #[cfg(feature = "sim")]
-        replay: None,
-        driver_failure: None,
-        mcap_replay: Some(counts),
-        zenoh_odometry: None,
-    })
+    opts.mcap = Some(McapSource {
+        path,
+        odometry_topic,
+    });
+    opts.simulator = None;
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .map_err(|_| DaemonError::PipelinePanicked)?;
+    runtime.block_on(run_daemon(opts, progress))
 }
 
 /// Closes the run's Zenoh session, if it has one, on a blocking thread.
@@ -501,25 +379,14 @@ fn output_files(
     motion: radar_model::motion::MotionModel,
     node: Option<crate::output::live::SharedNode>,
 ) -> OutputFiles {
-    output_files_for(&opts.config, opts.figures, &opts.out_dir, motion, node)
-}
-
-/// [`output_files`] from its parts.
-fn output_files_for(
-    config: &config::Config,
-    figures: bool,
-    out_dir: &std::path::Path,
-    motion: radar_model::motion::MotionModel,
-    node: Option<crate::output::live::SharedNode>,
-) -> OutputFiles {
-    let o = &config.output;
+    let o = &opts.config.output;
     OutputFiles {
-        figures,
+        figures: opts.figures,
         trajectory: o.trajectory.clone(),
         map: o.map.clone(),
         diagnostics: o.diagnostics.clone(),
         recording: o.mcap.as_ref().map(|file| RecordingFile {
-            path: out_dir.join(file),
+            path: opts.out_dir.join(file),
             motion,
         }),
         live: o.zenoh.enabled.then(|| crate::output::LiveOutput {
@@ -527,6 +394,6 @@ fn output_files_for(
             motion,
             node,
         }),
-        ..OutputFiles::in_dir(out_dir.to_path_buf())
+        ..OutputFiles::in_dir(opts.out_dir.clone())
     }
 }

@@ -3,14 +3,13 @@
 use std::fmt::{self, Write as _};
 
 use crate::daemon::mcap_replay::McapReplayCounts;
-#[cfg(feature = "sim")]
-use crate::daemon::replay::ReplayFigures;
 use crate::daemon::zenoh_odometry::ZenohOdometryCounts;
 use crate::output::{LiveSummary, RecordingSummary};
 use crate::pipeline::scan_match::ScanMatchCounts;
 use crate::pipeline::scores::{MapScore, ObservationErrorStats, PoseErrorStats};
 use crate::pipeline::submaps::SubmapSummary;
 use crate::pipeline::{DaemonEkf, PipelineSummary, RunReport};
+use crate::source::ReplayFigures;
 
 use super::DaemonReport;
 
@@ -87,7 +86,6 @@ pub fn summary_text(r: &DaemonReport) -> String {
     }
     put(&Timing(s));
     put(&Refusals(&r.run));
-    #[cfg(feature = "sim")]
     if let Some(rp) = &r.replay {
         put(&RecordedDrive { drive: rp, s });
     }
@@ -525,13 +523,11 @@ impl fmt::Display for Refusals<'_> {
 
 /// A replay of a recorded drive: the recording, the filter and dead reckoning against
 /// the ground truth, and the map's density.
-#[cfg(feature = "sim")]
 struct RecordedDrive<'a> {
     drive: &'a ReplayFigures,
     s: &'a PipelineSummary,
 }
 
-#[cfg(feature = "sim")]
 impl fmt::Display for RecordedDrive<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let (rp, s) = (self.drive, self.s);
@@ -539,7 +535,7 @@ impl fmt::Display for RecordedDrive<'_> {
         writeln!(
             f,
             "  recorded drive ({}, {} scans, {} skipped as damaged): {:.1} m; odometry from the ground truth x{:.3} speed, {:+.3} rad/s yaw rate, noise {:.3} m/s / {:.4} rad/s (seed {}); ranges corrected for a range-Doppler coupling of {:.4} s",
-            rp.format.map_or("-", |f| f.name()), rp.scans, rp.scans_skipped,
+            rp.format.unwrap_or("-"), rp.scans, rp.scans_skipped,
             rp.distance_m, e.speed_scale, e.yaw_rate_bias_rps, e.sigma_speed_mps, e.sigma_yaw_rate_rps, e.seed,
             rp.doppler_range_coupling_s
         )?;

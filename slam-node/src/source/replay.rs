@@ -24,39 +24,13 @@ use sim_sensor::replay::truth::{
 use sim_sensor::replay::{ReplayFormat, ScanSet};
 use slam_filter::{OdometrySample, ProcessModel};
 
+pub use super::figures::{OdometryErrors, ReplayFigures};
 use crate::pipeline::{TrueFeature, TruthOracle};
 
 /// Odometry samples a second made from the ground truth.
 pub const ODOMETRY_HZ: f64 = 20.0;
 /// Wheelbase the yaw rate is turned into bicycle steering with (m).
 pub const WHEELBASE_M: f64 = 2.7;
-/// The errors put on the ground truth's motion to make the odometry.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OdometryErrors {
-    /// Seed of the noise.
-    pub seed: u64,
-    /// Speed noise (m/s, standard deviation per sample).
-    pub sigma_speed_mps: f64,
-    /// Yaw-rate noise (rad/s, standard deviation per sample).
-    pub sigma_yaw_rate_rps: f64,
-    /// Speed scale (1.05: the odometry reads 5 % fast).
-    pub speed_scale: f64,
-    /// Yaw-rate bias (rad/s).
-    pub yaw_rate_bias_rps: f64,
-}
-
-impl Default for OdometryErrors {
-    fn default() -> Self {
-        Self {
-            seed: 1,
-            sigma_speed_mps: 0.05,
-            sigma_yaw_rate_rps: 0.005,
-            speed_scale: 1.0,
-            yaw_rate_bias_rps: 0.0,
-        }
-    }
-}
-
 /// Why a replay could not be set up.
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
@@ -358,46 +332,27 @@ impl OdometrySource for MemoryOdometry {
     }
 }
 
-/// What the replay adds to the summary.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ReplayFigures {
-    /// The odometry's errors.
-    pub errors: OdometryErrors,
-    /// Distance driven (ground truth, m).
-    pub distance_m: f64,
-    /// Dead reckoning's RMS position error at the scan times (m).
-    pub dead_reckoning_rms_m: f64,
-    /// Dead reckoning's final position error (m).
-    pub dead_reckoning_final_m: f64,
-    /// The data set's layout.
-    pub format: Option<ReplayFormat>,
-    /// Scans in the recording.
-    pub scans: usize,
-    /// Scans the simulator skipped as damaged.
-    pub scans_skipped: u64,
-    /// The range-Doppler coupling the detections were corrected with (s).
-    pub doppler_range_coupling_s: f64,
-}
-
-impl ReplayFigures {
-    /// The figures of a replay of `truth` with `samples` made with `errors`.
-    pub fn new(truth: &RecordedTruth, samples: &[OdometrySample], errors: OdometryErrors) -> Self {
-        let e = truth.dead_reckoning_errors(samples);
-        let rms = if e.is_empty() {
-            0.0
-        } else {
-            (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt()
-        };
-        Self {
-            errors,
-            distance_m: truth.distance_m(),
-            dead_reckoning_rms_m: rms,
-            dead_reckoning_final_m: e.last().copied().unwrap_or(0.0),
-            format: None,
-            scans: truth.times_s().len(),
-            scans_skipped: 0,
-            doppler_range_coupling_s: 0.0,
-        }
+/// The figures of a replay of `truth` with `samples` made with `errors`.
+pub fn replay_figures(
+    truth: &RecordedTruth,
+    samples: &[OdometrySample],
+    errors: OdometryErrors,
+) -> ReplayFigures {
+    let e = truth.dead_reckoning_errors(samples);
+    let rms = if e.is_empty() {
+        0.0
+    } else {
+        (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt()
+    };
+    ReplayFigures {
+        errors,
+        distance_m: truth.distance_m(),
+        dead_reckoning_rms_m: rms,
+        dead_reckoning_final_m: e.last().copied().unwrap_or(0.0),
+        format: None,
+        scans: truth.times_s().len(),
+        scans_skipped: 0,
+        doppler_range_coupling_s: 0.0,
     }
 }
 

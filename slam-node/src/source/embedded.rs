@@ -16,12 +16,8 @@ use radar_model::power::RadarConstants;
 use sim_sensor::{SimHandle, SimOptions, SimServer};
 use tracing::info;
 
-use super::replay::{
-    MemoryOdometry, OdometryErrors, RecordedTruth, ReplayError, ReplayFigures, WHEELBASE_M,
-};
-use super::{sink, DaemonError};
+use super::{sink, Inputs, Running, SourceEnd, SourceError, Stopping};
 use crate::output::figures::TruthOverlay;
-use crate::pipeline::run::PipelineStart;
 use crate::pipeline::{Pipeline, SceneTruth, SettingsRecipe, SourceFacts, TruthOracle};
 
 /// The simulator to start in this process.
@@ -91,7 +87,7 @@ pub fn embedded_settings(
     recipe: &SettingsRecipe,
     scene: &sim_sensor::scene::Scene,
     keep_compensation: bool,
-) -> Result<crate::pipeline::Derived, DaemonError> {
+) -> Result<crate::pipeline::Derived, SourceError> {
     let choice = radar_model::profile::simulated(
         recipe.config.radar.model.as_deref(),
         &scene_announced(scene),
@@ -104,33 +100,37 @@ pub fn embedded_settings(
 /// A driver for the embedded simulator: as fast as possible, a blocking hand-off lets TCP
 /// back-pressure pace the simulator to the pipeline; in real time, the driver's own
 /// channel and drop policy, as against a radar.
-fn connect(
+pub(super) fn connect(
     driver_settings: DriverSettings,
     fast: bool,
-) -> Result<(Receiver<Azimuth>, Driver), DaemonError> {
+) -> Result<(Receiver<Azimuth>, Driver), SourceError> {
     if fast {
         let capacity = driver_settings.handoff.azimuth_capacity.unwrap_or(4096);
         let (sink, rx) = sink::BlockingSink::new(capacity);
         Ok((rx, Driver::with_sink(driver_settings, Box::new(sink))))
     } else {
         let (driver, receivers) = Driver::new(driver_settings);
-        let rx = receivers.azimuths.ok_or(DaemonError::NoAzimuthChannel)?;
+        let rx = receivers.azimuths.ok_or(SourceError::NoAzimuthChannel)?;
         Ok((rx, driver))
     }
 }
 
-/// What starting the embedded simulator gives the daemon.
-#[allow(missing_debug_implementations)] // holds a `dyn OdometrySource`
-pub(super) struct Started {
-    pub motion: radar_model::motion::MotionModel,
-    pub truth_overlay: TruthOverlay,
-    pub scene_name: String,
-    pub pipeline: PipelineStart,
-    pub handle: SimHandle,
-    pub azimuths: Receiver<Azimuth>,
-    pub driver: Driver,
-    pub odometry: Option<Box<dyn OdometrySource>>,
-    pub replay: Option<ReplayFigures>,
+/// The simulator's server, stopped when the run ends.
+pub(super) struct SimRunning(pub SimHandle);
+
+impl Running for SimRunning {
+    fn stop(self: Box<Self>) -> Stopping {
+        Box::pin(async move {
+            let scans_skipped = self.0.stats().scans_skipped;
+            if let Err(e) = self.0.shutdown().await {
+                tracing::warn!(error = %e, "simulator shutdown");
+            }
+            SourceEnd {
+                scans_skipped,
+                mcap: None,
+            }
+        })
+    }
 }
 
 /// How often a build in progress looks at the stop request.
@@ -139,21 +139,21 @@ const STOP_POLL: Duration = Duration::from_millis(20);
 /// Waits for `work` (a task doing a build: the scene's truth, the simulator's renderer),
 /// unless `stop` is set first: then the build is abandoned (aborted at its next await, or
 /// left to finish unobserved on its thread) and the daemon gives up with
-/// [`DaemonError::Stopped`]. A large scene's build (a day's trajectory, 200,000 features)
+/// [`SourceError::Stopped`]. A large scene's build (a day's trajectory, 200,000 features)
 /// takes seconds; Ctrl-C must not wait for it.
 async fn unless_stopped<T: Send + 'static>(
     stop: &AtomicBool,
     mut work: tokio::task::JoinHandle<T>,
-) -> Result<T, DaemonError> {
+) -> Result<T, SourceError> {
     let mut poll = tokio::time::interval(STOP_POLL);
     loop {
         tokio::select! {
-            joined = &mut work => return joined.map_err(|_| DaemonError::PipelinePanicked),
+            joined = &mut work => return joined.map_err(|_| SourceError::BuildPanicked),
             _ = poll.tick() => {
                 if stop.load(Ordering::Relaxed) {
                     work.abort();
                     info!("stop requested while building the scene: abandoned");
-                    return Err(DaemonError::Stopped);
+                    return Err(SourceError::Stopped);
                 }
             }
         }
@@ -162,9 +162,10 @@ async fn unless_stopped<T: Send + 'static>(
 
 /// Starts the simulator and connects a driver and an odometry client to it; the pipeline is
 /// built (everything that can fail is checked) before the simulator starts. A stop request
-/// (`stop`, Ctrl-C) during the builds ends it at once with [`DaemonError::Stopped`].
+/// (`stop`, Ctrl-C) during the builds ends it at once with [`SourceError::Stopped`].
+/// `odometry` (Zenoh's, opened by the daemon) replaces the simulator's odometry port.
 #[allow(clippy::too_many_arguments)]
-pub(super) async fn start(
+pub async fn start(
     sim: EmbeddedSim,
     recipe: &SettingsRecipe,
     mut driver_settings: DriverSettings,
@@ -173,14 +174,15 @@ pub(super) async fn start(
     keep_configured_compensation: bool,
     odo_shutdown: Shutdown,
     stop: &Arc<AtomicBool>,
-) -> Result<Started, DaemonError> {
+    odometry: Option<Box<dyn OdometrySource>>,
+) -> Result<Inputs, SourceError> {
     let mut options = sim.options;
     options.ground_truth_path = Some(out_dir.join("ground-truth.jsonl"));
     let start_ns = *options
         .start_time_ns
         .get_or_insert(1_704_067_200_000_000_000);
     let sim_sensor::settings::SourceSpec::Scene(scene) = options.source.clone() else {
-        return Err(DaemonError::NotAScene);
+        return Err(SourceError::NotAScene);
     };
     let settings = embedded_settings(recipe, &scene, keep_configured_compensation)?.settings;
     let motion = settings.motion;
@@ -190,7 +192,7 @@ pub(super) async fn start(
     let scene_name = scene.name.clone();
     let (truth_overlay, pipeline) = unless_stopped(
         stop,
-        tokio::task::spawn_blocking(move || -> Result<_, DaemonError> {
+        tokio::task::spawn_blocking(move || -> Result<_, SourceError> {
             let oracle = SceneTruth::new(&scene, start_s, horizon)?;
             let mut truth_overlay = TruthOverlay {
                 features: oracle.features().iter().map(|f| (f.x_m, f.y_m)).collect(),
@@ -213,7 +215,7 @@ pub(super) async fn start(
     info!(radar = %handle.local_addr(), odometry = ?handle.odometry_addr(), scene = %scene_name, "embedded simulator started");
     driver_settings.address = handle.local_addr();
     let idle_timeout = sim.odometry_idle_timeout;
-    let odometry: Option<Box<dyn OdometrySource>> = handle.odometry_addr().map(|a| {
+    let simulated: Option<Box<dyn OdometrySource>> = handle.odometry_addr().map(|a| {
         let mut odometry = TcpOdometrySettings::new(a);
         odometry.idle_timeout = idle_timeout;
         Box::new(TcpOdometry::spawn(
@@ -223,137 +225,17 @@ pub(super) async fn start(
         )) as Box<dyn OdometrySource>
     });
     let (azimuths, driver) = connect(driver_settings, fast)?;
-    Ok(Started {
-        motion,
-        truth_overlay,
-        scene_name,
+    Ok(Inputs {
+        azimuths,
+        driver: Some(driver),
+        odometry: odometry.or(simulated),
         pipeline: pipeline.into(),
-        handle,
-        azimuths,
-        driver,
-        odometry,
-        replay: None,
-    })
-}
-
-/// Recorded scans to replay through the simulator, with their ground truth.
-#[derive(Debug, Clone)]
-pub struct RecordedReplay {
-    /// The data set's folder (Oxford: `radar/` and `radar_odometry.csv`; Boreas: `radar/`
-    /// and `applanix/radar_poses.csv`; RADIATE: `Navtech_Polar/`, `Navtech_Polar.txt` and
-    /// `GPS_IMU_Twist*`).
-    pub dir: std::path::PathBuf,
-    /// Its layout (`None`: detected from the folder's contents).
-    pub format: Option<sim_sensor::replay::ReplayFormat>,
-    /// The errors put on the ground truth's motion to make the odometry.
-    pub errors: OdometryErrors,
-    /// Radar odometry with the odometry corrections estimated (see
-    /// the radar profile's `radar_odometry`); `false` turns it off.
-    pub radar_odometry: bool,
-    /// Also write the odometry samples to this file (the odometry stream's format).
-    pub write_odometry: Option<std::path::PathBuf>,
-}
-
-/// Replays recorded scans through the simulator's server, with odometry from their ground
-/// truth; the pipeline scores itself against that truth.
-pub(super) async fn start_replay(
-    mut options: SimOptions,
-    recorded: RecordedReplay,
-    recipe: &SettingsRecipe,
-    mut driver_settings: DriverSettings,
-) -> Result<Started, DaemonError> {
-    let scans = sim_sensor::replay::ScanSet::open(&recorded.dir, recorded.format)
-        .map_err(ReplayError::from)?;
-    let truth = RecordedTruth::read(&scans)?;
-    let (format, scan_dir) = (scans.format, scans.scan_dir.clone());
-    let recording =
-        sim_sensor::replay::ScanRecording::from_scans(scans).map_err(ReplayError::from)?;
-    let geometry = recording.geometry;
-    info!(
-        %format,
-        scans = recording.scans.files.len(),
-        azimuths = geometry.azimuths,
-        bins = geometry.bins,
-        bin_m = geometry.bin_size_m,
-        rotation_mhz = geometry.rotation_mhz,
-        "recorded scans"
-    );
-    options.source = sim_sensor::settings::SourceSpec::PolarScans {
-        dir: recorded.dir.clone(),
-        format: Some(format),
-    };
-    options.odometry_bind = None;
-    options.ground_truth_path = None;
-    options.start_time_ns = None;
-    // The recorded radar's profile is chosen from what the simulator announces for it, on
-    // its first azimuth, as a radar's on a vehicle is; the odometry made from the ground
-    // truth means the bicycle it was made with.
-    let facts = SourceFacts {
-        motion: Some(radar_model::motion::MotionModel::Bicycle {
-            wheelbase_m: WHEELBASE_M,
-        }),
-        no_radar_odometry: !recorded.radar_odometry,
-        ..SourceFacts::default()
-    };
-    let announced = radar_model::profile::Announced {
-        azimuths: geometry.azimuths,
-        encoder_size: geometry.encoder_size,
-        range_bins: geometry.bins,
-        bin_size_m: geometry.bin_size_m,
-        rotation_hz: f64::from(geometry.rotation_mhz) / 1000.0,
-    };
-    let expected = recipe
-        .derive_quietly(
-            radar_model::profile::select(recipe.config.radar.model.as_deref(), &announced)
-                .map_err(crate::pipeline::settings::SettingsError::from)?,
-            SourceFacts {
-                max_range_m: Some(geometry.max_range_m()),
-                ..facts.clone()
-            },
-        )?
-        .settings;
-    let samples = truth.odometry(&recorded.errors);
-    if let Some(path) = &recorded.write_odometry {
-        super::replay::write_odometry(path, &samples).map_err(|source| {
-            ReplayError::WriteOdometry {
-                path: path.clone(),
-                source,
-            }
-        })?;
-        info!(path = %path.display(), samples = samples.len(), "odometry written");
-    }
-    let mut figures = ReplayFigures::new(&truth, &samples, recorded.errors);
-    figures.format = Some(format);
-    figures.doppler_range_coupling_s = expected.doppler_range_coupling_s;
-    let truth_overlay = TruthOverlay {
-        features: Vec::new(),
-        trajectory: truth
-            .times_s()
-            .iter()
-            .filter_map(|&t| truth.pose_at(t))
-            .map(|p| (p.x, p.y))
-            .collect(),
-    };
-    let recipe = recipe.clone();
-    let pipeline = PipelineStart::OnFirstAzimuth(Box::new(move |g: &protocol::Geometry| {
-        let derived = recipe.for_radar(g, facts)?;
-        Pipeline::new(derived.settings, None, Some(Box::new(truth)))
-    }));
-    let fast = options.pacing == sim_sensor::settings::Pacing::AsFastAsPossible;
-    let handle = SimServer::spawn(options).await?;
-    info!(radar = %handle.local_addr(), scans = %scan_dir.display(), "replaying recorded scans");
-    driver_settings.address = handle.local_addr();
-    let (azimuths, driver) = connect(driver_settings, fast)?;
-    Ok(Started {
-        motion: expected.motion,
+        motion,
+        name: Some(scene_name),
         truth_overlay,
-        scene_name: format!("recorded {format} scans in {}", scan_dir.display()),
-        pipeline,
-        handle,
-        azimuths,
-        driver,
-        odometry: Some(Box::new(MemoryOdometry::new(samples))),
-        replay: Some(figures),
+        end_after_silence: None,
+        replay: None,
+        running: Box::new(SimRunning(handle)),
     })
 }
 

@@ -138,6 +138,57 @@ impl McapReplayHandle {
     }
 }
 
+impl super::Running for McapReplayHandle {
+    fn stop(self: Box<Self>) -> super::Stopping {
+        Box::pin(async move {
+            let counts = tokio::task::spawn_blocking(move || self.finish())
+                .await
+                .unwrap_or_else(|_| McapReplayCounts {
+                    file_error: Some("the MCAP reader thread panicked".into()),
+                    ..McapReplayCounts::default()
+                });
+            super::SourceEnd {
+                scans_skipped: 0,
+                mcap: Some(counts),
+            }
+        })
+    }
+}
+
+/// The daemon's inputs from an MCAP recording: the recorded radar's azimuths, numbered by
+/// the radar driver's numbering, and the recorded odometry topic (`odometry_topic`, the
+/// daemon's own by default) under `recipe`'s motion model; the pipeline is built on the
+/// first azimuth, whose geometry chooses the recorded radar's profile.
+pub fn open(
+    recipe: crate::pipeline::SettingsRecipe,
+    source: &super::McapSource,
+) -> Result<super::Inputs, super::SourceError> {
+    let motion = crate::pipeline::PipelineSettings::from_config(&recipe.config)?.motion;
+    let mut settings = McapReplaySettings::new(source.path.clone(), motion);
+    if let Some(topic) = &source.odometry_topic {
+        settings.odometry_topic = topic.clone();
+    }
+    let (azimuths, odometry, reader) = start(settings)?;
+    Ok(super::Inputs {
+        azimuths,
+        driver: None,
+        odometry: Some(Box::new(odometry)),
+        pipeline: crate::pipeline::run::PipelineStart::OnFirstAzimuth(Box::new(
+            move |geometry: &protocol::Geometry| {
+                let derived =
+                    recipe.for_radar(geometry, crate::pipeline::SourceFacts::default())?;
+                crate::pipeline::Pipeline::new(derived.settings, None, None)
+            },
+        )),
+        motion,
+        name: None,
+        truth_overlay: crate::output::figures::TruthOverlay::default(),
+        end_after_silence: None,
+        replay: None,
+        running: Box::new(reader),
+    })
+}
+
 /// Odometry from the reader thread.
 #[derive(Debug)]
 pub struct ReplayOdometry {
