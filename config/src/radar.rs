@@ -78,7 +78,7 @@ pub struct RawRadar {
     /// Record the raw byte stream to this file. Default absent (no recording).
     pub record_path: Option<PathBuf>,
     /// The radar's model, naming its profile (`paper-2006`, `cts350x`, `cts350x-radiate`,
-    /// `cir204h`, `sim-cts350x`: radar-model's `profile`; `slam-node --radar-profiles` prints
+    /// `cir204h`, `cir304h`, `sim-cts350x`: radar-model's `profile`; `slam-node --radar-profiles` prints
     /// them). Default absent: the profile is chosen
     /// from what the radar announces at connection (azimuths, encoder size, bins, bin
     /// size, rotation rate), the nearest with a WARN when none matches.

@@ -289,6 +289,38 @@ pub const CIR204H: RadarProfile = RadarProfile {
     radar_odometry: CTS350X.radar_odometry,
 };
 
+/// The Navtech unit of the Boreas data set from its upgrade of 2021-09-21 (the Boreas
+/// paper's CIR304-H; Navtech's RAS6 family): 0.04381 m bins.
+pub const CIR304H: RadarProfile = RadarProfile {
+    name: "cir304h",
+    description: "Navtech CIR304-H / RAS6 (Boreas from 2021-09-21: 0.04381 m bins)",
+    azimuths: s(400, "pyboreas DATA_REFERENCE.md: 400 azimuths, 0.9 degrees"),
+    encoder_size: s(5600, "pyboreas DATA_REFERENCE.md: encoder of 5600 counts"),
+    range_bins: s(
+        6848,
+        "assumed (about 300 m at 0.04381 m); not confirmed by a public source: a unit announcing another count gets this profile with a WARN naming it",
+    ),
+    bin_size_m: s(
+        0.04381,
+        "pyboreas utils/radar.py: 0.04381 m after upgrade_time (2021-09-21)",
+    ),
+    range_resolution_m: s(0.04381, "the bin size, as the CTS350-X's"),
+    beam_width_deg: s(1.8, NAVTECH_BEAM),
+    rotation_hz: s(4.0, "pyboreas DATA_REFERENCE.md: 4 Hz"),
+    doppler_range_coupling_s: s(
+        0.049,
+        "assumed the CIR204's (Burnett's code: beta 0.049); not measured on this unit",
+    ),
+    sigma_range_m: s(0.35, NOT_MEASURED_HERE),
+    sigma_bearing_deg: s(1.3, NOT_MEASURED_HERE),
+    sigma_power_db: s(3.5, NOT_MEASURED_HERE),
+    landmarks: CTS350X.landmarks,
+    front_end: CTS350X.front_end,
+    learned_floor: CTS350X.learned_floor,
+    compensation: CTS350X.compensation,
+    radar_odometry: CTS350X.radar_odometry,
+};
+
 /// The simulator's CTS350-X-like unit (sim-sensor's `cts350x-400` preset): a CTS350-X's
 /// azimuths, bins, beam and range-Doppler coupling, its returns rendered with the paper
 /// unit's noise (ideal points), so the paper unit's look noise, landmarks and front end.
@@ -314,7 +346,8 @@ pub const SIM_CTS350X: RadarProfile = RadarProfile {
 
 /// Every profile of a real radar, the paper's unit first: the ones an announcement is
 /// matched against.
-pub const PROFILES: [&RadarProfile; 4] = [&PAPER_2006, &CTS350X, &CTS350X_RADIATE, &CIR204H];
+pub const PROFILES: [&RadarProfile; 5] =
+    [&PAPER_2006, &CTS350X, &CTS350X_RADIATE, &CIR204H, &CIR304H];
 
 /// Profiles of simulated radars: chosen by name only.
 pub const SIMULATED: [&RadarProfile; 1] = [&SIM_CTS350X];
@@ -703,7 +736,7 @@ mod tests {
         let err = select(Some("ras9"), &PAPER_2006.announced()).unwrap_err();
         assert!(err
             .to_string()
-            .contains("paper-2006, cts350x, cts350x-radiate, cir204h, sim-cts350x"));
+            .contains("paper-2006, cts350x, cts350x-radiate, cir204h, cir304h, sim-cts350x"));
     }
 
     #[test]
