@@ -339,11 +339,11 @@ mod publisher {
     use slam_filter::OdometrySample;
     use tracing::{info, warn};
 
+    use super::super::event::OutputEvent;
     use super::super::ros::{
         self, TOPIC_DETECTIONS, TOPIC_MAP, TOPIC_MAP_COVARIANCE, TOPIC_POSE, TOPIC_TF,
         TOPIC_TF_STATIC,
     };
-    use super::super::writer::OutputEvent;
     use super::super::zenoh_node::{Topic, ZenohNode};
     use super::{LiveError, LiveOutput, LiveSummary, SharedNode, NODE_NAME};
 

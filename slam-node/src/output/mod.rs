@@ -9,6 +9,7 @@
 pub mod csv;
 pub mod detections;
 pub mod diagnostics;
+pub mod event;
 pub mod figures;
 pub mod live;
 pub mod map;
@@ -21,8 +22,9 @@ pub mod zenoh_node;
 
 pub use detections::{Detection, RotationDetections};
 pub use diagnostics::{RotationDiagnostics, SpectrumComparison};
+pub use event::OutputEvent;
 pub use live::{LiveError, LiveOutput, LiveSummary};
 pub use map::{MapFeature, MapSnapshot};
 pub use recording::{McapRecorder, RecordingError, RecordingSummary};
 pub use trajectory::{PoseSample, TumWriter};
-pub use writer::{OutputEvent, OutputFiles, OutputHandle, RecordingFile, WriterError};
+pub use writer::{OutputFiles, OutputHandle, RecordingFile, WriterError};

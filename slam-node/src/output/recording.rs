@@ -50,6 +50,7 @@ use ros_msgs::{to_cdr, CdrError, RosMessage};
 use slam_filter::OdometrySample;
 
 use super::detections::RotationDetections;
+use super::event::OutputEvent;
 use super::map::MapSnapshot;
 use super::ros::{self, BScan};
 pub use super::ros::{
@@ -58,7 +59,6 @@ pub use super::ros::{
     TOPIC_RADAR_CONFIGURATION, TOPIC_TF, TOPIC_TF_STATIC,
 };
 use super::trajectory::PoseSample;
-use super::writer::OutputEvent;
 
 /// Why the recording failed (the daemon logs it and carries on without the recording).
 #[derive(Debug, thiserror::Error)]

@@ -10,43 +10,16 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
-use radar_driver::Azimuth;
 use radar_model::motion::MotionModel;
-use slam_filter::OdometrySample;
 use tracing::{info, warn};
 
-use super::detections::RotationDetections;
-use super::diagnostics::{RotationDiagnostics, SpectrumComparison};
+use super::diagnostics::RotationDiagnostics;
+use super::event::OutputEvent;
 use super::figures::{draw_map, draw_spectrum, FigureError, TruthOverlay};
 use super::live::{LiveError, LiveOutput, LiveSummary};
 use super::map::MapSnapshot;
 use super::recording::{McapRecorder, RecordingError, RecordingSummary};
 use super::trajectory::{PoseSample, TumWriter};
-
-/// Something for the writer.
-#[derive(Debug, Clone)]
-pub enum OutputEvent {
-    /// One trajectory pose.
-    Pose(PoseSample),
-    /// One rotation's diagnostics.
-    Rotation(Box<RotationDiagnostics>),
-    /// A map snapshot (rewrites the map file).
-    Map(MapSnapshot),
-    /// A predicted/measured spectrum pair.
-    Spectrum(SpectrumComparison),
-    /// Ground truth for the final figure.
-    Truth(TruthOverlay),
-    /// One radar azimuth as received (sent only when a recording wants it).
-    Azimuth(Azimuth),
-    /// One odometry sample the pipeline received (sent only when a recording wants it).
-    Odometry(OdometrySample),
-    /// The detections of one rotation that reached the filter.
-    Detections(RotationDetections),
-    /// The whole trajectory re-expressed with the global layer's final submap frames (end
-    /// of a run on submaps): the trajectory file is rewritten with it, and the poses as
-    /// published during the run are kept beside it as `<name>-online.<ext>`.
-    Trajectory(Vec<PoseSample>),
-}
 
 /// The MCAP recording of a run.
 #[derive(Debug, Clone, PartialEq)]
