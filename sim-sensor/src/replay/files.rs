@@ -26,7 +26,6 @@ use std::fs::File;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use super::truth::TruthError;
 use crate::error::ReplayError;
 
 /// Largest scan (PNG) file read (bytes): see the [module](self) for why.
@@ -82,7 +81,7 @@ impl std::fmt::Display for FileKind {
 
 /// A path that names something other than a regular file, after following symlinks. In a
 /// [`ReplayError`] it is the source of [`ReplayError::Io`] (see [`not_a_regular_file`]); in a
-/// [`TruthError`] it is [`TruthError::NotRegularFile`].
+/// `TruthError` (the ground truth's readers) it is `TruthError::NotRegularFile`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 #[error("not a regular file but {what}; a {kind} must be a regular file")]
 pub struct NotRegularFile {
@@ -139,21 +138,6 @@ impl From<FileError> for ReplayError {
             FileError::TooLarge {
                 path, bytes, limit, ..
             } => ReplayError::TooLarge { path, bytes, limit },
-        }
-    }
-}
-
-impl From<FileError> for TruthError {
-    fn from(e: FileError) -> Self {
-        match e {
-            FileError::Io { path, source } => TruthError::Io { path, source },
-            FileError::NotRegular { path, refused } => TruthError::NotRegularFile {
-                path,
-                what: refused.what,
-            },
-            FileError::TooLarge {
-                path, bytes, limit, ..
-            } => TruthError::TooLarge { path, bytes, limit },
         }
     }
 }

@@ -308,6 +308,21 @@ pub fn chain_pose_times(
     Ok(times)
 }
 
+impl From<super::files::FileError> for TruthError {
+    fn from(e: super::files::FileError) -> Self {
+        match e {
+            super::files::FileError::Io { path, source } => TruthError::Io { path, source },
+            super::files::FileError::NotRegular { path, refused } => TruthError::NotRegularFile {
+                path,
+                what: refused.what,
+            },
+            super::files::FileError::TooLarge {
+                path, bytes, limit, ..
+            } => TruthError::TooLarge { path, bytes, limit },
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
