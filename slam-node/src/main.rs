@@ -80,6 +80,15 @@ fn run(args: cli::Args) -> anyhow::Result<()> {
     if let Some(e) = report.driver_failure {
         return Err(anyhow::Error::new(e).context("the radar driver failed"));
     }
+    // A recording with no radar data the daemon could use did not do the run's job.
+    if let Some(c) = report.mcap_replay.as_ref().filter(|c| c.azimuths == 0) {
+        anyhow::bail!(
+            "{doing}: the file held no radar data the daemon could replay{}",
+            c.file_error
+                .as_ref()
+                .map_or(String::new(), |e| format!(" ({e})"))
+        );
+    }
     Ok(())
 }
 

@@ -388,3 +388,39 @@ fn asking_for_zenoh_from_a_build_without_the_feature_is_refused_with_how_to_buil
     assert!(err.contains("built without its `zenoh` feature"), "{err}");
     assert!(err.contains("--features zenoh"), "{err}");
 }
+
+/// Files `--replay-mcap` cannot replay at all (random bytes, zeros, empty, a folder) end
+/// the process with status 1 and say so, and the summary names the recording, not a live
+/// radar (issue 38, item 7).
+#[test]
+fn an_mcap_file_with_nothing_to_replay_makes_the_process_exit_non_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    let random: Vec<u8> = (0..4096u32)
+        .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+        .collect();
+    let cases: [(&str, Option<Vec<u8>>); 4] = [
+        ("random.mcap", Some(random)),
+        ("zeros.mcap", Some(vec![0; 4096])),
+        ("empty.mcap", Some(Vec::new())),
+        ("folder.mcap", None),
+    ];
+    for (name, bytes) in cases {
+        let path = dir.path().join(name);
+        match bytes {
+            Some(b) => std::fs::write(&path, b).unwrap(),
+            None => std::fs::create_dir(&path).unwrap(),
+        }
+        let out = slam_node()
+            .args(["--no-figures", "--replay-mcap"])
+            .arg(&path)
+            .arg("--out")
+            .arg(dir.path().join(format!("out-{name}")))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(out.status.code(), Some(1), "{name}: stderr: {err}");
+        assert!(err.contains("replaying the MCAP file"), "{name}: {err}");
+        assert!(!text.contains("live radar"), "{name}: {text}");
+    }
+}

@@ -181,7 +181,7 @@ pub fn open(
             },
         )),
         motion,
-        name: None,
+        name: Some(format!("MCAP recording {}", source.path.display())),
         truth_overlay: crate::output::figures::TruthOverlay::default(),
         end_after_silence: None,
         replay: None,
