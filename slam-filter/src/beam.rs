@@ -51,12 +51,15 @@ pub struct BeamCandidate {
 }
 
 /// The candidates of a beam at `bearing_rad` seen from `pose` (the state's, or a mean-only
-/// extrapolation of it), sorted by range. O(N) in the number of features, O(1) each.
+/// extrapolation of it), between the minimum range and `far_m` (the radar's range, or less
+/// where the beam was covered only so far), sorted by range. O(N) in the number of
+/// features, O(1) each.
 pub fn candidates_in_beam(
     state: &SlamState,
     settings: &FilterSettings,
     pose: &Pose2,
     bearing_rad: f64,
+    far_m: f64,
 ) -> Vec<BeamCandidate> {
     let pose = *pose;
     let entry = |i: usize, j: usize| state.covariance_entry(i, j);
@@ -80,7 +83,7 @@ pub fn candidates_in_beam(
             continue;
         }
         let rb = range_bearing(&pose, [p.x_m, p.y_m]);
-        if rb.range_m < settings.min_range_m || rb.range_m > settings.max_range_m {
+        if rb.range_m < settings.min_range_m || rb.range_m > far_m {
             continue;
         }
         let offset = wrap_angle(rb.bearing_rad - bearing_rad).abs();

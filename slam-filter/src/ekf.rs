@@ -723,7 +723,28 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
 
     /// The candidate features of a beam at `bearing_rad` (see [`candidates_in_beam`]).
     pub fn features_in_beam(&self, bearing_rad: f64) -> Vec<BeamCandidate> {
-        candidates_in_beam(&self.state, &self.settings, &self.pose(), bearing_rad)
+        self.features_in_beam_within(bearing_rad, self.settings.max_range_m)
+    }
+
+    /// [`Self::features_in_beam`] out to `far_m` only.
+    fn features_in_beam_within(&self, bearing_rad: f64, far_m: f64) -> Vec<BeamCandidate> {
+        candidates_in_beam(
+            &self.state,
+            &self.settings,
+            &self.pose(),
+            bearing_rad,
+            far_m,
+        )
+    }
+
+    /// The far end of a beam the radar covered out to `max_range_m` (`None`: its full
+    /// range): never nearer than the minimum range, never beyond the full range.
+    fn beam_far_m(&self, max_range_m: Option<f64>) -> f64 {
+        let full = self.settings.max_range_m;
+        match max_range_m.filter(|m| !m.is_nan() && *m < full) {
+            Some(m) => m.max(self.settings.min_range_m),
+            None => full,
+        }
     }
 
     /// [`Self::process_beam`] for a beam the radar covered only out to `max_range_m` (a
@@ -733,15 +754,9 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         beam: &BeamObservation,
         max_range_m: f64,
     ) -> Result<BeamReport, FilterError> {
-        let full = self.settings.max_range_m;
         // Not finite, or not nearer than the full range: nothing to limit.
-        if max_range_m.is_nan() || max_range_m >= full {
-            return self.process_beam(beam);
-        }
-        self.settings.max_range_m = max_range_m.max(self.settings.min_range_m);
-        let report = self.process_beam(beam);
-        self.settings.max_range_m = full;
-        report
+        let far_m = self.beam_far_m(Some(max_range_m));
+        self.process_beam_inner(beam, None, far_m)
     }
 
     /// Processes every target detected down one beam, in the paper's steps:
@@ -762,7 +777,8 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// beam's time but not updated. If initialising a confirmed target fails, the updates
     /// before it stand and the remaining unclaimed targets of the beam are not processed.
     pub fn process_beam(&mut self, beam: &BeamObservation) -> Result<BeamReport, FilterError> {
-        self.process_beam_inner(beam, None)
+        let far_m = self.settings.max_range_m;
+        self.process_beam_inner(beam, None, far_m)
     }
 
     /// [`Self::process_beam`] where only the targets with `may_start[j]` true may start (or
@@ -775,36 +791,33 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         max_range_m: Option<f64>,
         may_start: &[bool],
     ) -> Result<BeamReport, FilterError> {
-        let full = self.settings.max_range_m;
-        let limit = max_range_m.filter(|m| !m.is_nan() && *m < full);
-        if let Some(m) = limit {
-            self.settings.max_range_m = m.max(self.settings.min_range_m);
-        }
-        let report = self.process_beam_inner(beam, Some(may_start));
-        self.settings.max_range_m = full;
-        report
+        let far_m = self.beam_far_m(max_range_m);
+        self.process_beam_inner(beam, Some(may_start), far_m)
     }
 
+    /// The beam's steps (see [`Self::process_beam`]) for the features and targets between
+    /// the minimum range and `far_m`.
     fn process_beam_inner(
         &mut self,
         beam: &BeamObservation,
         may_start: Option<&[bool]>,
+        far_m: f64,
     ) -> Result<BeamReport, FilterError> {
         self.check_beam(beam)?;
         let burst = self
             .target_rate
             .is_burst(&self.settings, beam.timestamp_s, beam.targets.len());
         if self.relocalising.is_some() {
-            return self.relocalise_beam(beam);
+            return self.relocalise_beam(beam, far_m);
         }
         if beam.targets.is_empty() && self.settings.defer_empty_beams {
-            return self.empty_beam(beam);
+            return self.empty_beam(beam, far_m);
         }
         // 1. Prediction.
         self.predict_to(beam.timestamp_s)?;
         self.last_mapped_beam_s = beam.timestamp_s;
         let mut report = BeamReport::default();
-        let in_beam = self.features_in_beam(beam.bearing_rad);
+        let in_beam = self.features_in_beam_within(beam.bearing_rad, far_m);
         report.candidates = self.ids_of(&in_beam);
         let mut unclaimed: Vec<usize> = (0..beam.targets.len()).collect();
         if !in_beam.is_empty() {
@@ -836,7 +849,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             }
             unclaimed.clear();
         }
-        self.handle_unclaimed(beam, &unclaimed, &mut report)?;
+        self.handle_unclaimed(beam, &unclaimed, &mut report, far_m)?;
         self.tentatives
             .expire(beam.timestamp_s, self.settings.tentative_timeout_s);
         Ok(report)
@@ -1087,7 +1100,11 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// (nothing is updated, so nothing needs it); its candidates are found from a mean-only
     /// extrapolation of the pose to the beam's time, and their misses counted. The next
     /// beam with targets, or odometry, predicts the state across the gap in one go.
-    fn empty_beam(&mut self, beam: &BeamObservation) -> Result<BeamReport, FilterError> {
+    fn empty_beam(
+        &mut self,
+        beam: &BeamObservation,
+        far_m: f64,
+    ) -> Result<BeamReport, FilterError> {
         let held = self.odometry.ok_or(FilterError::NoOdometry)?;
         let from_s = self.state.time_s();
         let gap_s = beam.timestamp_s - from_s;
@@ -1105,7 +1122,8 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         }
         let pose = self.extrapolate_pose(&held, beam.timestamp_s)?;
         self.last_mapped_beam_s = beam.timestamp_s;
-        let candidates = candidates_in_beam(&self.state, &self.settings, &pose, beam.bearing_rad);
+        let candidates =
+            candidates_in_beam(&self.state, &self.settings, &pose, beam.bearing_rad, far_m);
         let mut report = BeamReport {
             candidates: candidates
                 .iter()

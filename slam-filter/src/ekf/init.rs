@@ -43,13 +43,14 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         beam: &BeamObservation,
         unclaimed: &[usize],
         report: &mut BeamReport,
+        far_m: f64,
     ) -> Result<(), FilterError> {
         let gate2 = self.gates.threshold(2);
         for &j in unclaimed {
             let Some(t) = beam.targets.get(j) else {
                 continue;
             };
-            if t.range_m < self.settings.min_range_m || t.range_m > self.settings.max_range_m {
+            if t.range_m < self.settings.min_range_m || t.range_m > far_m {
                 continue;
             }
             let sighting = self.tentatives.offer(

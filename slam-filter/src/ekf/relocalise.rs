@@ -202,6 +202,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     pub(super) fn relocalise_beam(
         &mut self,
         beam: &BeamObservation,
+        far_m: f64,
     ) -> Result<BeamReport, FilterError> {
         if !beam.targets.is_empty() {
             self.predict_to(beam.timestamp_s)?;
@@ -210,7 +211,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             Some(p) => p,
             None => return Err(FilterError::NoOdometry),
         };
-        let (near, far) = (self.settings.min_range_m, self.settings.max_range_m);
+        let (near, far) = (self.settings.min_range_m, far_m);
         let cap = self.settings.relocalise_max_targets;
         let Some(r) = self.relocalising.as_mut() else {
             return Ok(BeamReport::default());
@@ -246,7 +247,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         r.swept_rad = 0.0;
         let started_s = r.started_s;
         self.stats.relocalisation_attempts += 1;
-        match self.attempt_relocalisation(&held)? {
+        match self.attempt_relocalisation(&held, far_m)? {
             Attempt::Accepted => {
                 self.relocalising = None;
                 self.stats.relocalisations += 1;
@@ -261,12 +262,12 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         Ok(BeamReport::default())
     }
 
-    /// The mapped features that could be in view: within the radar's range of the mean
-    /// position plus three standard deviations of it.
-    fn map_points(&self) -> Vec<MapPoint> {
+    /// The mapped features that could be in view: within `far_m` (the radar's range, or the
+    /// beam's) of the mean position plus three standard deviations of it.
+    fn map_points(&self, far_m: f64) -> Vec<MapPoint> {
         let pose = self.pose();
         let pc = self.pose_covariance();
-        let reach = self.settings.max_range_m + 3.0 * pc[(0, 0)].max(pc[(1, 1)]).max(0.0).sqrt();
+        let reach = far_m + 3.0 * pc[(0, 0)].max(pc[(1, 1)]).max(0.0).sqrt();
         (0..self.state.feature_count())
             .filter_map(|slot| {
                 let p = self.state.params(slot)?;
@@ -288,8 +289,12 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
 
     /// One turn's attempt: hypotheses, scoring, the ambiguity and joint-compatibility
     /// checks, and the update when accepted.
-    fn attempt_relocalisation(&mut self, held: &[HeldTarget]) -> Result<Attempt, FilterError> {
-        let map = self.map_points();
+    fn attempt_relocalisation(
+        &mut self,
+        held: &[HeldTarget],
+        far_m: f64,
+    ) -> Result<Attempt, FilterError> {
+        let map = self.map_points(far_m);
         let need = self.settings.relocalise_min_features;
         if map.len() < need || held.len() < need {
             return Ok(Attempt::Refused);
