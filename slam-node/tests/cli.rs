@@ -424,3 +424,31 @@ fn an_mcap_file_with_nothing_to_replay_makes_the_process_exit_non_zero() {
         assert!(!text.contains("live radar"), "{name}: {text}");
     }
 }
+
+/// A log written to a pipe or a file carries no ANSI colour codes (issue 38, low): only a
+/// terminal gets colour.
+#[test]
+fn the_log_to_a_pipe_has_no_colour_codes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = slam_node()
+        .args([
+            "--fast",
+            "--duration",
+            "1",
+            "--no-figures",
+            "--progress-every",
+            "0",
+            "--out",
+        ])
+        .arg(dir.path())
+        .env_remove("NO_COLOR")
+        .env("RUST_LOG", "info")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("INFO"), "some log lines: {err}");
+    assert!(
+        !err.contains('\u{1b}'),
+        "colour codes in a piped log: {err:?}"
+    );
+}
