@@ -144,13 +144,6 @@ pub fn evaluate(opts: &Options) -> Result<Outcome, EvalError> {
 
 /// An error and its causes on one line, `outer: cause: root` (error texts do not repeat
 /// their causes, so this is where the whole story is told).
-pub fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut text = e.to_string();
-    let mut source = e.source();
-    while let Some(s) = source {
-        text.push_str(": ");
-        text.push_str(&s.to_string());
-        source = s.source();
-    }
-    text
+pub fn error_chain(e: &(dyn std::error::Error + 'static)) -> String {
+    radar_driver::ErrorChain(e).to_string()
 }

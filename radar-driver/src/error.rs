@@ -163,19 +163,25 @@ pub enum DriverError {
     Task(#[from] tokio::task::JoinError),
 }
 
-/// Displays an error and each of its sources, separated by `": "`, on one line.
+/// Displays an error and each of its sources, separated by `": "`, on one line. A source
+/// whose text is already in the line (an error type that repeats its cause in its own
+/// message) is not written twice: `No such file or directory (os error 2)`, once.
 #[derive(Debug, Clone, Copy)]
 pub struct ErrorChain<'a>(pub &'a (dyn std::error::Error + 'static));
 
 impl fmt::Display for ErrorChain<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.0)?;
+        let mut text = self.0.to_string();
         let mut next = self.0.source();
         while let Some(e) = next {
-            write!(f, ": {e}")?;
+            let link = e.to_string();
+            if !link.is_empty() && !text.contains(&link) {
+                text.push_str(": ");
+                text.push_str(&link);
+            }
             next = e.source();
         }
-        Ok(())
+        f.write_str(&text)
     }
 }
 

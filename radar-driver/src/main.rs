@@ -247,7 +247,7 @@ fn main() -> std::process::ExitCode {
     match runtime.block_on(run(args)) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("radar-driver: {e:#}");
+            eprintln!("radar-driver: {}", radar_driver::ErrorChain(e.as_ref()));
             std::process::ExitCode::FAILURE
         }
     }

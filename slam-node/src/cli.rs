@@ -137,8 +137,9 @@ impl Args {
 pub fn options(args: &Args) -> anyhow::Result<DaemonOptions> {
     // The keys the file writes override the radar profile's values; the others take them.
     let (mut config, written) = match &args.config {
-        Some(path) => config::Config::load_with_written(path)
-            .with_context(|| format!("loading {}", path.display()))?,
+        Some(path) => {
+            config::Config::load_with_written(path).context("loading the configuration")?
+        }
         None => (config::Config::default(), Default::default()),
     };
     if let Some(mcap) = &args.mcap {

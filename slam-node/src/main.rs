@@ -30,7 +30,7 @@ fn main() -> ExitCode {
     match run(cli::Args::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("slam-node: {e:#}");
+            eprintln!("slam-node: {}", radar_driver::ErrorChain(e.as_ref()));
             ExitCode::FAILURE
         }
     }

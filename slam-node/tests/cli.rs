@@ -452,3 +452,23 @@ fn the_log_to_a_pipe_has_no_colour_codes() {
         "colour codes in a piped log: {err:?}"
     );
 }
+
+/// An error's cause is said once (issue 38, low): a missing configuration file used to read
+/// `...: No such file or directory (os error 2): No such file or directory (os error 2)`, an
+/// invalid one `loading X.toml: X.toml: invalid settings`.
+#[test]
+fn an_error_says_its_cause_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing.toml");
+    let out = slam_node().arg("--config").arg(&missing).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.matches("os error 2").count(), 1, "{err}");
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "[filter]\nsigma_u = -1\n").unwrap();
+    let out = slam_node().arg("--config").arg(&bad).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.matches("bad.toml").count(), 1, "{err}");
+    assert!(err.contains("filter.sigma_u must be >= 0, got -1"), "{err}");
+}

@@ -77,7 +77,7 @@ fn main() -> ExitCode {
     match run(Args::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("radar-zenoh: {e:#}");
+            eprintln!("radar-zenoh: {}", radar_driver::ErrorChain(e.as_ref()));
             ExitCode::FAILURE
         }
     }

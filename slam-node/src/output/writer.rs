@@ -292,15 +292,8 @@ fn true_pose(pose: &PoseSample, r: &RotationDiagnostics) -> Option<PoseSample> {
 }
 
 /// An error and its causes on one line.
-fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut text = e.to_string();
-    let mut source = e.source();
-    while let Some(s) = source {
-        text.push_str(": ");
-        text.push_str(&s.to_string());
-        source = s.source();
-    }
-    text
+fn error_chain(e: &(dyn std::error::Error + 'static)) -> String {
+    radar_driver::ErrorChain(e).to_string()
 }
 
 fn run(
