@@ -339,3 +339,78 @@ fn unknown_schemas_wrong_encodings_and_malformed_cdr_cost_their_messages_only() 
     assert_eq!(counts.before_configuration, 1);
     assert_eq!(counts.file_error, None);
 }
+
+/// A chunk whose uncompressed size disagrees with its data (8 bytes changed in a recording
+/// the daemon made, or a small file claiming a 1 TiB chunk) used to spin the reader at
+/// 100 % CPU for ever (issue 38, item 3): the reader now ends the replay there and says why
+/// (mcap 0.26's chunk reader). Run on a thread with a bound, so a spin fails the test.
+#[test]
+fn a_chunk_whose_size_disagrees_with_its_data_ends_the_replay_and_says_why() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (tx, rx) = crossbeam_channel::unbounded();
+    for az in azimuths() {
+        tx.send(az).expect("room");
+    }
+    drop(tx);
+    let (_, path) = run(
+        dir.path(),
+        "live",
+        rx,
+        Box::new(ListOdometry(odometry().into_iter())),
+    );
+    let mut bytes = std::fs::read(&path).expect("recording");
+    // Walk the records (opcode, u64 length, body) to the first chunk (0x06); its body starts
+    // with start time, end time, then the uncompressed size.
+    let mut pos = 8;
+    let mut patched = false;
+    while pos + 9 <= bytes.len() {
+        let len = u64::from_le_bytes(bytes[pos + 1..pos + 9].try_into().unwrap()) as usize;
+        if bytes[pos] == 0x06 {
+            let at = pos + 9 + 16;
+            let size = u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+            bytes[at..at + 8].copy_from_slice(&(size + 12_345).to_le_bytes());
+            patched = true;
+            break;
+        }
+        pos += 9 + len;
+    }
+    assert!(patched, "the recording has a chunk");
+    let bad = dir.path().join("bad-chunk.mcap");
+    std::fs::write(&bad, &bytes).expect("write");
+    // A file of a few dozen bytes claiming a 1 TiB chunk.
+    let mut tib = b"\x89MCAP0\r\n".to_vec();
+    tib.extend([0x01]);
+    tib.extend(8u64.to_le_bytes());
+    tib.extend([0u8; 8]);
+    let records = [0x28, 0xb5, 0x2f, 0xfd, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+    let mut chunk = Vec::new();
+    chunk.extend(0u64.to_le_bytes());
+    chunk.extend(0u64.to_le_bytes());
+    chunk.extend((1u64 << 40).to_le_bytes());
+    chunk.extend(0u32.to_le_bytes());
+    chunk.extend(4u32.to_le_bytes());
+    chunk.extend(b"zstd");
+    chunk.extend((records.len() as u64).to_le_bytes());
+    chunk.extend(records);
+    tib.extend([0x06]);
+    tib.extend((chunk.len() as u64).to_le_bytes());
+    tib.extend(chunk);
+    let huge = dir.path().join("tib.mcap");
+    std::fs::write(&huge, &tib).expect("write");
+    for file in [bad, huge] {
+        let (done_tx, done_rx) = crossbeam_channel::bounded(1);
+        let f = file.clone();
+        std::thread::spawn(move || {
+            let _ = done_tx.send(replay_counts(&f));
+        });
+        let counts = done_rx
+            .recv_timeout(std::time::Duration::from_secs(20))
+            .unwrap_or_else(|_| panic!("{}: the replay did not end", file.display()));
+        assert!(
+            counts.file_error.is_some(),
+            "{}: the bad chunk is reported: {counts:?}",
+            file.display()
+        );
+        assert!(counts.rotations < ROTATIONS, "{counts:?}");
+    }
+}
