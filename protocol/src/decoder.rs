@@ -250,11 +250,11 @@ impl FrameDecoder {
     /// a signature that the bytes received so far can neither confirm nor rule out: at
     /// least two bytes of a signature prefix ("00 01") starting inside the frame and
     /// running to the end of the buffer. A one-byte match (a lone 0x00 at the very end) is
-    /// held back only when the frame's payload does not decode (the payload is copied to be
-    /// tried only then): such a frame is typically a stub whose size field was cut inside
-    /// and completed by the next signature's first byte. A good frame ending in a zero byte
-    /// is not held back; the cost is that a good-looking frame cut exactly one byte short
-    /// also loses the next frame.
+    /// held back only when the frame's payload does not decode or its id is unknown (the
+    /// payload is copied to be tried only then): such a frame is typically a stub whose size
+    /// field was cut inside and completed by the next signature's first byte. A good frame of
+    /// a known id ending in a zero byte is not held back; the cost is that a good-looking
+    /// frame cut exactly one byte short also loses the next frame.
     fn signature_may_straddle_end(&self, buf: &[u8], header: &FrameHeader) -> bool {
         let frame_len = header.frame_len();
         let confirm_end = frame_len + SIGNATURE.len() - 1;
@@ -272,7 +272,13 @@ impl FrameDecoder {
         (from..frame_len).any(|p| prefix_from(p, 2))
             || (prefix_from(frame_len - 1, 1) && {
                 let payload = Bytes::copy_from_slice(buf.get(HEADER_LEN..frame_len).unwrap_or(&[]));
-                Message::decode_payload(header.message_id, payload).is_err()
+                // An unknown id decodes from any bytes, so it is held back too: a stub of
+                // one whose size field was completed by the next signature's 0x00 must not
+                // take that byte (holding back a message the daemon ignores costs nothing).
+                matches!(
+                    Message::decode_payload(header.message_id, payload),
+                    Err(_) | Ok(Message::Unknown { .. })
+                )
             })
     }
 
