@@ -36,10 +36,8 @@ impl Captured {
     }
 }
 
-// A current-thread runtime: the driver's task runs on this thread, under this thread's
-// default subscriber.
-#[tokio::test]
-async fn ten_identical_configurations_log_once_and_undecodable_ones_warn_once() {
+/// INFO and above logged on this thread, captured as text until the guard is dropped.
+fn capture() -> (Captured, tracing::subscriber::DefaultGuard) {
     let captured = Captured::default();
     let writer = captured.clone();
     let subscriber = tracing_subscriber::fmt()
@@ -47,7 +45,14 @@ async fn ten_identical_configurations_log_once_and_undecodable_ones_warn_once() 
         .with_max_level(tracing::Level::INFO)
         .with_writer(move || writer.clone())
         .finish();
-    let _guard = tracing::subscriber::set_default(subscriber);
+    (captured, tracing::subscriber::set_default(subscriber))
+}
+
+// A current-thread runtime: the driver's task runs on this thread, under this thread's
+// default subscriber.
+#[tokio::test]
+async fn ten_identical_configurations_log_once_and_undecodable_ones_warn_once() {
+    let (captured, _guard) = capture();
     tokio::time::timeout(Duration::from_secs(30), async {
         let radar = FakeRadar::bind().await;
         let (driver, receivers) = Driver::new(test_settings(radar.addr));
@@ -91,14 +96,7 @@ async fn ten_identical_configurations_log_once_and_undecodable_ones_warn_once() 
 // the repeats are.
 #[tokio::test]
 async fn a_radar_alternating_between_two_configurations_logs_once_per_interval() {
-    let captured = Captured::default();
-    let writer = captured.clone();
-    let subscriber = tracing_subscriber::fmt()
-        .with_ansi(false)
-        .with_max_level(tracing::Level::INFO)
-        .with_writer(move || writer.clone())
-        .finish();
-    let _guard = tracing::subscriber::set_default(subscriber);
+    let (captured, _guard) = capture();
     tokio::time::timeout(Duration::from_secs(30), async {
         let radar = FakeRadar::bind().await;
         let (driver, receivers) = Driver::new(test_settings(radar.addr));

@@ -208,6 +208,22 @@ fn a_recording_the_daemon_made_replays_to_the_same_trajectory_bit_for_bit() {
     );
 }
 
+/// A run of the pipeline over the test's azimuths and odometry, recorded: the MCAP file.
+fn live_recording(dir: &Path) -> PathBuf {
+    let (tx, rx) = crossbeam_channel::unbounded();
+    for az in azimuths() {
+        tx.send(az).expect("room");
+    }
+    drop(tx);
+    run(
+        dir,
+        "live",
+        rx,
+        Box::new(ListOdometry(odometry().into_iter())),
+    )
+    .1
+}
+
 fn replay_counts(path: &Path) -> McapReplayCounts {
     let (az, odo, handle) = replay(path);
     drop(odo);
@@ -220,17 +236,7 @@ fn replay_counts(path: &Path) -> McapReplayCounts {
 #[test]
 fn a_recording_cut_by_a_crash_replays_up_to_the_cut_and_says_so() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let (tx, rx) = crossbeam_channel::unbounded();
-    for az in azimuths() {
-        tx.send(az).expect("room");
-    }
-    drop(tx);
-    let (_, path) = run(
-        dir.path(),
-        "live",
-        rx,
-        Box::new(ListOdometry(odometry().into_iter())),
-    );
+    let path = live_recording(dir.path());
     let bytes = std::fs::read(&path).expect("recording");
     let cut = dir.path().join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).expect("write");
@@ -347,17 +353,7 @@ fn unknown_schemas_wrong_encodings_and_malformed_cdr_cost_their_messages_only() 
 #[test]
 fn a_chunk_whose_size_disagrees_with_its_data_ends_the_replay_and_says_why() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let (tx, rx) = crossbeam_channel::unbounded();
-    for az in azimuths() {
-        tx.send(az).expect("room");
-    }
-    drop(tx);
-    let (_, path) = run(
-        dir.path(),
-        "live",
-        rx,
-        Box::new(ListOdometry(odometry().into_iter())),
-    );
+    let path = live_recording(dir.path());
     let mut bytes = std::fs::read(&path).expect("recording");
     // Walk the records (opcode, u64 length, body) to the first chunk (0x06); its body starts
     // with start time, end time, then the uncompressed size.
