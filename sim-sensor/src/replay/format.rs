@@ -7,6 +7,7 @@
 //! | RADIATE | `Navtech_Polar/<frame:06>.png`, rows = 576 range bins, columns = 400 azimuths, no metadata | `Navtech_Polar.txt` (`Frame: N Time: s.ns`); per-azimuth times interpolated | `GPS_IMU_Twist.txt` + `GPS_IMU_Twist/<frame:06>.txt`: GPS fixes and INS velocities |
 
 use std::path::Path;
+use std::path::PathBuf;
 
 use crate::error::ReplayError;
 
@@ -96,6 +97,24 @@ impl std::str::FromStr for ReplayFormat {
             .find(|f| f.name().eq_ignore_ascii_case(s))
             .ok_or_else(|| format!("{s:?} is not a layout: oxford, boreas or radiate"))
     }
+}
+
+/// Encoder counts per revolution (Navtech; Boreas: `azimuth = encoder * pi / 2800`).
+pub const ENCODER_SIZE: u16 = 5600;
+
+/// One scan file and its time.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ScanFile {
+    /// The PNG.
+    pub path: PathBuf,
+    /// The scan's time, µs since the epoch (Oxford, Boreas: the file name; RADIATE: its row
+    /// of `Navtech_Polar.txt`).
+    pub time_us: i64,
+    /// How long its rotation took (µs): the interval to the next scan (Oxford, Boreas) or
+    /// from the previous one (RADIATE, whose times mark a scan's arrival, its end) when that
+    /// is within half and one and a half median intervals, the median interval otherwise.
+    /// RADIATE's per-azimuth times are spread over it.
+    pub period_us: i64,
 }
 
 #[cfg(test)]

@@ -32,8 +32,8 @@ use std::path::{Path, PathBuf};
 use radar_model::geometry::{wrap_angle, Pose2};
 
 use super::files::{read_bounded, read_bounded_text, FileKind};
+use super::format::{ScanFile, ENCODER_SIZE};
 use super::png::{PolarRow, PolarScan, MAX_IMAGE_BYTES};
-use super::scans::{ScanFile, ENCODER_SIZE};
 use super::truth::{check_span, read_text, relative_to_first, TruthError};
 use crate::error::ReplayError;
 

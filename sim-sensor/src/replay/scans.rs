@@ -5,6 +5,7 @@
 //!
 //! Blocking file IO: call it from `spawn_blocking` in async code.
 
+pub use super::format::{ScanFile, ENCODER_SIZE};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -20,8 +21,6 @@ pub use super::files::MAX_INDEX_BYTES;
 /// Rotation rate announced when a recording has a single scan (a CTS350-X's and a
 /// CIR204-H's 4 Hz), millihertz.
 pub const NOMINAL_ROTATION_MHZ: u16 = 4000;
-/// Encoder counts per revolution (Navtech; Boreas: `azimuth = encoder * pi / 2800`).
-pub const ENCODER_SIZE: u16 = 5600;
 /// Oxford's bin size (m), the CTS350-X's 4.38 cm.
 pub const OXFORD_BIN_M: f64 = 0.0438;
 /// Boreas' bin size (m) before its radar's upgrade (pyboreas: `resolution = 0.0596`).
@@ -34,21 +33,6 @@ pub const BOREAS_UPGRADE_US: i64 = 1_632_182_400_000_000;
 pub const RADIATE_BIN_M: f64 = 0.173611;
 /// At most one damaged-scan WARN per this long.
 pub const DAMAGED_WARN_EVERY: Duration = Duration::from_secs(1);
-
-/// One scan file and its time.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ScanFile {
-    /// The PNG.
-    pub path: PathBuf,
-    /// The scan's time, µs since the epoch (Oxford, Boreas: the file name; RADIATE: its row
-    /// of `Navtech_Polar.txt`).
-    pub time_us: i64,
-    /// How long its rotation took (µs): the interval to the next scan (Oxford, Boreas) or
-    /// from the previous one (RADIATE, whose times mark a scan's arrival, its end) when that
-    /// is within half and one and a half median intervals, the median interval otherwise.
-    /// RADIATE's per-azimuth times are spread over it.
-    pub period_us: i64,
-}
 
 /// A recording's scans, in time order (at least one).
 #[derive(Debug, Clone)]
