@@ -57,6 +57,7 @@ pub mod lifecycle;
 pub mod motion_tally;
 pub mod observation;
 pub mod predict;
+pub mod process;
 pub mod radar;
 pub mod repeat_look;
 pub mod settings;

@@ -12,7 +12,7 @@ use nalgebra::Matrix3x6;
 use radar_model::geometry::{wrap_angle, Pose2};
 
 use super::error::FilterError;
-use super::predict::{corrected_input, OdometrySample, ProcessModel};
+use super::process::{corrected_input, OdometrySample, ProcessModel};
 
 /// The motion since a mark (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -18,63 +18,14 @@
 //! covariance grows by `G Q G^T`, linear in `dt`, whatever the step size.
 
 use nalgebra::{Matrix2, Matrix3, Matrix3x2, Vector3};
-use radar_model::geometry::{wrap_angle, Pose2};
+use radar_model::geometry::wrap_angle;
 
 use super::error::FilterError;
 use super::settings::FilterSettings;
 use super::state::{SlamState, POSE_DIM, SPEED_SCALE_INDEX, STEER_BIAS_INDEX};
 use super::symmetric::lower_entry;
 
-/// One odometry sample: what the vehicle reports at `timestamp_s`, held until the next.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OdometrySample {
-    /// Unix time (s).
-    pub timestamp_s: f64,
-    /// Forward speed (m/s).
-    pub speed_mps: f64,
-    /// Steering input (rad), interpreted by the process model.
-    pub steer_rad: f64,
-}
-
-impl OdometrySample {
-    /// Rejects NaN and infinities.
-    pub fn check(&self) -> Result<(), FilterError> {
-        for (what, value) in [
-            ("timestamp_s", self.timestamp_s),
-            ("speed_mps", self.speed_mps),
-            ("steer_rad", self.steer_rad),
-        ] {
-            if !value.is_finite() {
-                return Err(FilterError::NonFiniteOdometry { what, value });
-            }
-        }
-        Ok(())
-    }
-}
-
-/// The pose after one step and the step's Jacobians.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MotionStep {
-    /// The new pose (heading wrapped).
-    pub pose: Pose2,
-    /// `d f / d [x, y, theta]`.
-    pub wrt_pose: Matrix3<f64>,
-    /// `d f / d [speed, steer]`.
-    pub wrt_input: Matrix3x2<f64>,
-}
-
-/// A vehicle process model with its Jacobians (implemented for radar-model's
-/// [`radar_model::motion::MotionModel`] in [`super::radar`]).
-pub trait ProcessModel {
-    /// Moves `pose` by `speed_mps`, `steer_rad` over `dt_s`.
-    fn step(
-        &self,
-        pose: &Pose2,
-        speed_mps: f64,
-        steer_rad: f64,
-        dt_s: f64,
-    ) -> Result<MotionStep, FilterError>;
-}
+pub use super::process::{corrected_input, MotionStep, OdometrySample, ProcessModel};
 
 /// Applies one step of length `dt_s > 0` to the state: O(n).
 pub fn predict_step<M: ProcessModel + ?Sized>(
@@ -152,12 +103,6 @@ pub(crate) fn input_noise(settings: &FilterSettings, dt_s: f64) -> Matrix2<f64> 
         0.0,
         settings.steer_std_rad.powi(2) * q_scale,
     )
-}
-
-/// The inputs the process model is driven by: the odometry corrected by the state's
-/// `[k, b]` (see [`crate::state::SPEED_SCALE_INDEX`]).
-pub fn corrected_input(input: &OdometrySample, bias: [f64; 2]) -> (f64, f64) {
-    (input.speed_mps * (1.0 + bias[0]), input.steer_rad + bias[1])
 }
 
 /// `P_vv <- F P_vv F^T + Q_v`, `P_vm <- F P_vm`: the pose rows and columns only.
@@ -269,6 +214,7 @@ pub fn predict_to<M: ProcessModel + ?Sized>(
 mod tests {
     use super::*;
     use nalgebra::Matrix3;
+    use radar_model::geometry::Pose2;
     use radar_model::motion::MotionModel;
 
     /// Default settings, a 2.7 m wheelbase and 6 m/s with a slight steer.
