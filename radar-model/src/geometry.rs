@@ -31,6 +31,18 @@ impl Pose2 {
         Self { x, y, theta }
     }
 
+    /// `other` in the frame of this pose (`self^-1 other`, both in one world frame), its
+    /// heading wrapped.
+    pub fn between(&self, other: &Pose2) -> Pose2 {
+        let (s, c) = self.theta.sin_cos();
+        let (dx, dy) = (other.x - self.x, other.y - self.y);
+        Pose2::new(
+            c * dx + s * dy,
+            -s * dx + c * dy,
+            wrap_angle(other.theta - self.theta),
+        )
+    }
+
     /// World position of a point seen at range `range_m` and bearing `bearing_rad`
     /// (the inverse of eq. 3 and 4).
     pub fn point_at(&self, range_m: f64, bearing_rad: f64) -> [f64; 2] {

@@ -223,6 +223,13 @@ pub const CTS350X: RadarProfile = RadarProfile {
     radar_odometry: s(true, CTS_ODOMETRY),
 };
 
+/// The CTS350-X's look noise, for a unit it was not measured on.
+const BORROWED_SIGMA_RANGE: Sourced<f64> = s(CTS350X.sigma_range_m.value, NOT_MEASURED_HERE);
+/// The same for the bearing.
+const BORROWED_SIGMA_BEARING: Sourced<f64> = s(CTS350X.sigma_bearing_deg.value, NOT_MEASURED_HERE);
+/// The same for the power.
+const BORROWED_SIGMA_POWER: Sourced<f64> = s(CTS350X.sigma_power_db.value, NOT_MEASURED_HERE);
+
 /// The Navtech unit of the RADIATE data set: a CTS350-X set to 0.17 m bins and 100 m.
 pub const CTS350X_RADIATE: RadarProfile = RadarProfile {
     name: "cts350x-radiate",
@@ -247,14 +254,11 @@ pub const CTS350X_RADIATE: RadarProfile = RadarProfile {
         0.0,
         "not published for this chirp: not corrected (slam-node/README.md, 'Range-Doppler coupling')",
     ),
-    sigma_range_m: s(0.35, NOT_MEASURED_HERE),
-    sigma_bearing_deg: s(1.3, NOT_MEASURED_HERE),
-    sigma_power_db: s(3.5, NOT_MEASURED_HERE),
-    landmarks: CTS350X.landmarks,
-    front_end: CTS350X.front_end,
-    learned_floor: CTS350X.learned_floor,
-    compensation: CTS350X.compensation,
-    radar_odometry: CTS350X.radar_odometry,
+    sigma_range_m: BORROWED_SIGMA_RANGE,
+    sigma_bearing_deg: BORROWED_SIGMA_BEARING,
+    sigma_power_db: BORROWED_SIGMA_POWER,
+    // The front end, landmark thresholds, compensation and radar odometry of the CTS350-X.
+    ..CTS350X
 };
 
 /// The Navtech unit of the Boreas data set until its upgrade of 2021-09-21 (pyboreas names
@@ -279,14 +283,11 @@ pub const CIR204H: RadarProfile = RadarProfile {
         0.049,
         "Burnett's code for Boreas' CIR204 data (steam_icp boreas_navtech.hpp: beta 0.049)",
     ),
-    sigma_range_m: s(0.35, NOT_MEASURED_HERE),
-    sigma_bearing_deg: s(1.3, NOT_MEASURED_HERE),
-    sigma_power_db: s(3.5, NOT_MEASURED_HERE),
-    landmarks: CTS350X.landmarks,
-    front_end: CTS350X.front_end,
-    learned_floor: CTS350X.learned_floor,
-    compensation: CTS350X.compensation,
-    radar_odometry: CTS350X.radar_odometry,
+    sigma_range_m: BORROWED_SIGMA_RANGE,
+    sigma_bearing_deg: BORROWED_SIGMA_BEARING,
+    sigma_power_db: BORROWED_SIGMA_POWER,
+    // The front end, landmark thresholds, compensation and radar odometry of the CTS350-X.
+    ..CTS350X
 };
 
 /// The Navtech unit of the Boreas data set from its upgrade of 2021-09-21 (the Boreas
@@ -311,14 +312,11 @@ pub const CIR304H: RadarProfile = RadarProfile {
         0.049,
         "assumed the CIR204's (Burnett's code: beta 0.049); not measured on this unit",
     ),
-    sigma_range_m: s(0.35, NOT_MEASURED_HERE),
-    sigma_bearing_deg: s(1.3, NOT_MEASURED_HERE),
-    sigma_power_db: s(3.5, NOT_MEASURED_HERE),
-    landmarks: CTS350X.landmarks,
-    front_end: CTS350X.front_end,
-    learned_floor: CTS350X.learned_floor,
-    compensation: CTS350X.compensation,
-    radar_odometry: CTS350X.radar_odometry,
+    sigma_range_m: BORROWED_SIGMA_RANGE,
+    sigma_bearing_deg: BORROWED_SIGMA_BEARING,
+    sigma_power_db: BORROWED_SIGMA_POWER,
+    // The front end, landmark thresholds, compensation and radar odometry of the CTS350-X.
+    ..CTS350X
 };
 
 /// The simulator's CTS350-X-like unit (sim-sensor's `cts350x-400` preset): a CTS350-X's

@@ -40,7 +40,7 @@
 
 pub mod boreas;
 
-use radar_model::geometry::{wrap_angle, Pose2};
+use radar_model::geometry::Pose2;
 use thiserror::Error;
 
 /// The segment lengths (m) of the KITTI and Boreas odometry benchmarks.
@@ -210,9 +210,9 @@ pub fn segment_errors(
             let (Some(p_last), Some(q_last)) = (truth.get(last), estimate.get(last)) else {
                 continue;
             };
-            let true_motion = between(p_first, p_last);
-            let estimated_motion = between(q_first, q_last);
-            let error = between(&estimated_motion, &true_motion);
+            let true_motion = p_first.between(p_last);
+            let estimated_motion = q_first.between(q_last);
+            let error = estimated_motion.between(&true_motion);
             out.push(SegmentError {
                 first_frame: first,
                 last_frame: last,
@@ -248,17 +248,6 @@ fn last_frame(travelled: &[f64], first: usize, target: f64) -> Option<usize> {
     (k < rest.len()).then_some(first + k)
 }
 
-/// `a^-1 b`: `b` in the frame of `a`, heading wrapped.
-fn between(a: &Pose2, b: &Pose2) -> Pose2 {
-    let (s, c) = a.theta.sin_cos();
-    let (dx, dy) = (b.x - a.x, b.y - a.y);
-    Pose2::new(
-        c * dx + s * dy,
-        -s * dx + c * dy,
-        wrap_angle(b.theta - a.theta),
-    )
-}
-
 fn check_finite(poses: &[Pose2], which: &'static str) -> Result<(), DriftError> {
     match poses
         .iter()
@@ -280,6 +269,7 @@ fn deg_per_100m(rad_per_m: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use radar_model::geometry::wrap_angle;
     use std::f64::consts::PI;
 
     /// A straight drive along +x, one pose per metre, `metres + 1` poses.

@@ -33,16 +33,6 @@ fn filter(settings: FilterSettings) -> Filter {
     .unwrap()
 }
 
-fn between(a: &Pose2, b: &Pose2) -> Pose2 {
-    let (s, c) = a.theta.sin_cos();
-    let (dx, dy) = (b.x - a.x, b.y - a.y);
-    Pose2::new(
-        c * dx + s * dy,
-        -s * dx + c * dy,
-        wrap_angle(b.theta - a.theta),
-    )
-}
-
 /// `steps` odometry samples at 20 Hz from `odometry(i, rng)` = (the true speed and
 /// steering, what the odometry reads), a registration of the true motion every 0.25 s when
 /// `registrations` (with noise of the assumed size when `noisy`). Returns the filter and
@@ -82,7 +72,7 @@ fn drive_with(
         if i % 5 == 0 {
             f.predict_to(t).unwrap();
             if registrations && f.motion_tally().is_some() {
-                let rel = between(&mark, &truth);
+                let rel = mark.between(&truth);
                 let measured = if noisy {
                     Pose2::new(
                         rel.x + nxy.sample(&mut rng),

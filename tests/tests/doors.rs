@@ -55,21 +55,7 @@ fn relative(poses: &[(f64, Pose2)]) -> Vec<(f64, Pose2)> {
     let Some(&(_, first)) = poses.first() else {
         return Vec::new();
     };
-    let (c, s) = (first.theta.cos(), first.theta.sin());
-    poses
-        .iter()
-        .map(|&(t, p)| {
-            let (dx, dy) = (p.x - first.x, p.y - first.y);
-            (
-                t,
-                Pose2::new(
-                    c * dx + s * dy,
-                    -s * dx + c * dy,
-                    wrap_angle(p.theta - first.theta),
-                ),
-            )
-        })
-        .collect()
+    poses.iter().map(|&(t, p)| (t, first.between(&p))).collect()
 }
 
 fn options(config: config::Config, written: Option<&str>, out: &Path) -> DaemonOptions {

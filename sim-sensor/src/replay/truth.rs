@@ -145,13 +145,7 @@ pub fn compose(a: &Pose2, b: &Pose2) -> Pose2 {
 
 /// `b` in the frame of `a` (both in the same world frame).
 pub fn between(a: &Pose2, b: &Pose2) -> Pose2 {
-    let (s, c) = a.theta.sin_cos();
-    let (dx, dy) = (b.x - a.x, b.y - a.y);
-    Pose2::new(
-        c * dx + s * dy,
-        -s * dx + c * dy,
-        wrap_angle(b.theta - a.theta),
-    )
+    a.between(b)
 }
 
 /// World poses (x east, y north, heading counter-clockwise from east) put in the frame of

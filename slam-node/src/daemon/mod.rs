@@ -225,7 +225,7 @@ async fn open_source(
     if let Some(mcap) = &opts.mcap {
         return Ok((crate::source::mcap::open(recipe, mcap)?, None));
     }
-    let motion = crate::pipeline::PipelineSettings::from_config(&opts.config)?.motion;
+    let motion = crate::pipeline::settings::motion_model(&opts.config);
     let (zenoh, stats) = match zenoh_odometry_source(&opts.config, node, motion)? {
         Some((source, stats)) => (Some(source), Some(stats)),
         None => (None, None),

@@ -521,34 +521,25 @@ mod tests {
         }
     }
 
+    /// The settings for profile `p` from a configuration file's `text`.
+    fn derive_from(text: &str, p: &'static RadarProfile) -> Derived {
+        let c = config::Config::from_toml_str(text).unwrap();
+        let keys = config::written_keys(text);
+        PipelineSettings::derive(&c, Written::Keys(&keys), named(p), &SourceFacts::default())
+            .unwrap()
+    }
+
     #[test]
     fn the_paper_profile_is_the_configuration_defaults() {
-        let c = config::Config::default();
-        let none = BTreeSet::new();
-        let from_profile = PipelineSettings::derive(
-            &c,
-            Written::Keys(&none),
-            named(&profile::PAPER_2006),
-            &SourceFacts::default(),
-        )
-        .unwrap();
-        let from_config = PipelineSettings::from_config(&c).unwrap();
+        let from_profile = derive_from("", &profile::PAPER_2006);
+        let from_config = PipelineSettings::from_config(&config::Config::default()).unwrap();
         assert_eq!(from_profile.settings, from_config);
         assert!(from_profile.overridden.is_empty());
     }
 
     #[test]
     fn a_cts350x_gets_its_front_end_and_a_written_key_overrides_one_value() {
-        let text = "[model]\nsigma_range_m = 0.2\n";
-        let c = config::Config::from_toml_str(text).unwrap();
-        let keys = config::written_keys(text);
-        let d = PipelineSettings::derive(
-            &c,
-            Written::Keys(&keys),
-            named(&profile::CTS350X),
-            &SourceFacts::default(),
-        )
-        .unwrap();
+        let d = derive_from("[model]\nsigma_range_m = 0.2\n", &profile::CTS350X);
         let s = &d.settings;
         assert_eq!(d.overridden, vec!["model.sigma_range_m"]);
         assert_eq!(s.filter.range_std_m, 0.2);
@@ -566,16 +557,7 @@ mod tests {
         assert_eq!(s.filter.speed_scale_std, RADAR_ODOMETRY_SPEED_SCALE_STD);
         assert!(!s.filter.speed_scale_from_landmarks);
         // A configuration that writes a lower threshold gets it (no max() with a constant).
-        let text = "[detector]\npoint_min_snr_db = 20.0\n";
-        let c = config::Config::from_toml_str(text).unwrap();
-        let keys = config::written_keys(text);
-        let d = PipelineSettings::derive(
-            &c,
-            Written::Keys(&keys),
-            named(&profile::CTS350X),
-            &SourceFacts::default(),
-        )
-        .unwrap();
+        let d = derive_from("[detector]\npoint_min_snr_db = 20.0\n", &profile::CTS350X);
         assert_eq!(d.settings.detector.landmarks.min_snr_db, 20.0);
     }
 

@@ -131,6 +131,19 @@ impl SubmapOptions {
     }
 }
 
+/// The motion model the configured odometry means (`[odometry] motion_model`): what the
+/// odometry's steering input is, whatever the radar.
+pub fn motion_model(c: &config::Config) -> MotionModel {
+    match c.odometry.motion_model {
+        ConfigMotion::Paper { step_s } => MotionModel::Paper {
+            step_s: step_s.get(),
+        },
+        ConfigMotion::Bicycle { wheelbase_m } => MotionModel::Bicycle {
+            wheelbase_m: wheelbase_m.get(),
+        },
+    }
+}
+
 /// The chi-square probability mass inside a fixed 3-dof threshold.
 fn gate_probability(gate: Gate) -> f64 {
     match gate {
@@ -223,14 +236,7 @@ impl PipelineSettings {
             constants,
             range_resolution_m: c.model.range_resolution_m.get(),
         };
-        let motion = match c.odometry.motion_model {
-            ConfigMotion::Paper { step_s } => MotionModel::Paper {
-                step_s: step_s.get(),
-            },
-            ConfigMotion::Bicycle { wheelbase_m } => MotionModel::Bicycle {
-                wheelbase_m: wheelbase_m.get(),
-            },
-        };
+        let motion = motion_model(c);
         let beam_width_rad = c.model.beam_width_rad();
         let f = &c.filter;
         let filter = FilterSettings {

@@ -154,6 +154,7 @@ pub enum Simulator {}
 /// Starts the simulator in this process: recorded scans replayed over TCP, or its scene;
 /// `odometry` (Zenoh's, opened by the daemon) replaces the simulator's.
 #[allow(clippy::too_many_arguments)]
+#[cfg_attr(not(feature = "sim"), allow(unused_variables))]
 pub async fn start_simulator(
     simulator: Simulator,
     recipe: &crate::pipeline::SettingsRecipe,
@@ -194,17 +195,5 @@ pub async fn start_simulator(
         }
     }
     #[cfg(not(feature = "sim"))]
-    {
-        let _ = (
-            recipe,
-            driver_settings,
-            out_dir,
-            max_stream_s,
-            keep_configured_compensation,
-            odo_shutdown,
-            stop,
-            odometry,
-        );
-        match simulator {}
-    }
+    match simulator {}
 }

@@ -7,7 +7,7 @@ use radar_driver::{Driver, DriverSettings, OdometrySource, Shutdown};
 use super::{Inputs, NothingRunning, SourceError};
 use crate::output::figures::TruthOverlay;
 use crate::pipeline::run::PipelineStart;
-use crate::pipeline::{Pipeline, PipelineSettings, SettingsRecipe, SourceFacts};
+use crate::pipeline::{Pipeline, SettingsRecipe, SourceFacts};
 
 /// The radar at `[radar] address`, with `odometry` (Zenoh's, opened by the daemon) or else
 /// the configured odometry source.
@@ -29,7 +29,7 @@ pub fn open(
     if odometry.is_none() {
         return Err(SourceError::NoOdometry);
     }
-    let motion = PipelineSettings::from_config(config)?.motion;
+    let motion = crate::pipeline::settings::motion_model(config);
     let (driver, receivers) = Driver::new(driver_settings);
     let azimuths = receivers.azimuths.ok_or(SourceError::NoAzimuthChannel)?;
     Ok(Inputs {
