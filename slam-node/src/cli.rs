@@ -324,6 +324,13 @@ pub(crate) fn recorded(args: &Args) -> anyhow::Result<Option<slam_node::daemon::
         format: args.replay_format,
         errors,
         radar_odometry: !args.no_radar_odometry,
-        write_odometry: args.write_odometry.clone(),
+        write_odometry: match &args.write_odometry {
+            // An existing FIFO or device would block or swallow the write: refused up front.
+            Some(path) if path.exists() && !path.is_file() => anyhow::bail!(
+                "--write-odometry {}: not a regular file; the odometry is written to a file",
+                path.display()
+            ),
+            other => other.clone(),
+        },
     }))
 }

@@ -472,3 +472,49 @@ fn an_error_says_its_cause_once() {
     assert_eq!(err.matches("bad.toml").count(), 1, "{err}");
     assert!(err.contains("filter.sigma_u must be >= 0, got -1"), "{err}");
 }
+
+/// A FIFO where a file is read (`--replay-mcap`) or written (`--write-odometry`) is refused
+/// by name at once instead of blocking start-up; both runs end with status 1.
+#[test]
+fn a_fifo_for_a_recording_or_the_written_odometry_is_refused_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipe.mcap");
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        println!("SKIPPED: mkfifo is not available");
+        return;
+    }
+    for args in [
+        vec!["--replay-mcap".to_string(), fifo.display().to_string()],
+        vec![
+            "--replay-dir".to_string(),
+            dir.path().display().to_string(),
+            "--write-odometry".to_string(),
+            fifo.display().to_string(),
+        ],
+    ] {
+        let mut child = slam_node()
+            .args(&args)
+            .args(["--no-figures", "--out"])
+            .arg(dir.path().join("out"))
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let started = std::time::Instant::now();
+        let status = loop {
+            if let Some(status) = child.try_wait().unwrap() {
+                break status;
+            }
+            if started.elapsed() > std::time::Duration::from_secs(20) {
+                let _ = child.kill();
+                panic!("{args:?}: still running after 20 s (blocked on the FIFO)");
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        };
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains("not a regular file"), "{args:?}: {err}");
+    }
+}

@@ -83,6 +83,13 @@ pub enum McapReplayError {
         #[source]
         source: std::io::Error,
     },
+    /// The path names a FIFO, a device, a socket or a folder: refused before opening (a
+    /// FIFO's open would wait for a writer, a device would be read without end).
+    #[error("{path} is not a regular file; an MCAP recording must be one")]
+    NotRegularFile {
+        /// The path.
+        path: String,
+    },
     /// The reader thread could not start.
     #[error("starting the MCAP reader thread")]
     Thread(#[source] std::io::Error),
@@ -163,7 +170,7 @@ pub fn open(
     recipe: crate::pipeline::SettingsRecipe,
     source: &super::McapSource,
 ) -> Result<super::Inputs, super::SourceError> {
-    let motion = crate::pipeline::PipelineSettings::from_config(&recipe.config)?.motion;
+    let motion = crate::pipeline::settings::motion_model(&recipe.config);
     let mut settings = McapReplaySettings::new(source.path.clone(), motion);
     if let Some(topic) = &source.odometry_topic {
         settings.odometry_topic = topic.clone();
@@ -205,10 +212,20 @@ impl OdometrySource for ReplayOdometry {
 pub fn start(
     settings: McapReplaySettings,
 ) -> Result<(Receiver<Azimuth>, ReplayOdometry, McapReplayHandle), McapReplayError> {
-    let file = File::open(&settings.path).map_err(|source| McapReplayError::Open {
+    let open_error = |source| McapReplayError::Open {
         path: settings.path.display().to_string(),
         source,
-    })?;
+    };
+    // Checked on the path (following links) before opening, so opening cannot block.
+    if !std::fs::metadata(&settings.path)
+        .map_err(open_error)?
+        .is_file()
+    {
+        return Err(McapReplayError::NotRegularFile {
+            path: settings.path.display().to_string(),
+        });
+    }
+    let file = File::open(&settings.path).map_err(open_error)?;
     let (az_tx, az_rx) = bounded(settings.azimuth_capacity.max(1));
     let (odo_tx, odo_rx) = unbounded();
     let join = std::thread::Builder::new()
