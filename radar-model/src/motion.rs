@@ -106,6 +106,42 @@ impl MotionModel {
         Ok(())
     }
 
+    /// The input that drives this model through a motion of `distance_m` forward (negative:
+    /// backward) and `heading_change_rad` over `dt_s` seconds: the inverse of
+    /// [`MotionModel::predict`] for the speed and the turn, used to drive the filter with a
+    /// motion measured by other means (radar odometry). The bicycle cannot turn standing
+    /// still: below 1 cm of travel its steering is 0, and it is clamped inside
+    /// [`MAX_BICYCLE_STEER_RAD`]. `None` for a non-finite argument or `dt_s <= 0`.
+    pub fn input_for(
+        &self,
+        distance_m: f64,
+        heading_change_rad: f64,
+        dt_s: f64,
+    ) -> Option<ControlInput> {
+        if !(distance_m.is_finite() && heading_change_rad.is_finite() && dt_s.is_finite())
+            || dt_s <= 0.0
+        {
+            return None;
+        }
+        let speed_mps = distance_m / dt_s;
+        let steer_rad = match *self {
+            MotionModel::Paper { step_s } => heading_change_rad * step_s / dt_s,
+            MotionModel::Bicycle { wheelbase_m } => {
+                if distance_m.abs() < 0.01 {
+                    0.0
+                } else {
+                    let limit = MAX_BICYCLE_STEER_RAD - 1e-6;
+                    (heading_change_rad * wheelbase_m / distance_m)
+                        .atan()
+                        .clamp(-limit, limit)
+                }
+            }
+        };
+        steer_rad
+            .is_finite()
+            .then(|| ControlInput::new(speed_mps, steer_rad))
+    }
+
     /// Moves `pose` by `input` over `dt_s` seconds (eq. 2 or the bicycle model).
     ///
     /// # Errors
@@ -182,5 +218,36 @@ impl MotionModel {
                 wrt_input,
             },
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_input_for_a_motion_drives_the_model_through_that_motion() {
+        for model in [
+            MotionModel::Paper { step_s: 0.05 },
+            MotionModel::Bicycle { wheelbase_m: 2.7 },
+        ] {
+            for (d, dth) in [(2.5, 0.04), (-0.8, -0.01), (3.0, 0.0), (1.0, -0.3)] {
+                let u = model.input_for(d, dth, 0.25).expect("finite");
+                let end = model
+                    .predict(&Pose2::new(0.0, 0.0, 0.0), &u, 0.25)
+                    .expect("valid");
+                assert!(
+                    (end.theta - dth).abs() < 1e-9,
+                    "{model:?} {d} {dth}: {end:?}"
+                );
+                assert!((end.x.hypot(end.y) - d.abs()).abs() < 1e-9, "{end:?}");
+            }
+            assert_eq!(model.input_for(1.0, 0.1, 0.0), None);
+            assert_eq!(model.input_for(f64::NAN, 0.1, 0.25), None);
+        }
+        let still = MotionModel::Bicycle { wheelbase_m: 2.7 }
+            .input_for(0.0, 0.2, 0.25)
+            .expect("finite");
+        assert_eq!(still.steer_rad, 0.0, "a bicycle cannot turn standing still");
     }
 }

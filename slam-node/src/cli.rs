@@ -101,6 +101,12 @@ pub struct Args {
     #[cfg(feature = "sim")]
     #[arg(long, requires = "replay_dir")]
     no_radar_odometry: bool,
+    /// With --replay-dir: no odometry at all: radar odometry drives the filter (as
+    /// `[odometry] source = "none"` does), and a recording without ground truth runs
+    /// unscored.
+    #[cfg(feature = "sim")]
+    #[arg(long, requires = "replay_dir", conflicts_with_all = ["no_radar_odometry", "write_odometry"])]
+    radar_only: bool,
     /// With --replay-dir: also write the odometry made from the ground truth to this file,
     /// in the odometry stream's format (docs/contracts.md), for `[odometry] source = "file"`
     /// (the same samples through another door).
@@ -324,6 +330,7 @@ pub(crate) fn recorded(args: &Args) -> anyhow::Result<Option<slam_node::daemon::
         format: args.replay_format,
         errors,
         radar_odometry: !args.no_radar_odometry,
+        radar_only: args.radar_only,
         write_odometry: match &args.write_odometry {
             // An existing FIFO or device would block or swallow the write: refused up front.
             Some(path) if path.exists() && !path.is_file() => anyhow::bail!(

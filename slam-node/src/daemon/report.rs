@@ -5,7 +5,7 @@ use std::fmt::{self, Write as _};
 use crate::daemon::mcap_replay::McapReplayCounts;
 use crate::daemon::zenoh_odometry::ZenohOdometryCounts;
 use crate::output::{LiveSummary, RecordingSummary};
-use crate::pipeline::scan_match::ScanMatchCounts;
+use crate::pipeline::radar_odometry::ScanMatchCounts;
 use crate::pipeline::scores::{MapScore, ObservationErrorStats, PoseErrorStats};
 use crate::pipeline::submaps::SubmapSummary;
 use crate::pipeline::{DaemonEkf, PipelineSummary, RunReport};
@@ -313,6 +313,19 @@ impl fmt::Display for RadarOdometry<'_> {
             "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated",
             m.tried, m.failed, m.applied, m.gated
         )?;
+        if m.drives {
+            writeln!(
+                f,
+                "  radar only: radar odometry drove the prediction; {} registrations searched for the motion (no estimate), {} weakly constrained (the scene did not pin the motion in one direction: the pose's uncertainty grew along it)",
+                m.searched, m.weak
+            )?;
+        } else if m.weak > 0 {
+            writeln!(
+                f,
+                "  radar odometry: {} registrations weakly constrained (the scene did not pin the motion in one direction)",
+                m.weak
+            )?;
+        }
         if let Some([x, y, h]) = m.truth_error() {
             writeln!(
                 f,
@@ -532,30 +545,61 @@ impl fmt::Display for RecordedDrive<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let (rp, s) = (self.drive, self.s);
         let e = &rp.errors;
+        let odometry = if rp.radar_only {
+            "no odometry: radar only".to_string()
+        } else {
+            format!(
+                "odometry from the ground truth x{:.3} speed, {:+.3} rad/s yaw rate, noise {:.3} m/s / {:.4} rad/s (seed {})",
+                e.speed_scale, e.yaw_rate_bias_rps, e.sigma_speed_mps, e.sigma_yaw_rate_rps, e.seed
+            )
+        };
         writeln!(
             f,
-            "  recorded drive ({}, {} scans, {} skipped as damaged): {:.1} m; odometry from the ground truth x{:.3} speed, {:+.3} rad/s yaw rate, noise {:.3} m/s / {:.4} rad/s (seed {}); ranges corrected for a range-Doppler coupling of {:.4} s",
-            rp.format.unwrap_or("-"), rp.scans, rp.scans_skipped,
-            rp.distance_m, e.speed_scale, e.yaw_rate_bias_rps, e.sigma_speed_mps, e.sigma_yaw_rate_rps, e.seed,
+            "  recorded drive ({}, {} scans, {} skipped as damaged): {}; {odometry}; ranges corrected for a range-Doppler coupling of {:.4} s",
+            rp.format.unwrap_or("-"),
+            rp.scans,
+            rp.scans_skipped,
+            if rp.ground_truth {
+                format!("{:.1} m", rp.distance_m)
+            } else {
+                "distance unknown".to_string()
+            },
             rp.doppler_range_coupling_s
         )?;
-        let filter = s
-            .pose
-            .as_ref()
-            .map(|p| (p.rms_position_m(), p.final_position_m));
+        if !rp.ground_truth {
+            writeln!(
+                f,
+                "  no ground truth in the recording: the trajectory is not scored (no error, no drift, no NEES); the map and the counts below stand alone"
+            )?;
+        } else {
+            let filter = s
+                .pose
+                .as_ref()
+                .map(|p| (p.rms_position_m(), p.final_position_m));
+            let reckoning = if rp.radar_only {
+                "no odometry to dead-reckon with".to_string()
+            } else {
+                format!(
+                    "dead reckoning with the same odometry RMS {:.3} m, final {:.3} m",
+                    rp.dead_reckoning_rms_m, rp.dead_reckoning_final_m
+                )
+            };
+            writeln!(
+                f,
+                "  against the ground truth: filter RMS {} m, final {} m; {reckoning}",
+                filter.map_or("-".into(), |f| format!("{:.3}", f.0)),
+                filter.map_or("-".into(), |f| format!("{:.3}", f.1)),
+            )?;
+        }
         writeln!(
             f,
-            "  against the ground truth: filter RMS {} m, final {} m; dead reckoning with the same odometry RMS {:.3} m, final {:.3} m",
-            filter.map_or("-".into(), |f| format!("{:.3}", f.0)),
-            filter.map_or("-".into(), |f| format!("{:.3}", f.1)),
-            rp.dead_reckoning_rms_m,
-            rp.dead_reckoning_final_m
-        )?;
-        writeln!(
-            f,
-            "  features in the map {} ({:.0} per 100 m driven), detections {:.1} per rotation",
+            "  features in the map {} ({} per 100 m driven), detections {:.1} per rotation",
             s.map_size,
-            100.0 * s.map_size as f64 / rp.distance_m.max(1e-9),
+            if rp.ground_truth {
+                format!("{:.0}", 100.0 * s.map_size as f64 / rp.distance_m.max(1e-9))
+            } else {
+                "-".to_string()
+            },
             s.detections as f64 / s.rotations.max(1) as f64
         )
     }

@@ -16,13 +16,13 @@ use std::time::Instant;
 use nalgebra::Matrix3;
 use radar_driver::Azimuth;
 use radar_model::geometry::{wrap_angle, Pose2};
-use tracing::{debug, info, warn};
+use tracing::{info, warn};
 
 use super::beams::OfferedBeam;
 use super::clock::{Verdict, WireClock};
 use super::frontend::{doppler_range_shift_m, FrontEnd, GeometryError};
 use super::gate::{worth_logging, OdometryGate};
-use super::scan_match::ScanMatcher;
+use super::radar_odometry::RadarOdometryStage;
 use super::settings::PipelineSettings;
 use super::spectrum::{compare_beam, SpectrumScratch};
 use super::stats::{RotationStats, StageTimes};
@@ -44,8 +44,6 @@ const AZIMUTH_JUMP_CONFIRM: u32 = 16;
 /// A radar silence (link down and back) up to this long (s) that the odometry's clock spans
 /// is taken as a silence, not a clock jump: the filter predicts through it on odometry.
 const AZIMUTH_MAX_SILENCE_S: f64 = 60.0;
-/// Radar odometry's gate: the 99.9 % point of chi-square with 3 dof.
-const RADAR_ODOMETRY_GATE_CHI2: f64 = 16.27;
 
 /// Why the pipeline could not start or go on.
 #[derive(Debug, thiserror::Error)]
@@ -82,7 +80,7 @@ pub struct Pipeline {
     rotation_start_s: Option<f64>,
     summary: PipelineSummary,
     filter_started: bool,
-    scan_match: ScanMatcher,
+    scan_match: RadarOdometryStage,
     /// With truth: each rotation's published pose and the true pose then.
     online: Vec<(PoseSample, Pose2)>,
     /// This thread's CPU clock when the last rotation closed (see `measure_cpu`).
@@ -146,7 +144,11 @@ impl Pipeline {
             rotation_start_s: None,
             summary: PipelineSummary::default(),
             filter_started: false,
-            scan_match: ScanMatcher::new(settings.scan_match),
+            scan_match: RadarOdometryStage::new(
+                settings.scan_match,
+                settings.radar_drives,
+                settings.motion,
+            ),
             online: Vec::new(),
             cpu_mark: None,
             settings,
@@ -319,9 +321,12 @@ impl Pipeline {
             .process(az, index, bearing, speed, &mut self.beams, near_map);
         self.summary.extended_returns += counts.extended as u64;
         if self.scan_match.enabled() {
-            let sensor = self.ekf.motion_since_mark(az.timestamp_s);
-            self.scan_match
-                .add_azimuth(sensor, bearing, self.front_end.detections());
+            self.scan_match.add_azimuth(
+                &self.ekf,
+                az.timestamp_s,
+                bearing,
+                self.front_end.detections(),
+            );
         }
         let detected = Instant::now();
         self.run_beams();
@@ -599,72 +604,27 @@ impl Pipeline {
     }
 
     /// Radar odometry: registers this rotation's cloud against the previous one's and gives
-    /// the measured motion to the filter, then marks the filter for the next rotation.
+    /// the measured motion to the filter, then marks the filter for the next rotation; when
+    /// it drives the filter, its sample for the next rotation goes through the odometry gate
+    /// as any odometry does.
     fn register_rotation(&mut self) {
         if !self.scan_match.enabled() {
             return;
         }
         let started = Instant::now();
-        let tally = self.ekf.motion_tally();
-        let end = tally.map(|t| t.rel);
-        if let Some((motion, cov, reg)) = self.scan_match.end_rotation(end) {
-            if let Some(odo) = end {
-                // With ground truth, the true motion over the same interval (scores only).
-                let now_s = self.ekf.state().time_s();
-                let truth = match (self.truth.as_ref(), tally) {
-                    (Some(t), Some(tally)) => {
-                        t.pose_at(tally.since_s)
-                            .zip(t.pose_at(now_s))
-                            .map(|(a, b)| {
-                                let rel = slam_graph::se2::between(&a, &b);
-                                [rel.x, rel.y, rel.theta]
-                            })
-                    }
-                    _ => None,
-                };
-                if let Some(t) = truth {
-                    self.scan_match.record_truth_error([
-                        motion.x - t[0],
-                        motion.y - t[1],
-                        wrap_angle(motion.theta - t[2]),
-                    ]);
-                }
-                debug!(
-                    truth_x = truth.map(|t| t[0]),
-                    truth_y = truth.map(|t| t[1]),
-                    truth_theta = truth.map(|t| t[2]),
-                    measured_x = motion.x,
-                    measured_y = motion.y,
-                    measured_theta = motion.theta,
-                    odometry_x = odo.x,
-                    odometry_y = odo.y,
-                    odometry_theta = odo.theta,
-                    pairs = reg.pairs,
-                    rms_m = reg.rms_m,
-                    iterations = reg.iterations,
-                    "radar odometry registration"
-                );
-            }
-            match self
-                .ekf
-                .observe_motion_since_mark(motion, &cov, RADAR_ODOMETRY_GATE_CHI2)
-            {
-                Ok(outcome) => {
-                    if matches!(outcome, slam_filter::MotionOutcome::Gated { .. }) {
-                        let gated = self.scan_match.counts().gated + 1;
-                        if worth_logging(gated) {
-                            warn!(
-                                ?outcome,
-                                pairs = reg.pairs,
-                                rms_m = reg.rms_m,
-                                gated,
-                                "radar odometry disagrees with the odometry beyond its gate: not used"
-                            );
-                        }
-                    }
-                    self.scan_match.record(outcome);
-                }
-                Err(e) => warn!(error = %e, "radar odometry update failed"),
+        let end_s = self
+            .last_time_s
+            .unwrap_or_else(|| self.ekf.state().time_s());
+        if let Some(sample) =
+            self.scan_match
+                .end_rotation(&mut self.ekf, self.truth.as_ref(), end_s)
+        {
+            // Radar only: the sample is the only odometry; it is applied at once, at its own
+            // time, so that the next rotation is de-skewed with it.
+            let t = sample.timestamp_s;
+            self.push_odometry(sample);
+            while let Some(s) = self.gate.next_until(t) {
+                self.apply_odometry(s);
             }
         }
         if self.ekf.held_odometry().is_some() {

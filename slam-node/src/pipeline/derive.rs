@@ -25,6 +25,18 @@ pub const RADAR_ODOMETRY_SPEED_SCALE_STD: f64 = 0.05;
 /// The same for the steering offset (rad): 0.02 rad/s of yaw rate at 7 m/s on a 2.7 m
 /// wheelbase is 0.0077 rad.
 pub const RADAR_ODOMETRY_STEER_BIAS_STD_RAD: f64 = 0.01;
+/// Radar only: the process model's input is the vehicle's motion over the last rotation,
+/// held for the next; its standard deviation is the change of speed a car makes over a
+/// rotation (2 m/s^2 for 0.25 s), as m/s.
+pub const RADAR_ONLY_SIGMA_SPEED_MPS: f64 = 0.5;
+/// The same for the turn rate (rad/s): 0.6 rad/s^2 for 0.25 s.
+pub const RADAR_ONLY_SIGMA_YAW_RATE_RPS: f64 = 0.15;
+/// Radar only, the bicycle model: the steering that standard deviation of turn rate is at
+/// a town's 7 m/s on a 2.7 m wheelbase (rad).
+pub const RADAR_ONLY_SIGMA_BICYCLE_STEER_RAD: f64 = 0.06;
+/// Radar only: odometry is fresh for at least this long (ms), since radar odometry gives one
+/// sample a rotation.
+pub const RADAR_ONLY_STALE_AFTER_MS: i64 = 1000;
 
 /// Which keys the configuration writes.
 #[derive(Debug, Clone, Copy)]
@@ -68,6 +80,9 @@ pub struct SourceFacts {
     pub detector: Option<DetectorSettings>,
     /// Radar odometry forced off (`--no-radar-odometry`).
     pub no_radar_odometry: bool,
+    /// The source brings no odometry (`--radar-only`): radar odometry drives the filter, as
+    /// with `[odometry] source = "none"`.
+    pub radar_only: bool,
     /// The radar's full range (m), bounding the filter's and the detector's.
     pub max_range_m: Option<f64>,
     /// Bearings (rad) whose predicted and measured spectra are drawn (`--spectrum-bearing`).
@@ -147,6 +162,7 @@ impl SettingsRecipe {
         let facts = SourceFacts {
             detector: facts.detector.or(run.detector),
             no_radar_odometry: facts.no_radar_odometry || run.no_radar_odometry,
+            radar_only: facts.radar_only || run.radar_only,
             spectrum_bearings_rad: if facts.spectrum_bearings_rad.is_empty() {
                 run.spectrum_bearings_rad.clone()
             } else {
@@ -197,6 +213,7 @@ pub fn effective_config(
     written: Written<'_>,
     profile: &RadarProfile,
     no_radar_odometry: bool,
+    radar_only: bool,
 ) -> Result<(config::Config, Vec<&'static str>), SettingsError> {
     let mut raw = config::RawConfig::from(c);
     let mut over = Vec::new();
@@ -334,10 +351,40 @@ pub fn effective_config(
     if no_radar_odometry {
         o.radar_odometry = false;
     }
+    let radar_only = radar_only || o.source == config::odometry::OdometrySourceKind::None;
+    if radar_only {
+        // Radar odometry drives the prediction: its input is the motion over the last
+        // rotation, unbiased (no corrections to estimate), one sample a rotation.
+        if no_radar_odometry {
+            return Err(SettingsError::RadarOnlyWithoutRadarOdometry);
+        }
+        o.radar_odometry = true;
+        // The paper's model: its heading noise does not vanish standing still, as the
+        // bicycle's does (the input is the radar's motion, not a vehicle's controls).
+        o.motion_model = config::odometry::MotionModelKind::Paper;
+        if !written.has("odometry.sigma_speed_mps") {
+            o.sigma_speed_mps = RADAR_ONLY_SIGMA_SPEED_MPS;
+        }
+        if !written.has("odometry.sigma_steer_rad") {
+            o.sigma_steer_rad = match o.motion_model {
+                config::odometry::MotionModelKind::Paper => {
+                    RADAR_ONLY_SIGMA_YAW_RATE_RPS
+                        * o.step_s.unwrap_or(config::odometry::DEFAULT_STEP_S)
+                }
+                config::odometry::MotionModelKind::Bicycle => RADAR_ONLY_SIGMA_BICYCLE_STEER_RAD,
+            };
+        }
+        o.speed_scale_std = 0.0;
+        o.steer_bias_std_rad = 0.0;
+        o.speed_scale_walk_per_sqrt_s = 0.0;
+        o.steer_bias_walk_rad_per_sqrt_s = 0.0;
+        o.speed_scale_from_landmarks = false;
+        o.stale_after_ms = o.stale_after_ms.max(RADAR_ONLY_STALE_AFTER_MS);
+    }
     // With radar odometry, the odometry's corrections are estimated, the speed scale from
     // the registrations alone (slam-node/README.md, "Odometry corrections"), unless the
     // configuration says otherwise.
-    if o.radar_odometry {
+    if o.radar_odometry && !radar_only {
         if !written.has("odometry.speed_scale_std") && o.speed_scale_std == 0.0 {
             o.speed_scale_std = RADAR_ODOMETRY_SPEED_SCALE_STD;
         }
@@ -365,15 +412,28 @@ impl PipelineSettings {
         facts: &SourceFacts,
     ) -> Result<Derived, SettingsError> {
         let profile = choice.profile;
-        let (effective, overridden) =
-            effective_config(c, written, profile, facts.no_radar_odometry)?;
+        let (effective, overridden) = effective_config(
+            c,
+            written,
+            profile,
+            facts.no_radar_odometry,
+            facts.radar_only,
+        )?;
         let mut s = Self::from_config(&effective)?;
         // A setting with no key of its own: the profile's, unless the configuration was
         // built in code (whose values, and the library's defaults, win everywhere).
         if let Written::Keys(_) = written {
             s.filter.confirm_min_separation_s = profile.landmarks.value.confirm_min_separation_s;
         }
-        let s = s.with_facts(facts);
+        let mut s = s.with_facts(facts);
+        s.radar_drives = s.scan_match.enabled
+            && (facts.radar_only
+                || effective.odometry.source == config::odometry::OdometrySource::None);
+        if s.radar_drives {
+            // What drives the filter is the radar's motion, whatever model a source's own
+            // odometry meant.
+            s.motion = super::settings::motion_model(&effective);
+        }
         Ok(Derived {
             settings: s,
             choice,

@@ -11,9 +11,8 @@ pub mod derive;
 pub mod frontend;
 pub mod gate;
 pub mod odometry;
-pub(crate) mod point_grid;
+pub mod radar_odometry;
 pub mod run;
-pub mod scan_match;
 #[cfg(feature = "sim")]
 pub mod scene_truth;
 pub mod scores;

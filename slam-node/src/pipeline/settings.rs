@@ -16,8 +16,8 @@ use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use super::frontend::FrontEndSettings;
 use super::gate::OdometryLimits;
-use super::scan_match::ScanMatchSettings;
 use crate::detect::{DetectorKind, DetectorSettings};
+use radar_odometry::ScanMatchSettings;
 use slam_filter::FilterSettings;
 
 /// The share of a range resolution cell and of a beam width within which a feature's
@@ -41,6 +41,10 @@ pub enum SettingsError {
     /// `[radar] model` names no profile.
     #[error(transparent)]
     UnknownModel(#[from] radar_model::profile::UnknownModel),
+    /// Radar only (`[odometry] source = "none"` or `--radar-only`) with radar odometry
+    /// turned off: nothing would drive the filter.
+    #[error("radar only (odometry source \"none\" or --radar-only) needs radar odometry, which --no-radar-odometry turns off")]
+    RadarOnlyWithoutRadarOdometry,
 }
 
 /// Everything the pipeline needs besides the radar's own geometry.
@@ -97,6 +101,9 @@ pub struct PipelineSettings {
     pub submaps: Option<SubmapOptions>,
     /// Radar odometry (rotations registered against each other, see [`ScanMatchSettings`]).
     pub scan_match: ScanMatchSettings,
+    /// Radar odometry drives the filter's prediction (there is no other odometry: `[odometry]
+    /// source = "none"` or `--radar-only`).
+    pub radar_drives: bool,
 }
 
 /// Local submaps and the global layer.
@@ -331,6 +338,7 @@ impl PipelineSettings {
                 sigma_theta_rad: c.odometry.radar_odometry_sigma_rad.get(),
                 ..ScanMatchSettings::default()
             },
+            radar_drives: false,
         })
     }
 

@@ -96,7 +96,7 @@ pub struct PipelineSummary {
     /// not estimated (`[odometry] speed_scale_std` and `steer_bias_std_rad` zero).
     pub odometry_corrections: Option<([f64; 2], [f64; 2])>,
     /// What radar odometry did (`[odometry] radar_odometry`); `None` when it is off.
-    pub scan_match: Option<super::scan_match::ScanMatchCounts>,
+    pub scan_match: Option<super::radar_odometry::ScanMatchCounts>,
     /// Observations kept out of the map as extended returns (walls, fences, cars).
     pub extended_returns: u64,
     /// Feature-rotations in which a mapped feature (mapped before the rotation began) was in

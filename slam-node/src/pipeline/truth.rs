@@ -8,9 +8,9 @@ use serde::Serialize;
 
 use slam_filter::{BeamObservation, BeamReport, FeatureEstimate, RadarEkf};
 
-use super::point_grid::PointGrid;
 use super::summary::PipelineSummary;
 use crate::output::RotationDiagnostics;
+use radar_odometry::PointGrid;
 
 /// A true feature.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

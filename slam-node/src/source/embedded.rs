@@ -186,6 +186,8 @@ pub async fn start(
     };
     let settings = embedded_settings(recipe, &scene, keep_configured_compensation)?.settings;
     let motion = settings.motion;
+    // Radar only (`[odometry] source = "none"`): the simulator's odometry port is not read.
+    let radar_only = settings.radar_drives;
     let start_s = start_ns as f64 * 1e-9;
     let horizon = max_stream_s.unwrap_or(600.0) + 30.0;
     let build_settings = settings.clone();
@@ -215,15 +217,16 @@ pub async fn start(
     info!(radar = %handle.local_addr(), odometry = ?handle.odometry_addr(), scene = %scene_name, "embedded simulator started");
     driver_settings.address = handle.local_addr();
     let idle_timeout = sim.odometry_idle_timeout;
-    let simulated: Option<Box<dyn OdometrySource>> = handle.odometry_addr().map(|a| {
-        let mut odometry = TcpOdometrySettings::new(a);
-        odometry.idle_timeout = idle_timeout;
-        Box::new(TcpOdometry::spawn(
-            &tokio::runtime::Handle::current(),
-            odometry,
-            odo_shutdown,
-        )) as Box<dyn OdometrySource>
-    });
+    let simulated: Option<Box<dyn OdometrySource>> =
+        handle.odometry_addr().filter(|_| !radar_only).map(|a| {
+            let mut odometry = TcpOdometrySettings::new(a);
+            odometry.idle_timeout = idle_timeout;
+            Box::new(TcpOdometry::spawn(
+                &tokio::runtime::Handle::current(),
+                odometry,
+                odo_shutdown,
+            )) as Box<dyn OdometrySource>
+        });
     let (azimuths, driver) = connect(driver_settings, fast)?;
     Ok(Inputs {
         azimuths,

@@ -47,4 +47,8 @@ pub struct ReplayFigures {
     pub scans_skipped: u64,
     /// The range-Doppler coupling the detections were corrected with (s).
     pub doppler_range_coupling_s: f64,
+    /// No odometry was made: radar odometry drove the filter (`--radar-only`).
+    pub radar_only: bool,
+    /// The recording had ground truth (without, nothing is scored).
+    pub ground_truth: bool,
 }

@@ -52,9 +52,6 @@ pub enum SourceError {
     /// The odometry source could not be opened.
     #[error("odometry")]
     Odometry(#[from] radar_driver::OdometryError),
-    /// There is no odometry and the daemon will not invent motion.
-    #[error("no odometry source configured ([odometry] source = \"none\"): slam-node needs the vehicle's odometry to predict its motion and will not fabricate it")]
-    NoOdometry,
     /// The embedded simulator must render a scene (replays carry no ground truth).
     #[error("the embedded simulator must run a scene, not a replay")]
     NotAScene,

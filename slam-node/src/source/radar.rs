@@ -27,7 +27,9 @@ pub fn open(
         )?,
     };
     if odometry.is_none() {
-        return Err(SourceError::NoOdometry);
+        tracing::info!(
+            "no odometry source ([odometry] source = \"none\"): radar odometry drives the filter's prediction (radar only)"
+        );
     }
     let motion = crate::pipeline::settings::motion_model(config);
     let (driver, receivers) = Driver::new(driver_settings);

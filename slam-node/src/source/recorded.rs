@@ -12,7 +12,8 @@ use tracing::info;
 
 use super::embedded::{connect, SimRunning};
 use super::replay::{
-    replay_figures, MemoryOdometry, OdometryErrors, RecordedTruth, ReplayError, WHEELBASE_M,
+    replay_figures, MemoryOdometry, OdometryErrors, RecordedTruth, ReplayError, ReplayFigures,
+    WHEELBASE_M,
 };
 use super::{Inputs, SourceError};
 use crate::output::figures::TruthOverlay;
@@ -38,6 +39,9 @@ pub struct RecordedReplay {
     pub radar_odometry: bool,
     /// Also write the odometry samples to this file (the odometry stream's format).
     pub write_odometry: Option<std::path::PathBuf>,
+    /// No odometry: radar odometry drives the filter, and a recording without ground truth
+    /// runs unscored (`--radar-only`).
+    pub radar_only: bool,
 }
 
 /// Replays recorded scans through the simulator's server, with odometry from their ground
@@ -50,7 +54,17 @@ pub async fn start(
 ) -> Result<Inputs, SourceError> {
     let scans = sim_sensor::replay::ScanSet::open(&recorded.dir, recorded.format)
         .map_err(ReplayError::from)?;
-    let truth = RecordedTruth::read(&scans)?;
+    let truth = match RecordedTruth::read(&scans) {
+        Ok(truth) => Some(truth),
+        Err(error) if recorded.radar_only => {
+            tracing::warn!(
+                error = %radar_driver::ErrorChain(&error),
+                "no usable ground truth in the recording: radar only, the run is not scored"
+            );
+            None
+        }
+        Err(error) => return Err(error.into()),
+    };
     let (format, scan_dir) = (scans.format, scans.scan_dir.clone());
     let recording =
         sim_sensor::replay::ScanRecording::from_scans(scans).map_err(ReplayError::from)?;
@@ -79,6 +93,7 @@ pub async fn start(
             wheelbase_m: WHEELBASE_M,
         }),
         no_radar_odometry: !recorded.radar_odometry,
+        radar_only: recorded.radar_only,
         ..SourceFacts::default()
     };
     let announced = radar_model::profile::Announced {
@@ -98,7 +113,10 @@ pub async fn start(
             },
         )?
         .settings;
-    let samples = truth.odometry(&recorded.errors);
+    let samples = match truth.as_ref() {
+        Some(truth) if !recorded.radar_only => truth.odometry(&recorded.errors),
+        _ => Vec::new(),
+    };
     if let Some(path) = &recorded.write_odometry {
         super::replay::write_odometry(path, &samples).map_err(|source| {
             ReplayError::WriteOdometry {
@@ -108,22 +126,40 @@ pub async fn start(
         })?;
         info!(path = %path.display(), samples = samples.len(), "odometry written");
     }
-    let mut figures = replay_figures(&truth, &samples, recorded.errors);
+    let mut figures = match truth.as_ref() {
+        Some(truth) => replay_figures(truth, &samples, recorded.errors),
+        None => ReplayFigures {
+            errors: recorded.errors,
+            distance_m: 0.0,
+            dead_reckoning_rms_m: 0.0,
+            dead_reckoning_final_m: 0.0,
+            format: None,
+            scans: recording.scans.files.len(),
+            scans_skipped: 0,
+            doppler_range_coupling_s: 0.0,
+            radar_only: true,
+            ground_truth: false,
+        },
+    };
+    figures.radar_only = recorded.radar_only;
     figures.format = Some(format.name());
     figures.doppler_range_coupling_s = expected.doppler_range_coupling_s;
     let truth_overlay = TruthOverlay {
         features: Vec::new(),
         trajectory: truth
-            .times_s()
             .iter()
-            .filter_map(|&t| truth.pose_at(t))
+            .flat_map(|truth| truth.times_s().iter().filter_map(|&t| truth.pose_at(t)))
             .map(|p| (p.x, p.y))
             .collect(),
     };
     let recipe = recipe.clone();
     let pipeline = PipelineStart::OnFirstAzimuth(Box::new(move |g: &protocol::Geometry| {
         let derived = recipe.for_radar(g, facts)?;
-        Pipeline::new(derived.settings, None, Some(Box::new(truth)))
+        Pipeline::new(
+            derived.settings,
+            None,
+            truth.map(|t| Box::new(t) as Box<dyn TruthOracle>),
+        )
     }));
     let fast = options.pacing == sim_sensor::settings::Pacing::AsFastAsPossible;
     let handle = SimServer::spawn(options).await?;
@@ -133,7 +169,9 @@ pub async fn start(
     Ok(Inputs {
         azimuths,
         driver: Some(driver),
-        odometry: Some(Box::new(MemoryOdometry::new(samples))),
+        odometry: (!recorded.radar_only).then(|| {
+            Box::new(MemoryOdometry::new(samples)) as Box<dyn radar_driver::OdometrySource>
+        }),
         pipeline,
         motion: expected.motion,
         name: Some(format!("recorded {format} scans in {}", scan_dir.display())),

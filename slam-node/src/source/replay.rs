@@ -353,6 +353,8 @@ pub fn replay_figures(
         scans: truth.times_s().len(),
         scans_skipped: 0,
         doppler_range_coupling_s: 0.0,
+        radar_only: false,
+        ground_truth: true,
     }
 }
 

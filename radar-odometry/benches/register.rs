@@ -3,7 +3,7 @@
 //! fronts, fences, parked cars and posts, each point jittered by a few centimetres, seen from
 //! two poses 2 m apart, registered from a start 5 % off in distance.
 //!
-//! `cargo bench -p slam-node --bench scan_match`: criterion's time per registration (the
+//! `cargo bench -p radar-odometry --bench register`: criterion's time per registration (the
 //! reference's k-d tree, pair grid and normals built each time), with the nearest-neighbour
 //! queries answered by the pair grid and by the k-d tree, then the pairs and residual of one
 //! run of each.
@@ -12,7 +12,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use radar_model::geometry::Pose2;
-use slam_node::pipeline::scan_match::{in_frame_of, register, ReferenceCloud};
+use radar_odometry::{in_frame_of, register, ReferenceCloud};
 
 /// About 2400 points: what the strongest 6 detections of 400 azimuths make. Fronts with
 /// set-backs every few metres, cars and posts at irregular places (a street without

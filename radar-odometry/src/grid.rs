@@ -11,7 +11,7 @@ const MAX_GRID_CELLS: usize = 1 << 18;
 /// row slices and distances a query, against a k-d tree's descent; memory 4 bytes a cell
 /// (at most [`MAX_GRID_CELLS`]) and 4 a point.
 #[derive(Debug, Default)]
-pub(crate) struct PointGrid {
+pub struct PointGrid {
     origin: [f64; 2],
     cell_m: f64,
     nx: usize,
@@ -25,7 +25,7 @@ pub(crate) struct PointGrid {
 impl PointGrid {
     /// A grid of cells at least `cell_m` wide over the finite points of `points` (wider when
     /// the cloud is too large for [`MAX_GRID_CELLS`] of them).
-    pub(crate) fn new(points: &[[f64; 2]], cell_m: f64) -> Self {
+    pub fn new(points: &[[f64; 2]], cell_m: f64) -> Self {
         let finite = |p: &&[f64; 2]| p[0].is_finite() && p[1].is_finite();
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for p in points.iter().filter(finite) {
@@ -96,7 +96,7 @@ impl PointGrid {
 
     /// Cells either side of a query's cell that hold every point within `gate_m` of it;
     /// `None` for an empty grid.
-    pub(crate) fn reach(&self, gate_m: f64) -> Option<i64> {
+    pub fn reach(&self, gate_m: f64) -> Option<i64> {
         (self.nx > 0 && gate_m.is_finite() && gate_m >= 0.0)
             .then(|| (gate_m / self.cell_m).ceil().clamp(1.0, 1e6) as i64)
     }
@@ -104,7 +104,7 @@ impl PointGrid {
     /// The point of `points` nearest to `q` if it is within `gate_m`, with its squared
     /// distance. Rows of cells are searched outwards from the query's and
     /// skipped once they are farther than the best found; a row's cells are contiguous.
-    pub(crate) fn nearest_within(
+    pub fn nearest_within(
         &self,
         points: &[[f64; 2]],
         q: &[f64; 2],

@@ -1,0 +1,175 @@
+//! The reference cloud a registration pairs against: the previous rotation's points, a k-d
+//! tree over them for the normals' radius queries, a uniform grid for the registration's gated
+//! nearest-neighbour queries, and each point's surface normal where its neighbours lie along a
+//! line. Built once a rotation in O(n log n).
+
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+
+use crate::grid::PointGrid;
+
+/// The previous rotation's cloud as registrations use it: its points, a k-d tree over them,
+/// and each point's surface normal where its neighbours lie along a line (a wall, a fence,
+/// a car's side), so that points on a surface pair with the surface, not with whichever
+/// sample of it the radar happened to take in the other rotation.
+#[derive(Debug)]
+pub struct ReferenceCloud {
+    pub(crate) points: Vec<[f64; 2]>,
+    pub(crate) tree: ImmutableKdTree<f64, 2>,
+    /// A uniform grid over the points for the registration's gated nearest-neighbour
+    /// queries (the k-d tree answers the normals' radius queries).
+    pub(crate) grid: PointGrid,
+    /// Unit normal of the local line through each point, `None` where the neighbourhood is
+    /// not line-like (an isolated return, a corner, a blob).
+    pub(crate) normals: Vec<Option<[f64; 2]>>,
+}
+
+/// Neighbours (the point itself included) a normal is fitted to at most.
+const NORMAL_NEIGHBOURS: usize = 8;
+/// Fewest neighbours (the point itself included) for a normal.
+const NORMAL_MIN_NEIGHBOURS: usize = 4;
+/// A neighbourhood is a line when its spread across is at most this fraction of its
+/// spread along (the ratio of the scatter matrix's eigenvalues).
+const LINE_EIGEN_RATIO: f64 = 0.05;
+
+/// A gate reaching more cells than this either side is searched with the k-d tree.
+pub(crate) const GRID_MAX_REACH: i64 = 4;
+
+impl ReferenceCloud {
+    /// Builds the tree, the pair grid (cells half `pair_gate_m` wide; none when that is not
+    /// positive, and every pair query goes to the tree) and the normals: O(n log n), once a
+    /// rotation. Neighbours for the normals are taken within `radius_m`.
+    pub fn new(points: Vec<[f64; 2]>, radius_m: f64, pair_gate_m: f64) -> Self {
+        let tree = ImmutableKdTree::new_from_slice(&points);
+        let grid = PointGrid::new(&points, 0.5 * pair_gate_m);
+        let k = std::num::NonZero::new(NORMAL_NEIGHBOURS).expect("non-zero constant");
+        let normals = points
+            .iter()
+            .map(|p| {
+                let near =
+                    tree.nearest_n_within::<SquaredEuclidean>(p, radius_m * radius_m, k, false);
+                if near.len() < NORMAL_MIN_NEIGHBOURS {
+                    return None;
+                }
+                line_normal(near.iter().filter_map(|nb| points.get(nb.item as usize)))
+            })
+            .collect();
+        Self {
+            points,
+            tree,
+            grid,
+            normals,
+        }
+    }
+
+    /// The points.
+    pub fn points(&self) -> &[[f64; 2]] {
+        &self.points
+    }
+
+    /// How many points have a normal (lie on a line-like surface).
+    pub fn with_normals(&self) -> usize {
+        self.normals.iter().filter(|n| n.is_some()).count()
+    }
+}
+
+/// The unit normal of the line fitted to `points` (principal axes of their scatter), or
+/// `None` when they are not line-like.
+pub(crate) fn line_normal<'a>(points: impl Iterator<Item = &'a [f64; 2]>) -> Option<[f64; 2]> {
+    let (mut n, mut s, mut sxx, mut sxy, mut syy) = (0.0, [0.0; 2], 0.0, 0.0, 0.0);
+    for p in points {
+        n += 1.0;
+        s = [s[0] + p[0], s[1] + p[1]];
+        sxx += p[0] * p[0];
+        sxy += p[0] * p[1];
+        syy += p[1] * p[1];
+    }
+    if n < 2.0 {
+        return None;
+    }
+    let m = [s[0] / n, s[1] / n];
+    let (a, b, c) = (
+        sxx / n - m[0] * m[0],
+        sxy / n - m[0] * m[1],
+        syy / n - m[1] * m[1],
+    );
+    // Eigenvalues of [[a, b], [b, c]].
+    let half_trace = 0.5 * (a + c);
+    let root = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let (large, small) = (half_trace + root, half_trace - root);
+    if large.is_nan() || large <= 0.0 || small > LINE_EIGEN_RATIO * large {
+        return None;
+    }
+    // The eigenvector of the small eigenvalue: (b, small - a) or (small - c, b).
+    let v = if (small - a).abs() + b.abs() > (small - c).abs() + b.abs() {
+        [b, small - a]
+    } else {
+        [small - c, b]
+    };
+    let norm = v[0].hypot(v[1]);
+    (norm > 0.0 && norm.is_finite()).then(|| [v[0] / norm, v[1] / norm])
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// A street: two walls and a few posts, seen from the origin.
+    pub(crate) fn street() -> Vec<[f64; 2]> {
+        let mut pts = Vec::new();
+        for i in 0..200 {
+            let x = -40.0 + 0.4 * f64::from(i);
+            pts.push([x, 8.0 + 0.3 * (0.2 * x).sin()]);
+            pts.push([x, -7.5]);
+        }
+        for k in 0..10 {
+            pts.push([-30.0 + 7.0 * f64::from(k), 5.0 + 0.5 * f64::from(k % 3)]);
+        }
+        pts
+    }
+
+    #[test]
+    fn a_straight_line_has_a_normal_and_a_blob_has_none() {
+        let line: Vec<[f64; 2]> = (0..8).map(|i| [f64::from(i) * 0.2, 1.0]).collect();
+        let n = line_normal(line.iter()).expect("a line");
+        assert!(
+            n[0].abs() < 1e-9 && (n[1].abs() - 1.0).abs() < 1e-9,
+            "{n:?}"
+        );
+        let tilted: Vec<[f64; 2]> = (0..8).map(|i| [f64::from(i), f64::from(i)]).collect();
+        let n = line_normal(tilted.iter()).expect("a line");
+        assert!((n[0] + n[1]).abs() < 1e-9, "{n:?}");
+        let blob = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]];
+        assert!(line_normal(blob.iter()).is_none());
+    }
+
+    #[test]
+    fn the_pair_grid_finds_the_k_d_trees_nearest_point_within_the_gate() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut uniform = move || rng.gen::<f64>();
+        let mut points = street();
+        points.extend((0..500).map(|_| [-70.0 + 140.0 * uniform(), -20.0 + 40.0 * uniform()]));
+        let gate = 0.6;
+        let cloud = ReferenceCloud::new(points.clone(), 1.5, gate);
+        assert!(cloud.grid.reach(gate).is_some_and(|r| r <= GRID_MAX_REACH));
+        let (mut within, mut beyond) = (0, 0);
+        for _ in 0..20_000 {
+            let q = [-90.0 + 180.0 * uniform(), -30.0 + 60.0 * uniform()];
+            let nn = cloud.tree.nearest_one::<SquaredEuclidean>(&q);
+            let grid = cloud.grid.nearest_within(&points, &q, gate);
+            if nn.distance <= gate * gate {
+                within += 1;
+                let (i, d2) = grid.expect("a point within the gate is in a neighbouring cell");
+                assert_eq!(d2, nn.distance, "query {q:?}");
+                assert_eq!(points[i], points[nn.item as usize]);
+            } else {
+                beyond += 1;
+                assert!(grid.is_none(), "query {q:?}");
+            }
+        }
+        assert!(
+            within > 1000 && beyond > 1000,
+            "{within} within, {beyond} beyond"
+        );
+    }
+}

@@ -1,0 +1,328 @@
+//! Registration of one cloud against a reference: trimmed, robust point-to-line ICP in the
+//! plane, and what its information says about the directions the scene constrains.
+
+use kiddo::SquaredEuclidean;
+use nalgebra::{Matrix3, Vector3};
+use radar_model::geometry::{wrap_angle, Pose2};
+
+use crate::cloud::{ReferenceCloud, GRID_MAX_REACH};
+
+/// A registration's result.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Registration {
+    /// The current cloud's frame in the reference cloud's frame.
+    pub pose: Pose2,
+    /// Pairs used at the last iteration.
+    pub pairs: usize,
+    /// Of those, pairs with a point on a line-like surface (point-to-line).
+    pub line_pairs: usize,
+    /// Root-mean-square residual of those pairs (m): distance to the line, or to the point.
+    pub rms_m: f64,
+    /// Iterations run.
+    pub iterations: usize,
+    /// The Gauss-Newton information `H = sum w J' J` of the last iteration's pairs, in
+    /// `[x m, y m, heading rad]`: how strongly the pairs pin each direction of the motion.
+    pub information: Matrix3<f64>,
+}
+
+/// Trimmed, robust point-to-line ICP in the plane (points on a line-like surface of the
+/// reference are pulled onto the surface, the others onto the nearest point): the pose `T`
+/// of `current`'s frame in `reference`'s frame such that `T (p) ~ q` for paired points,
+/// started at `initial`, by Gauss-Newton with Cauchy weights. Pairs farther apart than the
+/// gate are not paired; the gate narrows from `gate_m` to a fifth of it. `None` when fewer
+/// than `min_pairs` pairs survive, the clouds are empty, or the pairs do not constrain all
+/// three degrees of freedom.
+pub fn register(
+    reference: &ReferenceCloud,
+    current: &[[f64; 2]],
+    initial: Pose2,
+    gate_m: f64,
+    min_pairs: usize,
+) -> Option<Registration> {
+    const ITERATIONS: usize = 40;
+    if reference.points.is_empty() || current.is_empty() {
+        return None;
+    }
+    let mut t = initial;
+    let mut last = None;
+    for it in 0..ITERATIONS {
+        let gate = gate_m * (0.85f64.powi(it as i32)).max(0.2);
+        let gate2 = gate * gate;
+        // Cauchy weights with a scale of half the gate: pairs near the gate count little.
+        let scale2 = 0.25 * gate2;
+        // The grid while the gate spans a few of its cells; the k-d tree for a gate far
+        // wider than the cells it was built for.
+        let use_grid = reference
+            .grid
+            .reach(gate)
+            .is_some_and(|r| r <= GRID_MAX_REACH);
+        let (s, c) = t.theta.sin_cos();
+        let mut h = Matrix3::<f64>::zeros();
+        let mut g = Vector3::<f64>::zeros();
+        let (mut n, mut lines, mut sum_r2) = (0usize, 0usize, 0.0);
+        for p in current {
+            let moved = [t.x + c * p[0] - s * p[1], t.y + s * p[0] + c * p[1]];
+            let nearest = if use_grid {
+                reference
+                    .grid
+                    .nearest_within(&reference.points, &moved, gate)
+            } else {
+                let nn = reference.tree.nearest_one::<SquaredEuclidean>(&moved);
+                Some((nn.item as usize, nn.distance))
+            };
+            let Some((i, distance2)) = nearest else {
+                continue;
+            };
+            if distance2 > gate2 {
+                continue;
+            }
+            let (Some(q), Some(normal)) = (reference.points.get(i), reference.normals.get(i))
+            else {
+                continue;
+            };
+            // d(moved)/d(theta).
+            let dm = [-s * p[0] - c * p[1], c * p[0] - s * p[1]];
+            let d = [moved[0] - q[0], moved[1] - q[1]];
+            n += 1;
+            match normal {
+                Some(nv) => {
+                    lines += 1;
+                    let r = nv[0] * d[0] + nv[1] * d[1];
+                    let j = Vector3::new(nv[0], nv[1], nv[0] * dm[0] + nv[1] * dm[1]);
+                    let w = 1.0 / (1.0 + r * r / scale2);
+                    h += w * j * j.transpose();
+                    g += w * r * j;
+                    sum_r2 += r * r;
+                }
+                None => {
+                    let r2 = d[0] * d[0] + d[1] * d[1];
+                    let w = 1.0 / (1.0 + r2 / scale2);
+                    for (axis, r) in d.iter().enumerate() {
+                        let j = if axis == 0 {
+                            Vector3::new(1.0, 0.0, dm[0])
+                        } else {
+                            Vector3::new(0.0, 1.0, dm[1])
+                        };
+                        h += w * j * j.transpose();
+                        g += w * r * j;
+                    }
+                    sum_r2 += r2;
+                }
+            }
+        }
+        if n < min_pairs.max(3) {
+            return None;
+        }
+        let delta = -h.cholesky()?.solve(&g);
+        if !delta.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        t = Pose2::new(
+            t.x + delta[0],
+            t.y + delta[1],
+            wrap_angle(t.theta + delta[2]),
+        );
+        let step = delta[0].hypot(delta[1]) + delta[2].abs();
+        last = Some(Registration {
+            pose: t,
+            pairs: n,
+            line_pairs: lines,
+            rms_m: (sum_r2 / n as f64).sqrt(),
+            iterations: it + 1,
+            information: h,
+        });
+        if step < 1e-6 && gate <= 0.2 * gate_m + 1e-12 {
+            break;
+        }
+    }
+    last
+}
+
+/// `points` (in some frame) expressed in the frame of `pose` (a pose in that frame).
+pub fn in_frame_of(pose: &Pose2, points: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let (s, c) = pose.theta.sin_cos();
+    points
+        .iter()
+        .map(|p| {
+            let (dx, dy) = (p[0] - pose.x, p[1] - pose.y);
+            [c * dx + s * dy, -s * dx + c * dy]
+        })
+        .collect()
+}
+
+/// Length (m) that puts a heading error on the scale of a translation in [`Constraint`]: a
+/// heading error of `1 / L` rad moves a return `L` metres out by a metre's tenth... by
+/// `1 / L` of its range; 10 m is a typical range of the returns that pin the heading.
+pub const HEADING_LENGTH_M: f64 = 10.0;
+
+/// How well a registration's pairs pin the motion: the eigen-decomposition of its information
+/// with the heading scaled by [`HEADING_LENGTH_M`], per pair.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Constraint {
+    /// The smallest eigenvalue of the scaled information per pair: about 0.5 when the pairs'
+    /// surfaces face every way (a street with cross walls, cars and posts), 1 for points
+    /// paired with points, near 0 along a long featureless wall or in an open field.
+    pub weakest: f64,
+    /// The direction it belongs to, `[x, y, heading x L]` (unit length).
+    pub direction: [f64; 3],
+}
+
+impl Constraint {
+    /// The analysis of `reg`; `None` without pairs or with a non-finite information.
+    pub fn of(reg: &Registration) -> Option<Self> {
+        if reg.pairs == 0 || !reg.information.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let d = Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 1.0 / HEADING_LENGTH_M));
+        let scaled = d * reg.information * d / reg.pairs as f64;
+        let eig = (0.5 * (scaled + scaled.transpose())).symmetric_eigen();
+        let (i, weakest) = eig
+            .eigenvalues
+            .iter()
+            .copied()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(&b.1))?;
+        let v = eig.eigenvectors.column(i);
+        Some(Self {
+            weakest: weakest.max(0.0),
+            direction: [v[0], v[1], v[2]],
+        })
+    }
+}
+
+/// The covariance of a registration's motion: the configured floor `floor` (what the
+/// registration errs by on a well-constrained scene) plus the pairs' own uncertainty,
+/// `c rms^2 H^-1`, where `c` counts how many neighbouring pairs share one error (pairs along
+/// one surface are not independent). On a well-constrained scene the second term is a few
+/// per cent of the first; along a direction the pairs do not constrain it is large, so the
+/// filter leans on its prediction there and the pose's uncertainty grows instead of the
+/// pose being confidently wrong. `None` when the information cannot be inverted.
+pub fn covariance(
+    reg: &Registration,
+    floor: &Matrix3<f64>,
+    correlated_pairs: f64,
+    min_residual_m: f64,
+) -> Option<Matrix3<f64>> {
+    // A tiny ridge keeps an exactly singular information (one straight wall, no posts)
+    // invertible: its inverse is then huge along the wall, which is the point.
+    let ridge = 1e-9 * reg.information.trace().abs().max(1e-12);
+    let inv = (reg.information + Matrix3::identity() * ridge).try_inverse()?;
+    let sigma2 = reg.rms_m.max(min_residual_m).powi(2);
+    let cov = floor + inv * (correlated_pairs * sigma2);
+    let cov = 0.5 * (cov + cov.transpose());
+    cov.iter().all(|v| v.is_finite()).then_some(cov)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cloud::tests::street;
+
+    #[test]
+    fn icp_recovers_a_motion_started_five_per_cent_off() {
+        let world = street();
+        let a = Pose2::new(0.0, 0.0, 0.0);
+        let b = Pose2::new(2.2, 0.05, 0.012);
+        let reference = ReferenceCloud::new(in_frame_of(&a, &world), 1.5, 0.6);
+        assert!(
+            reference.with_normals() > world.len() / 2,
+            "walls have normals"
+        );
+        let current = in_frame_of(&b, &world);
+        let reg = register(
+            &reference,
+            &current,
+            Pose2::new(2.2 * 1.05, 0.0, 0.0),
+            1.5,
+            50,
+        )
+        .expect("registers");
+        assert!((reg.pose.x - b.x).abs() < 1e-3, "{reg:?}");
+        assert!((reg.pose.y - b.y).abs() < 1e-3, "{reg:?}");
+        assert!((reg.pose.theta - b.theta).abs() < 1e-4, "{reg:?}");
+        assert!(reg.line_pairs > 0 && reg.line_pairs < reg.pairs, "{reg:?}");
+    }
+
+    /// Two walls sampled at fixed bearings from each pose (as a radar samples them): the
+    /// samples move with the sensor, so pairing points with points pulls the motion along
+    /// the walls towards zero; pairing them with the walls' lines does not. A few posts fix
+    /// the along-track motion.
+    #[test]
+    fn walls_sampled_at_fixed_bearings_do_not_shrink_the_motion() {
+        let scan = |pose: &Pose2| -> Vec<[f64; 2]> {
+            let mut pts = Vec::new();
+            for k in 0..400 {
+                let bearing = std::f64::consts::TAU * f64::from(k) / 400.0;
+                let (s, c) = (pose.theta + bearing).sin_cos();
+                // Walls y = 8 and y = -7.5 (world), where the beam meets them within 60 m.
+                for wall_y in [8.0, -7.5] {
+                    if s.abs() > 1e-9 {
+                        let r = (wall_y - pose.y) / s;
+                        if r > 4.0 && r < 60.0 {
+                            let world = [pose.x + r * c, pose.y + r * s];
+                            pts.push(world);
+                        }
+                    }
+                }
+            }
+            for k in 0..8 {
+                pts.push([-20.0 + 6.0 * f64::from(k), 5.0 - 0.7 * f64::from(k % 3)]);
+            }
+            in_frame_of(pose, &pts)
+        };
+        let a = Pose2::new(0.0, 0.0, 0.0);
+        let b = Pose2::new(2.0, 0.0, 0.0);
+        let reference = ReferenceCloud::new(scan(&a), 1.5, 0.6);
+        let reg =
+            register(&reference, &scan(&b), Pose2::new(2.1, 0.0, 0.0), 0.6, 50).expect("registers");
+        assert!((reg.pose.x - b.x).abs() < 0.01, "{reg:?}");
+        assert!(
+            reg.pose.y.abs() < 0.01 && reg.pose.theta.abs() < 1e-3,
+            "{reg:?}"
+        );
+    }
+
+    #[test]
+    fn too_few_pairs_is_no_registration() {
+        let points = vec![[0.0, 0.0], [1.0, 0.0]];
+        let reference = ReferenceCloud::new(points.clone(), 1.5, 1.0);
+        assert!(register(&reference, &points, Pose2::new(0.0, 0.0, 0.0), 1.0, 3).is_none());
+        assert!(register(&reference, &[], Pose2::new(0.0, 0.0, 0.0), 1.0, 1).is_none());
+    }
+
+    /// A single straight wall: the pairs pin the motion across it and the heading, never
+    /// along it; the analysis names that direction and the covariance is large along it.
+    #[test]
+    fn a_lone_wall_is_weak_along_itself_and_its_covariance_says_so() {
+        let wall: Vec<[f64; 2]> = (0..300)
+            .map(|i| [-30.0 + 0.2 * f64::from(i), 6.0])
+            .collect();
+        let reference = ReferenceCloud::new(wall.clone(), 1.5, 0.6);
+        let moved = in_frame_of(&Pose2::new(0.0, 0.05, 0.0), &wall);
+        let reg = register(&reference, &moved, Pose2::new(0.0, 0.0, 0.0), 0.6, 50)
+            .expect("a wall still registers across");
+        let c = Constraint::of(&reg).expect("pairs");
+        assert!(c.weakest < 1e-3, "{c:?}");
+        assert!(c.direction[0].abs() > 0.99, "along the wall: {c:?}");
+        let floor = Matrix3::from_diagonal(&Vector3::new(
+            0.05f64.powi(2),
+            0.05f64.powi(2),
+            0.003f64.powi(2),
+        ));
+        let cov = covariance(&reg, &floor, 10.0, 0.02).expect("invertible with the ridge");
+        assert!(cov[(0, 0)] > 1.0, "along the wall: {cov}");
+        assert!(cov[(1, 1)] < 4.0 * floor[(1, 1)], "across the wall: {cov}");
+
+        let street = street();
+        let reference = ReferenceCloud::new(street.clone(), 1.5, 0.6);
+        let moved = in_frame_of(&Pose2::new(1.0, 0.0, 0.01), &street);
+        let reg =
+            register(&reference, &moved, Pose2::new(1.0, 0.0, 0.0), 0.6, 50).expect("registers");
+        let c = Constraint::of(&reg).expect("pairs");
+        assert!(c.weakest > 0.01, "posts pin the street along: {c:?}");
+        let cov = covariance(&reg, &floor, 10.0, 0.02).expect("invertible");
+        for i in 0..3 {
+            assert!(cov[(i, i)] < 2.0 * floor[(i, i)], "{cov}");
+        }
+    }
+}

@@ -1,0 +1,333 @@
+//! The pipeline's radar-odometry stage: each rotation's detections, walls and fences
+//! included, registered against the previous rotation's ([`radar_odometry::ScanMatcher`])
+//! measure the vehicle's motion between the two, and the filter takes the measurement
+//! ([`slam_filter::Ekf::observe_motion_since_mark`]).
+//!
+//! With wheel odometry the measurement corrects the odometry's speed scale and steering
+//! offset. Without (`[odometry] source = "none"`) this stage also *drives* the filter: after
+//! each rotation the filter's motion over it (its prediction fused with the registration) is
+//! turned into the process model's input for the next rotation (a constant-velocity
+//! prediction refreshed every rotation). Without a motion estimate (the first rotations, a
+//! failed registration) the registration searches along the vehicle's axis. Where the scene
+//! does not pin the motion (an open field, a long bare wall) the registration's covariance is
+//! large along that direction, so the pose's uncertainty grows there; each such rotation is
+//! counted and warned about.
+
+use radar_model::geometry::{wrap_angle, Pose2};
+use radar_model::motion::MotionModel;
+use radar_odometry::{RadarReturn, RotationMotion, ScanMatchSettings, ScanMatcher};
+use tracing::{debug, warn};
+
+use super::gate::worth_logging;
+use super::truth::TruthObserver;
+use crate::detect::Detection;
+use slam_filter::{MotionOutcome, OdometrySample};
+
+/// Radar odometry's gate: the 99.9 % point of chi-square with 3 dof.
+const GATE_CHI2: f64 = 16.27;
+
+impl RadarReturn for Detection {
+    fn range_m(&self) -> f64 {
+        self.range_m
+    }
+    fn strength_db(&self) -> f64 {
+        self.snr_db
+    }
+}
+
+/// What radar odometry did over a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct ScanMatchCounts {
+    /// Registrations tried (a rotation with a previous one to register against).
+    pub tried: u64,
+    /// Registrations with too few pairs.
+    pub failed: u64,
+    /// Measurements the filter applied.
+    pub applied: u64,
+    /// Measurements the filter's gate refused.
+    pub gated: u64,
+    /// Registrations the scene pinned weakly in one direction (their covariance is large
+    /// along it).
+    pub weak: u64,
+    /// Registrations that searched over starts (no motion estimate).
+    pub searched: u64,
+    /// Whether radar odometry drove the filter's prediction (no wheel odometry).
+    pub drives: bool,
+    /// Sum of the applied measurements' NIS (3 dof each).
+    pub nis_sum: f64,
+    /// Registrations compared with the true motion over the same interval (with ground
+    /// truth only).
+    pub truth_compared: u64,
+    /// Sum of `measured - true` motion, `[x m, y m, heading rad]` in the frame at the mark.
+    pub truth_error_sum: [f64; 3],
+    /// Sum of its squares.
+    pub truth_error_sq_sum: [f64; 3],
+}
+
+impl ScanMatchCounts {
+    /// Mean and standard deviation of the registrations' error against the true motion,
+    /// per component `[x m, y m, heading rad]`; `None` with fewer than two comparisons.
+    pub fn truth_error(&self) -> Option<[(f64, f64); 3]> {
+        if self.truth_compared < 2 {
+            return None;
+        }
+        let n = self.truth_compared as f64;
+        Some(std::array::from_fn(|i| {
+            let mean = self.truth_error_sum[i] / n;
+            let var = (self.truth_error_sq_sum[i] - n * mean * mean) / (n - 1.0);
+            (mean, var.max(0.0).sqrt())
+        }))
+    }
+
+    /// Records a registration's error against the true motion `[x, y, heading]` (scores
+    /// only; changes nothing).
+    fn record_truth_error(&mut self, error: [f64; 3]) {
+        if error.iter().any(|e| !e.is_finite()) {
+            return;
+        }
+        self.truth_compared += 1;
+        for (i, e) in error.iter().enumerate() {
+            self.truth_error_sum[i] += e;
+            self.truth_error_sq_sum[i] += e * e;
+        }
+    }
+
+    /// Records what the filter did with a measurement.
+    fn record(&mut self, outcome: MotionOutcome) {
+        match outcome {
+            MotionOutcome::Applied { nis } => {
+                self.applied += 1;
+                self.nis_sum += nis;
+            }
+            MotionOutcome::Gated { .. } => self.gated += 1,
+            _ => {}
+        }
+    }
+}
+
+/// The stage: the matcher, what the filter did with its measurements, and, when it drives
+/// the filter, whether it has a motion estimate.
+#[derive(Debug)]
+pub struct RadarOdometryStage {
+    matcher: ScanMatcher,
+    counts: ScanMatchCounts,
+    /// Whether it drives the filter's prediction (no other odometry).
+    drives: bool,
+    /// The filter's process model (driving turns motions into its inputs).
+    motion: MotionModel,
+    /// Driving, before the filter has started: the last rotation's end (s).
+    last_end_s: Option<f64>,
+}
+
+impl RadarOdometryStage {
+    /// A stage with `settings`; `drives` when there is no other odometry.
+    pub fn new(settings: ScanMatchSettings, drives: bool, motion: MotionModel) -> Self {
+        Self {
+            matcher: ScanMatcher::new(settings),
+            counts: ScanMatchCounts {
+                drives,
+                ..ScanMatchCounts::default()
+            },
+            drives,
+            motion,
+            last_end_s: None,
+        }
+    }
+
+    /// Whether it runs.
+    pub fn enabled(&self) -> bool {
+        self.matcher.enabled()
+    }
+
+    /// Whether it drives the filter's prediction.
+    pub fn drives(&self) -> bool {
+        self.drives
+    }
+
+    /// What it did so far.
+    pub fn counts(&self) -> ScanMatchCounts {
+        let m = self.matcher.counts();
+        ScanMatchCounts {
+            tried: m.tried,
+            failed: m.failed,
+            weak: m.weak,
+            searched: m.searched,
+            ..self.counts
+        }
+    }
+
+    /// Adds one azimuth's detections at `bearing_rad` and `time_s`. The sensor is placed
+    /// where the filter's motion since the last mark puts it; driving, before the filter has
+    /// started, at the origin (the first rotations are not de-skewed).
+    pub fn add_azimuth(
+        &mut self,
+        ekf: &super::core::DaemonEkf,
+        time_s: f64,
+        bearing_rad: f64,
+        detections: &[Detection],
+    ) {
+        let sensor = match ekf.motion_since_mark(time_s) {
+            None if self.drives && ekf.held_odometry().is_none() => Some(Pose2::new(0.0, 0.0, 0.0)),
+            sensor => sensor,
+        };
+        self.matcher.add_azimuth(sensor, bearing_rad, detections);
+    }
+
+    /// Closes a rotation whose last azimuth came at `end_s`: registers it and gives the
+    /// measurement to the filter. Driving, returns the odometry sample that carries the
+    /// motion over this rotation into the next; the caller applies it, then marks the
+    /// filter ([`slam_filter::Ekf::mark_motion`]) for the next rotation. Driving, before the
+    /// filter has started, the registration searches for the motion and its first result
+    /// starts the filter.
+    pub fn end_rotation(
+        &mut self,
+        ekf: &mut super::core::DaemonEkf,
+        truth: Option<&TruthObserver>,
+        end_s: f64,
+    ) -> Option<OdometrySample> {
+        if self.drives && ekf.held_odometry().is_none() {
+            return self.start(end_s);
+        }
+        let tally = ekf.motion_tally().copied();
+        let end = tally.map(|t| t.rel);
+        let measured = self.matcher.end_rotation(end, false);
+        if let (Some(m), Some(tally)) = (measured.as_ref(), tally) {
+            self.score(m, &tally, ekf.state().time_s(), truth);
+            self.warn_if_weak(m, ekf.state().time_s());
+            match ekf.observe_motion_since_mark(m.motion, &m.covariance, GATE_CHI2) {
+                Ok(outcome) => {
+                    if let MotionOutcome::Gated { .. } = outcome {
+                        let gated = self.counts.gated + 1;
+                        if worth_logging(gated) {
+                            warn!(
+                                ?outcome,
+                                pairs = m.registration.pairs,
+                                rms_m = m.registration.rms_m,
+                                gated,
+                                "radar odometry disagrees with the prediction beyond its gate: not used"
+                            );
+                        }
+                    }
+                    self.counts.record(outcome);
+                }
+                Err(e) => warn!(error = %e, "radar odometry update failed"),
+            }
+        }
+        if self.drives {
+            drive_sample(ekf, &self.motion, tally)
+        } else {
+            None
+        }
+    }
+
+    /// Driving, before the filter has started: the registration (searched, from the
+    /// origin) of this rotation against the last gives the first motion, stamped at this
+    /// rotation's end.
+    fn start(&mut self, end_s: f64) -> Option<OdometrySample> {
+        let origin = Some(Pose2::new(0.0, 0.0, 0.0));
+        let measured = self.matcher.end_rotation(origin, true);
+        let previous_end_s = self.last_end_s.replace(end_s);
+        let (m, start_s) = (measured?, previous_end_s?);
+        let distance = m.motion.x.signum() * m.motion.x.hypot(m.motion.y);
+        let input = self
+            .motion
+            .input_for(distance, m.motion.theta, end_s - start_s)?;
+        debug!(
+            measured_x = m.motion.x,
+            measured_y = m.motion.y,
+            measured_theta = m.motion.theta,
+            pairs = m.registration.pairs,
+            "radar only: the first registration starts the filter"
+        );
+        Some(OdometrySample {
+            timestamp_s: end_s,
+            speed_mps: input.speed_mps,
+            steer_rad: input.steer_rad,
+        })
+    }
+
+    fn score(
+        &mut self,
+        m: &RotationMotion,
+        tally: &slam_filter::motion_tally::MotionTally,
+        now_s: f64,
+        truth: Option<&TruthObserver>,
+    ) {
+        // With ground truth, the true motion over the same interval (scores only).
+        let truth = truth.and_then(|t| {
+            t.pose_at(tally.since_s)
+                .zip(t.pose_at(now_s))
+                .map(|(a, b)| {
+                    let rel = slam_graph::se2::between(&a, &b);
+                    [rel.x, rel.y, rel.theta]
+                })
+        });
+        let motion = m.motion;
+        if let Some(t) = truth {
+            self.counts.record_truth_error([
+                motion.x - t[0],
+                motion.y - t[1],
+                wrap_angle(motion.theta - t[2]),
+            ]);
+        }
+        debug!(
+            truth_x = truth.map(|t| t[0]),
+            truth_y = truth.map(|t| t[1]),
+            truth_theta = truth.map(|t| t[2]),
+            measured_x = motion.x,
+            measured_y = motion.y,
+            measured_theta = motion.theta,
+            predicted_x = tally.rel.x,
+            predicted_y = tally.rel.y,
+            predicted_theta = tally.rel.theta,
+            pairs = m.registration.pairs,
+            rms_m = m.registration.rms_m,
+            iterations = m.registration.iterations,
+            weakest = m.constraint.weakest,
+            searched = m.searched,
+            "radar odometry registration"
+        );
+    }
+
+    fn warn_if_weak(&self, m: &RotationMotion, time_s: f64) {
+        if !m.weak {
+            return;
+        }
+        let weak = self.matcher.counts().weak;
+        if worth_logging(weak) {
+            let d = m.constraint.direction;
+            warn!(
+                time_s,
+                weakest = m.constraint.weakest,
+                direction_x = d[0],
+                direction_y = d[1],
+                direction_heading = d[2],
+                sigma_along_m = (m.covariance[(0, 0)] * d[0] * d[0] + m.covariance[(1, 1)] * d[1] * d[1]).sqrt(),
+                weak,
+                "the radar cannot see the motion along one direction here (an open field, a long bare wall): the pose's uncertainty grows along it"
+            );
+        }
+    }
+}
+
+/// The input that carries the filter's motion over the rotation just closed (its prediction
+/// fused with the registration) into the next, corrected back through the filter's
+/// odometry bias so that the process model applies it as measured.
+fn drive_sample(
+    ekf: &super::core::DaemonEkf,
+    motion: &MotionModel,
+    tally: Option<slam_filter::motion_tally::MotionTally>,
+) -> Option<OdometrySample> {
+    let now_s = ekf.state().time_s();
+    let tally = tally?;
+    let dt = now_s - tally.since_s;
+    let fused = slam_graph::se2::between(&ekf.state().clone_pose_mean(), &ekf.pose());
+    let distance = fused.x.signum() * fused.x.hypot(fused.y);
+    let input = motion.input_for(distance, fused.theta, dt)?;
+    let [k, b] = ekf.state().odometry_bias();
+    Some(OdometrySample {
+        timestamp_s: now_s,
+        speed_mps: input.speed_mps / (1.0 + k),
+        steer_rad: input.steer_rad - b,
+    })
+}
