@@ -8,8 +8,11 @@
 //! **IO**: reads the Oxford scans from `../shared/data` (when present) and writes the
 //! report folder; everything else runs in memory. Simulated spectra come from sim-sensor's
 //! renderer directly (no sockets), so every figure is reproducible from the fixed seeds.
+//! One binary opens sockets: `seed_one` runs the whole daemon against the simulator on
+//! 127.0.0.1:0 (the end-to-end tests' harness).
 
 pub mod daemon;
+pub mod detections;
 pub mod error;
 pub mod metrics;
 pub mod plot;

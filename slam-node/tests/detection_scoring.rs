@@ -1,27 +1,22 @@
-//! Scores the three detectors on the simulator's shipped scenes: spectra rendered by the
+//! Asserts what the daemon relies on from its default detector, on spectra rendered by the
 //! simulator's own renderer (`sim_sensor::render`) with the scene's radar, receiver, noise
-//! and trajectory, and every detection checked against the targets really in its beam.
+//! and trajectory, every detection checked against the targets really in its beam: it finds
+//! both targets of the paper's penetration scenes down one beam, and on the outdoor field it
+//! keeps most targets at a bounded false-alarm rate.
 //!
-//! Prints probability of detection and false alarms per rotation for each detector over a
-//! sweep of thresholds (run with `--nocapture`), and asserts what the daemon relies on:
-//! the default detector finds both targets of the paper's penetration scenes down one beam,
-//! and on the outdoor field it keeps most targets at a bounded false-alarm rate.
+//! The measurements (every detector over a sweep of thresholds, and the learned front end
+//! against TPP) are an evaluation command:
+//! `cargo run --release -p evaluation --bin detection_scoring`.
 
 mod support;
 
-use slam_node::detect::{
-    BeamDetector, DetectionDomain, DetectorKind, DetectorSettings, FloorProfile, LearnedFloor,
-    LineDetector, LinePeak, LineSettings, RangeAxis,
-};
+use slam_node::detect::{BeamDetector, DetectorSettings, FloorProfile, RangeAxis};
 use support::{SimRadar, TrueTarget};
 
 /// Detections within this of a true target's range hit it, metres (two range cells).
 const TOL_M: f64 = 0.5;
 /// Targets whose expected peak stands less than this over the mean floor are not scored.
 const MIN_SNR_DB: f64 = 10.0;
-
-/// Threshold sweep, dB over each detector's noise estimate.
-const THRESHOLDS_DB: [f64; 5] = [12.0, 16.0, 20.0, 24.0, 28.0];
 
 /// Counts of a detector's performance against truth.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -142,143 +137,6 @@ fn run(scene_name: &str, settings: DetectorSettings, rotations: u64, seed: u64) 
     Run {
         score,
         rotations: rotations.saturating_sub(3),
-    }
-}
-
-/// As [`run`] for the learned front end (`detect::learned` and `detect::line`): the wire's
-/// bins as the driver delivers them (8-bit, or 16-bit brought to the 8-bit scale as the
-/// daemon does), the floor learned from the stream, detection at line rate.
-fn run_learned(scene_name: &str, settings: DetectorSettings, rotations: u64, seed: u64) -> Run {
-    let scene = sim_sensor::scene::shipped::load(scene_name).expect("shipped scene");
-    let horizon_s = rotations as f64 / scene.radar.rotation_hz() + 2.0;
-    let mut radar = SimRadar::new(&scene, Some(seed), horizon_s, 0);
-    let g = *radar.spectrum.geometry();
-    let axis = RangeAxis {
-        first_bin_m: g.range_offset_m,
-        bin_m: g.bin_size_m,
-    };
-    let line = LineSettings {
-        merge_gap_bins: settings.peaks.merge_gap_bins,
-        max_peaks: settings.peaks.max_peaks,
-        min_range_m: settings.min_range_m,
-        max_range_m: settings.max_range_m,
-    };
-    let mut floor = LearnedFloor::new(settings.floor, g.bins);
-    let mut detector = LineDetector::new();
-    let mut peaks: Vec<LinePeak> = Vec::new();
-    let n_az = radar.azimuths();
-    let (mut truth, mut eight) = (Vec::<TrueTarget>::new(), Vec::<u8>::new());
-    let mut score = DetectionScore::default();
-    for k in 0..rotations {
-        for i in 0..n_az {
-            let index = k * n_az + i;
-            let az = radar.azimuth(index);
-            eight.clear();
-            match az.width {
-                protocol::BinWidth::Eight => eight.extend_from_slice(&az.bins),
-                protocol::BinWidth::Sixteen => {
-                    eight.extend(az.bins_db().map(protocol::db_to_bin8));
-                }
-            }
-            detector.detect(&eight, &mut floor, &axis, &line, &mut peaks);
-            let ranges: Vec<f64> = peaks.iter().map(|p| axis.range_m(p.bin)).collect();
-            if k >= 3 {
-                radar.true_targets(index, &mut truth);
-                score.score_beam(&truth, &ranges, TOL_M, MIN_SNR_DB);
-            }
-        }
-    }
-    Run {
-        score,
-        rotations: rotations.saturating_sub(3),
-    }
-}
-
-#[test]
-#[ignore = "measurement (about a minute in release): cargo test --release -p slam-node --test detection_scoring learned -- --ignored --nocapture"]
-fn the_learned_detector_is_scored_against_tpp_on_the_cts350x_preset_and_the_paper_unit() {
-    println!(
-        "{:<14} {:<8} {:>9} {:>8} {:>8} {:>10} {:>12}",
-        "scene", "detector", "thr_dB", "targets", "Pd", "FA/rot", "multi-beam"
-    );
-    for scene in ["long-loop", "outdoor-field"] {
-        let tpp = run(scene, DetectorSettings::default(), 8, 7);
-        println!(
-            "{:<14} {:<8} {:>9} {:>8} {:>8.3} {:>10.2} {:>7}/{:<5}",
-            scene,
-            "Tpp",
-            "default",
-            tpp.score.targets,
-            tpp.score.pd(),
-            tpp.fa_per_rotation(),
-            tpp.score.multi_target_complete,
-            tpp.score.multi_target_beams
-        );
-        for thr in THRESHOLDS_DB {
-            let mut s = DetectorSettings {
-                kind: DetectorKind::Learned,
-                ..DetectorSettings::default()
-            };
-            s.floor.min_snr_db = thr;
-            let r = run_learned(scene, s, 8, 7);
-            println!(
-                "{:<14} {:<8} {:>9.1} {:>8} {:>8.3} {:>10.2} {:>7}/{:<5}",
-                scene,
-                "Learned",
-                thr,
-                r.score.targets,
-                r.score.pd(),
-                r.fa_per_rotation(),
-                r.score.multi_target_complete,
-                r.score.multi_target_beams
-            );
-        }
-    }
-}
-
-fn with(kind: DetectorKind, domain: DetectionDomain, scale_db: f64) -> DetectorSettings {
-    let mut s = DetectorSettings {
-        kind,
-        domain,
-        ca_scale_db: scale_db,
-        os_scale_db: scale_db,
-        ..DetectorSettings::default()
-    };
-    s.tpp.snr_threshold_db = scale_db;
-    s
-}
-
-#[test]
-#[ignore = "measurement sweep (about 30 s in release): cargo test --release -p slam-node --test detection_scoring -- --ignored --nocapture"]
-fn detectors_are_scored_on_the_shipped_scenes() {
-    println!(
-        "{:<20} {:<8} {:<14} {:>6} {:>8} {:>8} {:>10} {:>12}",
-        "scene", "detector", "domain", "thr_dB", "targets", "Pd", "FA/rot", "multi-beam"
-    );
-    for scene in ["outdoor-field", "penetration-wood", "dense-clutter"] {
-        for kind in [
-            DetectorKind::CaCfar,
-            DetectorKind::OsCfar,
-            DetectorKind::Tpp,
-        ] {
-            for domain in [DetectionDomain::Measured, DetectionDomain::Uncompensated] {
-                for thr in THRESHOLDS_DB {
-                    let r = run(scene, with(kind, domain, thr), 12, 7);
-                    println!(
-                        "{:<20} {:<8} {:<14} {:>6.1} {:>8} {:>8.3} {:>10.2} {:>7}/{:<5}",
-                        scene,
-                        format!("{kind:?}"),
-                        format!("{domain:?}"),
-                        thr,
-                        r.score.targets,
-                        r.score.pd(),
-                        r.fa_per_rotation(),
-                        r.score.multi_target_complete,
-                        r.score.multi_target_beams
-                    );
-                }
-            }
-        }
     }
 }
 

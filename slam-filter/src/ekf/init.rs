@@ -6,14 +6,14 @@ use radar_model::geometry::{range_bearing, wrap_angle, Pose2};
 use radar_model::layout::{self, Component, ObservationRow};
 use radar_model::material::Material;
 
-use super::super::beam::{predict_candidates, BeamCandidate};
-use super::super::error::FilterError;
-use super::super::lifecycle::{inverse_observation, Sighting};
-use super::super::observation::{state_columns, BeamObservation, BeamObservationModel, Target};
-use super::super::predict::ProcessModel;
-use super::super::state::{FeatureId, FeatureParams, FEATURE_DIM};
-use super::super::update::LinearisedObservation;
 use super::{BeamReport, Ekf};
+use crate::beam::{predict_candidates, BeamCandidate};
+use crate::error::FilterError;
+use crate::lifecycle::{inverse_observation, Sighting};
+use crate::observation::{state_columns, BeamObservation, BeamObservationModel, Target};
+use crate::predict::ProcessModel;
+use crate::state::{FeatureId, FeatureParams, FEATURE_DIM};
+use crate::update::LinearisedObservation;
 
 /// Gauss-Newton iterations of a new feature's power update.
 const INIT_POWER_ITERATIONS: usize = 10;

@@ -29,21 +29,20 @@
 //! from the mean pose now. So the held points are used as range-bearing observations made
 //! now, from `m(now)`.
 
+mod correction;
+mod fit;
+
 use std::collections::HashMap;
 use std::f64::consts::TAU;
 
-use nalgebra::{DMatrix, DVector};
-use radar_model::geometry::{range_bearing, range_bearing_with_jacobian, wrap_angle, Pose2};
+use radar_model::geometry::wrap_angle;
 
-use super::super::error::FilterError;
-use super::super::observation::{BeamObservation, BeamObservationModel};
-use super::super::predict::ProcessModel;
-use super::super::state::feature_index;
-use super::super::update::LinearisedObservation;
 use super::{BeamReport, Ekf};
+use crate::error::FilterError;
+use crate::observation::{BeamObservation, BeamObservationModel};
+use crate::predict::ProcessModel;
+use correction::{Correction, Grid, MapPoint};
 
-/// Gauss-Newton iterations of the relocalisation update.
-const ITERATIONS: usize = 10;
 /// Strongest held targets used to make hypotheses (pairs of them).
 const ANCHORS: usize = 24;
 /// Two anchors closer than this (m) give a poorly determined rotation: not paired.
@@ -83,95 +82,6 @@ impl Relocalisation {
         }
     }
 }
-
-/// A rigid correction of the world: `p -> R(phi) p + t`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Correction {
-    phi: f64,
-    t: [f64; 2],
-}
-
-impl Correction {
-    /// The correction taking `a0 -> b0` and the direction of `a1 - a0` to that of
-    /// `b1 - b0` (about the midpoints, so both pairs weigh alike).
-    fn from_pairs(a: [[f64; 2]; 2], b: [[f64; 2]; 2]) -> Self {
-        let da = [a[1][0] - a[0][0], a[1][1] - a[0][1]];
-        let db = [b[1][0] - b[0][0], b[1][1] - b[0][1]];
-        let phi = wrap_angle(db[1].atan2(db[0]) - da[1].atan2(da[0]));
-        let ma = [0.5 * (a[0][0] + a[1][0]), 0.5 * (a[0][1] + a[1][1])];
-        let mb = [0.5 * (b[0][0] + b[1][0]), 0.5 * (b[0][1] + b[1][1])];
-        let r = rotate(phi, ma);
-        Self {
-            phi,
-            t: [mb[0] - r[0], mb[1] - r[1]],
-        }
-    }
-
-    fn apply(&self, p: [f64; 2]) -> [f64; 2] {
-        let r = rotate(self.phi, p);
-        [r[0] + self.t[0], r[1] + self.t[1]]
-    }
-
-    fn apply_pose(&self, pose: &Pose2) -> Pose2 {
-        let p = self.apply([pose.x, pose.y]);
-        Pose2::new(p[0], p[1], wrap_angle(pose.theta + self.phi))
-    }
-}
-
-fn rotate(phi: f64, p: [f64; 2]) -> [f64; 2] {
-    let (s, c) = phi.sin_cos();
-    [c * p[0] - s * p[1], s * p[0] + c * p[1]]
-}
-
-/// A mapped feature considered for relocalisation.
-#[derive(Debug, Clone, Copy)]
-struct MapPoint {
-    slot: usize,
-    xy: [f64; 2],
-    /// Variance of its position, largest axis (m^2).
-    var: f64,
-}
-
-/// Features in a grid of square cells, for "which features are near this point".
-struct Grid {
-    cell_m: f64,
-    cells: HashMap<(i64, i64), Vec<usize>>,
-}
-
-impl Grid {
-    fn new(points: &[MapPoint], cell_m: f64) -> Self {
-        let mut cells: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-        for (k, p) in points.iter().enumerate() {
-            cells.entry(Self::key(cell_m, p.xy)).or_default().push(k);
-        }
-        Self { cell_m, cells }
-    }
-
-    fn key(cell_m: f64, xy: [f64; 2]) -> (i64, i64) {
-        // Saturating float-to-int casts: far points share the edge cells, harmlessly.
-        (
-            (xy[0] / cell_m).floor() as i64,
-            (xy[1] / cell_m).floor() as i64,
-        )
-    }
-
-    /// Indices of the features in the 3 x 3 cells around `xy`.
-    fn near(&self, xy: [f64; 2], out: &mut Vec<usize>) {
-        out.clear();
-        let (cx, cy) = Self::key(self.cell_m, xy);
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                if let Some(v) = self
-                    .cells
-                    .get(&(cx.saturating_add(dx), cy.saturating_add(dy)))
-                {
-                    out.extend_from_slice(v);
-                }
-            }
-        }
-    }
-}
-
 /// The outcome of one turn's attempt.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Attempt {
@@ -191,11 +101,6 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             self.relocalising = Some(Relocalisation::new(self.state.time_s()));
             self.tentatives = Default::default();
         }
-    }
-
-    /// Whether the filter is relocalising (beams are held, not used).
-    pub fn is_relocalising(&self) -> bool {
-        self.relocalising.is_some()
     }
 
     /// One beam while relocalising: predicted and held; once a turn is held, an attempt.
@@ -436,159 +341,4 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         out.sort_unstable();
         out
     }
-
-    /// The accepted pairings as one iterated update from the corrected pose, once they are
-    /// jointly compatible there: while the stacked innovation fails its chi-square gate, the
-    /// pairing with the largest residual is dropped (a clutter point or a phantom that the
-    /// coarse isotropic gate let in), down to `relocalise_min_features` pairings.
-    fn relocalisation_update(
-        &mut self,
-        correction: &Correction,
-        pairing: &[(usize, usize)],
-        held: &[HeldTarget],
-        map: &[MapPoint],
-    ) -> Result<Attempt, FilterError> {
-        let start = correction.apply_pose(&self.pose());
-        let mut pairs = self.observations(pairing, held, map);
-        while pairs.len() >= self.settings.relocalise_min_features {
-            let Some(fit) = self.fit(&pairs, &start) else {
-                return Ok(Attempt::Refused);
-            };
-            if fit.nis <= self.gates.threshold(fit.obs.innovation.len()) {
-                let outcome = self.landmark_update(&fit.obs)?;
-                self.stats.updates += 1;
-                self.stats.nis_sum += outcome.nis;
-                self.stats.nis_dof_sum += outcome.dof as u64;
-                let now = self.state.time_s();
-                for &(slot, _) in &pairs {
-                    if let Some(track) = self.state.track_mut(slot) {
-                        track.hits += 1;
-                        track.consecutive_misses = 0;
-                        track.last_seen_s = now;
-                    }
-                }
-                return Ok(Attempt::Accepted);
-            }
-            let Some(worst) = fit
-                .residuals
-                .iter()
-                .enumerate()
-                .max_by(|a, b| a.1.total_cmp(b.1))
-                .map(|(k, _)| k)
-            else {
-                break;
-            };
-            pairs.remove(worst);
-        }
-        Ok(Attempt::Refused)
-    }
-
-    /// The pairings `(map index, held index)` as `(slot, [R, beta])`: each held point as an
-    /// observation made now from the mean pose.
-    fn observations(
-        &self,
-        pairing: &[(usize, usize)],
-        held: &[HeldTarget],
-        map: &[MapPoint],
-    ) -> Vec<(usize, [f64; 2])> {
-        let now_pose = self.pose();
-        pairing
-            .iter()
-            .map(|&(m, j)| {
-                let rb = range_bearing(&now_pose, held[j].xy);
-                (map[m].slot, [rb.range_m, rb.bearing_rad])
-            })
-            .collect()
-    }
-
-    /// Whether `pairs` fitted from `start` pass the chi-square gate of their dimension.
-    fn jointly_compatible(&self, pairs: &[(usize, [f64; 2])], start: &Pose2) -> bool {
-        self.fit(pairs, start)
-            .is_some_and(|fit| fit.nis <= self.gates.threshold(fit.obs.innovation.len()))
-    }
-
-    /// Gauss-Newton on the pose and the paired features' positions (the other columns
-    /// follow through the covariance), started at `start` with the features at their
-    /// means; then the ordinary update's observation at the last linearisation, its NIS,
-    /// and each pairing's residual there (squared, in measurement-noise units).
-    fn fit(&self, pairs: &[(usize, [f64; 2])], start: &Pose2) -> Option<Fit> {
-        let mut columns = vec![0, 1, 2];
-        for &(slot, _) in pairs {
-            let fi = feature_index(slot);
-            columns.extend([fi, fi + 1]);
-        }
-        let x0: Vec<f64> = columns.iter().map(|&c| self.state.mean()[c]).collect();
-        let p_cc = self.state.covariance_block(&columns);
-        let var = [
-            self.settings.range_std_m.powi(2),
-            self.settings.bearing_std_rad.powi(2),
-        ];
-        let m = 2 * pairs.len();
-        let noise = DMatrix::from_diagonal(&DVector::from_iterator(m, (0..m).map(|r| var[r % 2])));
-        let mut x = x0.clone();
-        x[0] = start.x;
-        x[1] = start.y;
-        x[2] = start.theta;
-        let mut last: Option<(DMatrix<f64>, DVector<f64>, Vec<f64>)> = None;
-        for _ in 0..ITERATIONS {
-            let pose = Pose2::new(x[0], x[1], x[2]);
-            let mut h = DMatrix::zeros(m, columns.len());
-            let mut nu = DVector::zeros(m);
-            let mut residuals = Vec::with_capacity(pairs.len());
-            for (k, (_, zk)) in pairs.iter().enumerate() {
-                let f = [x[3 + 2 * k], x[4 + 2 * k]];
-                let (rb, jac) = range_bearing_with_jacobian(&pose, f).ok()?;
-                for c in 0..3 {
-                    h[(2 * k, c)] = jac.range_wrt_pose[c];
-                    h[(2 * k + 1, c)] = jac.bearing_wrt_pose[c];
-                }
-                for c in 0..2 {
-                    h[(2 * k, 3 + 2 * k + c)] = jac.range_wrt_feature[c];
-                    h[(2 * k + 1, 3 + 2 * k + c)] = jac.bearing_wrt_feature[c];
-                }
-                nu[2 * k] = zk[0] - rb.range_m;
-                nu[2 * k + 1] = wrap_angle(zk[1] - rb.bearing_rad);
-                residuals.push(nu[2 * k].powi(2) / var[0] + nu[2 * k + 1].powi(2) / var[1]);
-            }
-            // The innovation about the prior mean x0, linearised at x (the bearing rows are
-            // wrapped where measured; the linear term is not an angle to wrap).
-            let mut dx = DVector::from_iterator(x.len(), x0.iter().zip(&x).map(|(a, b)| a - b));
-            dx[2] = wrap_angle(dx[2]);
-            let nu0 = &nu - &h * &dx;
-            let pht = &p_cc * h.transpose();
-            let chol = (&h * &pht + &noise).cholesky()?;
-            let step = &pht * chol.solve(&nu0);
-            let mut moved: f64 = 0.0;
-            for (k, xk) in x.iter_mut().enumerate() {
-                let next = x0[k] + step[k];
-                moved = moved.max((next - *xk).abs());
-                *xk = next;
-            }
-            x[2] = wrap_angle(x[2]);
-            last = Some((h, nu0, residuals));
-            if moved < 1e-9 {
-                break;
-            }
-        }
-        let (h, nu, residuals) = last?;
-        let chol = (&h * (&p_cc * h.transpose()) + &noise).cholesky()?;
-        let nis = nu.dot(&chol.solve(&nu));
-        nis.is_finite().then_some(Fit {
-            obs: LinearisedObservation {
-                columns,
-                jacobian: h,
-                innovation: nu,
-                noise,
-            },
-            nis,
-            residuals,
-        })
-    }
-}
-
-/// A relocalisation fit: the observation to apply, its NIS, and each pairing's residual.
-struct Fit {
-    obs: LinearisedObservation,
-    nis: f64,
-    residuals: Vec<f64>,
 }

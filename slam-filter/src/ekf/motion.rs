@@ -1,0 +1,99 @@
+//! The motion since a mark, measured (for example by registering two radar rotations) and
+//! used as an update by stochastic cloning: the pose at the mark is copied into the state's
+//! clone, and the measurement holds the pose's change since.
+
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use radar_model::geometry::{wrap_angle, Pose2};
+
+use super::{Ekf, MotionOutcome};
+use crate::error::FilterError;
+use crate::motion_tally::{relative_pose, MotionTally};
+use crate::observation::BeamObservationModel;
+use crate::predict::ProcessModel;
+use crate::state::CLONE_INDEX;
+use crate::update::{batched_update, LinearisedObservation};
+
+impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
+    /// Marks the state's time as the reference for the next
+    /// [`Self::observe_motion_since_mark`]: the pose is copied into the state's clone (see
+    /// [`crate::state`]) and the odometry's tally of the motion starts (see
+    /// [`crate::motion_tally`]). Any earlier mark is dropped.
+    pub fn mark_motion(&mut self) {
+        self.state.clone_pose();
+        self.state.tally = Some(MotionTally::start(self.state.time_s()));
+    }
+
+    /// The tally since the last mark, up to the state's time; `None` without a mark (none
+    /// was set, or a gap, a clock jump or a new submap dropped it).
+    pub fn motion_tally(&self) -> Option<&MotionTally> {
+        self.state.tally.as_ref()
+    }
+
+    /// The pose at `time_s` in the frame of the pose at the last mark, as the odometry
+    /// drives it (the tally extrapolated with the held odometry, mean only; updates since
+    /// the mark do not move it). `None` without a mark or odometry.
+    pub fn motion_since_mark(&self, time_s: f64) -> Option<Pose2> {
+        let tally = self.state.tally.as_ref()?;
+        let held = self.odometry?;
+        self.extrapolate_from(tally.rel, &held, time_s).ok()
+    }
+
+    /// Updates the state with a measurement of the motion since the last mark: `measured`
+    /// is the pose at the state's time in the frame of the pose at the mark (for example
+    /// from registering two radar rotations), `cov` its covariance. The prediction is the
+    /// estimated pose in the frame of the estimated clone (the pose at the mark, corrected
+    /// since by every update through its correlations): stochastic cloning, so the
+    /// measurement holds the pose's change itself, and through their correlations the
+    /// odometry corrections `k`, `b`, the pose at the mark and the map. The odometry's input
+    /// noise since the mark is in the pose's covariance and not in the clone's, so it is
+    /// counted once. A measurement whose normalised innovation exceeds `gate_chi2` (3 dof) is
+    /// refused and changes nothing; so does one without a mark. The mark stays: call
+    /// [`Self::mark_motion`] to start the next interval.
+    pub fn observe_motion_since_mark(
+        &mut self,
+        measured: Pose2,
+        cov: &Matrix3<f64>,
+        gate_chi2: f64,
+    ) -> Result<MotionOutcome, FilterError> {
+        if ![measured.x, measured.y, measured.theta]
+            .iter()
+            .chain(cov.iter())
+            .all(|v| v.is_finite())
+        {
+            return Err(FilterError::NonFiniteInput("measured motion"));
+        }
+        if self.state.tally.is_none() {
+            return Ok(MotionOutcome::NoMark);
+        }
+        let (predicted, jacobian) = relative_pose(&self.state.clone_pose_mean(), &self.pose());
+        let nu = Vector3::new(
+            measured.x - predicted.x,
+            measured.y - predicted.y,
+            wrap_angle(measured.theta - predicted.theta),
+        );
+        let columns = [0, 1, 2, CLONE_INDEX, CLONE_INDEX + 1, CLONE_INDEX + 2];
+        // The gate first, on S = H P H^T + R (3 x 3); then the filter's one batched update.
+        let p = self.state.covariance_block(&columns);
+        let h = DMatrix::from_fn(3, 6, |r, c| jacobian[(r, c)]);
+        let s = &h * p * h.transpose() + DMatrix::from_fn(3, 3, |r, c| cov[(r, c)]);
+        let chol = (0.5 * (&s + s.transpose()))
+            .cholesky()
+            .ok_or(FilterError::InnovationNotPositiveDefinite { dim: 3 })?;
+        let nu_d = DVector::from_column_slice(nu.as_slice());
+        let nis = nu_d.dot(&chol.solve(&nu_d));
+        if !nis.is_finite() || nis > gate_chi2 {
+            return Ok(MotionOutcome::Gated { nis });
+        }
+        batched_update(
+            &mut self.state,
+            &LinearisedObservation {
+                columns: columns.to_vec(),
+                jacobian: h,
+                innovation: nu_d,
+                noise: DMatrix::from_fn(3, 3, |r, c| 0.5 * (cov[(r, c)] + cov[(c, r)])),
+            },
+        )?;
+        self.stats.motion_updates += 1;
+        Ok(MotionOutcome::Applied { nis })
+    }
+}
