@@ -15,6 +15,8 @@ use crate::register::{covariance, in_frame_of, register, Constraint, Registratio
 
 /// Points a rotation's cloud holds at most, whatever the radar's geometry.
 pub const MAX_POINTS: usize = 1 << 15;
+/// Pairs a registration needs at least, however few points a rotation has.
+pub const MIN_PAIRS_FLOOR: usize = 12;
 /// A weak registration's standard deviation along its weak direction (m): no information.
 pub const UNINFORMATIVE_SIGMA_M: f64 = 100.0;
 
@@ -79,7 +81,8 @@ impl Default for ScanMatchSettings {
 pub trait RadarReturn {
     /// Range (m).
     fn range_m(&self) -> f64;
-    /// Strength (dB, any reference: only the order within an azimuth matters).
+    /// Strength (dB, any reference: only the order within an azimuth matters; `+inf` is
+    /// the strongest, NaN is no return).
     fn strength_db(&self) -> f64;
 }
 
@@ -194,7 +197,9 @@ impl ScanMatcher {
                 .enumerate()
                 .filter(|(_, d)| {
                     let r = d.range_m();
-                    r >= s.min_range_m && r <= s.max_range_m && d.strength_db().is_finite()
+                    // An infinite strength (a return over a noise floor of zero, as a
+                    // simulator may give) is the strongest; NaN is no return.
+                    r >= s.min_range_m && r <= s.max_range_m && !d.strength_db().is_nan()
                 })
                 .map(|(i, _)| i),
         );
@@ -228,17 +233,12 @@ impl ScanMatcher {
         let mut out = None;
         if let Some(reference) = self.previous.as_ref() {
             self.counts.tried += 1;
+            let min_pairs = self.min_pairs(local.len());
             let reg = if search {
                 self.counts.searched += 1;
-                self.search(reference, &local, end)
+                self.search(reference, &local, end, min_pairs)
             } else {
-                register(
-                    reference,
-                    &local,
-                    end,
-                    self.settings.pair_gate_m,
-                    self.settings.min_pairs,
-                )
+                register(reference, &local, end, self.settings.pair_gate_m, min_pairs)
             };
             out = reg.and_then(|reg| self.measured(reg, search));
             match &out {
@@ -259,6 +259,16 @@ impl ScanMatcher {
         out
     }
 
+    /// Pairs a registration of `points` points needs: [`ScanMatchSettings::min_pairs`], or
+    /// half the cloud when that is fewer (a scene of a few point landmarks, as the paper's
+    /// unit sees, gives tens of returns a rotation), but never fewer than
+    /// [`MIN_PAIRS_FLOOR`].
+    fn min_pairs(&self, points: usize) -> usize {
+        self.settings
+            .min_pairs
+            .min((points / 2).max(MIN_PAIRS_FLOOR))
+    }
+
     /// The registration with the most pairs (then the smallest residual) over starts spread
     /// along the vehicle's axis, a pair gate apart.
     fn search(
@@ -266,6 +276,7 @@ impl ScanMatcher {
         reference: &ReferenceCloud,
         local: &[[f64; 2]],
         end: Pose2,
+        min_pairs: usize,
     ) -> Option<Registration> {
         let s = &self.settings;
         let step = s.pair_gate_m.max(0.1);
@@ -273,7 +284,7 @@ impl ScanMatcher {
         (-n..=n)
             .filter_map(|k| {
                 let start = Pose2::new(end.x + f64::from(k) * step, end.y, end.theta);
-                register(reference, local, start, s.pair_gate_m, s.min_pairs)
+                register(reference, local, start, s.pair_gate_m, min_pairs)
             })
             .max_by(|a, b| a.pairs.cmp(&b.pairs).then(b.rms_m.total_cmp(&a.rms_m)))
     }

@@ -191,11 +191,15 @@ impl RadarOdometryStage {
         let tally = ekf.motion_tally().copied();
         let end = tally.map(|t| t.rel);
         let measured = self.matcher.end_rotation(end, false);
+        let mut applied = None;
         if let (Some(m), Some(tally)) = (measured.as_ref(), tally) {
             self.score(m, &tally, ekf.state().time_s(), truth);
             self.warn_if_weak(m, ekf.state().time_s());
             match ekf.observe_motion_since_mark(m.motion, &m.covariance, GATE_CHI2) {
                 Ok(outcome) => {
+                    if let MotionOutcome::Applied { .. } = outcome {
+                        applied = Some(*m);
+                    }
                     if let MotionOutcome::Gated { .. } = outcome {
                         let gated = self.counts.gated + 1;
                         if worth_logging(gated) {
@@ -214,7 +218,7 @@ impl RadarOdometryStage {
             }
         }
         if self.drives {
-            drive_sample(ekf, &self.motion, tally)
+            drive_sample(ekf, &self.motion, tally, applied.as_ref())
         } else {
             None
         }
@@ -310,21 +314,58 @@ impl RadarOdometryStage {
     }
 }
 
-/// The input that carries the filter's motion over the rotation just closed (its prediction
-/// fused with the registration) into the next, corrected back through the filter's
-/// odometry bias so that the process model applies it as measured.
+/// The input for the next rotation: the motion the registration measured over the rotation
+/// just closed (a constant-velocity prediction), or, along a direction the scene did not pin
+/// and when no registration was applied, the input held so far. Not the filter's own change
+/// of pose over the rotation: that holds the map's corrections of the pose, which are
+/// displacements, not motion, and carried into the next rotation they would repeat.
+/// Corrected back through the filter's odometry bias, so that the process model applies it
+/// as measured.
 fn drive_sample(
     ekf: &super::core::DaemonEkf,
     motion: &MotionModel,
     tally: Option<slam_filter::motion_tally::MotionTally>,
+    applied: Option<&RotationMotion>,
 ) -> Option<OdometrySample> {
     let now_s = ekf.state().time_s();
     let tally = tally?;
-    let dt = now_s - tally.since_s;
-    let fused = slam_graph::se2::between(&ekf.state().clone_pose_mean(), &ekf.pose());
-    let distance = fused.x.signum() * fused.x.hypot(fused.y);
-    let input = motion.input_for(distance, fused.theta, dt)?;
+    let held = ekf.held_odometry()?;
     let [k, b] = ekf.state().odometry_bias();
+    let Some(m) = applied else {
+        // Nothing measured: the motion held so far goes on.
+        return Some(OdometrySample {
+            timestamp_s: now_s,
+            ..held
+        });
+    };
+    let dt = now_s - tally.since_s;
+    let measured_distance = m.motion.x.signum() * m.motion.x.hypot(m.motion.y);
+    let (distance, turn) = if m.weak {
+        // Along the weak direction the registration said nothing: the translation it pins
+        // poorly keeps the held speed; a heading it pins poorly keeps the held turn.
+        let held_distance = held.speed_mps * (1.0 + k) * dt;
+        let d = m.constraint.direction;
+        let translation_weak = d[0].hypot(d[1]) > 0.5;
+        let held_turn = motion
+            .predict(
+                &Pose2::new(0.0, 0.0, 0.0),
+                &radar_model::motion::ControlInput::new(
+                    held.speed_mps * (1.0 + k),
+                    held.steer_rad + b,
+                ),
+                dt,
+            )
+            .map(|p| p.theta)
+            .unwrap_or(0.0);
+        if translation_weak {
+            (held_distance, m.motion.theta)
+        } else {
+            (measured_distance, held_turn)
+        }
+    } else {
+        (measured_distance, m.motion.theta)
+    };
+    let input = motion.input_for(distance, turn, dt)?;
     Some(OdometrySample {
         timestamp_s: now_s,
         speed_mps: input.speed_mps / (1.0 + k),

@@ -1,0 +1,173 @@
+//! Radar only (issue 35): the daemon runs without odometry of any kind, radar odometry
+//! driving the filter's prediction. On the realistic street through the vehicle's
+//! configuration with `[odometry] source = "none"`; on the Oxford scans in `../shared` with
+//! `--radar-only`; and on a copy of those scans without their ground truth, which runs and
+//! is not scored. The Oxford cases skip with a message when the scans are absent.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use sim_sensor::settings::Pacing;
+use sim_sensor::SimOptions;
+use slam_node::daemon::replay::OdometryErrors;
+use slam_node::daemon::{run_daemon, DaemonOptions, EmbeddedSim, RecordedReplay, Simulator};
+
+fn oxford_dir() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/oxford-radar-robotcar");
+    if dir.join("radar").is_dir() {
+        Some(dir)
+    } else {
+        println!(
+            "SKIPPED: the Oxford Radar RobotCar scans are not at {} (they live in ../shared beside the workspace)",
+            dir.display()
+        );
+        None
+    }
+}
+
+fn options(config: config::Config, written: &str, out: &Path) -> DaemonOptions {
+    DaemonOptions {
+        config,
+        simulator: None,
+        mcap: None,
+        max_stream_s: None,
+        out_dir: out.to_path_buf(),
+        figures: false,
+        progress_every_rotations: 0,
+        stop: Arc::new(AtomicBool::new(false)),
+        keep_configured_compensation: false,
+        spectrum_bearings_deg: Vec::new(),
+        detector: None,
+        written: Some(config::written_keys(written)),
+    }
+}
+
+/// The vehicle's configuration as shipped, with no odometry.
+fn vehicle_radar_only() -> String {
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/examples/vehicle.toml"),
+    )
+    .expect("the shipped vehicle configuration");
+    let mut out = String::new();
+    let mut in_odometry = false;
+    for line in text.lines() {
+        if line.starts_with('[') {
+            in_odometry = line.trim() == "[odometry]";
+            out.push_str(line);
+            out.push('\n');
+            if in_odometry {
+                out.push_str("source = \"none\"\n");
+            }
+            continue;
+        }
+        // The odometry's own keys go; so do the recording and output paths (the test's
+        // folder is used).
+        let key = line.split('=').next().unwrap_or("").trim();
+        if in_odometry || key == "record_path" || key == "directory" {
+            continue;
+        }
+        out.push_str(line);
+        out.push('\n');
+    }
+    out
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_realistic_street_is_driven_on_the_radar_alone() {
+    let work = tempfile::tempdir().expect("a folder");
+    let text = vehicle_radar_only();
+    let config = config::Config::from_toml_str(&text).expect("the radar-only configuration");
+    let scene = sim_sensor::scene::Scene::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../sim-sensor/scenes/urban-street.toml"),
+    )
+    .expect("the realistic street");
+    let mut sim = SimOptions::for_tests(scene);
+    sim.pacing = Pacing::AsFastAsPossible;
+    let mut opts = options(config, &text, work.path());
+    opts.max_stream_s = Some(10.0);
+    opts.simulator = Some(Simulator {
+        sim: EmbeddedSim::new(sim),
+        recorded: None,
+    });
+    let report = run_daemon(opts, None).await.expect("the run");
+    let s = &report.run.summary;
+    let m = s.scan_match.expect("radar odometry ran");
+    assert!(m.drives, "radar odometry drove the prediction: {m:?}");
+    assert!(m.applied >= 30, "registrations applied: {m:?}");
+    let online = s.online.as_ref().expect("the online pose was scored");
+    // Measured 0.22 m final, 0.13 m RMS over 10 s (about 70 m); the bound leaves room.
+    assert!(online.final_m < 1.0, "final error {} m", online.final_m);
+    assert!(online.mean_nees < 7.81 * 3.0, "NEES {}", online.mean_nees);
+}
+
+fn recorded(dir: PathBuf) -> RecordedReplay {
+    RecordedReplay {
+        dir,
+        // Named: a folder of Oxford scans without radar_odometry.csv is not recognised.
+        format: Some(sim_sensor::replay::ReplayFormat::Oxford),
+        errors: OdometryErrors::default(),
+        radar_odometry: true,
+        write_odometry: None,
+        radar_only: true,
+    }
+}
+
+async fn replay(dir: PathBuf, out: &Path) -> slam_node::daemon::DaemonReport {
+    let mut sim = SimOptions::for_tests(sim_sensor::scene::shipped::load("outdoor-field").unwrap());
+    sim.pacing = Pacing::AsFastAsPossible;
+    let mut opts = options(config::Config::default(), "", out);
+    opts.detector = Some(slam_node::detect::DetectorSettings::default());
+    opts.simulator = Some(Simulator {
+        sim: EmbeddedSim::new(sim),
+        recorded: Some(recorded(dir)),
+    });
+    run_daemon(opts, None).await.expect("the replay runs")
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_oxford_scans_are_driven_on_the_radar_alone() {
+    let Some(dir) = oxford_dir() else {
+        return;
+    };
+    let work = tempfile::tempdir().expect("a folder");
+    let report = replay(dir, work.path()).await;
+    let s = &report.run.summary;
+    assert_eq!(s.rotations, 8);
+    let m = s.scan_match.expect("radar odometry ran");
+    assert!(m.drives && m.applied >= 4, "{m:?}");
+    let pose = s.pose.as_ref().expect("scored against the ground truth");
+    // Measured 0.136 m after 14.4 m; biased wheel odometry dead-reckons to 0.853 m.
+    assert!(
+        pose.final_position_m < 0.4,
+        "final error {} m",
+        pose.final_position_m
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_recording_without_ground_truth_runs_unscored() {
+    let Some(dir) = oxford_dir() else {
+        return;
+    };
+    // The scans alone, read from ../shared: no radar_odometry.csv beside them.
+    let work = tempfile::tempdir().expect("a folder");
+    let copy = work.path().join("scans");
+    std::fs::create_dir_all(copy.join("radar")).expect("a folder");
+    for entry in std::fs::read_dir(dir.join("radar")).expect("the scans") {
+        let path = entry.expect("an entry").path();
+        if let Some(name) = path.file_name() {
+            std::fs::copy(&path, copy.join("radar").join(name)).expect("a copy");
+        }
+    }
+    if dir.join("radar.timestamps").is_file() {
+        std::fs::copy(dir.join("radar.timestamps"), copy.join("radar.timestamps")).expect("a copy");
+    }
+    let report = replay(copy, &work.path().join("out")).await;
+    let s = &report.run.summary;
+    assert_eq!(s.rotations, 8);
+    assert!(s.pose.is_none(), "nothing to score against");
+    let m = s.scan_match.expect("radar odometry ran");
+    assert!(m.drives && m.applied >= 4, "{m:?}");
+    assert!(s.map_size > 0, "a map was made");
+}
