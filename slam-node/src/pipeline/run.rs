@@ -11,7 +11,8 @@ use crossbeam_channel::{Receiver, RecvTimeoutError};
 use radar_driver::{Azimuth, OdometryPoll, OdometrySource};
 use tracing::{error, info, warn};
 
-use super::core::{DaemonEkf, Pipeline};
+use super::core::Pipeline;
+use super::ekf::DaemonEkf;
 use super::summary::PipelineSummary;
 use crate::output::{OutputEvent, OutputHandle};
 use slam_filter::OdometrySample;
