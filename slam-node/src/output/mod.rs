@@ -12,11 +12,13 @@ pub mod diagnostics;
 pub mod event;
 pub mod figures;
 pub mod live;
+pub mod live_error;
 pub mod map;
 pub mod recording;
 pub mod ros;
 pub mod trajectory;
 pub mod writer;
+pub mod zenoh_keys;
 #[cfg(feature = "zenoh")]
 pub mod zenoh_node;
 

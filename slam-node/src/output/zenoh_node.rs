@@ -13,9 +13,10 @@ use zenoh::bytes::Encoding;
 use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
-use super::live::{
+use super::live_error::LiveError;
+use super::zenoh_keys::{
     bridge_liveliness_key, bridge_qos, key_for, rmw_zenoh_attachment, rmw_zenoh_entity_token,
-    rmw_zenoh_node_token, rmw_zenoh_qos, EntityKind, LiveError,
+    rmw_zenoh_node_token, rmw_zenoh_qos, EntityKind,
 };
 
 /// How long [`ZenohNode::open`] waits for the session to open.

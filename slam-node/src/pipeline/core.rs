@@ -20,6 +20,7 @@ use tracing::{info, warn};
 
 use super::beams::OfferedBeam;
 use super::clock::{Verdict, WireClock};
+use super::ekf::DaemonEkf;
 use super::frontend::{doppler_range_shift_m, FrontEnd, GeometryError};
 use super::gate::{worth_logging, OdometryGate};
 use super::radar_odometry::RadarOdometryStage;
@@ -30,10 +31,7 @@ use super::submaps::SubmapRun;
 use super::summary::PipelineSummary;
 use super::truth::{TruthObserver, TruthOracle};
 use crate::output::{MapSnapshot, OutputEvent, PoseSample, SpectrumComparison};
-use slam_filter::{Ekf, FilterError, OdometrySample, RadarBeamModel, RadarEkf};
-
-/// The filter the daemon runs.
-pub type DaemonEkf = RadarEkf;
+use slam_filter::{Ekf, FilterError, OdometrySample, RadarBeamModel};
 
 /// Pending odometry samples held at most (past it the oldest is applied at once).
 const ODOMETRY_QUEUE: usize = 1 << 16;

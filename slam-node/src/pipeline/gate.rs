@@ -21,8 +21,8 @@ use slam_filter::{Ekf, OdometrySample, ProcessModel};
 use tracing::{info, warn};
 
 use super::clock::{Verdict, WireClock};
+use super::counts::RefusalCounts;
 use super::odometry::OdometryQueue;
-use super::summary::RefusalCounts;
 use slam_filter::BeamObservationModel;
 
 /// Why a beam was not given to the filter.

@@ -7,7 +7,9 @@
 pub mod beams;
 pub mod clock;
 pub mod core;
+pub mod counts;
 pub mod derive;
+pub mod ekf;
 pub mod frontend;
 pub mod gate;
 pub mod odometry;
@@ -23,8 +25,9 @@ pub mod submaps;
 pub mod summary;
 pub mod truth;
 
-pub use self::core::{DaemonEkf, Pipeline, PipelineError};
+pub use self::core::{Pipeline, PipelineError};
 pub use derive::{Derived, SettingsRecipe, SourceFacts, Written};
+pub use ekf::DaemonEkf;
 pub use frontend::{FrontEnd, FrontEndSettings};
 pub use run::{run_pipeline, PipelineInputs, RunControl, RunReport};
 #[cfg(feature = "sim")]

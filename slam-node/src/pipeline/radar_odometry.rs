@@ -18,6 +18,8 @@ use radar_model::motion::MotionModel;
 use radar_odometry::{RadarReturn, RotationMotion, ScanMatchSettings, ScanMatcher};
 use tracing::{debug, warn};
 
+pub use super::counts::ScanMatchCounts;
+use super::ekf::DaemonEkf;
 use super::gate::worth_logging;
 use super::truth::TruthObserver;
 use crate::detect::Detection;
@@ -32,76 +34,6 @@ impl RadarReturn for Detection {
     }
     fn strength_db(&self) -> f64 {
         self.snr_db
-    }
-}
-
-/// What radar odometry did over a run.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
-pub struct ScanMatchCounts {
-    /// Registrations tried (a rotation with a previous one to register against).
-    pub tried: u64,
-    /// Registrations with too few pairs.
-    pub failed: u64,
-    /// Measurements the filter applied.
-    pub applied: u64,
-    /// Measurements the filter's gate refused.
-    pub gated: u64,
-    /// Registrations the scene pinned weakly in one direction (their covariance is large
-    /// along it).
-    pub weak: u64,
-    /// Registrations that searched over starts (no motion estimate).
-    pub searched: u64,
-    /// Whether radar odometry drove the filter's prediction (no wheel odometry).
-    pub drives: bool,
-    /// Sum of the applied measurements' NIS (3 dof each).
-    pub nis_sum: f64,
-    /// Registrations compared with the true motion over the same interval (with ground
-    /// truth only).
-    pub truth_compared: u64,
-    /// Sum of `measured - true` motion, `[x m, y m, heading rad]` in the frame at the mark.
-    pub truth_error_sum: [f64; 3],
-    /// Sum of its squares.
-    pub truth_error_sq_sum: [f64; 3],
-}
-
-impl ScanMatchCounts {
-    /// Mean and standard deviation of the registrations' error against the true motion,
-    /// per component `[x m, y m, heading rad]`; `None` with fewer than two comparisons.
-    pub fn truth_error(&self) -> Option<[(f64, f64); 3]> {
-        if self.truth_compared < 2 {
-            return None;
-        }
-        let n = self.truth_compared as f64;
-        Some(std::array::from_fn(|i| {
-            let mean = self.truth_error_sum[i] / n;
-            let var = (self.truth_error_sq_sum[i] - n * mean * mean) / (n - 1.0);
-            (mean, var.max(0.0).sqrt())
-        }))
-    }
-
-    /// Records a registration's error against the true motion `[x, y, heading]` (scores
-    /// only; changes nothing).
-    fn record_truth_error(&mut self, error: [f64; 3]) {
-        if error.iter().any(|e| !e.is_finite()) {
-            return;
-        }
-        self.truth_compared += 1;
-        for (i, e) in error.iter().enumerate() {
-            self.truth_error_sum[i] += e;
-            self.truth_error_sq_sum[i] += e * e;
-        }
-    }
-
-    /// Records what the filter did with a measurement.
-    fn record(&mut self, outcome: MotionOutcome) {
-        match outcome {
-            MotionOutcome::Applied { nis } => {
-                self.applied += 1;
-                self.nis_sum += nis;
-            }
-            MotionOutcome::Gated { .. } => self.gated += 1,
-            _ => {}
-        }
     }
 }
 
@@ -161,7 +93,7 @@ impl RadarOdometryStage {
     /// started, at the origin (the first rotations are not de-skewed).
     pub fn add_azimuth(
         &mut self,
-        ekf: &super::core::DaemonEkf,
+        ekf: &DaemonEkf,
         time_s: f64,
         bearing_rad: f64,
         detections: &[Detection],
@@ -181,7 +113,7 @@ impl RadarOdometryStage {
     /// starts the filter.
     pub fn end_rotation(
         &mut self,
-        ekf: &mut super::core::DaemonEkf,
+        ekf: &mut DaemonEkf,
         truth: Option<&TruthObserver>,
         end_s: f64,
     ) -> Option<OdometrySample> {
@@ -322,7 +254,7 @@ impl RadarOdometryStage {
 /// Corrected back through the filter's odometry bias, so that the process model applies it
 /// as measured.
 fn drive_sample(
-    ekf: &super::core::DaemonEkf,
+    ekf: &DaemonEkf,
     motion: &MotionModel,
     tally: Option<slam_filter::motion_tally::MotionTally>,
     applied: Option<&RotationMotion>,

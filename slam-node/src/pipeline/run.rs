@@ -11,7 +11,8 @@ use crossbeam_channel::{Receiver, RecvTimeoutError};
 use radar_driver::{Azimuth, OdometryPoll, OdometrySource};
 use tracing::{error, info, warn};
 
-use super::core::{DaemonEkf, Pipeline};
+use super::core::{Pipeline, PipelineError};
+use super::ekf::DaemonEkf;
 use super::summary::PipelineSummary;
 use crate::output::{OutputEvent, OutputHandle};
 use slam_filter::OdometrySample;
@@ -35,7 +36,7 @@ impl std::fmt::Debug for PipelineInputs {
 /// Builds the pipeline for the radar that connected, from the geometry its first azimuth
 /// brings (the radar's profile is chosen from it).
 pub type BuildOnFirstAzimuth =
-    Box<dyn FnOnce(&protocol::Geometry) -> Result<Pipeline, super::PipelineError> + Send>;
+    Box<dyn FnOnce(&protocol::Geometry) -> Result<Pipeline, PipelineError> + Send>;
 
 /// The pipeline, or how to build it once the radar has said what it is.
 pub enum PipelineStart {

@@ -18,7 +18,7 @@ use slam_graph::se2::{compose, compose_covariance, rotation};
 use slam_graph::{GlobalLayer, GlobalMap, GlobalStats};
 use tracing::{info, warn};
 
-use super::core::DaemonEkf;
+use super::ekf::DaemonEkf;
 use super::settings::SubmapOptions;
 use crate::output::{MapFeature, MapSnapshot, PoseSample};
 

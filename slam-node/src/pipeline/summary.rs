@@ -4,23 +4,13 @@ use std::collections::VecDeque;
 
 use serde::Serialize;
 
+use super::counts::{RefusalCounts, ScanMatchCounts};
 use super::scores::{MapScore, ObservationErrorStats, PoseErrorStats};
 use super::spectrum::SpectrumTally;
 use crate::output::RotationDiagnostics;
 
 /// Rotation times kept for percentiles (the most recent ones).
 const TIMES_KEPT: usize = 10_000;
-
-/// Beams the filter did not take, by reason.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
-pub struct RefusalCounts {
-    /// No odometry had been received yet.
-    pub no_odometry: u64,
-    /// The odometry was older than the stale limit.
-    pub stale_odometry: u64,
-    /// The beam was older than the filter's state.
-    pub late_beams: u64,
-}
 
 /// Totals over a run.
 #[derive(Debug, Clone, Default, Serialize)]
@@ -96,7 +86,7 @@ pub struct PipelineSummary {
     /// not estimated (`[odometry] speed_scale_std` and `steer_bias_std_rad` zero).
     pub odometry_corrections: Option<([f64; 2], [f64; 2])>,
     /// What radar odometry did (`[odometry] radar_odometry`); `None` when it is off.
-    pub scan_match: Option<super::radar_odometry::ScanMatchCounts>,
+    pub scan_match: Option<ScanMatchCounts>,
     /// Observations kept out of the map as extended returns (walls, fences, cars).
     pub extended_returns: u64,
     /// Feature-rotations in which a mapped feature (mapped before the rotation began) was in

@@ -1,0 +1,87 @@
+//! What the stages count over a run, parts of the run's summary: the beams the filter did
+//! not take, and what radar odometry did. Plain counters, a leaf: the stages that count and
+//! the summary that reports both import them from here.
+
+use serde::Serialize;
+use slam_filter::MotionOutcome;
+
+/// Beams the filter did not take, by reason.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct RefusalCounts {
+    /// No odometry had been received yet.
+    pub no_odometry: u64,
+    /// The odometry was older than the stale limit.
+    pub stale_odometry: u64,
+    /// The beam was older than the filter's state.
+    pub late_beams: u64,
+}
+
+/// What radar odometry did over a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct ScanMatchCounts {
+    /// Registrations tried (a rotation with a previous one to register against).
+    pub tried: u64,
+    /// Registrations with too few pairs.
+    pub failed: u64,
+    /// Measurements the filter applied.
+    pub applied: u64,
+    /// Measurements the filter's gate refused.
+    pub gated: u64,
+    /// Registrations the scene pinned weakly in one direction (their covariance is large
+    /// along it).
+    pub weak: u64,
+    /// Registrations that searched over starts (no motion estimate).
+    pub searched: u64,
+    /// Whether radar odometry drove the filter's prediction (no wheel odometry).
+    pub drives: bool,
+    /// Sum of the applied measurements' NIS (3 dof each).
+    pub nis_sum: f64,
+    /// Registrations compared with the true motion over the same interval (with ground
+    /// truth only).
+    pub truth_compared: u64,
+    /// Sum of `measured - true` motion, `[x m, y m, heading rad]` in the frame at the mark.
+    pub truth_error_sum: [f64; 3],
+    /// Sum of its squares.
+    pub truth_error_sq_sum: [f64; 3],
+}
+
+impl ScanMatchCounts {
+    /// Mean and standard deviation of the registrations' error against the true motion,
+    /// per component `[x m, y m, heading rad]`; `None` with fewer than two comparisons.
+    pub fn truth_error(&self) -> Option<[(f64, f64); 3]> {
+        if self.truth_compared < 2 {
+            return None;
+        }
+        let n = self.truth_compared as f64;
+        Some(std::array::from_fn(|i| {
+            let mean = self.truth_error_sum[i] / n;
+            let var = (self.truth_error_sq_sum[i] - n * mean * mean) / (n - 1.0);
+            (mean, var.max(0.0).sqrt())
+        }))
+    }
+
+    /// Records a registration's error against the true motion `[x, y, heading]` (scores
+    /// only; changes nothing).
+    pub(super) fn record_truth_error(&mut self, error: [f64; 3]) {
+        if error.iter().any(|e| !e.is_finite()) {
+            return;
+        }
+        self.truth_compared += 1;
+        for (i, e) in error.iter().enumerate() {
+            self.truth_error_sum[i] += e;
+            self.truth_error_sq_sum[i] += e * e;
+        }
+    }
+
+    /// Records what the filter did with a measurement.
+    pub(super) fn record(&mut self, outcome: MotionOutcome) {
+        match outcome {
+            MotionOutcome::Applied { nis } => {
+                self.applied += 1;
+                self.nis_sum += nis;
+            }
+            MotionOutcome::Gated { .. } => self.gated += 1,
+            _ => {}
+        }
+    }
+}
