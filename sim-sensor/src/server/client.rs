@@ -190,6 +190,7 @@ impl Writer {
                 match s.next(&mut azimuth, skip).await? {
                     None => {
                         tracing::info!("the stream has ended; keep-alives continue");
+                        self.stats.streams_ended.fetch_add(1, Ordering::Relaxed);
                         stream = None;
                     }
                     Some(p) => {

@@ -159,6 +159,7 @@ impl super::Running for McapReplayHandle {
                 });
             super::SourceEnd {
                 scans_skipped: 0,
+                first_scan_skipped: None,
                 mcap: Some(counts),
             }
         })
@@ -194,6 +195,7 @@ pub fn open(
         name: Some(format!("MCAP recording {}", source.path.display())),
         truth_overlay: crate::output::figures::TruthOverlay::default(),
         end_after_silence: None,
+        played_out: None,
         replay: None,
         running: Box::new(reader),
     })
