@@ -170,6 +170,7 @@ impl SimServer {
             start_ns,
             options.stop_after_azimuths,
             options.replay_loop,
+            options.shaping_scope,
         ));
         let cancel = CancellationToken::new();
         let stats = Arc::new(SimStats::default());
