@@ -178,8 +178,13 @@ impl SimServer {
 
         let mut odometry_addr = None;
         if let (Some(bind), Some(_)) = (options.odometry_bind, world.scene()) {
-            let odo =
-                odometry::OdometryServer::bind(bind, Arc::clone(&world), options.odometry).await?;
+            let odo = odometry::OdometryServer::bind(
+                bind,
+                Arc::clone(&world),
+                options.odometry,
+                options.write_timeout,
+            )
+            .await?;
             odometry_addr = Some(odo.local_addr());
             tasks.spawn(odo.run(cancel.clone()));
         }
