@@ -1,6 +1,12 @@
-//! Contour update (message 50): the furthest bin to send, per degree of azimuth
+//! Contour update (message 50): how far to send, per degree of azimuth
 //! (`docs/colossus-protocol.md`, section 2). 360 x u16 BE; an empty payload resets the
 //! contour.
+//!
+//! A value `v` is the number of bins to send for that degree's azimuths: bins `0..v`, not
+//! `0..=v`. The protocol document's "max bin per degree" leaves it open; Navtech's C++
+//! client turns a range into `ceil(range / bin size)` bins (the bins that cover it), and
+//! Navtech's `colossus_protocol_test` sends 100 and expects contoured azimuths of exactly
+//! 100 bins (see the crate's README).
 
 use bytes::{BufMut, Bytes, BytesMut};
 
@@ -14,7 +20,7 @@ pub const CONTOUR_DEGREES: usize = 360;
 pub enum ContourUpdate {
     /// Empty payload: remove any contour.
     Reset,
-    /// The maximum bin to send for each degree 0..360.
+    /// For each degree 0..360, the number of bins to send (bins `0..v`).
     MaxBinPerDegree(Box<[u16; CONTOUR_DEGREES]>),
 }
 

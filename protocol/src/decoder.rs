@@ -134,6 +134,20 @@ impl FrameDecoder {
         self.decode_inner(buf, true)
     }
 
+    /// Whether `buf` starts with a whole frame that [`FrameDecoder::decode`] returned
+    /// `Ok(None)` for: held back because its last bytes could be the start of the next
+    /// frame's signature (a contour whose last value is `00 01`). A caller that has waited
+    /// for more bytes and got none (a client sends one command and waits for the answer)
+    /// calls [`FrameDecoder::decode_eof`] to take it.
+    pub fn holds_whole_frame(&self, buf: &[u8]) -> bool {
+        let Some(header) = buf.get(..HEADER_LEN) else {
+            return false;
+        };
+        let mut bytes = [0u8; HEADER_LEN];
+        bytes.copy_from_slice(header);
+        FrameHeader::parse(&bytes).is_ok_and(|h| buf.len() >= h.frame_len())
+    }
+
     fn decode_inner(
         &mut self,
         buf: &mut BytesMut,
@@ -625,6 +639,24 @@ mod tests {
         // At the end of the input, it is released at once.
         let mut buf = whole.clone();
         assert_eq!(decoder.decode_eof(&mut buf), Ok(Some(msg)));
+    }
+
+    #[test]
+    fn a_contour_ending_in_00_01_is_held_and_said_to_be_whole_so_a_caller_can_take_it() {
+        // Navtech's clients send one contour and wait: its last value 1 (`00 01`) could
+        // start a signature, so `decode` holds it; `holds_whole_frame` tells the caller
+        // that a whole frame is there, and `decode_eof` takes it.
+        let mut bins = Box::new([500u16; crate::CONTOUR_DEGREES]);
+        bins[359] = 1;
+        let msg = Message::ContourUpdate(crate::ContourUpdate::MaxBinPerDegree(bins));
+        let mut buf = BytesMut::new();
+        msg.encode(&mut buf).unwrap();
+        let mut decoder = FrameDecoder::new();
+        assert!(!decoder.holds_whole_frame(&buf[..buf.len() - 1]));
+        assert_eq!(decoder.decode(&mut buf), Ok(None));
+        assert!(decoder.holds_whole_frame(&buf));
+        assert_eq!(decoder.decode_eof(&mut buf), Ok(Some(msg)));
+        assert!(buf.is_empty() && !decoder.holds_whole_frame(&buf));
     }
 
     #[test]

@@ -130,6 +130,28 @@ pub enum ReplayError {
         /// The later time (µs since the epoch).
         later_us: i64,
     },
+    /// Azimuth rows whose encoder value is at or past the recording's encoder size: no radar
+    /// sends such a row and a radar driver drops it, so the scan is skipped.
+    #[error(
+        "{path}: {rows} of {of} azimuths carry encoder values from {min} to {max} (the first \
+         is row {first_row}), at or past the encoder size {encoder_size}"
+    )]
+    EncoderPastSize {
+        /// The scan.
+        path: PathBuf,
+        /// Rows past the encoder size.
+        rows: usize,
+        /// Rows in the scan.
+        of: usize,
+        /// The first such row (0-based, image order).
+        first_row: usize,
+        /// The smallest such encoder value.
+        min: u16,
+        /// The largest.
+        max: u16,
+        /// The recording's encoder size.
+        encoder_size: u16,
+    },
     /// A file too large to be an index of scans.
     #[error("{path}: {bytes} bytes is larger than the {limit} read")]
     TooLarge {

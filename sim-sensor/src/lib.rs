@@ -41,4 +41,4 @@ pub mod truth;
 pub use error::{ClientError, ReplayError, SceneError, SimError};
 pub use faults::{FaultScope, FaultSettings, Stall};
 pub use server::{SimHandle, SimServer, SimStats, SimStatsSnapshot};
-pub use settings::{OdometryNoise, Pacing, SimOptions, SourceSpec};
+pub use settings::{OdometryNoise, Pacing, ShapingScope, SimOptions, SourceSpec};

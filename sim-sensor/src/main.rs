@@ -11,7 +11,7 @@ use clap::{Parser, ValueEnum};
 use sim_sensor::radar::{DataWidth, RadarPreset};
 use sim_sensor::render::SceneRenderer;
 use sim_sensor::scene::{shipped, Scene};
-use sim_sensor::{Pacing, SimOptions, SimServer, SourceSpec};
+use sim_sensor::{Pacing, ShapingScope, SimOptions, SimServer, SourceSpec};
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
 enum PacingArg {
@@ -19,6 +19,14 @@ enum PacingArg {
     Realtime,
     /// As fast as the client reads.
     Fast,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum ShapingScopeArg {
+    /// The radar's: every client's azimuths, outliving the connection that sent them.
+    Radar,
+    /// The sending connection's own, until it closes.
+    Connection,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -86,6 +94,9 @@ struct Args {
     /// End the scene after this many azimuths.
     #[arg(long)]
     stop_after_azimuths: Option<u64>,
+    /// Whom a client's contour (50) and sector blanking (51) apply to (default: radar).
+    #[arg(long, value_enum)]
+    shaping_scope: Option<ShapingScopeArg>,
     /// List the shipped scenes and exit.
     #[arg(long)]
     list_scenes: bool,
@@ -173,6 +184,12 @@ fn build_options(args: &Args) -> Result<SimOptions> {
     }
     options.stop_after_azimuths = args.stop_after_azimuths.or(options.stop_after_azimuths);
     options.replay_loop |= args.replay_loop;
+    if let Some(scope) = args.shaping_scope {
+        options.shaping_scope = match scope {
+            ShapingScopeArg::Radar => ShapingScope::Radar,
+            ShapingScopeArg::Connection => ShapingScope::Connection,
+        };
+    }
     Ok(options)
 }
 

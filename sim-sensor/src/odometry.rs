@@ -20,9 +20,23 @@
 //! late.) A record written to a link counts as written, not as delivered: TCP does not say
 //! what the peer read before it closed, so a reconnecting client is sent again the last
 //! [`REPLAY_ON_CONNECT_S`] of records, as a real bridge replays its last records; the
-//! daemon's odometry gate drops the ones it took (same time, speed and steer). A client that
-//! leaves while its stream waits is noticed at once and gives its slot back.
+//! daemon's odometry gate drops the ones it took (same time, speed and steer).
+//!
+//! Slots. Clients say nothing on this port, so one that is connected and idle cannot be told
+//! from one that reads while little flows. When all [`MAX_ODOMETRY_CLIENTS`] slots are taken,
+//! a new client is served and the longest-connected one is closed (logged): a bridge whose
+//! link died silently reconnects and must be served, and the half-open sockets it leaves
+//! behind must not fill the port (before, eight idle clients locked every later one out). A
+//! client that stops reading is dropped once a write has waited [`SimOptions`]'
+//! `write_timeout`, as on the radar port. A client that closes its sending side
+//! (`shutdown(SHUT_WR)`) keeps receiving records (before, it was closed after the header);
+//! one that has gone entirely looks the same until a write to it fails, and while the radar
+//! stands still (as fast as possible, nothing is written) its slot is taken back when a new
+//! client needs it.
+//!
+//! [`SimOptions`]: crate::SimOptions
 
+use std::collections::VecDeque;
 use std::fmt::Write as _;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -144,6 +158,8 @@ pub(crate) struct OdometryServer {
     /// The first record not yet written to any client (as fast as possible a client starts
     /// [`REPLAY_ON_CONNECT_S`] before it).
     unsent: Arc<AtomicU64>,
+    /// A write that waits this long drops the client.
+    write_timeout: Duration,
 }
 
 impl OdometryServer {
@@ -151,6 +167,7 @@ impl OdometryServer {
         addr: SocketAddr,
         world: Arc<World>,
         noise: OdometryNoise,
+        write_timeout: Duration,
     ) -> Result<Self, SimError> {
         let listener = TcpListener::bind(addr)
             .await
@@ -166,6 +183,7 @@ impl OdometryServer {
             world,
             generator,
             unsent: Arc::new(AtomicU64::new(0)),
+            write_timeout,
         })
     }
 
@@ -177,26 +195,42 @@ impl OdometryServer {
 
     pub(crate) async fn run(self, cancel: CancellationToken) -> Result<(), SimError> {
         let mut clients = JoinSet::new();
+        // The clients being served, oldest first: (number, peer, its stop).
+        let mut served: VecDeque<(u64, SocketAddr, CancellationToken)> = VecDeque::new();
+        let mut connections: u64 = 0;
         loop {
             tokio::select! {
                 () = cancel.cancelled() => break,
-                Some(_) = clients.join_next(), if !clients.is_empty() => {}
+                Some(ended) = clients.join_next(), if !clients.is_empty() => {
+                    if let Ok(number) = ended {
+                        served.retain(|(n, _, _)| *n != number);
+                    }
+                }
                 accepted = self.listener.accept() => {
                     let Ok((socket, peer)) = accepted else {
                         tokio::time::sleep(Duration::from_millis(20)).await;
                         continue;
                     };
-                    if clients.len() >= MAX_ODOMETRY_CLIENTS {
-                        tracing::warn!(%peer, "refusing an odometry client: too many connected");
-                        continue;
+                    if served.len() >= MAX_ODOMETRY_CLIENTS {
+                        if let Some((_, oldest, stop)) = served.pop_front() {
+                            tracing::warn!(%peer, closed = %oldest, max = MAX_ODOMETRY_CLIENTS, "odometry port full: closing its longest-connected client to serve a new one");
+                            stop.cancel();
+                        }
                     }
+                    connections += 1;
+                    let number = connections;
                     tracing::info!(%peer, "odometry client connected");
-                    let (world, generator, cancel) = (Arc::clone(&self.world), self.generator.clone(), cancel.clone());
+                    let stop = cancel.child_token();
+                    served.push_back((number, peer, stop.clone()));
+                    let (world, generator) = (Arc::clone(&self.world), self.generator.clone());
                     let unsent = Arc::clone(&self.unsent);
+                    let write_timeout = self.write_timeout;
                     clients.spawn(async move {
-                        if let Err(error) = serve_odometry(socket, world, generator, unsent, cancel).await {
+                        let link = Link { world, generator, unsent, write_timeout, stop };
+                        if let Err(error) = link.serve(socket).await {
                             tracing::info!(%peer, %error, "odometry client gone");
                         }
+                        number
                     });
                 }
             }
@@ -206,11 +240,55 @@ impl OdometryServer {
     }
 }
 
+/// One client's link.
+struct Link {
+    world: Arc<World>,
+    generator: OdometryGenerator,
+    unsent: Arc<AtomicU64>,
+    write_timeout: Duration,
+    stop: CancellationToken,
+}
+
+impl Link {
+    async fn serve(self, socket: TcpStream) -> std::io::Result<()> {
+        serve_odometry(
+            socket,
+            self.world,
+            self.generator,
+            self.unsent,
+            self.write_timeout,
+            self.stop,
+        )
+        .await
+    }
+}
+
+/// Writes `bytes`, giving up when `cancel` is cancelled (`Ok(false)`) or when the write has
+/// waited `limit` (a client that does not read).
+async fn write_bounded(
+    socket: &mut TcpStream,
+    bytes: &[u8],
+    limit: Duration,
+    cancel: &CancellationToken,
+) -> std::io::Result<bool> {
+    tokio::select! {
+        () = cancel.cancelled() => Ok(false),
+        written = tokio::time::timeout(limit, socket.write_all(bytes)) => match written {
+            Ok(result) => result.map(|()| true),
+            Err(_) => Err(std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                format!("the client read nothing for {} ms: dropped, its slot freed", limit.as_millis()),
+            )),
+        },
+    }
+}
+
 async fn serve_odometry(
     mut socket: TcpStream,
     world: Arc<World>,
     generator: OdometryGenerator,
     unsent: Arc<AtomicU64>,
+    write_timeout: Duration,
     cancel: CancellationToken,
 ) -> std::io::Result<()> {
     let Some(scene) = world.scene().cloned() else {
@@ -220,7 +298,11 @@ async fn serve_odometry(
     let mut line = String::with_capacity(256);
     line.push_str(HEADER);
     line.push('\n');
-    socket.write_all(line.as_bytes()).await?;
+    if !write_bounded(&mut socket, line.as_bytes(), write_timeout, &cancel).await? {
+        return Ok(());
+    }
+    // Whether the client's sending side is still open (its end shows that it has gone).
+    let mut sending = true;
     let mut j = match world.pacing {
         Pacing::Realtime => world.current_offset_ns() / generator.period_ns(),
         Pacing::AsFastAsPossible => unsent
@@ -254,10 +336,13 @@ async fn serve_odometry(
                 // A client says nothing on this port: its socket turns readable when it
                 // leaves. Noticed here, not at the next write, which may be long in coming
                 // while the radar stands still, so a gone client gives its slot back.
-                readable = socket.readable() => {
+                readable = socket.readable(), if sending => {
                     readable?;
                     match socket.try_read(&mut [0u8; 256]) {
-                        Ok(0) => return Ok(()),
+                        // Gone, or only its sending side closed (the two look the same
+                        // until a write fails on a closed link): served until then, or
+                        // until a new client needs its slot.
+                        Ok(0) => sending = false,
                         Ok(_) => {} // ignored
                         Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
                         Err(e) => return Err(e),
@@ -268,9 +353,8 @@ async fn serve_odometry(
         let record = generator.record(j, trajectory.controls_at(t_ns));
         line.clear();
         record.write_line(&mut line);
-        tokio::select! {
-            () = cancel.cancelled() => return Ok(()),
-            written = socket.write_all(line.as_bytes()) => written?,
+        if !write_bounded(&mut socket, line.as_bytes(), write_timeout, &cancel).await? {
+            return Ok(());
         }
         j += 1;
         unsent.fetch_max(j, Ordering::AcqRel);

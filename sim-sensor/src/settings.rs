@@ -127,6 +127,20 @@ pub struct SimOptions {
     pub stop_after_azimuths: Option<u64>,
     /// Replays start again from the first frame when they reach the end.
     pub replay_loop: bool,
+    /// Whom a client's contour (50) and sector blanking (51) apply to, and for how long.
+    pub shaping_scope: ShapingScope,
+}
+
+/// Whom a client's contour (message 50) and sector blanking (51) apply to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ShapingScope {
+    /// The radar's settings: they shape every client's azimuths and outlive the connection
+    /// that sent them, as Navtech's `colossus_protocol_test` expects of a radar (it sets a
+    /// contour on one connection and checks the azimuths on the next).
+    #[default]
+    Radar,
+    /// The sending connection's own: only its azimuths, until it disconnects.
+    Connection,
 }
 
 impl SimOptions {
@@ -151,6 +165,7 @@ impl SimOptions {
             seed: None,
             stop_after_azimuths: None,
             replay_loop: false,
+            shaping_scope: ShapingScope::Radar,
         }
     }
 

@@ -1,6 +1,11 @@
-//! Contours (50) and sector blanking (51) take effect on the next azimuths for that client
-//! only, as on a radar; a malformed update is refused and costs nothing else; a contoured
-//! stream (21) and a non-contoured one (140) differ exactly there.
+//! Contours (50) and sector blanking (51) take effect on the next azimuths: a contour value
+//! v sends v bins (Navtech's `colossus_protocol_test` sends 100 and counts 100); by default
+//! they are the radar's and outlive the connection that sent them, with
+//! `ShapingScope::Connection` that client's only; a contour whose last bytes could start a
+//! frame signature (`00 01`) takes effect though the client sends nothing after it; a
+//! malformed update is refused and costs nothing else; a contoured stream (21) and a
+//! non-contoured one (140) differ exactly there. Navtech's tester itself is not on this
+//! machine: these are its three failing checks, tested directly.
 
 mod common;
 
@@ -9,7 +14,7 @@ use std::time::Duration;
 use common::TestClient;
 use protocol::{BlankingSector, ContourUpdate, Message, SectorBlanking};
 use sim_sensor::scene::shipped;
-use sim_sensor::{SimHandle, SimOptions, SimServer};
+use sim_sensor::{ShapingScope, SimHandle, SimOptions, SimServer};
 use tokio::io::AsyncWriteExt;
 
 const BOUND: Duration = Duration::from_secs(30);
@@ -29,10 +34,14 @@ async fn azimuths(client: &mut TestClient, n: usize, encoder_size: u16) -> Vec<(
 /// A simulator of the outdoor field and one client past the handshake, with the encoder
 /// size and bins per azimuth its configuration announced.
 async fn connected() -> (SimHandle, TestClient, u16, usize) {
+    connected_with(ShapingScope::Radar).await
+}
+
+async fn connected_with(scope: ShapingScope) -> (SimHandle, TestClient, u16, usize) {
     let scene = shipped::load("outdoor-field").expect("scene");
-    let handle = SimServer::spawn(SimOptions::for_tests(scene))
-        .await
-        .expect("spawn");
+    let mut options = SimOptions::for_tests(scene);
+    options.shaping_scope = scope;
+    let handle = SimServer::spawn(options).await.expect("spawn");
     let mut client = TestClient::connect(handle.local_addr()).await;
     let config = client.configuration().await;
     let (encoder, bins) = (config.encoder_size, usize::from(config.range_in_bins));
@@ -44,15 +53,16 @@ fn contour_of(max_bin: u16) -> ContourUpdate {
 }
 
 #[tokio::test]
-async fn a_contour_shortens_a_contoured_stream_for_that_client_only() {
+async fn a_connections_contour_shortens_a_contoured_stream_for_that_client_only() {
     tokio::time::timeout(BOUND, async {
-        let (handle, mut shaped, encoder, bins) = connected().await;
+        let (handle, mut shaped, encoder, bins) = connected_with(ShapingScope::Connection).await;
         let mut plain = TestClient::connect(handle.local_addr()).await;
         plain.configuration().await;
-        shaped.send(Message::ContourUpdate(contour_of(99))).await;
+        shaped.send(Message::ContourUpdate(contour_of(100))).await;
         shaped.send(Message::StartFftData).await;
         plain.send(Message::StartFftData).await;
-        // The contour arrived before the start: every azimuth is cut to bins 0..=99.
+        // The contour arrived before the start: every azimuth is cut to bins 0..100 (100
+        // bins, as Navtech's tester counts; 101 before).
         let cut = azimuths(&mut shaped, 50, encoder).await;
         assert!(cut.iter().all(|&(_, n)| n == 100), "{cut:?}");
         // The other client on the same simulator is unaffected.
@@ -113,6 +123,82 @@ async fn a_malformed_contour_or_blanking_update_is_refused_and_the_session_goes_
         client.send(Message::StartFftData).await;
         let got = azimuths(&mut client, 100, encoder).await;
         assert!(got.iter().all(|&(_, n)| n == bins), "{got:?}");
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test]
+async fn the_radars_contour_and_blanking_outlive_the_connection_that_set_them() {
+    tokio::time::timeout(BOUND, async {
+        let (handle, mut setter, encoder, _) = connected().await;
+        setter.send(Message::ContourUpdate(contour_of(100))).await;
+        setter
+            .send(Message::SectorBlankingUpdate(SectorBlanking {
+                sectors: vec![BlankingSector::from_degrees(0.0, 90.0)],
+            }))
+            .await;
+        // Both taken before the connection closes: its own stream shows them.
+        setter.send(Message::StartFftData).await;
+        let seen = azimuths(&mut setter, 20, encoder).await;
+        assert!(
+            seen.iter()
+                .all(|&(d, n)| n == if d < 90.0 { 0 } else { 100 }),
+            "{seen:?}"
+        );
+        drop(setter);
+        // The next connection's stream is shaped by them (before: full length).
+        let mut next = TestClient::connect(handle.local_addr()).await;
+        next.configuration().await;
+        next.send(Message::StartFftData).await;
+        let got = azimuths(&mut next, 400, encoder).await;
+        for &(deg, n) in &got {
+            assert_eq!(n, if deg < 90.0 { 0 } else { 100 }, "at {deg} degrees");
+        }
+        assert!(got.iter().any(|&(d, _)| d < 90.0) && got.iter().any(|&(d, _)| d >= 90.0));
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test]
+async fn a_contour_whose_last_bytes_could_start_a_signature_takes_effect_with_nothing_after_it() {
+    tokio::time::timeout(BOUND, async {
+        let (_handle, mut client, encoder, bins) = connected().await;
+        client.send(Message::StartFftData).await;
+        let before = azimuths(&mut client, 20, encoder).await;
+        assert!(before.iter().all(|&(_, n)| n == bins), "{before:?}");
+        // The last degree's value 1 ends the frame in 00 01, the start of a signature; the
+        // client sends nothing more (as Navtech's clients do). Before, the simulator held the
+        // contour until more bytes came: never.
+        let mut contour = Box::new([100u16; 360]);
+        contour[359] = 1;
+        client
+            .send(Message::ContourUpdate(ContourUpdate::MaxBinPerDegree(
+                contour,
+            )))
+            .await;
+        let deadline = std::time::Instant::now() + Duration::from_secs(5);
+        let mut cut = false;
+        while !cut && std::time::Instant::now() < deadline {
+            let got = azimuths(&mut client, 100, encoder).await;
+            cut = got.iter().any(|&(d, n)| d < 359.0 && n == 100);
+        }
+        assert!(cut, "the contour did not take effect within 5 s");
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test]
+async fn a_client_that_closes_its_sending_side_after_asking_still_gets_the_data() {
+    tokio::time::timeout(BOUND, async {
+        let (_handle, mut client, encoder, bins) = connected().await;
+        client.send(Message::StartFftData).await;
+        client.stream.shutdown().await.expect("shutdown(SHUT_WR)");
+        // Before: the configuration and what was in flight, then the connection closed.
+        let got = azimuths(&mut client, 2000, encoder).await;
+        assert!(got.iter().all(|&(_, n)| n == bins));
     })
     .await
     .expect("bounded");

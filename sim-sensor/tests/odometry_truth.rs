@@ -313,3 +313,61 @@ async fn records_written_to_a_link_that_closed_unread_reach_the_next_client() {
     .await
     .expect("bounded");
 }
+
+/// Issue 38 item 14: eight clients connected and idle (never reading, never closing) no
+/// longer lock the port: a ninth is served (the longest-connected is closed for it).
+/// Before, the ninth was closed at once ("too many connected").
+#[tokio::test]
+async fn eight_idle_odometry_clients_do_not_lock_out_a_ninth() {
+    tokio::time::timeout(Duration::from_secs(30), async {
+        let (_handle, address) = fast_odometry_server().await;
+        let mut idle = Vec::new();
+        for _ in 0..sim_sensor::odometry::MAX_ODOMETRY_CLIENTS {
+            idle.push(TcpStream::connect(address).await.expect("connect"));
+        }
+        // Let the server take all eight before the ninth comes.
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        let mut reader = BufReader::new(TcpStream::connect(address).await.expect("connect"));
+        assert!(read_line(&mut reader).await.starts_with("# odometry v1"));
+        for j in 0..3 {
+            assert_eq!(record_index(&read_line(&mut reader).await), j);
+        }
+        // The first idle client's connection was the one closed for it.
+        let mut first = BufReader::new(idle.remove(0));
+        let mut all = String::new();
+        let ended = tokio::time::timeout(STEP, async {
+            while first.read_line(&mut all).await.is_ok_and(|n| n > 0) {}
+        })
+        .await;
+        assert!(ended.is_ok(), "the oldest idle client was not closed");
+    })
+    .await
+    .expect("bounded");
+}
+
+/// Issue 38 item 14: a client that closes its sending side at once (`shutdown(SHUT_WR)`)
+/// still gets the records. Before, the server took the end of its sending side for its
+/// leaving and closed the link after the header.
+#[tokio::test]
+async fn an_odometry_client_that_closes_its_sending_side_still_gets_the_records() {
+    tokio::time::timeout(Duration::from_secs(30), async {
+        use tokio::io::AsyncWriteExt;
+        let scene = shipped::load("outdoor-field").expect("scene");
+        let mut options = SimOptions::for_tests(scene);
+        // Real time: records leave one by one (50 Hz), after the server has seen the end.
+        options.pacing = sim_sensor::Pacing::Realtime;
+        let handle = SimServer::spawn(options).await.expect("spawn");
+        let mut socket = TcpStream::connect(handle.odometry_addr().expect("odometry port"))
+            .await
+            .expect("connect");
+        socket.shutdown().await.expect("shutdown(SHUT_WR)");
+        let mut reader = BufReader::new(socket);
+        assert!(read_line(&mut reader).await.starts_with("# odometry v1"));
+        let first = record_index(&read_line(&mut reader).await);
+        for j in 1..25 {
+            assert_eq!(record_index(&read_line(&mut reader).await), first + j);
+        }
+    })
+    .await
+    .expect("bounded");
+}

@@ -43,6 +43,7 @@ fn run(args: cli::Args) -> anyhow::Result<()> {
     let opts = cli::options(&args)?;
     let doing = args.doing();
     let stop = Arc::clone(&opts.stop);
+    let stopped = Arc::clone(&opts.stop);
     let every = opts.progress_every_rotations;
     let progress: Option<slam_node::pipeline::run::ProgressFn> = (every > 0).then(|| {
         Box::new(
@@ -75,12 +76,28 @@ fn run(args: cli::Args) -> anyhow::Result<()> {
     // The simulator's ground-truth writer may still be flushing on the blocking pool.
     runtime.shutdown_timeout(std::time::Duration::from_secs(2));
     let report = result.context(doing)?;
+    let stop_requested = stopped.load(Ordering::Relaxed);
     print!("{}", report::summary_text(&report));
     if let Some(why) = &report.run.start_failure {
         anyhow::bail!("the pipeline did not start for the radar that connected: {why}");
     }
     if let Some(e) = report.driver_failure {
         return Err(anyhow::Error::new(e).context("the radar driver failed"));
+    }
+    // A recording of scans none of which reached the pipeline did not do the run's job.
+    if let Some(r) = report
+        .replay
+        .as_ref()
+        .filter(|_| report.run.summary.azimuths == 0 && !stop_requested)
+    {
+        anyhow::bail!(
+            "{doing}: no azimuth of the recording reached the pipeline; {} of its {} scans skipped as damaged{}",
+            r.scans_skipped,
+            r.scans,
+            r.first_scan_skipped
+                .as_ref()
+                .map_or(String::new(), |e| format!(", the first: {e}"))
+        );
     }
     // A recording with no radar data the daemon could use did not do the run's job.
     if let Some(c) = report.mcap_replay.as_ref().filter(|c| c.azimuths == 0) {

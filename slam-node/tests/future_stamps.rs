@@ -64,6 +64,7 @@ fn azimuths_stamped_in_the_future_do_not_each_wait_for_odometry() {
             max_stream_s: None,
             progress: None,
             end_after_silence: None,
+            played_out: None,
         },
     );
     // Today's code waited 40 x 0.5 s = 20 s here; a bound in wall time is the point.

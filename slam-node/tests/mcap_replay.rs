@@ -128,6 +128,7 @@ fn run(
         RunControl {
             stop: Arc::new(AtomicBool::new(false)),
             end_after_silence: None,
+            played_out: None,
             max_stream_s: None,
             progress: None,
         },

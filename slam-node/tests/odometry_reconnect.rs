@@ -114,6 +114,7 @@ fn run(drop_after: Option<u64>) -> (RunReport, Vec<(f64, f64, f64)>) {
                 seen.lock().expect("poses").push((p.x, p.y, p.theta));
             })),
             end_after_silence: None,
+            played_out: None,
         },
     );
     done.store(true, Ordering::Relaxed);

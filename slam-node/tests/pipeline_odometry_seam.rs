@@ -74,6 +74,7 @@ fn run_with(odometry: MockSource) -> RunReport {
         RunControl {
             stop: Arc::new(AtomicBool::new(false)),
             end_after_silence: None,
+            played_out: None,
             max_stream_s: None,
             progress: None,
         },

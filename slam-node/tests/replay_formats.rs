@@ -205,3 +205,77 @@ fn a_configuration_given_with_a_replay_folder_is_used_and_the_replay_still_runs(
         ],
     );
 }
+
+/// Rewrites every scan of a Boreas folder with `offset` added to each row's encoder value.
+fn shift_encoders(dir: &Path, offset: u16) {
+    for file in ScanSet::open(dir, None).unwrap().files {
+        let scan = sim_sensor::replay::png::read_polar_png(&file.path).unwrap();
+        let width = sim_sensor::replay::png::META_COLUMNS + scan.bins;
+        let mut data = Vec::with_capacity(width * scan.rows.len());
+        for row in &scan.rows {
+            data.extend_from_slice(&row.timestamp_us.to_le_bytes());
+            data.extend_from_slice(&row.encoder.wrapping_add(offset).to_le_bytes());
+            data.push(0);
+            data.extend_from_slice(&row.bins);
+        }
+        sim_sensor::replay::synthetic::write_gray_png(&file.path, width, scan.rows.len(), &data)
+            .unwrap();
+    }
+}
+
+/// Issue 38 item 9: every row past the encoder size. Before: every azimuth dropped by the
+/// driver, the run waited 30 s for a first azimuth and exited 0 with nothing naming the
+/// encoders. Now each scan is skipped as damaged with a WARN naming its encoder values
+/// and the encoder size, the run ends once the recording has played out, and exits 1
+/// saying so.
+#[test]
+fn a_recording_whose_encoder_values_are_all_past_the_encoder_size_ends_and_names_them() {
+    let (dir, _) = boreas();
+    shift_encoders(dir.path(), 5600);
+    let out = tempfile::tempdir().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_slam-node"))
+        .args([
+            "--replay-dir",
+            dir.path().to_str().unwrap(),
+            "--fast",
+            "--no-figures",
+        ])
+        .args([
+            "--out",
+            out.path().to_str().unwrap(),
+            "--progress-every",
+            "0",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break Some(status);
+        }
+        if start.elapsed() > std::time::Duration::from_secs(20) {
+            child.kill().unwrap();
+            break None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    let run = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    let status = status.unwrap_or_else(|| panic!("the replay did not end in 20 s\n{stderr}"));
+    assert!(start.elapsed().as_secs_f64() < 15.0, "{stderr}");
+    assert_eq!(status.code(), Some(1), "{stdout}\n{stderr}");
+    for expected in [
+        "400 of 400 azimuths carry encoder values from 5600 to 11186",
+        "at or past the encoder size 5600",
+        "no azimuth of the recording reached the pipeline; 6 of its 6 scans skipped as damaged",
+        "the recording has played out",
+    ] {
+        assert!(
+            stderr.contains(expected),
+            "{expected:?} missing from\n{stderr}"
+        );
+    }
+}

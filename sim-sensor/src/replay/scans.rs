@@ -381,8 +381,37 @@ impl ScanRecording {
                 reason: format!("azimuth {k}: {reason}"),
             });
         }
+        encoders_within(&scan, g.encoder_size, &file.path)?;
         Ok(scan)
     }
+}
+
+/// Refuses a scan whose rows to be sent carry encoder values at or past `encoder_size`,
+/// naming how many, which values, and the size.
+fn encoders_within(scan: &PolarScan, encoder_size: u16, path: &Path) -> Result<(), ReplayError> {
+    let mut past = scan
+        .rows
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.valid && r.encoder >= encoder_size);
+    let Some((first_row, first)) = past.next() else {
+        return Ok(());
+    };
+    let (mut rows, mut min, mut max) = (1, first.encoder, first.encoder);
+    for (_, r) in past {
+        rows += 1;
+        min = min.min(r.encoder);
+        max = max.max(r.encoder);
+    }
+    Err(ReplayError::EncoderPastSize {
+        path: path.to_path_buf(),
+        rows,
+        of: scan.rows.len(),
+        first_row,
+        min,
+        max,
+        encoder_size,
+    })
 }
 
 /// Reads one scan in layout `format` as rows of one azimuth each. Boreas' column 10 is
@@ -430,6 +459,37 @@ mod tests {
         set_periods(&mut files, true);
         let periods: Vec<i64> = files.iter().map(|f| f.period_us).collect();
         assert_eq!(periods, vec![251_000, 250_000, 248_000, 251_000, 251_000]);
+    }
+
+    #[test]
+    fn rows_past_the_encoder_size_are_refused_naming_their_values_and_the_size() {
+        use super::super::png::PolarRow;
+        let row = |encoder, valid| PolarRow {
+            timestamp_us: 1,
+            encoder,
+            valid,
+            bins: vec![0; 4],
+        };
+        let scan = PolarScan {
+            rows: vec![
+                row(0, true),
+                row(5600, true),
+                row(9000, false),
+                row(6000, true),
+            ],
+            bins: 4,
+        };
+        let e = encoders_within(&scan, 5600, Path::new("a.png")).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "a.png: 2 of 4 azimuths carry encoder values from 5600 to 6000 (the first is row 1), \
+             at or past the encoder size 5600"
+        );
+        let fine = PolarScan {
+            rows: vec![row(0, true), row(5599, true), row(9000, false)],
+            bins: 4,
+        };
+        assert!(encoders_within(&fine, 5600, Path::new("a.png")).is_ok());
     }
 
     #[test]

@@ -18,7 +18,7 @@ use tokio::sync::mpsc;
 use tokio::time::MissedTickBehavior;
 use tokio_util::sync::CancellationToken;
 
-use super::shaping::Shaping;
+use super::shaping::ClientShaping;
 use super::stream::AzimuthStream;
 use super::world::World;
 use super::SimStats;
@@ -79,12 +79,24 @@ pub(crate) async fn serve(
     result
 }
 
+/// How long a whole command the decoder holds back (its last bytes could start the next
+/// frame's signature) waits for more bytes before it is taken as it is: Navtech's clients
+/// send a command and wait for its effect.
+pub const HELD_COMMAND_WAIT: Duration = Duration::from_millis(50);
+
 async fn read_commands(mut socket: OwnedReadHalf, tx: mpsc::Sender<Command>, peer: SocketAddr) {
     let mut buf = BytesMut::with_capacity(4096);
     let mut decoder = FrameDecoder::new();
+    // Set when no byte came for HELD_COMMAND_WAIT after a whole frame was held back.
+    let mut take_held = false;
     loop {
         loop {
-            let command = match decoder.decode(&mut buf) {
+            let decoded = if std::mem::take(&mut take_held) {
+                decoder.decode_eof(&mut buf)
+            } else {
+                decoder.decode(&mut buf)
+            };
+            let command = match decoded {
                 Ok(Some(message)) => match message {
                     Message::StartFftData => Command::Start { contoured: true },
                     Message::StartNonContourFftData => Command::Start { contoured: false },
@@ -125,8 +137,23 @@ async fn read_commands(mut socket: OwnedReadHalf, tx: mpsc::Sender<Command>, pee
         }
         buf.reserve(4096);
         let room = MAX_CLIENT_BUFFER - buf.len();
-        match (&mut socket).take(room as u64).read_buf(&mut buf).await {
+        let holding = decoder.holds_whole_frame(&buf);
+        let mut limited = (&mut socket).take(room as u64);
+        let read = limited.read_buf(&mut buf);
+        let read = if holding {
+            match tokio::time::timeout(HELD_COMMAND_WAIT, read).await {
+                Ok(read) => read,
+                Err(_) => {
+                    take_held = true;
+                    continue;
+                }
+            }
+        } else {
+            read.await
+        };
+        match read {
             Ok(0) => {
+                // The client has closed its sending side; it may still be reading.
                 let _ = tx.send(Command::Closed).await;
                 return;
             }
@@ -175,12 +202,14 @@ impl Writer {
         let mut pending: Option<(Option<tokio::time::Instant>, bool)> = None;
         let mut azimuth = BytesMut::with_capacity(8192);
         // This client's contour and blanked sectors, and whether its stream is contoured.
-        let mut shaping = Shaping::default();
+        let mut shaping = ClientShaping::new(self.world.shaping.as_ref());
         let mut contoured = true;
         let encoder_size = self.world.configuration.encoder_size;
         // A client that never asks for data gives its slot back after the idle timeout.
         let idle_deadline = tokio::time::Instant::now() + self.timeouts.idle;
         let mut started = false;
+        // Whether the client's commands can still come (its sending side is open).
+        let mut reading = true;
         loop {
             // Skipped azimuths and fast clients may never make the socket wait: spend the
             // task's cooperative budget so other connections are not starved.
@@ -190,6 +219,7 @@ impl Writer {
                 match s.next(&mut azimuth, skip).await? {
                     None => {
                         tracing::info!("the stream has ended; keep-alives continue");
+                        self.stats.streams_ended.fetch_add(1, Ordering::Relaxed);
                         stream = None;
                     }
                     Some(p) => {
@@ -201,7 +231,7 @@ impl Writer {
             tokio::select! {
                 biased;
                 () = self.cancel.cancelled() => return Ok(()),
-                command = commands.recv() => match command {
+                command = commands.recv(), if reading => match command {
                     Some(Command::Start { contoured: c }) => {
                         contoured = c;
                         started = true;
@@ -209,9 +239,9 @@ impl Writer {
                             stream = Some(AzimuthStream::open(&self.world, &self.stats).await?);
                         }
                     }
-                    Some(Command::Contour(update)) => shaping.set_contour(update),
+                    Some(Command::Contour(update)) => shaping.with(|s| s.set_contour(update)),
                     Some(Command::Blanking(update)) => {
-                        if let Err(error) = shaping.set_blanking(&update) {
+                        if let Err(error) = shaping.with(|s| s.set_blanking(&update)) {
                             tracing::warn!(%error, "sector blanking refused");
                         }
                     }
@@ -225,6 +255,10 @@ impl Writer {
                             return Err(ClientError::Fault(why));
                         }
                     }
+                    // A client that has closed its sending side after asking for data
+                    // still reads it (a shutdown(SHUT_WR) client): the stream goes on
+                    // until a write fails or times out. One that never asked is done.
+                    Some(Command::Closed) | None if started => reading = false,
                     Some(Command::Closed) | None => return Err(ClientError::Closed),
                     Some(Command::Garbage(reason)) => return Err(ClientError::Garbage(reason)),
                     Some(Command::Failed(error)) => return Err(ClientError::Io(error)),
@@ -244,7 +278,7 @@ impl Writer {
                         self.stats.azimuths_skipped.fetch_add(1, Ordering::Relaxed);
                         continue;
                     }
-                    shaping.apply(&mut azimuth, encoder_size, contoured);
+                    shaping.with(|s| s.apply(&mut azimuth, encoder_size, contoured));
                     std::mem::swap(&mut self.frame, &mut azimuth);
                     let flow = self.write_frame().await?;
                     std::mem::swap(&mut self.frame, &mut azimuth);

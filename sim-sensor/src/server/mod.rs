@@ -49,6 +49,10 @@ pub struct SimStats {
     pub bytes_sent: AtomicU64,
     /// Recorded scans skipped because they could not be read or had the wrong shape.
     pub scans_skipped: AtomicU64,
+    /// Why the first skipped scan was skipped (its error, naming the file).
+    pub first_scan_skipped: std::sync::Mutex<Option<String>>,
+    /// Azimuth streams that played to their end (a recording played out, a scene's stop).
+    pub streams_ended: AtomicU64,
 }
 
 /// A copy of [`SimStats`] at one moment.
@@ -70,6 +74,8 @@ pub struct SimStatsSnapshot {
     pub bytes_sent: u64,
     /// See [`SimStats::scans_skipped`].
     pub scans_skipped: u64,
+    /// See [`SimStats::streams_ended`].
+    pub streams_ended: u64,
 }
 
 impl SimStats {
@@ -85,6 +91,7 @@ impl SimStats {
             azimuths_skipped: get(&self.azimuths_skipped),
             bytes_sent: get(&self.bytes_sent),
             scans_skipped: get(&self.scans_skipped),
+            streams_ended: get(&self.streams_ended),
         }
     }
 }
@@ -163,6 +170,7 @@ impl SimServer {
             start_ns,
             options.stop_after_azimuths,
             options.replay_loop,
+            options.shaping_scope,
         ));
         let cancel = CancellationToken::new();
         let stats = Arc::new(SimStats::default());
@@ -170,8 +178,13 @@ impl SimServer {
 
         let mut odometry_addr = None;
         if let (Some(bind), Some(_)) = (options.odometry_bind, world.scene()) {
-            let odo =
-                odometry::OdometryServer::bind(bind, Arc::clone(&world), options.odometry).await?;
+            let odo = odometry::OdometryServer::bind(
+                bind,
+                Arc::clone(&world),
+                options.odometry,
+                options.write_timeout,
+            )
+            .await?;
             odometry_addr = Some(odo.local_addr());
             tasks.spawn(odo.run(cancel.clone()));
         }
@@ -234,6 +247,20 @@ impl SimHandle {
     /// The server's counters now.
     pub fn stats(&self) -> SimStatsSnapshot {
         self.stats.snapshot()
+    }
+
+    /// The server's counters, shared: read while the server runs, from another thread.
+    pub fn shared_stats(&self) -> Arc<SimStats> {
+        Arc::clone(&self.stats)
+    }
+
+    /// Why the first recorded scan the server skipped was skipped, if one was.
+    pub fn first_scan_skipped(&self) -> Option<String> {
+        self.stats
+            .first_scan_skipped
+            .lock()
+            .ok()
+            .and_then(|s| s.clone())
     }
 
     /// A token that stops the server when cancelled (e.g. from a Ctrl-C handler).

@@ -1,8 +1,12 @@
 //! What a client's contour (message 50) and sector blanking (51) do to the azimuths it is
-//! sent, as on a radar (`docs/colossus-protocol.md`, sections 2 and 3): a contour limits each
-//! azimuth to its degree's maximum bin, but only on a contoured stream (started with 21; a
-//! non-contoured stream, 140, keeps full-length azimuths); a blanked sector sends azimuths
-//! with zero bins. Each client has its own. No IO.
+//! sent, as on a radar (`docs/colossus-protocol.md`, sections 2 and 3): a contour value `v`
+//! for a degree sends the first `v` bins of its azimuths (bins `0..v`; see `protocol`'s
+//! `contour` module for why `v` and not `v + 1`), but only on a contoured stream (started
+//! with 21; a non-contoured stream, 140, keeps full-length azimuths); a blanked sector sends
+//! azimuths with zero bins. Whether they are the radar's (every client's, outliving the
+//! connection) or the connection's own is [`crate::settings::ShapingScope`]. No IO.
+
+use std::sync::{Arc, Mutex, PoisonError};
 
 use bytes::BytesMut;
 use protocol::{encode_fft_frame, ContourUpdate, FrameDecoder, Message, SectorBlanking};
@@ -83,7 +87,7 @@ impl Shaping {
         match (&self.contour, contoured) {
             (Some(c), true) => {
                 let degree = (deg.floor() as usize).min(359);
-                bins.min(usize::from(c[degree]) + 1)
+                bins.min(usize::from(c[degree]))
             }
             _ => bins,
         }
@@ -123,6 +127,33 @@ impl Shaping {
     }
 }
 
+/// The shaping a connection applies: its own, or the radar's, shared by every connection.
+#[derive(Debug)]
+pub(crate) enum ClientShaping {
+    /// The connection's own (it ends with the connection).
+    Own(Shaping),
+    /// The radar's.
+    Shared(Arc<Mutex<Shaping>>),
+}
+
+impl ClientShaping {
+    /// The radar's shaping when `shared` is set, else a connection's own, empty.
+    pub fn new(shared: Option<&Arc<Mutex<Shaping>>>) -> Self {
+        shared.map_or_else(
+            || Self::Own(Shaping::default()),
+            |s| Self::Shared(Arc::clone(s)),
+        )
+    }
+
+    /// Runs `f` on the shaping in force (a poisoned lock is still the last shaping set).
+    pub fn with<R>(&mut self, f: impl FnOnce(&mut Shaping) -> R) -> R {
+        match self {
+            Self::Own(s) => f(s),
+            Self::Shared(s) => f(&mut s.lock().unwrap_or_else(PoisonError::into_inner)),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -134,7 +165,8 @@ mod tests {
         let mut bins = Box::new([1000u16; 360]);
         bins[10] = 99;
         s.set_contour(ContourUpdate::MaxBinPerDegree(bins));
-        assert_eq!(s.bins_to_send(10.5, 800, true), 100);
+        // v = 99 sends bins 0..99: 99 of them (Navtech's tester sends 100 and counts 100).
+        assert_eq!(s.bins_to_send(10.5, 800, true), 99);
         assert_eq!(s.bins_to_send(10.5, 800, false), 800);
         assert_eq!(s.bins_to_send(11.0, 800, true), 800);
         s.set_blanking(&SectorBlanking {

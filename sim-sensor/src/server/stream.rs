@@ -240,6 +240,9 @@ impl PngStream {
                         self.stats
                             .scans_skipped
                             .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if let Ok(mut first) = self.stats.first_scan_skipped.lock() {
+                            first.get_or_insert_with(|| error.to_string());
+                        }
                         self.recording.damaged.record(&error);
                         self.file += 1;
                         continue;

@@ -8,7 +8,7 @@
 //! and the ground truth is written up to what was served.
 
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 use protocol::Configuration;
@@ -17,7 +17,9 @@ use crate::radar::RadarParams;
 use crate::render::{offset_ns, SceneRenderer};
 use crate::replay::raw::RawRecording;
 use crate::replay::ScanRecording;
-use crate::settings::Pacing;
+use crate::settings::{Pacing, ShapingScope};
+
+use super::shaping::Shaping;
 
 /// What the world streams.
 #[derive(Debug)]
@@ -42,6 +44,9 @@ pub(crate) struct World {
     /// Scenes end after this many azimuths.
     pub stop_after: Option<u64>,
     pub replay_loop: bool,
+    /// The radar's contour and blanked sectors, shared by every connection
+    /// ([`crate::settings::ShapingScope::Radar`]); `None`: each connection has its own.
+    pub shaping: Option<Arc<Mutex<Shaping>>>,
 }
 
 /// The configuration message a simulated radar with `radar` announces.
@@ -59,6 +64,7 @@ impl World {
         start_unix_ns: Option<u64>,
         stop_after: Option<u64>,
         replay_loop: bool,
+        shaping_scope: ShapingScope,
     ) -> World {
         let wall_start = Instant::now();
         let now_unix_ns = SystemTime::now()
@@ -73,6 +79,8 @@ impl World {
             frontier: AtomicU64::new(0),
             stop_after,
             replay_loop,
+            shaping: (shaping_scope == ShapingScope::Radar)
+                .then(|| Arc::new(Mutex::new(Shaping::default()))),
         }
     }
 

@@ -276,6 +276,7 @@ pub async fn run_daemon(
         name,
         truth_overlay,
         end_after_silence,
+        played_out,
         mut replay,
         running,
     } = inputs;
@@ -283,6 +284,7 @@ pub async fn run_daemon(
     let driver_handle = driver.map(radar_driver::Driver::spawn);
     let control = RunControl {
         end_after_silence,
+        played_out,
         stop: Arc::clone(&opts.stop),
         max_stream_s: opts.max_stream_s,
         progress,
@@ -318,6 +320,7 @@ pub async fn run_daemon(
     let end = running.stop().await;
     if let Some(figures) = replay.as_mut() {
         figures.scans_skipped = end.scans_skipped;
+        figures.first_scan_skipped = end.first_scan_skipped;
     }
     if !truth_overlay.trajectory.is_empty() {
         output.send_blocking(OutputEvent::Truth(truth_overlay));

@@ -77,7 +77,14 @@ pub struct RunControl {
     /// that has been played out); `None` waits through silences (a live radar stalls and
     /// comes back).
     pub end_after_silence: Option<Duration>,
+    /// Whether the source has sent all it will (a recording played out): the run then ends
+    /// after `end_after_silence` even if no azimuth ever came, instead of waiting for a
+    /// first one.
+    pub played_out: Option<PlayedOut>,
 }
+
+/// Whether a source has sent all it will.
+pub type PlayedOut = Box<dyn Fn() -> bool + Send>;
 
 impl std::fmt::Debug for RunControl {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -122,6 +129,7 @@ const FIRST_AZIMUTH_NOTICE: Duration = Duration::from_secs(2);
 fn first_azimuth(azimuths: &Receiver<Azimuth>, control: &RunControl) -> Option<Azimuth> {
     let waiting = Instant::now();
     let mut said = false;
+    let mut played_out_at: Option<Instant> = None;
     loop {
         if control.stop.load(Ordering::Relaxed) {
             info!("stop requested before the radar's first azimuth");
@@ -136,12 +144,21 @@ fn first_azimuth(azimuths: &Receiver<Azimuth>, control: &RunControl) -> Option<A
                     );
                     said = true;
                 }
-                if control
-                    .end_after_silence
-                    .is_some_and(|limit| waiting.elapsed() >= limit.max(Duration::from_secs(30)))
-                {
-                    warn!("no azimuth came from the recording");
-                    return None;
+                if played_out_at.is_none() && control.played_out.as_ref().is_some_and(|f| f()) {
+                    played_out_at = Some(Instant::now());
+                }
+                if let Some(limit) = control.end_after_silence {
+                    if let Some(at) = played_out_at.filter(|at| at.elapsed() >= limit) {
+                        warn!(
+                            waited_s = at.duration_since(waiting).as_secs_f64(),
+                            "the recording has played out and no azimuth came from it"
+                        );
+                        return None;
+                    }
+                    if waiting.elapsed() >= limit.max(Duration::from_secs(30)) {
+                        warn!("no azimuth came from the recording");
+                        return None;
+                    }
                 }
             }
             Err(RecvTimeoutError::Disconnected) => {

@@ -122,11 +122,13 @@ impl Running for SimRunning {
     fn stop(self: Box<Self>) -> Stopping {
         Box::pin(async move {
             let scans_skipped = self.0.stats().scans_skipped;
+            let first_scan_skipped = self.0.first_scan_skipped();
             if let Err(e) = self.0.shutdown().await {
                 tracing::warn!(error = %e, "simulator shutdown");
             }
             SourceEnd {
                 scans_skipped,
+                first_scan_skipped,
                 mcap: None,
             }
         })
@@ -237,6 +239,7 @@ pub async fn start(
         name: Some(scene_name),
         truth_overlay,
         end_after_silence: None,
+        played_out: None,
         replay: None,
         running: Box::new(SimRunning(handle)),
     })

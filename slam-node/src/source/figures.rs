@@ -45,6 +45,8 @@ pub struct ReplayFigures {
     pub scans: usize,
     /// Scans the simulator skipped as damaged.
     pub scans_skipped: u64,
+    /// Why the first of them was skipped (naming the file).
+    pub first_scan_skipped: Option<String>,
     /// The range-Doppler coupling the detections were corrected with (s).
     pub doppler_range_coupling_s: f64,
     /// No odometry was made: radar odometry drove the filter (`--radar-only`).

@@ -88,6 +88,8 @@ pub struct Inputs {
     pub truth_overlay: TruthOverlay,
     /// End the run after this long without an azimuth (a recording played out).
     pub end_after_silence: Option<Duration>,
+    /// Whether the source has sent all it will (the recording's stream has ended).
+    pub played_out: Option<crate::pipeline::run::PlayedOut>,
     /// A replay's figures (dead reckoning, the distance driven).
     pub replay: Option<ReplayFigures>,
     /// What must be stopped when the run ends.
@@ -99,6 +101,8 @@ pub struct Inputs {
 pub struct SourceEnd {
     /// Recorded scans the simulator skipped as damaged.
     pub scans_skipped: u64,
+    /// Why the first of them was skipped (naming the file).
+    pub first_scan_skipped: Option<String>,
     /// An MCAP replay's counts.
     pub mcap: Option<mcap::McapReplayCounts>,
 }

@@ -46,6 +46,7 @@ pub fn open(
         name: None,
         truth_overlay: TruthOverlay::default(),
         end_after_silence: None,
+        played_out: None,
         replay: None,
         running: Box::new(NothingRunning),
     })

@@ -166,6 +166,8 @@ pub async fn start(
     info!(radar = %handle.local_addr(), scans = %scan_dir.display(), "replaying recorded scans");
     driver_settings.address = handle.local_addr();
     let (azimuths, driver) = connect(driver_settings, fast)?;
+    // The recording has played out once the simulator's stream for the driver has ended.
+    let stats = handle.shared_stats();
     Ok(Inputs {
         azimuths,
         driver: Some(driver),
@@ -177,6 +179,12 @@ pub async fn start(
         name: Some(format!("recorded {format} scans in {}", scan_dir.display())),
         truth_overlay,
         end_after_silence: Some(PLAYED_OUT),
+        played_out: Some(Box::new(move || {
+            stats
+                .streams_ended
+                .load(std::sync::atomic::Ordering::Relaxed)
+                > 0
+        })),
         replay: Some(figures),
         running: Box::new(SimRunning(handle)),
     })

@@ -352,6 +352,7 @@ pub fn replay_figures(
         format: None,
         scans: truth.times_s().len(),
         scans_skipped: 0,
+        first_scan_skipped: None,
         doppler_range_coupling_s: 0.0,
         radar_only: false,
         ground_truth: true,

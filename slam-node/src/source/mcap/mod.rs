@@ -4,8 +4,9 @@
 //! TwistStamped`, or `nav_msgs/msg/Odometry`'s twist; the yaw rate is turned into the motion
 //! model's steering input), as fast as the pipeline goes.
 //!
-//! A reader thread streams the file through the `mcap` crate's sans-IO linear reader (records
-//! bounded to 256 MiB, the file never held whole) and hands azimuths to the pipeline on a
+//! A reader thread streams the file through the `mcap` crate's sans-IO linear reader
+//! ([`records`]: records bounded to 256 MiB and to what the file holds, the file never held
+//! whole) and hands azimuths to the pipeline on a
 //! bounded channel (back-pressure: nothing is dropped) and odometry on another. A rotation is
 //! handed over once the odometry has reached its last azimuth (or 256 MB of bins later), so the
 //! pipeline meets the same odometry, in the same order, as the run that made the recording:
@@ -20,7 +21,7 @@
 
 use std::collections::{HashMap, VecDeque};
 use std::fs::File;
-use std::io::Read;
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -29,7 +30,6 @@ use std::time::Duration;
 use bytes::Bytes;
 use crossbeam_channel::{bounded, unbounded, Receiver, Sender};
 use mcap::records::Record;
-use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use protocol::{BinWidth, Geometry};
 use radar_driver::{Azimuth, OdometryError, OdometryPoll, OdometryRecord, OdometrySource};
 use radar_model::motion::MotionModel;
@@ -39,6 +39,9 @@ use ros_msgs::{from_cdr, RosMessage};
 use tracing::warn;
 
 use crate::output::ros::OdometryMessage;
+
+mod records;
+pub use records::{read_records, McapFileError, RecordsEnd};
 
 /// The longest record read (a B-scan of a CTS350-X is 1.5 MB).
 const MAX_RECORD_BYTES: usize = 256 << 20;
@@ -156,6 +159,7 @@ impl super::Running for McapReplayHandle {
                 });
             super::SourceEnd {
                 scans_skipped: 0,
+                first_scan_skipped: None,
                 mcap: Some(counts),
             }
         })
@@ -191,6 +195,7 @@ pub fn open(
         name: Some(format!("MCAP recording {}", source.path.display())),
         truth_overlay: crate::output::figures::TruthOverlay::default(),
         end_after_silence: None,
+        played_out: None,
         replay: None,
         running: Box::new(reader),
     })
@@ -276,7 +281,6 @@ struct Reader {
     counts: McapReplayCounts,
     closed: bool,
     odometry_closed: bool,
-    seen_footer: bool,
 }
 
 impl Reader {
@@ -304,7 +308,6 @@ impl Reader {
             counts: McapReplayCounts::default(),
             closed: false,
             odometry_closed: false,
-            seen_footer: false,
         }
     }
 
@@ -315,42 +318,24 @@ impl Reader {
         }
     }
 
-    fn run(&mut self, mut file: File) {
-        let mut reader = LinearReader::new_with_options(
-            LinearReaderOptions::default().with_record_length_limit(MAX_RECORD_BYTES),
-        );
-        while let Some(event) = reader.next_event() {
+    fn run(&mut self, file: File) {
+        let read = records::read_records(file, MAX_RECORD_BYTES, |opcode, data| {
             if self.closed {
-                return;
+                return ControlFlow::Break(());
             }
-            match event {
-                Ok(LinearReadEvent::ReadRequest(need)) => match file.read(reader.insert(need)) {
-                    Ok(0) => break, // end of the file
-                    Ok(read) => reader.notify_read(read),
-                    Err(e) => {
-                        self.counts.file_error = Some(format!("reading the file: {e}"));
-                        break;
-                    }
-                },
-                Ok(LinearReadEvent::Record { opcode, data }) => {
-                    match mcap::parse_record(opcode, data) {
-                        Ok(record) => self.on_record(record),
-                        Err(e) => {
-                            self.counts.malformed += 1;
-                            self.refuse("record", &e.to_string());
-                        }
-                    }
-                }
+            match mcap::parse_record(opcode, data) {
+                Ok(record) => self.on_record(record),
                 Err(e) => {
-                    warn!(error = %e, "the MCAP file ends early or is corrupt: replaying what came before");
-                    self.counts.file_error = Some(e.to_string());
-                    break;
+                    self.counts.malformed += 1;
+                    self.refuse("record", &e.to_string());
                 }
             }
-        }
-        if !self.seen_footer && self.counts.file_error.is_none() {
-            warn!("the MCAP file ends before its footer (cut short): replaying what came before");
-            self.counts.file_error = Some("the file ends before its footer (cut short)".into());
+            ControlFlow::Continue(())
+        });
+        if let Err(e) = read {
+            let e = radar_driver::ErrorChain(&e).to_string();
+            warn!(error = %e, "the MCAP file ends early or is corrupt: replaying what came before");
+            self.counts.file_error = Some(e);
         }
         while let Some(group) = self.release() {
             self.send(group);
@@ -386,7 +371,6 @@ impl Reader {
                 };
                 self.channels.insert(c.id, use_);
             }
-            Record::Footer(_) => self.seen_footer = true,
             Record::Message { header, data } => {
                 self.counts.messages += 1;
                 let use_ = self
