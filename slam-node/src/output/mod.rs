@@ -15,6 +15,7 @@ pub mod live;
 pub mod map;
 pub mod recording;
 pub mod ros;
+pub mod saved_map;
 pub mod trajectory;
 pub mod writer;
 #[cfg(feature = "zenoh")]

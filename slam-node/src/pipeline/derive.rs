@@ -373,7 +373,8 @@ impl PipelineSettings {
         if let Written::Keys(_) = written {
             s.filter.confirm_min_separation_s = profile.landmarks.value.confirm_min_separation_s;
         }
-        let s = s.with_facts(facts);
+        let mut s = s.with_facts(facts);
+        s.map_save.profile = profile.name.to_owned();
         Ok(Derived {
             settings: s,
             choice,

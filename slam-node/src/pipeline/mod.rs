@@ -13,6 +13,7 @@ pub mod gate;
 pub mod odometry;
 pub(crate) mod point_grid;
 pub mod run;
+pub mod saved_map;
 pub mod scan_match;
 #[cfg(feature = "sim")]
 pub mod scene_truth;

@@ -97,6 +97,8 @@ pub struct PipelineSettings {
     pub submaps: Option<SubmapOptions>,
     /// Radar odometry (rotations registered against each other, see [`ScanMatchSettings`]).
     pub scan_match: ScanMatchSettings,
+    /// The saved map (`[map]`).
+    pub map_save: super::saved_map::MapSaveSettings,
 }
 
 /// Local submaps and the global layer.
@@ -325,6 +327,7 @@ impl PipelineSettings {
             radar_stall: Duration::from_secs(2),
             map_every_rotations: 20,
             submaps: SubmapOptions::from_config(&c.submaps),
+            map_save: super::saved_map::MapSaveSettings::from_config(c),
             scan_match: ScanMatchSettings {
                 enabled: c.odometry.radar_odometry,
                 sigma_xy_m: c.odometry.radar_odometry_sigma_m.get(),
