@@ -24,8 +24,9 @@ pub struct MapSaveSettings {
     pub enabled: bool,
     /// And every this many seconds of the run's clock.
     pub every_s: Option<f64>,
-    /// The radar profile's name recorded in the map (the profile the settings were derived
-    /// from; `[radar] model`, or `unspecified`, for settings built without one).
+    /// The radar profile's name recorded in the map: the profile the settings were derived
+    /// from; for settings built from a configuration alone, `[radar] model` or, without it,
+    /// the paper's unit (whose values the configuration's defaults are).
     pub profile: String,
 }
 
@@ -39,7 +40,7 @@ impl MapSaveSettings {
                 .radar
                 .model
                 .clone()
-                .unwrap_or_else(|| "unspecified".into()),
+                .unwrap_or_else(|| radar_model::profile::PAPER_2006.name.into()),
         }
     }
 }
