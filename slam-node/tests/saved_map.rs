@@ -144,3 +144,83 @@ fn a_dense_run_saves_one_submap_and_save_false_saves_none() {
     assert!(!other.path().join("map.slmap").exists());
     assert!(!text.contains("saved map:"), "{text}");
 }
+
+#[cfg(unix)]
+#[test]
+fn sigusr1_saves_the_map_while_the_run_goes_on() {
+    use std::time::{Duration, Instant};
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("run.toml");
+    // No save at the end: a file can only come from the signal.
+    std::fs::write(&file, "[map]\nsave = false\n").unwrap();
+    let log = std::fs::File::create(dir.path().join("log.txt")).unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_slam-node"))
+        .args(["--config", file.to_str().unwrap()])
+        .args([
+            "--embedded-sim",
+            "--fast",
+            "--duration",
+            "3000",
+            "--no-figures",
+        ])
+        .args(["--progress-every", "0", "--out"])
+        .arg(dir.path())
+        .stdout(std::process::Stdio::null())
+        .stderr(log)
+        .spawn()
+        .unwrap();
+    let pid = child.id().to_string();
+    let signal = |name: &str| {
+        let ok = Command::new("kill")
+            .args([name, &pid])
+            .status()
+            .unwrap()
+            .success();
+        assert!(ok, "kill {name}");
+    };
+    let map_path = dir.path().join("map.slmap");
+    // The handler is in place once the run has started (its log says so).
+    let started = Instant::now();
+    while !std::fs::read_to_string(dir.path().join("log.txt"))
+        .unwrap_or_default()
+        .contains("embedded simulator started")
+    {
+        assert!(
+            started.elapsed() < Duration::from_secs(20),
+            "the run did not start"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    signal("-USR1");
+    let asked = Instant::now();
+    while !map_path.exists() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended without saving"
+        );
+        assert!(
+            asked.elapsed() < Duration::from_secs(20),
+            "no map 20 s after SIGUSR1"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let still_running = child.try_wait().unwrap().is_none();
+    signal("-INT");
+    let waited = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if waited.elapsed() > Duration::from_secs(30) {
+            let _ = child.kill();
+            panic!("still running 30 s after Ctrl-C");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(still_running, "the map was saved while the run went on");
+    assert!(status.success(), "{status:?}");
+    let map = Map::load(&map_path).unwrap();
+    assert_eq!(map.submaps.len(), 1);
+    let log = std::fs::read_to_string(dir.path().join("log.txt")).unwrap();
+    assert!(log.contains("saving the map (SIGUSR1)"), "{log}");
+}

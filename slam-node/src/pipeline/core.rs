@@ -589,8 +589,16 @@ impl Pipeline {
         self.save_map_if_due(events);
     }
 
-    /// Every `[map] save_every_s` of the run's clock: the saved map as it stands.
+    /// Every `[map] save_every_s` of the run's clock, and when asked (SIGUSR1): the saved
+    /// map as it stands.
     fn save_map_if_due(&mut self, events: &mut Vec<OutputEvent>) {
+        if saved_map::take_save_request() {
+            info!("saving the map, as asked");
+            self.last_map_save_s = Some(self.ekf.state().time_s());
+            self.ekf.settle_material_noise();
+            self.push_saved_map(None, events);
+            return;
+        }
         let s = &self.settings.map_save;
         let Some(every) = s.every_s.filter(|_| s.enabled) else {
             return;

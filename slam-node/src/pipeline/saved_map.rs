@@ -1,9 +1,11 @@
 //! The saved map (slam-map's `.slmap`) as the pipeline builds it: the frozen submaps with
 //! their frames in the world, the current submap as it stands, the loop closures and the
-//! radar the run used. Built at the end of the run (and every `[map] save_every_s` of the
-//! run's clock); the writer thread writes it, atomically. No IO here besides reading the
+//! radar the run used. Built at the end of the run, every `[map] save_every_s` of the
+//! run's clock, and when asked ([`request_save`], SIGUSR1); the writer thread writes it,
+//! atomically. No IO here besides reading the
 //! wall clock for the map's creation time.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use nalgebra::Matrix3;
@@ -43,6 +45,20 @@ impl MapSaveSettings {
                 .unwrap_or_else(|| radar_model::profile::PAPER_2006.name.into()),
         }
     }
+}
+
+/// A save asked for from outside the pipeline (SIGUSR1), for the process's pipeline.
+static SAVE_REQUESTED: AtomicBool = AtomicBool::new(false);
+
+/// Asks the process's pipeline to save its map after the rotation it is in (the daemon's
+/// SIGUSR1 handler calls it), whatever `[map] save` says.
+pub fn request_save() {
+    SAVE_REQUESTED.store(true, Ordering::Relaxed);
+}
+
+/// Whether a save was asked for since the last call.
+pub(crate) fn take_save_request() -> bool {
+    SAVE_REQUESTED.swap(false, Ordering::Relaxed)
 }
 
 /// What went into the last saved map.
