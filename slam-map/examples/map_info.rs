@@ -39,10 +39,37 @@ fn main() -> ExitCode {
         map.submaps.len(),
         features,
         map.loops.len(),
-        map.submaps.iter().filter(|s| s.descriptor.is_some()).count(),
+        map.submaps
+            .iter()
+            .filter(|s| s.descriptor.is_some())
+            .count(),
         bytes,
         bytes as f64 / features.max(1) as f64
     );
+    // The saved graph solved again from the saved frames: they should barely move.
+    if map.submaps.len() > 1 {
+        match map
+            .pose_graph()
+            .solve(&slam_graph::SolveSettings::default())
+        {
+            Ok(sol) => {
+                let moved = map
+                    .submaps
+                    .iter()
+                    .zip(&sol.nodes)
+                    .map(|(s, n)| (s.frame.x - n.x).hypot(s.frame.y - n.y))
+                    .fold(0.0, f64::max);
+                println!(
+                    "graph: {} nodes, {} edges; solved again, the frames move {:.2e} m at most (chi2 {:.3})",
+                    sol.nodes.len(),
+                    map.submaps.len() + map.loops.len(),
+                    moved,
+                    sol.chi2
+                );
+            }
+            Err(e) => println!("graph: the saved graph does not solve: {e}"),
+        }
+    }
     if let Some(name) = args.next() {
         let Some(profile) = radar_model::profile::by_name(&name) else {
             eprintln!(

@@ -13,6 +13,22 @@ use crate::model::{
 };
 use crate::validate::validate;
 
+/// The covariance of a chain edge whose own is not positive definite (a submap closed, or
+/// saved, before the vehicle's pose had any uncertainty in it): unknown, as the global layer
+/// takes it (`slam_graph::GlobalMap::add_submap`), x and y in m^2, theta in rad^2.
+pub const UNKNOWN_CHAIN_COVARIANCE: [f64; 3] = [1e4, 1e4, 1.0];
+
+/// A chain edge's covariance as the global layer uses it.
+fn chain_covariance(c: &crate::model::Sym3) -> Matrix3<f64> {
+    let m = unpack3(c);
+    if m.cholesky().is_some() {
+        m
+    } else {
+        let [x, y, t] = UNKNOWN_CHAIN_COVARIANCE;
+        Matrix3::from_diagonal(&nalgebra::Vector3::new(x, y, t))
+    }
+}
+
 /// What a map records besides its submaps.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MapMeta {
@@ -139,8 +155,10 @@ impl Map {
     }
 
     /// The global graph: a node per submap frame and one for where the last submap ended,
-    /// the chain edges (each submap's end pose) and the loop closures. Its nodes hold the
-    /// saved frames; solving it again reproduces them.
+    /// the chain edges (each submap's end pose) and the loop closures, as the global layer
+    /// built it (a chain edge whose covariance is not positive definite is taken as
+    /// unknown, [`UNKNOWN_CHAIN_COVARIANCE`]). Its nodes hold the saved frames; solving it
+    /// again reproduces them.
     pub fn pose_graph(&self) -> PoseGraph {
         let mut g = PoseGraph::new();
         for s in &self.submaps {
@@ -154,7 +172,7 @@ impl Map {
                 from: k,
                 to: k + 1,
                 z: s.end_pose.into(),
-                covariance: unpack3(&s.end_cov),
+                covariance: chain_covariance(&s.end_cov),
                 kind: EdgeKind::Chain,
             });
         }

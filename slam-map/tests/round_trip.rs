@@ -331,3 +331,43 @@ proptest! {
         let _ = Map::from_bytes(&framed, &Limits::default());
     }
 }
+
+#[test]
+fn a_map_ending_in_an_empty_submap_with_no_uncertainty_still_gives_a_graph_that_solves() {
+    // As a run saves it: the last submap just started, its vehicle at its origin with zero
+    // covariance (its chain edge is taken as unknown, as the global layer takes it).
+    let drive = square_drive();
+    let mut global = GlobalMap::new(GlobalSettings::default());
+    for s in &drive {
+        global.add_submap(Arc::new(s.clone()));
+    }
+    let meta = MapMeta {
+        profile: MapProfile::from(&radar_model::profile::CTS350X),
+        source: String::new(),
+        created_unix_s: 0,
+    };
+    let (mut map, _) = Map::from_global(meta, &global).unwrap();
+    let last = *global.graph().nodes().last().unwrap();
+    map.submaps.push(MapSubmap {
+        frame: last.into(),
+        frame_cov: [0.1, 0.0, 0.0, 0.1, 0.0, 1e-3],
+        end_pose: Pose {
+            x: 0.0,
+            y: 0.0,
+            theta: 0.0,
+        },
+        end_cov: [0.0; 6],
+        end_s: 99.0,
+        loss_db: 0.0,
+        features: Vec::new(),
+        descriptor: None,
+    });
+    let back = Map::from_bytes(&map.to_bytes().unwrap(), &Limits::default()).unwrap();
+    let sol = back.pose_graph().solve(&SolveSettings::default()).unwrap();
+    for (s, n) in back.submaps.iter().zip(&sol.nodes) {
+        assert!(
+            (s.frame.x - n.x).hypot(s.frame.y - n.y) < 1e-6,
+            "{s:?} {n:?}"
+        );
+    }
+}
