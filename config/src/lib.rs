@@ -19,7 +19,7 @@
 //!
 //! Section by section: [`radar`] (the driver's link), [`odometry`], [`sim`] and
 //! [`faults`] (the simulator), [`model`] (radar model constants), [`detector`], [`filter`]
-//! (the EKF), [`output`] (and [`live`], `[output.zenoh]`). Each module holds its `Raw*` struct (as written, documented
+//! (the EKF), [`output`] (and [`live`], `[output.zenoh]`), [`submaps`], [`map`] (the saved map). Each module holds its `Raw*` struct (as written, documented
 //! defaults) and its validated `*Settings`, and can be validated alone
 //! (`RawRadar::validate`).
 //!
@@ -36,6 +36,7 @@ pub mod examples;
 pub mod faults;
 pub mod filter;
 pub mod live;
+pub mod map;
 pub mod model;
 pub mod odometry;
 pub mod output;
@@ -55,6 +56,7 @@ pub use detector::{DetectorSettings, RawDetector};
 pub use error::{ConfigError, FieldError, FieldErrors, Location};
 pub use faults::{FaultSettings, RawFaults};
 pub use filter::{FilterSettings, RawFilter};
+pub use map::{MapSettings, RawMap};
 pub use model::{ModelSettings, RawModel};
 pub use odometry::{OdometrySettings, RawOdometry};
 pub use output::{OutputSettings, RawOutput};
@@ -94,6 +96,8 @@ pub struct RawConfig {
     pub output: RawOutput,
     /// `[submaps]`.
     pub submaps: RawSubmaps,
+    /// `[map]`.
+    pub map: RawMap,
 }
 
 /// Every setting, validated.
@@ -115,6 +119,8 @@ pub struct Config {
     pub output: OutputSettings,
     /// Local submaps and the global layer.
     pub submaps: SubmapSettings,
+    /// The saved map.
+    pub map: MapSettings,
 }
 
 /// The three ways the system is used, each with a shipped example file.
@@ -146,6 +152,7 @@ impl RawConfig {
             filter: self.filter.check(c),
             output: self.output.check(c),
             submaps: self.submaps.check(c),
+            map: self.map.check(c),
         }
     }
 
@@ -174,6 +181,7 @@ impl From<&Config> for RawConfig {
             filter: RawFilter::from(&c.filter),
             output: RawOutput::from(&c.output),
             submaps: RawSubmaps::from(&c.submaps),
+            map: RawMap::from(&c.map),
         }
     }
 }

@@ -98,7 +98,7 @@ impl Default for OutputSettings {
 }
 
 /// A file name inside the output directory: not empty, not absolute, no `..`.
-fn relative_file(path: &Path) -> Result<PathBuf, ValueError> {
+pub(crate) fn relative_file(path: &Path) -> Result<PathBuf, ValueError> {
     use std::path::Component;
     if path.as_os_str().is_empty() {
         return Err(ValueError::Empty);

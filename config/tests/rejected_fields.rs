@@ -185,6 +185,10 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[submaps]\nmax_rival_ratio = 1.0", "submaps.max_rival_ratio", "got 1"),
     ("[submaps]\nmax_rival_ratio = 0.0", "submaps.max_rival_ratio", "got 0"),
     ("[submaps]\nsearch_sigmas = 0.0", "submaps.search_sigmas", "got 0"),
+    ("[map]\npath = \"\"", "map.path", "empty"),
+    ("[map]\npath = \"/tmp/map.slmap\"", "map.path", "must be a relative path inside output.directory"),
+    ("[map]\nsave_every_s = 0.5", "map.save_every_s", "at least 1 s, got 0.5"),
+    ("[map]\nsave_every_s = -1.0", "map.save_every_s", "got -1"),
     // the learned front end and the radar's model
     ("[detector]\nfloor_sigma = 0.0", "detector.floor_sigma", "got 0"),
     ("[detector]\nfloor_min_snr_db = -1.0", "detector.floor_min_snr_db", "got -1"),
@@ -200,6 +204,7 @@ const CASES: &[(&str, &str, &str)] = &[
 const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "submaps.enabled",
     "submaps.loop_closure",
+    "map.save",
     "radar.tcp_nodelay",
     "radar.non_contoured",
     "radar.drop_policy",

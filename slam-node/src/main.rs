@@ -66,6 +66,19 @@ fn run(args: cli::Args) -> anyhow::Result<()> {
                 stop.store(true, Ordering::Relaxed);
             }
         });
+        // SIGUSR1: save the map now ([map] path), the run goes on.
+        #[cfg(unix)]
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::user_defined1()) {
+            Ok(mut usr1) => {
+                tokio::spawn(async move {
+                    while usr1.recv().await.is_some() {
+                        eprintln!("slam-node: saving the map (SIGUSR1)");
+                        slam_node::pipeline::saved_map::request_save();
+                    }
+                });
+            }
+            Err(e) => eprintln!("slam-node: SIGUSR1 will not save the map: {e}"),
+        }
         run_daemon(opts, progress).await
     });
     if result.as_ref().is_err_and(|e| e.is_stopped_before_start()) {

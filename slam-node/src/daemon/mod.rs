@@ -388,6 +388,7 @@ fn output_files(
         trajectory: o.trajectory.clone(),
         map: o.map.clone(),
         diagnostics: o.diagnostics.clone(),
+        saved_map: opts.config.map.path.clone(),
         recording: o.mcap.as_ref().map(|file| RecordingFile {
             path: opts.out_dir.join(file),
             motion,

@@ -91,6 +91,7 @@ pub fn summary_text(r: &DaemonReport) -> String {
     }
     put(&InputHealth(s));
     put(&Outputs(r));
+    put(&SavedMapLine(r));
     if let Some(c) = &r.mcap_replay {
         put(&McapReplay(c));
     }
@@ -662,6 +663,41 @@ impl fmt::Display for Outputs<'_> {
                     r.writer.figures.len()
                 )
             }
+        )
+    }
+}
+
+/// The saved map (`[map]`): what went in, its size, and per km of drive when the drive's
+/// length is known.
+struct SavedMapLine<'a>(&'a DaemonReport);
+
+impl fmt::Display for SavedMapLine<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let r = self.0;
+        if let Some(e) = &r.writer.saved_map_error {
+            writeln!(f, "  saved map NOT written: {e}")?;
+        }
+        let (Some(c), Some(bytes)) = (&r.run.summary.saved_map, r.writer.saved_map_bytes) else {
+            return Ok(());
+        };
+        let s = &r.run.summary;
+        let length_m = s
+            .online
+            .as_ref()
+            .or(s.submaps.as_ref().and_then(|m| m.optimised.as_ref()))
+            .map(|t| t.length_m)
+            .filter(|l| *l > 100.0);
+        let per_km = length_m.map_or(String::new(), |l| {
+            format!(
+                ", {:.2} MB per km over {:.2} km",
+                bytes as f64 / 1e6 / (l / 1e3),
+                l / 1e3
+            )
+        });
+        writeln!(
+            f,
+            "  saved map: {} submaps, {} features, {} loop closures; {} bytes{per_km} ({} saves)",
+            c.submaps, c.features, c.loops, bytes, r.writer.saved_maps
         )
     }
 }

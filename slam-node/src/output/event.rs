@@ -34,4 +34,6 @@ pub enum OutputEvent {
     /// of a run on submaps): the trajectory file is rewritten with it, and the poses as
     /// published during the run are kept beside it as `<name>-online.<ext>`.
     Trajectory(Vec<PoseSample>),
+    /// The saved map (`[map]`, slam-map's file), written atomically over the previous one.
+    SavedMap(Box<slam_map::Map>),
 }

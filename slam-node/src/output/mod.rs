@@ -16,6 +16,7 @@ pub mod live_error;
 pub mod map;
 pub mod recording;
 pub mod ros;
+pub mod saved_map;
 pub mod trajectory;
 pub mod writer;
 pub mod zenoh_keys;

@@ -295,7 +295,10 @@ impl<W: Write + Seek> McapRecorder<W> {
                 self.writer.flush()?;
                 Ok(())
             }
-            OutputEvent::Spectrum(_) | OutputEvent::Truth(_) | OutputEvent::Trajectory(_) => Ok(()),
+            OutputEvent::Spectrum(_)
+            | OutputEvent::Truth(_)
+            | OutputEvent::Trajectory(_)
+            | OutputEvent::SavedMap(_) => Ok(()),
         }
     }
 

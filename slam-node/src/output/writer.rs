@@ -47,6 +47,8 @@ pub struct OutputFiles {
     pub map: PathBuf,
     /// Diagnostics file name inside `dir`: CSV when it ends in `.csv`, JSON Lines otherwise.
     pub diagnostics: PathBuf,
+    /// Saved map file name inside `dir` (slam-map's format).
+    pub saved_map: PathBuf,
     /// Record the run as MCAP (ROS 2 messages) too.
     pub recording: Option<RecordingFile>,
     /// Publish live over Zenoh too (needs the `zenoh` feature).
@@ -64,6 +66,7 @@ impl OutputFiles {
             trajectory: "trajectory.tum".into(),
             map: "map.json".into(),
             diagnostics: "diagnostics.jsonl".into(),
+            saved_map: "map.slmap".into(),
             recording: None,
             live: None,
         }
@@ -122,6 +125,13 @@ pub struct WriterSummary {
     pub recording_error: Option<String>,
     /// The live Zenoh output, when there was one.
     pub live: Option<LiveSummary>,
+    /// Saved maps written (`[map]`).
+    pub saved_maps: u64,
+    /// The last saved map's size (bytes).
+    pub saved_map_bytes: Option<u64>,
+    /// Why the last saved map could not be written, if it could not (the previous file
+    /// stays whole; the other outputs went on).
+    pub saved_map_error: Option<String>,
 }
 
 /// The filter's end of the output channel.
@@ -401,6 +411,10 @@ fn run(
                 summary.spectra += 1;
             }
             OutputEvent::Truth(t) => truth = t,
+            OutputEvent::SavedMap(m) => {
+                let path = files.dir.join(&files.saved_map);
+                super::saved_map::save(&m, &path, &mut summary);
+            }
             OutputEvent::Trajectory(t) => {
                 traj.flush().map_err(io_err(&traj_path))?;
                 let online = online_path(&traj_path);

@@ -24,6 +24,7 @@ use super::ekf::DaemonEkf;
 use super::frontend::{doppler_range_shift_m, FrontEnd, GeometryError};
 use super::gate::{worth_logging, OdometryGate};
 use super::radar_odometry::RadarOdometryStage;
+use super::saved_map;
 use super::settings::PipelineSettings;
 use super::spectrum::{compare_beam, SpectrumScratch};
 use super::stats::{RotationStats, StageTimes};
@@ -83,6 +84,8 @@ pub struct Pipeline {
     online: Vec<(PoseSample, Pose2)>,
     /// This thread's CPU clock when the last rotation closed (see `measure_cpu`).
     cpu_mark: Option<std::time::Duration>,
+    /// The run's clock at the last periodic saved map (`[map] save_every_s`).
+    last_map_save_s: Option<f64>,
 }
 
 fn filter_at(
@@ -149,6 +152,7 @@ impl Pipeline {
             ),
             online: Vec::new(),
             cpu_mark: None,
+            last_map_save_s: None,
             settings,
         })
     }
@@ -585,6 +589,57 @@ impl Pipeline {
             s.end_rotation(&mut self.ekf, t);
             self.summary.current_submap = s.current();
         }
+        self.save_map_if_due(events);
+    }
+
+    /// Every `[map] save_every_s` of the run's clock, and when asked (SIGUSR1): the saved
+    /// map as it stands.
+    fn save_map_if_due(&mut self, events: &mut Vec<OutputEvent>) {
+        if saved_map::take_save_request() {
+            info!("saving the map, as asked");
+            self.last_map_save_s = Some(self.ekf.state().time_s());
+            self.ekf.settle_material_noise();
+            self.push_saved_map(None, events);
+            return;
+        }
+        let s = &self.settings.map_save;
+        let Some(every) = s.every_s.filter(|_| s.enabled) else {
+            return;
+        };
+        let t = self.ekf.state().time_s();
+        let last = *self.last_map_save_s.get_or_insert(t);
+        if t - last >= every {
+            self.last_map_save_s = Some(t);
+            self.ekf.settle_material_noise();
+            self.push_saved_map(None, events);
+        }
+    }
+
+    /// Builds the saved map and hands it to the writer (`loops`: the finished global
+    /// layer's, at the end of the run).
+    fn push_saved_map(
+        &mut self,
+        loops: Option<&[slam_graph::LoopClosure]>,
+        events: &mut Vec<OutputEvent>,
+    ) {
+        let source = format!(
+            "slam-node {}: {} rotations, to t = {:.3} s",
+            env!("CARGO_PKG_VERSION"),
+            self.summary.rotations,
+            self.ekf.state().time_s()
+        );
+        if let Some((map, counts)) = saved_map::build(
+            &self.settings.map_save,
+            self.front_end.geometry(),
+            &self.ekf,
+            self.submaps.as_ref(),
+            loops,
+            source,
+        ) {
+            self.summary.saved_maps += 1;
+            self.summary.saved_map = Some(counts);
+            events.push(OutputEvent::SavedMap(Box::new(map)));
+        }
     }
 
     /// Adds the CPU time this thread spent since the last rotation closed to the summary
@@ -659,8 +714,10 @@ impl Pipeline {
         self.front_end.flush(&mut self.beams);
         self.run_beams();
         self.end_rotation(events);
+        let mut final_loops = None;
         let trajectory = self.submaps.as_mut().map(|s| {
             let (trajectory, map) = s.finish(&mut self.ekf);
+            final_loops = map.as_ref().map(|m| m.loops().to_vec());
             if let Some(truth) = self.truth.as_ref() {
                 s.score_against(&trajectory, map.as_ref(), |t| truth.pose_at(t));
             }
@@ -669,6 +726,9 @@ impl Pipeline {
         let map = self.map_snapshot();
         let map_size = map.features.len();
         events.push(OutputEvent::Map(map));
+        if self.settings.map_save.enabled {
+            self.push_saved_map(final_loops.as_deref(), events);
+        }
         if let Some(t) = trajectory {
             events.push(OutputEvent::Trajectory(t));
         }

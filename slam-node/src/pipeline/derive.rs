@@ -430,6 +430,7 @@ impl PipelineSettings {
             s.filter.confirm_min_separation_s = profile.landmarks.value.confirm_min_separation_s;
         }
         let mut s = s.with_facts(facts);
+        s.map_save.profile = profile.name.to_owned();
         s.radar_drives = s.scan_match.enabled
             && (facts.radar_only
                 || effective.odometry.source == config::odometry::OdometrySource::None);

@@ -15,6 +15,7 @@ pub mod gate;
 pub mod odometry;
 pub mod radar_odometry;
 pub mod run;
+pub mod saved_map;
 #[cfg(feature = "sim")]
 pub mod scene_truth;
 pub mod scores;

@@ -15,7 +15,7 @@ use radar_model::geometry::Pose2;
 use radar_model::material::Material;
 use slam_filter::{FeatureEstimate, FrozenSubmap, SubmapFeature};
 use slam_graph::se2::{compose, compose_covariance, rotation};
-use slam_graph::{GlobalLayer, GlobalMap, GlobalStats};
+use slam_graph::{GlobalLayer, GlobalMap, GlobalStats, LoopClosure};
 use tracing::{info, warn};
 
 use super::ekf::DaemonEkf;
@@ -143,6 +143,8 @@ pub struct SubmapRun {
     last_local: Option<Pose2>,
     history: Vec<(f64, u32, Pose2, Matrix3<f64>)>,
     summary: SubmapSummary,
+    /// Loop closures the layer reported accepting so far (for a map saved mid-run).
+    loops: Vec<LoopClosure>,
 }
 
 /// `cov` of a pose in a frame, re-expressed with the frame at `frame` (covariance
@@ -173,6 +175,7 @@ impl SubmapRun {
             driven_m: 0.0,
             last_local: None,
             history: Vec::new(),
+            loops: Vec::new(),
             summary: SubmapSummary {
                 submaps: 1,
                 ..SubmapSummary::default()
@@ -218,6 +221,9 @@ impl SubmapRun {
         let Some(sol) = layer.poll() else {
             return;
         };
+        for r in layer.take_reports() {
+            self.loops.extend(r.accepted);
+        }
         if sol.version <= self.version {
             return;
         }
@@ -445,6 +451,30 @@ impl SubmapRun {
     pub fn summary(&self) -> &SubmapSummary {
         &self.summary
     }
+
+    /// The frozen submaps, every frame in the world (the current submap's last) with its
+    /// covariance, and the loop closures the global layer reported accepting so far.
+    pub fn parts(&self) -> SubmapParts<'_> {
+        SubmapParts {
+            frozen: &self.frozen,
+            frames: &self.frames,
+            frame_covs: &self.frame_covs,
+            loops: &self.loops,
+        }
+    }
+}
+
+/// What [`SubmapRun::parts`] lends.
+#[derive(Debug, Clone, Copy)]
+pub struct SubmapParts<'a> {
+    /// The frozen submaps, in order.
+    pub frozen: &'a [Arc<FrozenSubmap>],
+    /// Every submap's frame in the world, the current one's last.
+    pub frames: &'a [Pose2],
+    /// Their covariances.
+    pub frame_covs: &'a [Matrix3<f64>],
+    /// Loop closures accepted so far.
+    pub loops: &'a [LoopClosure],
 }
 
 /// A frozen submap's feature in the world through its submap's frame.

@@ -57,6 +57,10 @@ pub struct PipelineSummary {
     pub clock_jumps: u64,
     /// Features in the final map.
     pub map_size: usize,
+    /// Saved maps (`[map]`) handed to the writer.
+    pub saved_maps: u64,
+    /// What went into the last one.
+    pub saved_map: Option<super::saved_map::SavedMapCounts>,
     /// Stream time of the first and last azimuth.
     pub first_time_s: Option<f64>,
     /// Last azimuth's time.

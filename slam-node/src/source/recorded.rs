@@ -136,6 +136,7 @@ pub async fn start(
             format: None,
             scans: recording.scans.files.len(),
             scans_skipped: 0,
+            first_scan_skipped: None,
             doppler_range_coupling_s: 0.0,
             radar_only: true,
             ground_truth: false,

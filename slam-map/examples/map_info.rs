@@ -1,0 +1,91 @@
+//! Loads a map file and prints what it holds, its size per feature, and whether it suits a
+//! radar profile: `cargo run -p slam-map --example map_info -- out/map.slmap [profile]`.
+//! Exit 1 with the reason when the file does not load or the profile's geometry differs.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use slam_map::Map;
+
+fn main() -> ExitCode {
+    let mut args = std::env::args().skip(1);
+    let Some(path) = args.next().map(PathBuf::from) else {
+        eprintln!("usage: map_info FILE [PROFILE]");
+        return ExitCode::FAILURE;
+    };
+    let map = match Map::load(&path) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let bytes = std::fs::metadata(&path).map_or(0, |m| m.len());
+    let features = map.feature_count();
+    let p = &map.profile;
+    println!(
+        "{}: format version {}, written {} s after the epoch by {:?}",
+        path.display(),
+        slam_map::FORMAT_VERSION,
+        map.created_unix_s,
+        map.source
+    );
+    println!(
+        "radar: {} ({} azimuths, encoder {}, {} bins of {} m)",
+        p.name, p.azimuths, p.encoder_size, p.range_bins, p.bin_size_m
+    );
+    println!(
+        "{} submaps, {} features, {} loop closures, {} descriptors; {} bytes ({:.1} per feature)",
+        map.submaps.len(),
+        features,
+        map.loops.len(),
+        map.submaps
+            .iter()
+            .filter(|s| s.descriptor.is_some())
+            .count(),
+        bytes,
+        bytes as f64 / features.max(1) as f64
+    );
+    // The saved graph solved again from the saved frames: they should barely move.
+    if map.submaps.len() > 1 {
+        match map
+            .pose_graph()
+            .solve(&slam_graph::SolveSettings::default())
+        {
+            Ok(sol) => {
+                let moved = map
+                    .submaps
+                    .iter()
+                    .zip(&sol.nodes)
+                    .map(|(s, n)| (s.frame.x - n.x).hypot(s.frame.y - n.y))
+                    .fold(0.0, f64::max);
+                println!(
+                    "graph: {} nodes, {} edges; solved again, the frames move {:.2e} m at most (chi2 {:.3})",
+                    sol.nodes.len(),
+                    map.submaps.len() + map.loops.len(),
+                    moved,
+                    sol.chi2
+                );
+            }
+            Err(e) => println!("graph: the saved graph does not solve: {e}"),
+        }
+    }
+    if let Some(name) = args.next() {
+        let Some(profile) = radar_model::profile::by_name(&name) else {
+            eprintln!(
+                "no radar profile {name:?}; known: {}",
+                radar_model::profile::names().join(", ")
+            );
+            return ExitCode::FAILURE;
+        };
+        match map.check_profile(profile) {
+            Ok(()) => println!("made with this radar: {}", profile.name),
+            Err(e) if !e.geometry_differs() => println!("warning: {e}"),
+            Err(e) => {
+                eprintln!("{e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    ExitCode::SUCCESS
+}

@@ -1,0 +1,228 @@
+//! From the global layer to a map, and back to what the filter and the global layer use
+//! (frozen submaps for the loop-closure verifier, a pose graph to extend).
+
+use nalgebra::Matrix3;
+use radar_model::geometry::Pose2;
+use slam_filter::{FeatureId, FrozenSubmap, SubmapFeature};
+use slam_graph::se2::compose;
+use slam_graph::{Edge, EdgeKind, GlobalMap, LoopClosure, PoseGraph};
+
+use crate::error::WriteError;
+use crate::model::{
+    pack2, pack3, unpack2, unpack3, LoopEdge, Map, MapFeature, MapProfile, MapSubmap, Pose,
+};
+use crate::validate::validate;
+
+/// The covariance of a chain edge whose own is not positive definite (a submap closed, or
+/// saved, before the vehicle's pose had any uncertainty in it): unknown, as the global layer
+/// takes it (`slam_graph::GlobalMap::add_submap`), x and y in m^2, theta in rad^2.
+pub const UNKNOWN_CHAIN_COVARIANCE: [f64; 3] = [1e4, 1e4, 1.0];
+
+/// A chain edge's covariance as the global layer uses it.
+fn chain_covariance(c: &crate::model::Sym3) -> Matrix3<f64> {
+    let m = unpack3(c);
+    if m.cholesky().is_some() {
+        m
+    } else {
+        let [x, y, t] = UNKNOWN_CHAIN_COVARIANCE;
+        Matrix3::from_diagonal(&nalgebra::Vector3::new(x, y, t))
+    }
+}
+
+/// What a map records besides its submaps.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapMeta {
+    /// The radar it was made with.
+    pub profile: MapProfile,
+    /// The free note.
+    pub source: String,
+    /// When it is written (seconds since the Unix epoch): the caller reads the clock.
+    pub created_unix_s: u64,
+}
+
+/// What was left out building a map (values that would not load back).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct BuildReport {
+    /// Features with a value that is not finite.
+    pub dropped_features: usize,
+    /// Loop closures naming a submap not in the map, or not finite.
+    pub dropped_loops: usize,
+}
+
+fn feature(f: &SubmapFeature) -> MapFeature {
+    MapFeature {
+        id: f.id.0,
+        xy: f.xy,
+        xy_cov: pack2(&f.xy_cov),
+        uv: f.uv,
+        uv_cov: pack2(&f.uv_cov),
+        hits: f.hits,
+    }
+}
+
+fn finite_feature(f: &MapFeature) -> bool {
+    f.xy.iter()
+        .chain(&f.xy_cov)
+        .chain(&f.uv)
+        .chain(&f.uv_cov)
+        .all(|v| v.is_finite())
+}
+
+impl Map {
+    /// A map of `submaps` (each with its frame in the world and the frame's covariance, in
+    /// the order they were closed) and the loop closures between them. Features and loop
+    /// closures that would not load back are left out and counted; a frame that is not
+    /// finite refuses the map.
+    pub fn from_parts<'a>(
+        meta: MapMeta,
+        submaps: impl IntoIterator<Item = (&'a FrozenSubmap, Pose2, Matrix3<f64>)>,
+        loops: &[LoopClosure],
+    ) -> Result<(Map, BuildReport), WriteError> {
+        let mut report = BuildReport::default();
+        let submaps: Vec<MapSubmap> = submaps
+            .into_iter()
+            .map(|(s, frame, cov)| {
+                let features: Vec<MapFeature> = s.features.iter().map(feature).collect();
+                let n = features.len();
+                let features: Vec<MapFeature> =
+                    features.into_iter().filter(finite_feature).collect();
+                report.dropped_features += n - features.len();
+                MapSubmap {
+                    frame: frame.into(),
+                    frame_cov: pack3(&cov),
+                    end_pose: s.end_pose.into(),
+                    end_cov: pack3(&s.end_cov),
+                    end_s: s.end_s,
+                    loss_db: s.loss_db,
+                    features,
+                    descriptor: None,
+                }
+            })
+            .collect();
+        let n = submaps.len();
+        let loops: Vec<LoopEdge> = loops
+            .iter()
+            .filter_map(|l| {
+                let ok = l.from < n
+                    && l.to < n
+                    && l.from != l.to
+                    && [l.transform.x, l.transform.y, l.transform.theta]
+                        .iter()
+                        .chain(l.covariance.iter())
+                        .all(|v| v.is_finite());
+                if !ok {
+                    report.dropped_loops += 1;
+                    return None;
+                }
+                Some(LoopEdge {
+                    from: u32::try_from(l.from).ok()?,
+                    to: u32::try_from(l.to).ok()?,
+                    transform: l.transform.into(),
+                    covariance: pack3(&l.covariance),
+                    matches: u32::try_from(l.matches).unwrap_or(u32::MAX),
+                })
+            })
+            .collect();
+        let map = Map {
+            created_unix_s: meta.created_unix_s,
+            source: meta.source,
+            profile: meta.profile,
+            submaps,
+            loops,
+        };
+        validate(&map).map_err(WriteError::Invalid)?;
+        Ok((map, report))
+    }
+
+    /// The global layer's map: every submap it joined, placed by its current solution, and
+    /// its loop closures.
+    pub fn from_global(
+        meta: MapMeta,
+        global: &GlobalMap,
+    ) -> Result<(Map, BuildReport), WriteError> {
+        let sol = global.solution(0.0);
+        let parts = global
+            .submaps()
+            .iter()
+            .zip(sol.frames.iter().zip(&sol.covariances))
+            .map(|(s, (f, c))| (s.as_ref(), *f, *c));
+        Map::from_parts(meta, parts, global.loops())
+    }
+
+    /// The submaps as the filter froze them (for the loop-closure verifier).
+    pub fn frozen_submaps(&self) -> Vec<FrozenSubmap> {
+        self.submaps.iter().map(MapSubmap::to_frozen).collect()
+    }
+
+    /// The global graph: a node per submap frame and one for where the last submap ended,
+    /// the chain edges (each submap's end pose) and the loop closures, as the global layer
+    /// built it (a chain edge whose covariance is not positive definite is taken as
+    /// unknown, [`UNKNOWN_CHAIN_COVARIANCE`]). Its nodes hold the saved frames; solving it
+    /// again reproduces them.
+    pub fn pose_graph(&self) -> PoseGraph {
+        let mut g = PoseGraph::new();
+        for s in &self.submaps {
+            g.add_node(s.frame.into());
+        }
+        if let Some(last) = self.submaps.last() {
+            g.add_node(compose(&last.frame.into(), &last.end_pose.into()));
+        }
+        for (k, s) in self.submaps.iter().enumerate() {
+            g.add_edge(Edge {
+                from: k,
+                to: k + 1,
+                z: s.end_pose.into(),
+                covariance: chain_covariance(&s.end_cov),
+                kind: EdgeKind::Chain,
+            });
+        }
+        for l in &self.loops {
+            g.add_edge(Edge {
+                from: l.from as usize,
+                to: l.to as usize,
+                z: l.transform.into(),
+                covariance: unpack3(&l.covariance),
+                kind: EdgeKind::Loop,
+            });
+        }
+        g
+    }
+}
+
+impl MapSubmap {
+    /// The submap as the filter froze it.
+    pub fn to_frozen(&self) -> FrozenSubmap {
+        FrozenSubmap {
+            end_pose: self.end_pose.into(),
+            end_cov: unpack3(&self.end_cov),
+            features: self
+                .features
+                .iter()
+                .map(|f| SubmapFeature {
+                    id: FeatureId(f.id),
+                    xy: f.xy,
+                    xy_cov: unpack2(&f.xy_cov),
+                    uv: f.uv,
+                    uv_cov: unpack2(&f.uv_cov),
+                    hits: f.hits,
+                })
+                .collect(),
+            loss_db: self.loss_db,
+            end_s: self.end_s,
+        }
+    }
+
+    /// The frame in the map's frame.
+    pub fn frame_pose(&self) -> Pose2 {
+        Pose2::from(self.frame)
+    }
+}
+
+impl Pose {
+    /// The origin.
+    pub const ORIGIN: Pose = Pose {
+        x: 0.0,
+        y: 0.0,
+        theta: 0.0,
+    };
+}

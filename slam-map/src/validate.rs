@@ -1,0 +1,98 @@
+//! The format's rules beyond its encoding, checked on every map written and read: a map
+//! that breaks one is refused with the first broken rule and where it is.
+
+use crate::model::{Map, Pose};
+
+/// The longest `source` note (bytes).
+pub const MAX_SOURCE_BYTES: usize = 64 * 1024;
+
+/// The longest profile name or descriptor kind (bytes).
+pub const MAX_NAME_BYTES: usize = 256;
+
+fn finite(values: &[f64]) -> bool {
+    values.iter().all(|v| v.is_finite())
+}
+
+fn pose_finite(p: &Pose) -> bool {
+    finite(&[p.x, p.y, p.theta])
+}
+
+/// The first rule `map` breaks, or `Ok`.
+pub fn validate(map: &Map) -> Result<(), String> {
+    if map.source.len() > MAX_SOURCE_BYTES {
+        return Err(format!(
+            "the source note holds {} bytes, more than {MAX_SOURCE_BYTES}",
+            map.source.len()
+        ));
+    }
+    let p = &map.profile;
+    if p.name.is_empty() || p.name.len() > MAX_NAME_BYTES {
+        return Err(format!(
+            "the radar profile's name must hold 1 to {MAX_NAME_BYTES} bytes, it holds {}",
+            p.name.len()
+        ));
+    }
+    if p.azimuths == 0 || p.range_bins == 0 || p.encoder_size == 0 {
+        return Err(format!(
+            "the radar profile {:?} has {} azimuths, {} bins, an encoder of {}: each must be positive",
+            p.name, p.azimuths, p.range_bins, p.encoder_size
+        ));
+    }
+    if !(p.bin_size_m.is_finite() && p.bin_size_m > 0.0) {
+        return Err(format!(
+            "the radar profile {:?} has bin size {} m",
+            p.name, p.bin_size_m
+        ));
+    }
+    for (k, s) in map.submaps.iter().enumerate() {
+        if !(pose_finite(&s.frame) && finite(&s.frame_cov)) {
+            return Err(format!(
+                "submap {k}: its frame or its covariance is not finite"
+            ));
+        }
+        if !(pose_finite(&s.end_pose) && finite(&s.end_cov)) {
+            return Err(format!(
+                "submap {k}: its end pose or its covariance is not finite"
+            ));
+        }
+        if !(s.end_s.is_finite() && s.loss_db.is_finite()) {
+            return Err(format!("submap {k}: its end time or loss is not finite"));
+        }
+        for (i, f) in s.features.iter().enumerate() {
+            if !(finite(&f.xy) && finite(&f.xy_cov) && finite(&f.uv) && finite(&f.uv_cov)) {
+                return Err(format!(
+                    "submap {k}, feature {i} (id {}): a value is not finite",
+                    f.id
+                ));
+            }
+        }
+        if let Some(d) = &s.descriptor {
+            if d.kind.is_empty() || d.kind.len() > MAX_NAME_BYTES {
+                return Err(format!(
+                    "submap {k}: the place descriptor's kind must hold 1 to {MAX_NAME_BYTES} bytes"
+                ));
+            }
+            if !d.values.iter().all(|v| v.is_finite()) {
+                return Err(format!(
+                    "submap {k}: the place descriptor {:?} holds a value that is not finite",
+                    d.kind
+                ));
+            }
+        }
+    }
+    let n = map.submaps.len();
+    for (e, l) in map.loops.iter().enumerate() {
+        if l.from as usize >= n || l.to as usize >= n || l.from == l.to {
+            return Err(format!(
+                "loop closure {e} joins submaps {} and {} of {n}",
+                l.from, l.to
+            ));
+        }
+        if !(pose_finite(&l.transform) && finite(&l.covariance)) {
+            return Err(format!(
+                "loop closure {e}: its transform or covariance is not finite"
+            ));
+        }
+    }
+    Ok(())
+}
