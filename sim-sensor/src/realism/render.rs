@@ -42,10 +42,9 @@ use radar_model::geometry::{wrap_angle, Pose2};
 
 use super::objects::{Mover, Shape, Swerling, World, SPECULAR_LOBE_RAD};
 use super::receiver::{Receiver, COPULA_REACH, DB_TABLE, FLOOR_QUANTILES, NEGLIGIBLE_POWER};
-use super::RealismSpec;
 use crate::error::{SceneError, SimError};
-use crate::radar::RadarParams;
-use crate::render::azimuth_in_rotation;
+use crate::radar::{azimuth_in_rotation, offset_ns, RadarParams};
+use crate::scene::realism_spec::RealismSpec;
 use crate::trajectory::{Trajectory, TrajectoryCursor};
 
 /// Cells of the polar transmission buffer (0.088 degrees each).
@@ -533,7 +532,7 @@ impl RealisticCursor {
         if self.rotation != Some(rotation) {
             self.prepare_rotation(model, trajectory, cursor, radar, seed, rotation)?;
         }
-        let offset_ns = crate::render::offset_ns(radar, index);
+        let offset_ns = offset_ns(radar, index);
         let pose = trajectory.pose_with(cursor, offset_ns)?;
         let dt = offset_ns as f64 * 1e-9 - self.mid_offset_s;
         let bearing =
@@ -763,7 +762,7 @@ impl RealisticCursor {
     ) -> Result<(), SimError> {
         let n = u64::from(radar.azimuths.max(1));
         let first = rotation.saturating_mul(n);
-        let mid_ns = crate::render::offset_ns(radar, first + n / 2);
+        let mid_ns = offset_ns(radar, first + n / 2);
         let mid = trajectory.pose_with(cursor, mid_ns)?;
         let mid_t = mid_ns as f64 * 1e-9;
         self.mid_offset_s = mid_t;
@@ -772,7 +771,7 @@ impl RealisticCursor {
         let mut speed_mps: f64 = 0.0;
         for s in 0..=MOTION_SAMPLES {
             let k = first + n.saturating_sub(1) * s / MOTION_SAMPLES;
-            let offset_ns = crate::render::offset_ns(radar, k);
+            let offset_ns = offset_ns(radar, k);
             let p = trajectory.pose_with(cursor, offset_ns)?;
             travel_m = travel_m.max((p.x - mid.x).hypot(p.y - mid.y));
             turn_rad = turn_rad.max(wrap_angle(p.theta - mid.theta).abs());

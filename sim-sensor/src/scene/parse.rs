@@ -4,10 +4,12 @@
 use serde::Deserialize;
 
 use super::city::CitySpec;
+use super::objects::ObjectSpec;
+use super::realism_spec::RealismSpec;
+use super::street::StreetSpec;
 use super::{Feature, FeatureKind, MotionSpec, NoiseSpec, ReceiverSpec, Scene, MAX_FEATURES};
 use crate::error::SceneError;
 use crate::radar::{DataWidth, RadarParams, RadarPreset};
-use crate::realism::{ObjectSpec, RealismSpec, StreetSpec};
 use crate::schedule::{ControlKey, ControlSchedule, Interpolation};
 
 #[derive(Debug, Deserialize)]

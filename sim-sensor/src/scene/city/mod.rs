@@ -38,14 +38,13 @@
 //! IO: none.
 
 pub mod route;
-pub mod visits;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
 use crate::error::SceneError;
-use crate::realism::{ObjectKind, ObjectSpec};
+use crate::scene::objects::{ObjectKind, ObjectSpec};
 use crate::scene::FeatureKind;
 use crate::schedule::ControlKey;
 

@@ -14,8 +14,8 @@ use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
 use super::objects::{ObjectKind, ObjectSpec};
+use super::FeatureKind;
 use crate::error::SceneError;
-use crate::scene::FeatureKind;
 
 /// The generator's settings.
 #[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
