@@ -949,6 +949,30 @@ impl RealisticCursor {
             if r > reach || r < 1e-3 {
                 continue;
             }
+            let world_angle = atan2_fast(dy, dx);
+            // Hidden: what the outlines in front let through cannot lift even the largest
+            // cross section this scatterer can show (incidence, elevation and a steady
+            // draw all at most 1) to a deposit that matters, so it is dropped exactly
+            // where the test below would drop it; the walk along the outlines stops as
+            // soon as that is certain. Scatterers drawn once a rotation (Swerling 1 and 3)
+            // still take their draw, so every later draw is the one it was.
+            let vis = if spec.occlusion {
+                let steady =
+                    !spec.speckle || !matches!(s.swerling, Swerling::One | Swerling::Three);
+                let largest = 2.0 * (s.diffuse_m2 + s.specular_m2) * max_gain * 9.0;
+                let floor = if steady && largest > 0.0 {
+                    NEGLIGIBLE_POWER / largest
+                } else {
+                    0.0
+                };
+                match self.transmission_above(cell_of(world_angle), r, s.outline, floor) {
+                    Some(t) => t,
+                    None if steady => continue,
+                    None => 0.0,
+                }
+            } else {
+                1.0
+            };
             let mut sigma = f64::from(s.diffuse_m2);
             if normal != [0.0, 0.0] {
                 let cos_i = ((normal[0] * dx + normal[1] * dy) / r).abs().min(1.0);
@@ -960,12 +984,6 @@ impl RealisticCursor {
                 }
             }
             sigma *= f64::from(model.elevation.gain(s.drop_m, r));
-            let world_angle = atan2_fast(dy, dx);
-            let vis = if spec.occlusion {
-                self.transmission(cell_of(world_angle), r, s.outline)
-            } else {
-                1.0
-            };
             let (draw, per_look) = if !spec.speckle {
                 (1.0, 0)
             } else {
@@ -1141,9 +1159,31 @@ impl RealisticCursor {
         Ok(())
     }
 
-    /// Two-way transmission to range `r` in `cell` through every outline but `own`.
-    fn transmission(&self, cell: usize, r: f64, own: u32) -> f32 {
-        self.transmission_but(cell, r, [own, own])
+    /// Two-way transmission to range `r` in `cell` through every outline but `own`, or
+    /// `None` as soon as it is certain to fall below `floor` (0: never). When it is `Some`,
+    /// it is exactly [`Self::transmission_but`]'s figure.
+    fn transmission_above(&self, cell: usize, r: f64, own: u32, floor: f32) -> Option<f32> {
+        let (Some(&lo), Some(&hi)) = (self.cell_starts.get(cell), self.cell_starts.get(cell + 1))
+        else {
+            return Some(1.0);
+        };
+        let mut t = 1.0f32;
+        for c in self
+            .crossings
+            .get(lo as usize..hi as usize)
+            .unwrap_or_default()
+        {
+            if f64::from(c.range) >= r - SELF_MARGIN_M {
+                break;
+            }
+            if c.outline != own {
+                t *= c.tau;
+                if t * t < floor {
+                    return None;
+                }
+            }
+        }
+        Some(t * t)
     }
 
     /// [`Self::transmission`] leaving out two outlines (a ghost's mirror and source).
