@@ -9,6 +9,7 @@
 //! report folder; everything else runs in memory. Simulated spectra come from sim-sensor's
 //! renderer directly (no sockets), so every figure is reproducible from the fixed seeds.
 
+pub mod city_realism;
 pub mod daemon;
 pub mod error;
 pub mod metrics;

@@ -35,9 +35,15 @@
 //! every block draws the same pattern (a block's draws are seeded by the layout seed alone,
 //! not by its position): identical blocks on a regular grid, to tempt wrong loop closures.
 //!
+//! With the scene's `[realism]` and a `[city.dressing]` table the same grid and route are the
+//! realistic city: the blocks and streets are lined as the street generator lines its street
+//! ([`dressing`]) instead of the landmark table above. [`returns`] finds where a route comes
+//! back to streets it drove, from the layout alone.
+//!
 //! IO: none.
 
 pub mod dressing;
+pub mod returns;
 pub mod route;
 
 use rand::{Rng, SeedableRng};
