@@ -7,9 +7,9 @@
 //! cargo bench -p sim-sensor --bench city_render [-- [SCENE_FILE] [ROTATIONS]]
 //! ```
 //!
-//! SCENE_FILE defaults to `sim-sensor/scenes/realistic-city.toml` (relative to the
-//! workspace root), ROTATIONS to 64: groups of 4 consecutive rotations at 16 places evenly
-//! spaced in time over the drive. A plain release binary (no criterion): one pass, the
+//! SCENE_FILE (relative to the workspace root) defaults to
+//! `sim-sensor/scenes/realistic-city.toml`, ROTATIONS to 64: groups of 4 consecutive
+//! rotations at 16 places evenly spaced in time over the drive. A plain release binary (no criterion): one pass, the
 //! figures of each rotation timed on their own, so the median and the slowest are shown too.
 
 use std::path::PathBuf;
@@ -31,9 +31,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .filter(|a| !a.starts_with("--"))
         .collect();
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    // `cargo bench` runs in the package's folder: a relative path that is not there is
+    // taken from the workspace root.
     let path = args.first().map_or_else(
         || root.join("sim-sensor/scenes/realistic-city.toml"),
-        PathBuf::from,
+        |a| {
+            let p = PathBuf::from(a);
+            if p.is_relative() && !p.exists() {
+                root.join(p)
+            } else {
+                p
+            }
+        },
     );
     let rotations: u64 = args.get(1).map_or(Ok(64), |s| s.parse())?.max(GROUP);
     let scene = Scene::load(&path)?;

@@ -38,6 +38,9 @@ struct Args {
     /// Rotations in a group (the first two warm the detectors up).
     #[arg(long, default_value_t = 8)]
     group_rotations: u64,
+    /// Also a row for each group (where it is, its figures).
+    #[arg(long)]
+    groups_too: bool,
 }
 
 /// `value / real`, marked in bold outside 0.75-1.25.
@@ -137,7 +140,26 @@ fn main() -> anyhow::Result<()> {
         let mut km = Vec::new();
         for g in 0..groups {
             let first = r0 + room * (2 * g + 1) / (2 * groups);
-            km.push(render_rotations(&renderer, first, m)?);
+            let scans = render_rotations(&renderer, first, m)?;
+            if args.groups_too {
+                let t = first as f64 / hz;
+                let at = samples
+                    .iter()
+                    .find(|s| s.t_s >= t)
+                    .map_or([0.0; 2], |s| [s.pose.x_m, s.pose.y_m]);
+                let f = figures(std::slice::from_ref(&scans), Some(&real_scans));
+                rows.push(row(
+                    &format!(
+                        "km {} group at {t:.0} s, ({:.0}, {:.0})",
+                        k + 1,
+                        at[0],
+                        at[1]
+                    ),
+                    &f,
+                    &real,
+                ));
+            }
+            km.push(scans);
         }
         let f = figures(&km, Some(&real_scans));
         rows.push(row(
