@@ -217,10 +217,62 @@ pub fn kilometres(samples: &[DriveSample]) -> Vec<(f64, f64, f64)> {
     out
 }
 
+/// Largest trajectory file read, bytes (a TUM row is under 100 bytes: hours of 4 Hz poses).
+pub const MAX_TRAJECTORY_BYTES: u64 = 256 << 20;
+
+/// The positions `(x, y)` of a trajectory in the TUM format (`timestamp x y z qx qy qz qw`
+/// a row, `#` comments), as the daemon writes `trajectory.tum` and `trajectory-online.tum`.
+pub fn read_tum_xy(path: &Path) -> Result<Vec<(f64, f64)>, EvalError> {
+    use std::io::Read as _;
+    let io = |source| EvalError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut text = String::new();
+    std::fs::File::open(path)
+        .map_err(io)?
+        .take(MAX_TRAJECTORY_BYTES + 1)
+        .read_to_string(&mut text)
+        .map_err(io)?;
+    let data = |line: usize, reason: String| EvalError::Data {
+        path: path.to_path_buf(),
+        line,
+        reason,
+    };
+    if text.len() as u64 > MAX_TRAJECTORY_BYTES {
+        return Err(data(0, format!("larger than {MAX_TRAJECTORY_BYTES} bytes")));
+    }
+    let mut out = Vec::new();
+    for (k, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let v: Vec<&str> = line.split_whitespace().collect();
+        if v.len() != 8 {
+            return Err(data(k + 1, format!("{} fields, a TUM row has 8", v.len())));
+        }
+        let num = |s: &str| {
+            s.parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| data(k + 1, format!("{s:?} is not a finite number")))
+        };
+        out.push((num(v[1])?, num(v[2])?));
+    }
+    Ok(out)
+}
+
 /// Draws the city: building fronts, walls, fences and hedges as lines, parked vehicles,
-/// trunks and lamp posts as dots, the moving vehicles' starts, and the driven route (the
-/// ground truth) with a mark every kilometre. One metre is the same length on both axes.
-pub fn write_map(path: &Path, scene: &Scene, samples: &[DriveSample]) -> Result<(), EvalError> {
+/// trunks and lamp posts as dots, the moving vehicles' starts, the driven route (the
+/// ground truth) with a mark every kilometre, and `trajectories` (name, positions: the
+/// daemon's estimates) over it. One metre is the same length on both axes.
+pub fn write_map(
+    path: &Path,
+    scene: &Scene,
+    samples: &[DriveSample],
+    trajectories: &[(String, Vec<(f64, f64)>)],
+) -> Result<(), EvalError> {
     let err = |e: &dyn std::fmt::Display| EvalError::Plot {
         name: path.display().to_string(),
         reason: e.to_string(),
@@ -243,6 +295,10 @@ pub fn write_map(path: &Path, scene: &Scene, samples: &[DriveSample]) -> Result<
         }
     }
     samples.iter().for_each(|s| grow([s.pose.x_m, s.pose.y_m]));
+    trajectories
+        .iter()
+        .flat_map(|(_, t)| t.iter())
+        .for_each(|&(x, y)| grow([x, y]));
     if !(lo[0].is_finite() && hi[0].is_finite()) {
         return Err(err(&"nothing to draw"));
     }
@@ -362,6 +418,24 @@ pub fn write_map(path: &Path, scene: &Scene, samples: &[DriveSample]) -> Result<
         .map_err(|e| err(&e))?
         .label("route (ground truth)")
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], red.stroke_width(2)));
+    let estimates = [
+        RGBColor(0, 0, 0),
+        RGBColor(255, 127, 14),
+        RGBColor(23, 190, 207),
+    ];
+    for (k, (name, points)) in trajectories.iter().enumerate() {
+        let color = estimates[k % estimates.len()];
+        chart
+            .draw_series(LineSeries::new(
+                points.iter().copied(),
+                color.stroke_width(2),
+            ))
+            .map_err(|e| err(&e))?
+            .label(name.as_str())
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
+    }
     let mut marks = Vec::new();
     let mut next_km = 0.0;
     for s in samples {
@@ -389,4 +463,52 @@ pub fn write_map(path: &Path, scene: &Scene, samples: &[DriveSample]) -> Result<
         .map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_tum_file_gives_its_positions_and_a_bad_row_is_a_typed_error_naming_the_line() {
+        let dir = tempfile::tempdir().expect("dir");
+        let path = dir.path().join("t.tum");
+        std::fs::write(
+            &path,
+            "# timestamp x y z qx qy qz qw\n1.0 2.5 -3.0 0 0 0 0 1\n\n2.0 3.5 -4.0 0 0 0 0 1\n",
+        )
+        .expect("write");
+        assert_eq!(
+            read_tum_xy(&path).expect("read"),
+            vec![(2.5, -3.0), (3.5, -4.0)]
+        );
+        std::fs::write(&path, "1.0 2.5 -3.0 0 0 0 0 1\n2.0 nan 1 0 0 0 0 1\n").expect("write");
+        let err = read_tum_xy(&path).expect_err("nan");
+        assert!(matches!(err, EvalError::Data { line: 2, .. }), "{err}");
+        std::fs::write(&path, "1.0 2.5\n").expect("write");
+        assert!(matches!(
+            read_tum_xy(&path),
+            Err(EvalError::Data { line: 1, .. })
+        ));
+    }
+
+    #[test]
+    fn a_drive_is_cut_into_whole_kilometres_and_a_last_stretch_over_100_m() {
+        use sim_sensor::visits::Pose2Serde;
+        let samples: Vec<DriveSample> = (0..=2250)
+            .map(|k| DriveSample {
+                t_s: f64::from(k) * 0.1,
+                pose: Pose2Serde {
+                    x_m: f64::from(k),
+                    y_m: 0.0,
+                    theta_rad: 0.0,
+                },
+                travelled_m: f64::from(k),
+            })
+            .collect();
+        let km = kilometres(&samples);
+        assert_eq!(km.len(), 3);
+        assert!((km[0].0 - 0.0).abs() < 1e-9 && (km[0].1 - 100.0).abs() < 1e-9);
+        assert!((km[2].2 - 250.0).abs() < 1e-9, "{km:?}");
+    }
 }

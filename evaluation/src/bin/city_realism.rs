@@ -3,10 +3,12 @@
 //! consecutive rotations spread evenly over it are rendered by the realistic renderer and
 //! measured as the real scans are (`evaluation::city_realism`), one table row a kilometre
 //! and one for the whole drive, with the target band; then the route's returns to mapped
-//! streets, and an SVG map of the layout and the route.
+//! streets, and an SVG map of the layout and the route (with the daemon's trajectories over
+//! it when given).
 //!
 //! Run: `cargo run --release -p evaluation --bin city_realism [-- [SCENE_FILE] [--out DIR]
-//! [--groups N] [--group-rotations M]]` (SCENE_FILE: `sim-sensor/scenes/realistic-city.toml`
+//! [--groups N] [--group-rotations M] [--groups-too] [--trajectory out/trajectory.tum
+//! --trajectory out/trajectory-online.tum]]` (SCENE_FILE: `sim-sensor/scenes/realistic-city.toml`
 //! by default; the check layout is `sim-sensor/scenes/realistic-city-check.toml`; DIR:
 //! `out/city-realism`). Skips with a message when the real scans are absent.
 //!
@@ -18,7 +20,9 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use clap::Parser;
-use evaluation::city_realism::{figures, kilometres, render_rotations, write_map, Figures};
+use evaluation::city_realism::{
+    figures, kilometres, read_tum_xy, render_rotations, write_map, Figures,
+};
 use sim_sensor::realism::calibrate::{default_oxford_dir, load_polar_dir};
 use sim_sensor::render::SceneRenderer;
 use sim_sensor::scene::Scene;
@@ -41,6 +45,10 @@ struct Args {
     /// Also a row for each group (where it is, its figures).
     #[arg(long)]
     groups_too: bool,
+    /// A trajectory in the TUM format to draw over the map (the daemon's
+    /// `trajectory.tum`, `trajectory-online.tum`); may be given more than once.
+    #[arg(long)]
+    trajectory: Vec<PathBuf>,
 }
 
 /// `value / real`, marked in bold outside 0.75-1.25.
@@ -91,7 +99,14 @@ fn main() -> anyhow::Result<()> {
     let samples = drive_samples(&scene, layout.drive_duration_s, 0.25)?;
     std::fs::create_dir_all(&args.out)?;
     let map = args.out.join(format!("{}.svg", scene.name));
-    write_map(&map, &scene, &samples)?;
+    let mut trajectories = Vec::new();
+    for p in &args.trajectory {
+        let name = p
+            .file_name()
+            .map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into());
+        trajectories.push((name, read_tum_xy(p)?));
+    }
+    write_map(&map, &scene, &samples, &trajectories)?;
     println!("map of the layout and route: {}", map.display());
     println!(
         "\n{}: route {:.0} m junction to junction, {:.0} m driven in {:.0} s, {} junctions passed; returns to mapped streets:",
