@@ -11,6 +11,7 @@
 //! One binary opens sockets: `seed_one` runs the whole daemon against the simulator on
 //! 127.0.0.1:0 (the end-to-end tests' harness).
 
+pub mod city_realism;
 pub mod daemon;
 pub mod detections;
 pub mod error;

@@ -15,7 +15,8 @@ use sim_sensor::realism::calibrate::{
     default_oxford_dir, fit_floor, fit_gain_correction, fit_log_scale, load_polar_dir,
 };
 use sim_sensor::realism::stats::scan_stats;
-use sim_sensor::realism::{render_scans, RealismSpec};
+use sim_sensor::realism::RealismSpec;
+use sim_sensor::render::render_scans;
 use sim_sensor::scene::shipped;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

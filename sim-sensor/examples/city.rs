@@ -6,8 +6,8 @@
 //! cargo run --release -p sim-sensor --example city [-- SCENE]   # default city-drive
 //! ```
 
-use sim_sensor::scene::city::visits::{drive_samples, look_alikes, revisits};
 use sim_sensor::scene::{shipped, Scene};
+use sim_sensor::visits::{drive_samples, look_alikes, revisits};
 
 fn main() -> anyhow::Result<()> {
     let name = std::env::args()

@@ -14,8 +14,8 @@ use std::path::PathBuf;
 
 use sim_sensor::realism::calibrate::{default_oxford_dir, load_polar_dir};
 use sim_sensor::realism::picture::{cartesian, write_side_by_side};
-use sim_sensor::realism::render_scans;
 use sim_sensor::realism::stats::{ks_distance, quantile_db, scan_stats, Scans};
+use sim_sensor::render::render_scans;
 use sim_sensor::scene::{shipped, Scene};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

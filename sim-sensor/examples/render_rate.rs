@@ -3,7 +3,7 @@
 //! run under `valgrind --tool=callgrind --toggle-collect='*RenderCursor*render*'`.
 //!
 //! ```sh
-//! cargo run --release -p sim-sensor --example render_rate -- [grid|urban-street] [ROTATIONS]
+//! cargo run --release -p sim-sensor --example render_rate -- [grid|SHIPPED|SCENE_FILE] [ROTATIONS]
 //! ```
 //!
 //! `grid` (the default) is the benchmark's 4 x 4-block street grid (117,751 scatterers, 12
@@ -26,6 +26,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let rotations: u64 = args.next().map_or(Ok(3), |s| s.parse())?;
     let scene = if which == "grid" {
         Scene::from_toml_str("street-grid-100k", GRID)?
+    } else if which.contains('/') || which.contains('.') {
+        Scene::load(std::path::Path::new(&which))?
     } else {
         shipped::load(&which)?
     };

@@ -80,6 +80,12 @@ impl GridIndex {
         }
     }
 
+    /// Every point's index, cell by cell (cells row by row, a cell's points in their
+    /// order): the order [`Self::for_each_near`] visits them in.
+    pub fn cell_order(&self) -> &[u32] {
+        &self.entries
+    }
+
     /// The cell size actually used, metres.
     pub fn cell_m(&self) -> f64 {
         self.cell_m

@@ -37,6 +37,7 @@ pub mod server;
 pub mod settings;
 pub mod trajectory;
 pub mod truth;
+pub mod visits;
 
 pub use error::{ClientError, ReplayError, SceneError, SimError};
 pub use faults::{FaultScope, FaultSettings, Stall};

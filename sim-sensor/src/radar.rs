@@ -303,6 +303,21 @@ impl RadarParams {
     }
 }
 
+/// Nanoseconds from azimuth 0 to azimuth `index` at the radar's rate (exact integer maths).
+pub fn offset_ns(radar: &RadarParams, index: u64) -> u64 {
+    let per_s = u128::from(radar.azimuths) * u128::from(radar.rotation_mhz);
+    if per_s == 0 {
+        return 0;
+    }
+    let ns = u128::from(index) * 1_000_000_000_000 / per_s;
+    u64::try_from(ns).unwrap_or(u64::MAX)
+}
+
+/// Index of azimuth `index` within its rotation.
+pub fn azimuth_in_rotation(radar: &RadarParams, index: u64) -> u16 {
+    u16::try_from(index % u64::from(radar.azimuths.max(1))).unwrap_or(0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

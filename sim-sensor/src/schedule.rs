@@ -4,6 +4,10 @@ use serde::Deserialize;
 
 use crate::error::SceneError;
 
+/// The trajectory's integration step, nanoseconds (10 ms): the schedule's controls are
+/// sampled on this grid.
+pub const STEP_NS: u64 = 10_000_000;
+
 /// One keyframe: from `t_s` (seconds after the start) the vehicle is driven at
 /// `speed_mps` with steering `steer_rad`.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]

@@ -14,8 +14,7 @@ use crate::error::SimError;
 use crate::scene::{MotionSpec, Scene};
 use crate::schedule::ControlSchedule;
 
-/// Integration step, nanoseconds (10 ms).
-pub const STEP_NS: u64 = 10_000_000;
+pub use crate::schedule::STEP_NS;
 /// Grid steps between stored checkpoints (1 s).
 pub const CHECKPOINT_STEPS: u64 = 100;
 

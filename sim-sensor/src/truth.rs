@@ -19,8 +19,8 @@ use serde::{Deserialize, Serialize};
 use tokio_util::sync::CancellationToken;
 
 use crate::error::SimError;
+use crate::radar::azimuth_in_rotation;
 use crate::radar::RadarParams;
-use crate::render::azimuth_in_rotation;
 use crate::scene::{FeatureKind, MotionSpec};
 use crate::server::world::World;
 

@@ -1,9 +1,9 @@
 //! The shipped city scenes (`city-drive`, `repeated-blocks`): what issue 14's evaluation
 //! relies on, checked on the ground-truth trajectory the simulator integrates.
 
-use sim_sensor::scene::city::visits::{drive_samples, look_alikes, revisits, DriveSample};
 use sim_sensor::scene::city::CityLayout;
 use sim_sensor::scene::{shipped, Scene};
+use sim_sensor::visits::{drive_samples, look_alikes, revisits, DriveSample};
 
 fn load(name: &str) -> (Scene, CityLayout, Vec<DriveSample>) {
     let scene = shipped::load(name).expect("shipped scene");

@@ -25,9 +25,9 @@
 //! makes less what it hides.
 
 use sim_sensor::realism::calibrate::{default_oxford_dir, load_polar_dir};
-use sim_sensor::realism::render_scans;
 use sim_sensor::realism::stats::Scans;
 use sim_sensor::realism::{ObjectKind, ObjectSpec};
+use sim_sensor::render::render_scans;
 use sim_sensor::scene::{shipped, Scene};
 use slam_node::detect::{
     BeamDetector, DetectorKind, DetectorSettings, LearnedFloor, LineDetector, LineSettings,

@@ -2,7 +2,8 @@
 //!
 //! The command is `cargo run --release -p sim-sensor --example calibrate` (reads
 //! `../shared/data/oxford-radar-robotcar/radar/*.png` unless given a folder); it prints every
-//! fitted value and the `FITTED_*` constants below are copied from its output. What it fits:
+//! fitted value, and the `FITTED_*` constants (kept with the settings in
+//! [`crate::scene::realism_spec`], re-exported here) are copied from its output. What it fits:
 //!
 //! 1. The output scale: the real unit's low levels take only the 8-bit values 0, 6, 9, 12,
 //!    14, 15, 17, 18, 19, 20 ... = `round(c 20 log10 k)` for integer power `k`; `c` is the
@@ -26,46 +27,11 @@ use statrs::distribution::{ContinuousCDF, Gamma};
 use super::stats::{BandStats, Scans};
 use crate::error::ReplayError;
 use crate::replay::png::read_polar_png;
-
-/// Fitted floor mean per range, `(range_m, mean)` in integer power units.
-pub const FITTED_FLOOR_MEAN: &[(f64, f64)] = &[
-    (0.25, 29.395),
-    (0.75, 64.905),
-    (1.25, 11.139),
-    (1.75, 11.139),
-    (2.50, 4.306),
-    (3.50, 2.331),
-    (4.50, 2.956),
-    (6.25, 3.015),
-    (8.75, 3.015),
-    (12.50, 3.675),
-    (17.50, 3.603),
-    (25.00, 3.463),
-    (37.50, 3.748),
-    (52.50, 3.603),
-    (70.00, 3.395),
-    (90.00, 3.137),
-    (115.00, 2.731),
-    (147.50, 2.523),
-];
-/// Fitted shape of the floor's gamma distribution.
-pub const FITTED_FLOOR_SHAPE: f64 = 1.50;
-/// Fitted output scale `c` (`dB = c 10 log10 k`).
-pub const FITTED_LOG_SCALE: f64 = 0.9860;
-/// Largest level observed, dB.
-pub const FITTED_SATURATION_DB: f64 = 68.0;
-/// Range width (FWHM) of the kernel, metres, fitted so that the simulated street's median
-/// peak width matches the real one.
-pub const FITTED_RANGE_FWHM_M: f64 = 0.340;
-/// Two-way azimuth width (FWHM) of the antenna pattern, degrees, fitted likewise.
-pub const FITTED_BEAM_FWHM_DEG: f64 = 1.46;
-/// Wire level of a 1 m^2 target at 10 m, dB.
-pub const FITTED_SIGNAL_GAIN_DB: f64 = 62.20;
-/// Net slope of a fixed target's level with range, dB per decade.
-pub const FITTED_SIGNAL_SLOPE_DB_PER_DECADE: f64 = -17.54;
-
-/// Corner of the receiver's near-range high-pass filter, metres.
-pub const FITTED_HIGHPASS_M: f64 = 15.0;
+pub use crate::scene::realism_spec::{
+    FITTED_BEAM_FWHM_DEG, FITTED_FLOOR_MEAN, FITTED_FLOOR_SHAPE, FITTED_HIGHPASS_M,
+    FITTED_LOG_SCALE, FITTED_RANGE_FWHM_M, FITTED_SATURATION_DB, FITTED_SIGNAL_GAIN_DB,
+    FITTED_SIGNAL_SLOPE_DB_PER_DECADE,
+};
 
 /// Range bands of the floor fit, metres.
 pub const FLOOR_BAND_EDGES_M: [f64; 19] = [

@@ -1,5 +1,5 @@
-//! Extended and distributed objects (the scene's `[[objects]]`) and their expansion into
-//! scatterers and occluding outlines.
+//! The expansion of the scene's extended and distributed objects (`[[objects]]`, described
+//! in [`crate::scene::objects`]) into scatterers and occluding outlines.
 //!
 //! Every object becomes many point scatterers along its extent (surfaces) or through its
 //! volume (foliage), each with:
@@ -20,16 +20,17 @@
 //! `rho x 200 m^2`, radar-model's calibration of eq. 13) with a small disk outline of
 //! transmission `tau = 1 - rho - alpha`.
 
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
-use serde::Deserialize;
-
 use crate::error::SceneError;
 use crate::index::GridIndex;
+use crate::scene::objects::{ObjectKind, ObjectSpec};
 use crate::scene::{Feature, FeatureKind};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
 /// Largest number of scatterers one scene may expand into.
 pub const MAX_SCATTERERS: usize = 2_000_000;
+/// Cell size of the grid over the static scatterers, metres.
+const SCATTERER_CELL_M: f64 = 10.0;
 /// Largest number of objects one scene may hold.
 pub const MAX_OBJECTS: usize = 200_000;
 /// Transmission of an opaque outline (not exactly zero so logarithms stay finite).
@@ -39,129 +40,6 @@ pub const OPAQUE_TAU: f32 = 1e-6;
 pub const SPECULAR_LOBE_RAD: f64 = 0.035;
 /// Radar cross section per unit of a point feature's `rho` (radar-model's `A_I`), m^2.
 pub const AREA_PER_RHO_M2: f64 = 200.0;
-
-/// What an object is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum ObjectKind {
-    /// A building's front (brick, concrete, glass): opaque, strong, a mirror. `from`, `to`.
-    BuildingFront,
-    /// A garden or boundary wall: opaque, a mirror. `from`, `to`.
-    Wall,
-    /// A wooden fence: weak, mostly transparent. `from`, `to`.
-    Fence,
-    /// A hedge: foliage through `depth_m` either side of `from`-`to`, partly transparent.
-    Hedge,
-    /// A vehicle: a metal box `length_m` x `width_m` about `at`, heading `heading_deg`,
-    /// moving at `speed_mps` along its heading when that is not zero.
-    Vehicle,
-    /// A tree: a trunk at `at` and a crown of radius `radius_m` around it.
-    Tree,
-    /// Foliage alone (a crown whose trunk is a point feature): scatterers through a disk of
-    /// radius `radius_m` about `at`, partly transparent.
-    Foliage,
-    /// A metal pole (lamp post, sign): one strong scatterer at `at`.
-    Pole,
-    /// Distributed clutter (ground, kerbs, railings, bins, back gardens): weak isotropic
-    /// scatterers (log-normal cross sections about 0.02 m^2 times `rcs_scale`) scattered
-    /// uniformly at `density_per_m2` over the rectangle with corners `from` and `to`.
-    Clutter,
-}
-
-impl ObjectKind {
-    /// The kind's name in scene files.
-    pub fn name(self) -> &'static str {
-        match self {
-            ObjectKind::BuildingFront => "building-front",
-            ObjectKind::Wall => "wall",
-            ObjectKind::Fence => "fence",
-            ObjectKind::Hedge => "hedge",
-            ObjectKind::Vehicle => "vehicle",
-            ObjectKind::Tree => "tree",
-            ObjectKind::Foliage => "foliage",
-            ObjectKind::Pole => "pole",
-            ObjectKind::Clutter => "clutter",
-        }
-    }
-}
-
-/// One object as the scene file gives it.
-#[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct ObjectSpec {
-    /// What it is.
-    pub kind: ObjectKind,
-    /// Start of a line object (building front, wall, fence, hedge).
-    #[serde(default)]
-    pub from: Option<[f64; 2]>,
-    /// End of a line object.
-    #[serde(default)]
-    pub to: Option<[f64; 2]>,
-    /// Position of a vehicle's centre, a tree's trunk or a pole.
-    #[serde(default)]
-    pub at: Option<[f64; 2]>,
-    /// A vehicle's heading, degrees counter-clockwise from +x.
-    #[serde(default)]
-    pub heading_deg: f64,
-    /// A vehicle's length (default 4.5 m).
-    #[serde(default)]
-    pub length_m: Option<f64>,
-    /// A vehicle's width (default 1.8 m).
-    #[serde(default)]
-    pub width_m: Option<f64>,
-    /// A tree's crown radius (default 2.0 m).
-    #[serde(default)]
-    pub radius_m: Option<f64>,
-    /// A hedge's depth (default 1.0 m).
-    #[serde(default)]
-    pub depth_m: Option<f64>,
-    /// A vehicle's speed along its heading (m/s); 0 = parked.
-    #[serde(default)]
-    pub speed_mps: f64,
-    /// A moving vehicle goes back to `at` after this distance (default 400 m).
-    #[serde(default)]
-    pub travel_m: Option<f64>,
-    /// Multiplies every scatterer's cross section (default 1).
-    #[serde(default)]
-    pub rcs_scale: Option<f64>,
-    /// One-way power transmission of one crossing of the outline (default: the kind's).
-    #[serde(default)]
-    pub transmission: Option<f64>,
-    /// Clutter scatterers per square metre (default 0.05).
-    #[serde(default)]
-    pub density_per_m2: Option<f64>,
-}
-
-impl ObjectSpec {
-    /// An object of `kind` with every optional field unset (the kind's defaults apply).
-    pub fn of_kind(kind: ObjectKind) -> ObjectSpec {
-        ObjectSpec {
-            kind,
-            from: None,
-            to: None,
-            at: None,
-            heading_deg: 0.0,
-            length_m: None,
-            width_m: None,
-            radius_m: None,
-            depth_m: None,
-            speed_mps: 0.0,
-            travel_m: None,
-            rcs_scale: None,
-            transmission: None,
-            density_per_m2: None,
-        }
-    }
-
-    /// A straight object of `kind` from `from` to `to`.
-    pub fn segment(kind: ObjectKind, from: [f64; 2], to: [f64; 2]) -> ObjectSpec {
-        ObjectSpec {
-            from: Some(from),
-            to: Some(to),
-            ..ObjectSpec::of_kind(kind)
-        }
-    }
-}
 
 /// How a scatterer's power fluctuates between looks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -339,7 +217,7 @@ impl Mover {
 /// the static ones.
 #[derive(Debug, Clone)]
 pub struct World {
-    /// Every scatterer (static first, then movers').
+    /// Every scatterer: the static ones in their grid's cell order, then the movers'.
     pub scatterers: Vec<Scatterer>,
     /// Every outline.
     pub outlines: Vec<Outline>,
@@ -746,18 +624,24 @@ impl World {
 
     fn index(scatterers: Vec<Scatterer>, outlines: Vec<Outline>, movers: Vec<Mover>) -> World {
         let to_u32 = |i: usize| u32::try_from(i).unwrap_or(u32::MAX);
-        let static_scatterers: Vec<u32> = (0..scatterers.len())
-            .filter(|&i| scatterers[i].mover == u32::MAX)
-            .map(to_u32)
-            .collect();
-        let moving_scatterers = (0..scatterers.len())
-            .filter(|&i| scatterers[i].mover != u32::MAX)
-            .map(to_u32)
-            .collect();
-        let positions: Vec<[f64; 2]> = static_scatterers
+        // The static scatterers are stored in the grid's cell order (then the movers'), so
+        // that a rotation's gather reads them from memory nearly in sequence. A grid cell
+        // keeps its points in their order, so the gather visits the same scatterers in the
+        // same order as over the unsorted list.
+        let (statics, moving): (Vec<Scatterer>, Vec<Scatterer>) =
+            scatterers.into_iter().partition(|s| s.mover == u32::MAX);
+        let positions: Vec<[f64; 2]> = statics.iter().map(|s| s.pos).collect();
+        let sorting = GridIndex::new(&positions, SCATTERER_CELL_M);
+        let mut scatterers: Vec<Scatterer> = sorting
+            .cell_order()
             .iter()
-            .map(|&i| scatterers[i as usize].pos)
+            .filter_map(|&i| statics.get(i as usize).copied())
             .collect();
+        let static_count = scatterers.len();
+        scatterers.extend(moving);
+        let static_scatterers: Vec<u32> = (0..static_count).map(to_u32).collect();
+        let moving_scatterers = (static_count..scatterers.len()).map(to_u32).collect();
+        let positions: Vec<[f64; 2]> = scatterers[..static_count].iter().map(|s| s.pos).collect();
         let static_outlines: Vec<u32> = (0..outlines.len())
             .filter(|&i| outlines[i].mover == u32::MAX)
             .map(to_u32)
@@ -775,7 +659,7 @@ impl World {
             .map(|&i| outlines[i as usize].shape.centre_and_reach().0)
             .collect();
         World {
-            scatterer_grid: GridIndex::new(&positions, 10.0),
+            scatterer_grid: GridIndex::new(&positions, SCATTERER_CELL_M),
             outline_grid: GridIndex::new(&centres, 10.0),
             scatterers,
             outlines,

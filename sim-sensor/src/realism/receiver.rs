@@ -30,9 +30,8 @@
 use protocol::units::{db_to_bin16, db_to_bin8};
 use statrs::distribution::{ContinuousCDF, Gamma, Normal};
 
-use super::RangeWindow;
-use super::RealismSpec;
 use crate::error::SceneError;
+use crate::scene::realism_spec::{RangeWindow, RealismSpec};
 
 /// Samples of the window used for its spectrum.
 const WINDOW_TAPS: usize = 256;

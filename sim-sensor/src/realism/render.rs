@@ -42,10 +42,9 @@ use radar_model::geometry::{wrap_angle, Pose2};
 
 use super::objects::{Mover, Shape, Swerling, World, SPECULAR_LOBE_RAD};
 use super::receiver::{Receiver, COPULA_REACH, DB_TABLE, FLOOR_QUANTILES, NEGLIGIBLE_POWER};
-use super::RealismSpec;
 use crate::error::{SceneError, SimError};
-use crate::radar::RadarParams;
-use crate::render::azimuth_in_rotation;
+use crate::radar::{azimuth_in_rotation, offset_ns, RadarParams};
+use crate::scene::realism_spec::RealismSpec;
 use crate::trajectory::{Trajectory, TrajectoryCursor};
 
 /// Cells of the polar transmission buffer (0.088 degrees each).
@@ -533,7 +532,7 @@ impl RealisticCursor {
         if self.rotation != Some(rotation) {
             self.prepare_rotation(model, trajectory, cursor, radar, seed, rotation)?;
         }
-        let offset_ns = crate::render::offset_ns(radar, index);
+        let offset_ns = offset_ns(radar, index);
         let pose = trajectory.pose_with(cursor, offset_ns)?;
         let dt = offset_ns as f64 * 1e-9 - self.mid_offset_s;
         let bearing =
@@ -763,7 +762,7 @@ impl RealisticCursor {
     ) -> Result<(), SimError> {
         let n = u64::from(radar.azimuths.max(1));
         let first = rotation.saturating_mul(n);
-        let mid_ns = crate::render::offset_ns(radar, first + n / 2);
+        let mid_ns = offset_ns(radar, first + n / 2);
         let mid = trajectory.pose_with(cursor, mid_ns)?;
         let mid_t = mid_ns as f64 * 1e-9;
         self.mid_offset_s = mid_t;
@@ -772,7 +771,7 @@ impl RealisticCursor {
         let mut speed_mps: f64 = 0.0;
         for s in 0..=MOTION_SAMPLES {
             let k = first + n.saturating_sub(1) * s / MOTION_SAMPLES;
-            let offset_ns = crate::render::offset_ns(radar, k);
+            let offset_ns = offset_ns(radar, k);
             let p = trajectory.pose_with(cursor, offset_ns)?;
             travel_m = travel_m.max((p.x - mid.x).hypot(p.y - mid.y));
             turn_rad = turn_rad.max(wrap_angle(p.theta - mid.theta).abs());
@@ -950,6 +949,30 @@ impl RealisticCursor {
             if r > reach || r < 1e-3 {
                 continue;
             }
+            let world_angle = atan2_fast(dy, dx);
+            // Hidden: what the outlines in front let through cannot lift even the largest
+            // cross section this scatterer can show (incidence, elevation and a steady
+            // draw all at most 1) to a deposit that matters, so it is dropped exactly
+            // where the test below would drop it; the walk along the outlines stops as
+            // soon as that is certain. Scatterers drawn once a rotation (Swerling 1 and 3)
+            // still take their draw, so every later draw is the one it was.
+            let vis = if spec.occlusion {
+                let steady =
+                    !spec.speckle || !matches!(s.swerling, Swerling::One | Swerling::Three);
+                let largest = 2.0 * (s.diffuse_m2 + s.specular_m2) * max_gain * 9.0;
+                let floor = if steady && largest > 0.0 {
+                    NEGLIGIBLE_POWER / largest
+                } else {
+                    0.0
+                };
+                match self.transmission_above(cell_of(world_angle), r, s.outline, floor) {
+                    Some(t) => t,
+                    None if steady => continue,
+                    None => 0.0,
+                }
+            } else {
+                1.0
+            };
             let mut sigma = f64::from(s.diffuse_m2);
             if normal != [0.0, 0.0] {
                 let cos_i = ((normal[0] * dx + normal[1] * dy) / r).abs().min(1.0);
@@ -961,12 +984,6 @@ impl RealisticCursor {
                 }
             }
             sigma *= f64::from(model.elevation.gain(s.drop_m, r));
-            let world_angle = atan2_fast(dy, dx);
-            let vis = if spec.occlusion {
-                self.transmission(cell_of(world_angle), r, s.outline)
-            } else {
-                1.0
-            };
             let (draw, per_look) = if !spec.speckle {
                 (1.0, 0)
             } else {
@@ -1142,9 +1159,31 @@ impl RealisticCursor {
         Ok(())
     }
 
-    /// Two-way transmission to range `r` in `cell` through every outline but `own`.
-    fn transmission(&self, cell: usize, r: f64, own: u32) -> f32 {
-        self.transmission_but(cell, r, [own, own])
+    /// Two-way transmission to range `r` in `cell` through every outline but `own`, or
+    /// `None` as soon as it is certain to fall below `floor` (0: never). When it is `Some`,
+    /// it is exactly [`Self::transmission_but`]'s figure.
+    fn transmission_above(&self, cell: usize, r: f64, own: u32, floor: f32) -> Option<f32> {
+        let (Some(&lo), Some(&hi)) = (self.cell_starts.get(cell), self.cell_starts.get(cell + 1))
+        else {
+            return Some(1.0);
+        };
+        let mut t = 1.0f32;
+        for c in self
+            .crossings
+            .get(lo as usize..hi as usize)
+            .unwrap_or_default()
+        {
+            if f64::from(c.range) >= r - SELF_MARGIN_M {
+                break;
+            }
+            if c.outline != own {
+                t *= c.tau;
+                if t * t < floor {
+                    return None;
+                }
+            }
+        }
+        Some(t * t)
     }
 
     /// [`Self::transmission`] leaving out two outlines (a ghost's mirror and source).

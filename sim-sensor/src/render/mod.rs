@@ -27,6 +27,7 @@ use radar_model::spectrum::{
 
 use crate::error::SimError;
 use crate::index::GridIndex;
+pub use crate::radar::{azimuth_in_rotation, offset_ns};
 use crate::radar::{DataWidth, RadarParams};
 use crate::realism::objects::World;
 use crate::realism::render::{RealisticCursor, RealisticModel};
@@ -35,6 +36,9 @@ use crate::trajectory::{Trajectory, TrajectoryCursor};
 
 pub mod beams;
 mod occlusion;
+mod scans;
+
+pub use scans::render_scans;
 
 use beams::BeamSelector;
 
@@ -226,16 +230,6 @@ impl SceneRenderer {
     }
 }
 
-/// Nanoseconds from azimuth 0 to azimuth `index` at the radar's rate (exact integer maths).
-pub fn offset_ns(radar: &RadarParams, index: u64) -> u64 {
-    let per_s = u128::from(radar.azimuths) * u128::from(radar.rotation_mhz);
-    if per_s == 0 {
-        return 0;
-    }
-    let ns = u128::from(index) * 1_000_000_000_000 / per_s;
-    u64::try_from(ns).unwrap_or(u64::MAX)
-}
-
 /// What [`RenderCursor::render`] produced.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Rendered {
@@ -401,11 +395,6 @@ impl RenderCursor {
             None => &self.power_db,
         }
     }
-}
-
-/// Index of azimuth `index` within its rotation.
-pub fn azimuth_in_rotation(radar: &RadarParams, index: u64) -> u16 {
-    u16::try_from(index % u64::from(radar.azimuths.max(1))).unwrap_or(0)
 }
 
 #[cfg(test)]

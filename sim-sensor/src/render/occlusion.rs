@@ -5,7 +5,7 @@
 //! visibility; features exactly on an outline are not hidden by it.
 
 use crate::index::GridIndex;
-use crate::realism::{ObjectKind, ObjectSpec};
+use crate::scene::objects::{ObjectKind, ObjectSpec};
 
 /// The opaque segments of a scene, indexed by their midpoints.
 #[derive(Debug, Clone)]

@@ -7,8 +7,11 @@
 
 pub mod city;
 pub mod kinds;
+pub mod objects;
 mod parse;
+pub mod realism_spec;
 pub mod shipped;
+pub mod street;
 
 use std::path::Path;
 
@@ -155,11 +158,11 @@ pub struct Scene {
     pub features: Vec<Feature>,
     /// The realistic renderer's settings (`[realism]`); `None` renders point targets with
     /// radar-model's synthesis, as the project's figures were made.
-    pub realism: Option<crate::realism::RealismSpec>,
+    pub realism: Option<realism_spec::RealismSpec>,
     /// Extended objects (`[[objects]]` and the `[street]` generator's), drawn only by the
     /// realistic renderer; the `[city]` generator's building fronts, which the point-target
     /// renderer uses as occluders.
-    pub objects: Vec<crate::realism::ObjectSpec>,
+    pub objects: Vec<objects::ObjectSpec>,
     /// The `[city]` generator's geometry (streets, route, drive length and duration).
     pub city: Option<city::CityLayout>,
 }

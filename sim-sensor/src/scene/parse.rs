@@ -4,10 +4,12 @@
 use serde::Deserialize;
 
 use super::city::CitySpec;
+use super::objects::ObjectSpec;
+use super::realism_spec::RealismSpec;
+use super::street::StreetSpec;
 use super::{Feature, FeatureKind, MotionSpec, NoiseSpec, ReceiverSpec, Scene, MAX_FEATURES};
 use crate::error::SceneError;
 use crate::radar::{DataWidth, RadarParams, RadarPreset};
-use crate::realism::{ObjectSpec, RealismSpec, StreetSpec};
 use crate::schedule::{ControlKey, ControlSchedule, Interpolation};
 
 #[derive(Debug, Deserialize)]
@@ -299,11 +301,26 @@ impl RawScene {
         let city = match &self.city {
             None => None,
             Some(spec) => {
-                if self.realism.is_some() || self.street.is_some() {
+                if self.street.is_some() {
                     return Err(invalid(
                         "city".into(),
-                        "[city] renders with the point-target renderer: remove [realism] and [street]",
+                        "[city] makes its own streets: remove [street]",
                     ));
+                }
+                match (self.realism.is_some(), spec.dressing.is_some()) {
+                    (true, false) => {
+                        return Err(invalid(
+                            "city".into(),
+                            "[city] with [realism] is the realistic city: add [city.dressing] (or remove [realism] for the point-landmark city)",
+                        ))
+                    }
+                    (false, true) => {
+                        return Err(invalid(
+                            "city.dressing".into(),
+                            "the dressed city renders only with the realistic renderer: add [realism]",
+                        ))
+                    }
+                    _ => {}
                 }
                 if !self.control.is_empty() {
                     return Err(invalid(
@@ -446,6 +463,23 @@ impl RawScene {
                     kind,
                     x_m: landmark.x_m,
                     y_m: landmark.y_m,
+                    rho,
+                    alpha,
+                });
+            }
+            if features.len() > MAX_FEATURES {
+                return Err(invalid(
+                    "city".into(),
+                    format!("the scene expands to more than {MAX_FEATURES} features"),
+                ));
+            }
+            for (kind, x, y) in city.features {
+                let (rho, alpha) = kind.default_material();
+                features.push(Feature {
+                    id: 0,
+                    kind,
+                    x_m: x,
+                    y_m: y,
                     rho,
                     alpha,
                 });

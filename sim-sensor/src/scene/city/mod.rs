@@ -35,19 +35,27 @@
 //! every block draws the same pattern (a block's draws are seeded by the layout seed alone,
 //! not by its position): identical blocks on a regular grid, to tempt wrong loop closures.
 //!
+//! With the scene's `[realism]` and a `[city.dressing]` table the same grid and route are the
+//! realistic city: the blocks and streets are lined as the street generator lines its street
+//! ([`dressing`]) instead of the landmark table above. [`returns`] finds where a route comes
+//! back to streets it drove, from the layout alone.
+//!
 //! IO: none.
 
+pub mod dressing;
+pub mod returns;
 pub mod route;
-pub mod visits;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
 use crate::error::SceneError;
-use crate::realism::{ObjectKind, ObjectSpec};
+use crate::scene::objects::{ObjectKind, ObjectSpec};
 use crate::scene::FeatureKind;
 use crate::schedule::ControlKey;
+
+pub use dressing::DressingSpec;
 
 /// Most blocks along either axis.
 pub const MAX_BLOCKS: u32 = 64;
@@ -107,6 +115,11 @@ pub struct CitySpec {
     pub steer_rate_rad_s: f64,
     /// Time between control keyframes, seconds (a multiple of the 10 ms integration step).
     pub control_step_s: f64,
+    /// The realistic city (`[city.dressing]`, needs the scene's `[realism]`): the blocks
+    /// and streets lined as the street generator lines them ([`dressing`]) instead of the
+    /// point-landmark table above (`kerb_spacing_m`, `corner_spacing_m`, `min_spacing_m`,
+    /// `repeated` and `buildings` are then unused).
+    pub dressing: Option<DressingSpec>,
 }
 
 impl Default for CitySpec {
@@ -134,6 +147,7 @@ impl Default for CitySpec {
             max_steer_rad: 0.6,
             steer_rate_rad_s: 0.5,
             control_step_s: 0.1,
+            dressing: None,
         }
     }
 }
@@ -253,6 +267,9 @@ pub struct City {
     pub control: Vec<ControlKey>,
     /// The geometry.
     pub layout: CityLayout,
+    /// The realistic city's point features (lamp posts and tree trunks, with their kinds'
+    /// default materials); empty without `dressing`.
+    pub features: Vec<(FeatureKind, f64, f64)>,
 }
 
 fn invalid(field: &str, reason: String) -> SceneError {
@@ -398,6 +415,45 @@ impl CitySpec {
     pub fn generate(&self, wheelbase_m: f64) -> Result<City, SceneError> {
         self.validate()?;
         let corners = route::parse_route(self)?;
+        let [px, py] = self.pitch_m();
+        let (landmarks, objects, features) = match &self.dressing {
+            Some(dressing) => {
+                let dressed = dressing.dress(self)?;
+                (Vec::new(), dressed.objects, dressed.features)
+            }
+            None => {
+                let (landmarks, objects) = self.landmark_table();
+                (landmarks, objects, Vec::new())
+            }
+        };
+        let drive = route::drive(self, &corners, wheelbase_m)?;
+        let route_length_m = corners
+            .windows(2)
+            .map(|w| (w[1][0] - w[0][0]).abs() + (w[1][1] - w[0][1]).abs())
+            .sum();
+        Ok(City {
+            landmarks,
+            objects,
+            start: drive.start,
+            control: drive.keys,
+            layout: CityLayout {
+                blocks: [self.blocks_x, self.blocks_y],
+                pitch_m: [px, py],
+                carriageway_half_m: self.carriageway_half_m,
+                pavement_m: self.pavement_m,
+                repeated: self.repeated,
+                route_corners: corners,
+                route_length_m,
+                path_length_m: drive.path_length_m,
+                drive_duration_s: drive.duration_s,
+            },
+            features,
+        })
+    }
+
+    /// The point-landmark city: every block's landmarks (see the module table) and, with
+    /// `buildings`, its four fronts.
+    fn landmark_table(&self) -> (Vec<Landmark>, Vec<ObjectSpec>) {
         let mut landmarks = Vec::new();
         let mut objects = Vec::new();
         let mut spacing = Spacing::new(self.min_spacing_m);
@@ -426,28 +482,7 @@ impl CitySpec {
                 }
             }
         }
-        let drive = route::drive(self, &corners, wheelbase_m)?;
-        let route_length_m = corners
-            .windows(2)
-            .map(|w| (w[1][0] - w[0][0]).abs() + (w[1][1] - w[0][1]).abs())
-            .sum();
-        Ok(City {
-            landmarks,
-            objects,
-            start: drive.start,
-            control: drive.keys,
-            layout: CityLayout {
-                blocks: [self.blocks_x, self.blocks_y],
-                pitch_m: [px, py],
-                carriageway_half_m: self.carriageway_half_m,
-                pavement_m: self.pavement_m,
-                repeated: self.repeated,
-                route_corners: corners,
-                route_length_m,
-                path_length_m: drive.path_length_m,
-                drive_duration_s: drive.duration_s,
-            },
-        })
+        (landmarks, objects)
     }
 
     /// One block's landmarks: its building corners, then round its four sides (counter-

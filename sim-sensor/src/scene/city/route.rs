@@ -24,8 +24,7 @@ use radar_model::motion::{ControlInput, MotionModel};
 
 use super::{invalid, CitySpec};
 use crate::error::SceneError;
-use crate::schedule::ControlKey;
-use crate::trajectory::STEP_NS;
+use crate::schedule::{ControlKey, STEP_NS};
 
 /// Settling distance of the steering feedback, metres.
 const SETTLE_M: f64 = 6.0;

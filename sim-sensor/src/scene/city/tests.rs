@@ -220,3 +220,34 @@ fn buildings_hide_the_landmarks_behind_them_from_the_point_target_renderer() {
         assert!(off_street <= 8.5, "{f:?} seen through a building");
     }
 }
+
+#[test]
+fn the_realistic_city_needs_realism_and_dressing_together_and_names_a_bad_dressing_value() {
+    let base = r#"
+        [motion]
+        model = "bicycle"
+        wheelbase_m = 2.7
+        [city]
+        blocks_x = 2
+        blocks_y = 2
+        route = ["E1"]
+    "#;
+    let err = Scene::from_toml_str("x", &format!("[realism]\n{base}")).expect_err("no dressing");
+    assert!(err.to_string().contains("city.dressing"), "{err}");
+    let err =
+        Scene::from_toml_str("x", &format!("{base}[city.dressing]\n")).expect_err("no realism");
+    assert!(err.to_string().contains("city.dressing"), "{err}");
+    let err = Scene::from_toml_str(
+        "x",
+        &format!("[realism]\n{base}[city.dressing]\nparked_fraction = 1.5\n"),
+    )
+    .expect_err("out of range");
+    assert!(
+        err.to_string().contains("city.dressing.parked_fraction"),
+        "{err}"
+    );
+    let scene = Scene::from_toml_str("x", &format!("[realism]\n{base}[city.dressing]\n"))
+        .expect("a small realistic city");
+    assert!(scene.objects.len() > 50 && !scene.features.is_empty());
+    assert!(scene.realism.is_some() && scene.city.is_some());
+}

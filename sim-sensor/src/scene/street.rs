@@ -14,8 +14,8 @@ use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 
 use super::objects::{ObjectKind, ObjectSpec};
+use super::FeatureKind;
 use crate::error::SceneError;
-use crate::scene::FeatureKind;
 
 /// The generator's settings.
 #[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
@@ -148,6 +148,20 @@ impl StreetSpec {
         Ok(())
     }
 
+    /// How the generator lines each block side.
+    fn side_style(&self) -> SideStyle {
+        SideStyle {
+            pavement_m: self.pavement_m,
+            setback_max_m: self.setback_max_m,
+            gap_probability: self.gap_probability,
+            hedge_probability: self.hedge_probability,
+            fence_probability: 0.0,
+            tree_spacing_m: self.tree_spacing_m,
+            pole_spacing_m: self.pole_spacing_m,
+            parked_fraction: self.parked_fraction,
+        }
+    }
+
     /// Generates the grid.
     pub fn generate(&self) -> Result<Street, SceneError> {
         self.validate()?;
@@ -173,7 +187,8 @@ impl StreetSpec {
                     out.objects.push(c);
                 }
                 for k in 0..4 {
-                    self.block_side(&mut rng, corners[k], corners[(k + 1) % 4], &mut out);
+                    self.side_style()
+                        .dress(&mut rng, corners[k], corners[(k + 1) % 4], &mut out);
                 }
             }
         }
@@ -227,15 +242,48 @@ impl StreetSpec {
         }
         Ok(out)
     }
+}
 
-    /// One block side from `a` to `b` (counter-clockwise round the block: the street lies
-    /// to the right).
-    fn block_side(&self, rng: &mut ChaCha8Rng, a: [f64; 2], b: [f64; 2], out: &mut Street) {
+/// How one block side is lined: the street generator's, and the realistic city's
+/// (`[city.dressing]`), which adds fences.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SideStyle {
+    /// Kerb to building line, metres.
+    pub pavement_m: f64,
+    /// Largest set-back of a front behind the building line, metres.
+    pub setback_max_m: f64,
+    /// Probability of a gap after a front.
+    pub gap_probability: f64,
+    /// Probability of a hedge before a front set back more than 1.2 m.
+    pub hedge_probability: f64,
+    /// Probability of a fence on the building line before a front set back more than 1.2 m
+    /// without a hedge, and across a gap (0: none, and no random draw for it, so the
+    /// street generator's layouts are what they were).
+    pub fence_probability: f64,
+    /// Mean distance between trees along the kerb, metres (0: none).
+    pub tree_spacing_m: f64,
+    /// Mean distance between poles along the kerb, metres (0: none).
+    pub pole_spacing_m: f64,
+    /// Share of 6 m kerb slots holding a parked vehicle.
+    pub parked_fraction: f64,
+}
+
+impl SideStyle {
+    /// Lines one block side from `a` to `b` (counter-clockwise round the block: the street
+    /// lies to the right): building fronts with set-backs and gaps, hedges and fences in
+    /// front of them, trees, poles and parked vehicles along the kerb.
+    pub fn dress(&self, rng: &mut ChaCha8Rng, a: [f64; 2], b: [f64; 2], out: &mut Street) {
         let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+        if len.is_nan() || len <= 0.0 {
+            return;
+        }
         let u = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
         // Outward (street side) normal: right of the direction of travel.
         let n = [u[1], -u[0]];
         let at = |s: f64, off: f64| [a[0] + s * u[0] + off * n[0], a[1] + s * u[1] + off * n[1]];
+        let fence = |rng: &mut ChaCha8Rng| {
+            self.fence_probability > 0.0 && rng.gen_bool(self.fence_probability)
+        };
         // Building fronts: the block edge is the building line; set back inwards.
         let mut s = rng.gen_range(0.0..3.0);
         while s < len - 2.0 {
@@ -251,10 +299,26 @@ impl StreetSpec {
                 h.to = Some(at(s + w - 0.5, -0.5));
                 h.depth_m = Some(0.8);
                 out.objects.push(h);
+            } else if back > 1.2 && fence(rng) {
+                out.objects.push(ObjectSpec::segment(
+                    ObjectKind::Fence,
+                    at(s + 0.2, -0.2),
+                    at(s + w - 0.2, -0.2),
+                ));
             }
             s += w;
             if rng.gen_bool(self.gap_probability) {
-                s += rng.gen_range(2.0..12.0);
+                let gap = rng.gen_range(2.0..12.0);
+                if fence(rng) {
+                    // A fence (or gate) across the drive, a little way in.
+                    let e = (s + gap).min(len);
+                    out.objects.push(ObjectSpec::segment(
+                        ObjectKind::Fence,
+                        at(s, -1.0),
+                        at(e, -1.0),
+                    ));
+                }
+                s += gap;
             }
         }
         // Along the kerb (pavement_m out from the building line).
