@@ -205,6 +205,8 @@ pub const MIN_IMAGE_SIZE_PX: i64 = 16;
 pub const MAX_IMAGE_SIZE_PX: i64 = 2048;
 /// The radar image's half-width, whole metres: at most this.
 pub const MAX_IMAGE_RANGE_M: i64 = 10_000;
+/// The longest wait for a subscriber, seconds.
+pub const MAX_WAIT_FOR_SUBSCRIBER_S: i64 = 3600;
 
 /// `[output.foxglove]` as written in the file.
 #[derive(Debug, Clone, PartialEq, Eq, Deserialize, Serialize)]
@@ -227,6 +229,10 @@ pub struct RawFoxglove {
     /// The radar image's half-width, whole metres (the radar at its centre), [1, 10000].
     /// Default 100.
     pub image_range_m: i64,
+    /// Hold the start of the run until a client subscribes to `/slam/pose`, at most this
+    /// many seconds, [0, 3600] (for demonstrations and tests of a fast simulated run; the
+    /// radar's data waits meanwhile). Default 0: start at once.
+    pub wait_for_subscriber_s: i64,
 }
 
 impl Default for RawFoxglove {
@@ -239,6 +245,7 @@ impl Default for RawFoxglove {
             max_clients: 8,
             image_size: 512,
             image_range_m: 100,
+            wait_for_subscriber_s: 0,
         }
     }
 }
@@ -260,6 +267,8 @@ pub struct FoxgloveSettings {
     pub image_size: u32,
     /// Radar image half-width, metres.
     pub image_range_m: u32,
+    /// Longest wait for a subscriber before the run starts, seconds (0: none).
+    pub wait_for_subscriber_s: u32,
 }
 
 impl Default for FoxgloveSettings {
@@ -323,6 +332,12 @@ impl RawFoxglove {
                     bounded(self.image_range_m, 1, MAX_IMAGE_RANGE_M),
                 )
                 .unwrap_or(100),
+            wait_for_subscriber_s: c
+                .check_ok(
+                    &format!("{table}.wait_for_subscriber_s"),
+                    bounded(self.wait_for_subscriber_s, 0, MAX_WAIT_FOR_SUBSCRIBER_S),
+                )
+                .unwrap_or(0),
         }
     }
 }
@@ -338,6 +353,7 @@ impl From<&FoxgloveSettings> for RawFoxglove {
             max_clients: crate::values::as_i64(s.max_clients.get()),
             image_size: i64::from(s.image_size),
             image_range_m: i64::from(s.image_range_m),
+            wait_for_subscriber_s: i64::from(s.wait_for_subscriber_s),
         }
     }
 }

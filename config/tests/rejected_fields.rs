@@ -182,6 +182,7 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[output.foxglove]\nmax_clients = 0", "output.foxglove.max_clients", "must be in [1, 64], got 0"),
     ("[output.foxglove]\nimage_size = 8", "output.foxglove.image_size", "must be in [16, 2048], got 8"),
     ("[output.foxglove]\nimage_range_m = 0", "output.foxglove.image_range_m", "must be in [1, 10000], got 0"),
+    ("[output.foxglove]\nwait_for_subscriber_s = -1", "output.foxglove.wait_for_subscriber_s", "must be in [0, 3600], got -1"),
     // [submaps]
     ("[submaps]\nmax_distance_m = 0.0", "submaps.max_distance_m", "got 0"),
     ("[submaps]\nmax_distance_m = -5.0", "submaps.max_distance_m", "got -5"),
