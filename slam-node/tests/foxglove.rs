@@ -31,7 +31,12 @@ struct Daemon {
 
 impl Daemon {
     fn start(out: &Path, duration_s: u32) -> Daemon {
+        Self::start_with(out, duration_s, &[])
+    }
+
+    fn start_with(out: &Path, duration_s: u32, extra: &[&str]) -> Daemon {
         let mut child = Command::new(env!("CARGO_BIN_EXE_slam-node"))
+            .args(extra)
             .args(["--fast", "--no-figures", "--progress-every", "0"])
             .args(["--duration", &duration_s.to_string()])
             .args(["--foxglove-bind", "127.0.0.1:0", "--foxglove-wait", "60"])
@@ -329,4 +334,42 @@ async fn hostile_clients_are_refused_or_ignored_and_counted() {
     assert!(count(&summary, "bad requests") >= 2, "{summary}");
     assert!(count(&summary, "cut off") >= 1, "{summary}");
     assert!(summary.contains("output events dropped 0"), "{summary}");
+}
+
+/// `--view` serves the embedded page and its script on the live view's address; the page's
+/// WebSocket is the same door.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_view_page_is_served_from_the_binary() {
+    let dir = tempfile::tempdir().unwrap();
+    let daemon = Daemon::start_with(dir.path(), 5, &["--view"]);
+    let address = daemon.address;
+    let run = async {
+        let page = raw_reply(address, b"GET / HTTP/1.1\r\nHost: x\r\n\r\n").await;
+        assert!(page.starts_with("HTTP/1.1 200"), "{page:?}");
+        assert!(
+            page.contains("text/html") && page.contains("<canvas id=\"radar\""),
+            "{page}"
+        );
+        let script = raw_reply(address, b"GET /view.js?v=1 HTTP/1.1\r\nHost: x\r\n\r\n").await;
+        assert!(
+            script.starts_with("HTTP/1.1 200"),
+            "{}",
+            &script[..script.len().min(200)]
+        );
+        assert!(script.contains("text/javascript") && script.contains("foxglove.sdk.v1"));
+        // Start the run (it waits for the pose's subscription) and read it to the end.
+        let mut ws = connect(address).await.unwrap();
+        let channels = advertised(&mut ws).await;
+        subscribe_all(&mut ws, &channels).await;
+        while let Some(Ok(msg)) = ws.next().await {
+            if matches!(msg, Message::Close(_)) {
+                break;
+            }
+        }
+    };
+    tokio::time::timeout(BOUND, run).await.expect("bounded");
+    let (summary, _log) = tokio::task::spawn_blocking(move || daemon.wait())
+        .await
+        .unwrap();
+    assert_eq!(count(&summary, "pages"), 2, "{summary}");
 }

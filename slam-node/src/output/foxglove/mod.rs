@@ -37,6 +37,8 @@ pub mod image;
 pub mod messages;
 #[cfg(feature = "foxglove")]
 mod publisher;
+#[cfg(feature = "foxglove")]
+pub mod view;
 
 #[cfg(feature = "foxglove")]
 pub use publisher::FoxglovePublisher;

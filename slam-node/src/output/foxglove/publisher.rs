@@ -238,7 +238,7 @@ fn serve(
         let gate = Gate {
             upstream: SocketAddr::from(([127, 0, 0, 1], server.port())),
             max_clients: out.settings.max_clients.get(),
-            assets: &[],
+            assets: if out.view { super::view::ASSETS } else { &[] },
             counters: Arc::clone(&counters),
         };
         runtime.spawn(gate.serve(door));
