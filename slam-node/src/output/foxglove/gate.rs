@@ -57,6 +57,13 @@ pub struct GateCounters {
     active: AtomicUsize,
 }
 
+impl GateCounters {
+    /// Connections being served now (WebSocket relays and requests being read).
+    pub fn active(&self) -> usize {
+        self.active.load(Ordering::Relaxed)
+    }
+}
+
 /// A file the door serves.
 #[derive(Debug, Clone, Copy)]
 pub struct Asset {

@@ -313,6 +313,9 @@ fn serve(
 /// Waits (at most [`LINGER_MAX`]) until nothing has been relayed to clients for
 /// [`LINGER_QUIET`]: what the SDK queued for them is on its way.
 fn linger(counters: &GateCounters) {
+    if counters.active() == 0 {
+        return;
+    }
     let start = Instant::now();
     let mut last = counters.bytes_sent.load(Ordering::Relaxed);
     let mut quiet_since = Instant::now();
@@ -469,11 +472,9 @@ impl Publisher {
         );
     }
 
-    /// Publishes the rotation in progress and the whole online trajectory.
+    /// Publishes the whole online trajectory (the rotation in progress is not drawn: the
+    /// last image stays the last complete rotation).
     fn flush(&mut self) {
-        if let Some(img) = self.image.finish() {
-            self.publish_image(img);
-        }
         if self
             .poses
             .last()

@@ -19,6 +19,12 @@ pub const ASSETS: &[Asset] = &[
         content_type: "text/html; charset=utf-8",
         body: include_bytes!("view/index.html"),
     },
+    // Browsers ask for it; an empty answer rather than a 404 counted as a bad request.
+    Asset {
+        path: "/favicon.ico",
+        content_type: "image/x-icon",
+        body: b"",
+    },
     Asset {
         path: "/view.js",
         content_type: "text/javascript; charset=utf-8",
