@@ -252,7 +252,7 @@ async fn hostile_clients_are_refused_or_ignored_and_counted() {
         // status and otherwise ignored.
         let mut ws = connect_retrying(address).await;
         let channels = advertised(&mut ws).await;
-        let unknown = serde_json::json!({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": 999_999}, {"id": 2, "channelId": 0}]});
+        let unknown = serde_json::json!({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": 999_999}, {"id": 2, "channelId": 888_888}]});
         ws.send(Message::text(unknown.to_string())).await.unwrap();
         let mut answered = false;
         while let Ok(Some(Ok(msg))) = tokio::time::timeout(Duration::from_secs(5), ws.next()).await
@@ -333,6 +333,7 @@ async fn hostile_clients_are_refused_or_ignored_and_counted() {
     assert!(count(&summary, "refused (too many)") >= 92, "{summary}");
     assert!(count(&summary, "bad requests") >= 2, "{summary}");
     assert!(count(&summary, "cut off") >= 1, "{summary}");
+    assert_eq!(count(&summary, "to unknown channels"), 2, "{summary}");
     assert!(summary.contains("output events dropped 0"), "{summary}");
 }
 

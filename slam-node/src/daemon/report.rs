@@ -716,7 +716,7 @@ impl fmt::Display for FoxglovePublishing<'_> {
         let address = s.address.map_or("-".into(), |a| a.to_string());
         writeln!(
             f,
-            "  Foxglove at ws://{address}: {} messages on {} channels to subscribers, {:.1} kB/s sent over {:.1} s; {} events dropped (queue full), {} azimuths not drawn; {} connections, {} subscriptions, {} refused (too many), {} bad requests, {} cut off (sending too much), {} pages",
+            "  Foxglove at ws://{address}: {} messages on {} channels to subscribers, {:.1} kB/s sent over {:.1} s; {} events dropped (queue full), {} azimuths not drawn; {} connections, {} subscriptions, {} to unknown channels, {} refused (too many), {} bad requests, {} cut off (sending too much), {} pages",
             s.total(),
             s.published.len(),
             s.bytes_per_s() / 1e3,
@@ -725,6 +725,7 @@ impl fmt::Display for FoxglovePublishing<'_> {
             s.failed,
             s.connections,
             s.subscriptions,
+            s.unknown_subscriptions,
             s.refused,
             s.bad_requests,
             s.cut_off,

@@ -10,11 +10,15 @@
 //!   is closed, counted.
 //!
 //! At most `max_clients` connections are served at once; more are answered 503 and closed,
-//! counted. A client may send at most a burst of [`CLIENT_BURST_BYTES`] and then
+//! counted. The frames a client sends are read on the way (headers parsed by `tungstenite`,
+//! whole text frames unmasked and parsed as JSON) to count its subscriptions to channels that
+//! do not exist, which the SDK answers with an error status and otherwise ignores. A client may send at most a burst of [`CLIENT_BURST_BYTES`] and then
 //! [`CLIENT_BYTES_PER_S`] (a subscriber sends a few hundred bytes); one sending more is cut
 //! off, counted. A client that stops reading stalls only its own relay: the SDK's queue for
 //! it fills and drops its oldest messages, and the pipeline never waits.
 
+use std::collections::HashSet;
+use std::io::Cursor;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::Arc;
@@ -53,6 +57,8 @@ pub struct GateCounters {
     pub bytes_sent: AtomicU64,
     /// Page requests served.
     pub pages: AtomicU64,
+    /// Subscriptions to channel ids the server does not have.
+    pub unknown_subscriptions: AtomicU64,
     /// Connections being served now.
     active: AtomicUsize,
 }
@@ -84,6 +90,8 @@ pub struct Gate {
     pub max_clients: usize,
     /// The files served (empty: no page).
     pub assets: &'static [Asset],
+    /// The ids of the channels the server has.
+    pub channels: Arc<HashSet<u64>>,
     /// Its counters.
     pub counters: Arc<GateCounters>,
 }
@@ -190,6 +198,7 @@ impl Gate {
         let (mut client_read, mut client_write) = client.into_split();
         let (mut up_read, mut up_write) = upstream.into_split();
         let counters = &self.counters;
+        let mut watch = SubscribeWatch::new(&self.channels);
         let inbound = async {
             let mut buf = vec![0u8; RELAY_BUFFER];
             let mut allowance = CLIENT_BURST_BYTES - head.len() as f64;
@@ -208,6 +217,12 @@ impl Gate {
                 if allowance < 0.0 {
                     counters.cut_off.fetch_add(1, Ordering::Relaxed);
                     return;
+                }
+                let unknown = watch.take(&buf[..n]);
+                if unknown > 0 {
+                    counters
+                        .unknown_subscriptions
+                        .fetch_add(unknown, Ordering::Relaxed);
                 }
                 if up_write.write_all(&buf[..n]).await.is_err() {
                     return;
@@ -231,6 +246,98 @@ impl Gate {
             () = inbound => {}
             () = outbound => {}
         }
+    }
+}
+
+/// The longest client frame read for subscriptions (longer ones are relayed unread: the
+/// flood limit bounds them anyway).
+const MAX_WATCHED_FRAME: u64 = 64 * 1024;
+
+/// Follows a client's frames to count its subscriptions to unknown channels. Stops watching
+/// (relaying on) at a frame it cannot read: fragmented, oversized or malformed frames are the
+/// SDK's to refuse.
+struct SubscribeWatch<'a> {
+    known: &'a HashSet<u64>,
+    pending: Vec<u8>,
+    watching: bool,
+}
+
+impl<'a> SubscribeWatch<'a> {
+    fn new(known: &'a HashSet<u64>) -> Self {
+        Self {
+            known,
+            pending: Vec::new(),
+            watching: true,
+        }
+    }
+
+    /// Takes the next bytes from the client; returns the unknown channel ids subscribed to
+    /// in the frames they complete.
+    fn take(&mut self, bytes: &[u8]) -> u64 {
+        if !self.watching {
+            return 0;
+        }
+        self.pending.extend_from_slice(bytes);
+        let mut unknown = 0;
+        loop {
+            let mut cursor = Cursor::new(&self.pending);
+            let (header, len) = match tungstenite::protocol::frame::FrameHeader::parse(&mut cursor)
+            {
+                Ok(Some(h)) => h,
+                Ok(None) => return unknown,
+                Err(_) => {
+                    self.stop();
+                    return unknown;
+                }
+            };
+            if len > MAX_WATCHED_FRAME {
+                self.stop();
+                return unknown;
+            }
+            let start = cursor.position() as usize;
+            let end = start + len as usize;
+            if self.pending.len() < end {
+                return unknown;
+            }
+            use tungstenite::protocol::frame::coding::{Data, OpCode};
+            if header.opcode == OpCode::Data(Data::Text) && header.is_final {
+                let mut payload = self.pending[start..end].to_vec();
+                if let Some(mask) = header.mask {
+                    for (i, b) in payload.iter_mut().enumerate() {
+                        *b ^= mask[i % 4];
+                    }
+                }
+                unknown += self.unknown_in(&payload);
+            } else if header.opcode == OpCode::Data(Data::Continue) || !header.is_final {
+                self.stop();
+                return unknown;
+            }
+            self.pending.drain(..end);
+        }
+    }
+
+    /// Unknown channel ids in one text message, if it is a subscription.
+    fn unknown_in(&self, text: &[u8]) -> u64 {
+        let Ok(v) = serde_json::from_slice::<serde_json::Value>(text) else {
+            return 0;
+        };
+        if v["op"] != "subscribe" {
+            return 0;
+        }
+        v["subscriptions"].as_array().map_or(0, |subs| {
+            subs.iter()
+                .filter(|s| {
+                    s["channelId"]
+                        .as_u64()
+                        .is_some_and(|id| !self.known.contains(&id))
+                })
+                .count() as u64
+        })
+    }
+
+    fn stop(&mut self) {
+        self.watching = false;
+        self.pending = Vec::new();
     }
 }
 
@@ -288,4 +395,68 @@ async fn answer(mut stream: TcpStream, status: &str, text: &str) {
         let _ = stream.shutdown().await;
     })
     .await;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A masked client text frame.
+    fn frame(text: &str, mask: [u8; 4]) -> Vec<u8> {
+        let payload: Vec<u8> = text
+            .bytes()
+            .enumerate()
+            .map(|(i, b)| b ^ mask[i % 4])
+            .collect();
+        let mut out = vec![0x81];
+        if payload.len() < 126 {
+            out.push(0x80 | payload.len() as u8);
+        } else {
+            out.push(0x80 | 126);
+            out.extend_from_slice(&(payload.len() as u16).to_be_bytes());
+        }
+        out.extend_from_slice(&mask);
+        out.extend_from_slice(&payload);
+        out
+    }
+
+    #[test]
+    fn subscriptions_to_unknown_channels_are_counted_across_reads() {
+        let known: HashSet<u64> = [1, 2, 3].into_iter().collect();
+        let mut w = SubscribeWatch::new(&known);
+        let mut bytes = frame(
+            r#"{"op":"subscribe","subscriptions":[{"id":0,"channelId":2},{"id":1,"channelId":99}]}"#,
+            [1, 2, 3, 4],
+        );
+        bytes.extend(frame(
+            r#"{"op":"unsubscribe","subscriptionIds":[0]}"#,
+            [9, 8, 7, 6],
+        ));
+        bytes.extend(frame(
+            &format!(
+                r#"{{"op":"subscribe","subscriptions":[{{"id":5,"channelId":7}}],"pad":"{}"}}"#,
+                "x".repeat(300)
+            ),
+            [5, 5, 5, 5],
+        ));
+        // Byte by byte: frames complete across reads.
+        let counted: u64 = bytes.iter().map(|b| w.take(std::slice::from_ref(b))).sum();
+        assert_eq!(counted, 2);
+        assert!(w.pending.is_empty());
+    }
+
+    #[test]
+    fn a_frame_it_cannot_read_stops_the_watch_without_buffering() {
+        let known = HashSet::new();
+        let mut w = SubscribeWatch::new(&known);
+        // A fragmented text frame (FIN clear).
+        let mut f = frame(
+            r#"{"op":"subscribe","subscriptions":[{"id":0,"channelId":5}]}"#,
+            [0; 4],
+        );
+        f[0] = 0x01;
+        assert_eq!(w.take(&f), 0);
+        assert!(!w.watching && w.pending.is_empty());
+        assert_eq!(w.take(&frame("{}", [0; 4])), 0);
+    }
 }

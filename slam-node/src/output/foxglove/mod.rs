@@ -109,9 +109,11 @@ pub struct FoxgloveSummary {
     pub failed: u64,
     /// WebSocket connections served.
     pub connections: u64,
-    /// Subscriptions to channels (unknown channels are answered with an error status by
-    /// the SDK and not counted here).
+    /// Subscriptions to channels.
     pub subscriptions: u64,
+    /// Subscriptions to channels that do not exist (answered by the SDK with an error
+    /// status, otherwise ignored).
+    pub unknown_subscriptions: u64,
     /// Connections refused (`max_clients` already served).
     pub refused: u64,
     /// Requests refused as garbage, too slow, too long, or for another path.

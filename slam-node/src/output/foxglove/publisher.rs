@@ -72,6 +72,25 @@ fn json_channel(
 }
 
 impl Channels {
+    /// Every channel's id.
+    fn ids(&self) -> std::collections::HashSet<u64> {
+        [
+            self.image.id(),
+            self.detections.id(),
+            self.map.id(),
+            self.pose.id(),
+            self.pose_covariance.id(),
+            self.pose_uncertainty.id(),
+            self.trajectory.id(),
+            self.trajectory_optimised.id(),
+            self.tf.id(),
+            self.counters.id(),
+        ]
+        .into_iter()
+        .map(u64::from)
+        .collect()
+    }
+
     fn new(ctx: &Arc<Context>) -> Result<Self, FoxgloveError> {
         Ok(Self {
             image: ctx.channel_builder(super::TOPIC_IMAGE).build(),
@@ -239,6 +258,7 @@ fn serve(
             upstream: SocketAddr::from(([127, 0, 0, 1], server.port())),
             max_clients: out.settings.max_clients.get(),
             assets: if out.view { super::view::ASSETS } else { &[] },
+            channels: Arc::new(channels.ids()),
             counters: Arc::clone(&counters),
         };
         runtime.spawn(gate.serve(door));
@@ -306,6 +326,7 @@ fn serve(
         pages: c(&counters.pages),
         bytes_sent: c(&counters.bytes_sent),
         subscriptions: c(&listener.count),
+        unknown_subscriptions: c(&counters.unknown_subscriptions),
         served_s: started.elapsed().as_secs_f64(),
     }
 }
