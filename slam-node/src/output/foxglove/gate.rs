@@ -12,9 +12,10 @@
 //! At most `max_clients` connections are served at once; more are answered 503 and closed,
 //! counted. The frames a client sends are read on the way (headers parsed by `tungstenite`,
 //! whole text frames unmasked and parsed as JSON) to count its subscriptions to channels that
-//! do not exist, which the SDK answers with an error status and otherwise ignores. A client may send at most a burst of [`CLIENT_BURST_BYTES`] and then
-//! [`CLIENT_BYTES_PER_S`] (a subscriber sends a few hundred bytes); one sending more is cut
-//! off, counted. A client that stops reading stalls only its own relay: the SDK's queue for
+//! do not exist, which the SDK answers with an error status (and an error in our log) and
+//! otherwise ignores; a client naming more than [`MAX_UNKNOWN_SUBSCRIPTIONS`] is cut off. A
+//! client may send at most a burst of [`CLIENT_BURST_BYTES`] and then [`CLIENT_BYTES_PER_S`]
+//! (a subscriber sends a few hundred bytes); one sending more is cut off, counted. A client that stops reading stalls only its own relay: the SDK's queue for
 //! it fills and drops its oldest messages, and the pipeline never waits.
 
 use std::collections::HashSet;
@@ -203,6 +204,7 @@ impl Gate {
             let mut buf = vec![0u8; RELAY_BUFFER];
             let mut allowance = CLIENT_BURST_BYTES - head.len() as f64;
             let mut since = Instant::now();
+            let mut unknown_here = 0u64;
             loop {
                 let n = match client_read.read(&mut buf).await {
                     Ok(0) | Err(_) => return,
@@ -223,6 +225,12 @@ impl Gate {
                     counters
                         .unknown_subscriptions
                         .fetch_add(unknown, Ordering::Relaxed);
+                    unknown_here += unknown;
+                    if unknown_here > MAX_UNKNOWN_SUBSCRIPTIONS {
+                        // The SDK logs an error for each: not a log to let a client fill.
+                        counters.cut_off.fetch_add(1, Ordering::Relaxed);
+                        return;
+                    }
                 }
                 if up_write.write_all(&buf[..n]).await.is_err() {
                     return;
@@ -248,6 +256,10 @@ impl Gate {
         }
     }
 }
+
+/// A client naming more unknown channels than this is cut off (before the frames that pass
+/// it reach the server, which logs an error for each).
+pub const MAX_UNKNOWN_SUBSCRIPTIONS: u64 = 64;
 
 /// The longest client frame read for subscriptions (longer ones are relayed unread: the
 /// flood limit bounds them anyway).
