@@ -175,6 +175,14 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[output.zenoh]\nqueue = 0", "output.zenoh.queue", "must be in [1, 4096], got 0"),
     ("[output.zenoh]\ndomain_id = 233", "output.zenoh.domain_id", "must be a ROS 2 domain id from 0 to 232, got 233"),
     ("[output.zenoh]\ndomain_id = -1", "output.zenoh.domain_id", "got -1"),
+    // [output.foxglove]
+    ("[output.foxglove]\nbind = \"localhost:8765\"", "output.foxglove.bind", "must be an address `ip:port`"),
+    ("[output.foxglove]\nqueue = 0", "output.foxglove.queue", "must be in [1, 65536], got 0"),
+    ("[output.foxglove]\nbacklog = 5000", "output.foxglove.backlog", "must be in [1, 4096], got 5000"),
+    ("[output.foxglove]\nmax_clients = 0", "output.foxglove.max_clients", "must be in [1, 64], got 0"),
+    ("[output.foxglove]\nimage_size = 8", "output.foxglove.image_size", "must be in [16, 2048], got 8"),
+    ("[output.foxglove]\nimage_range_m = 0", "output.foxglove.image_range_m", "must be in [1, 10000], got 0"),
+    ("[output.foxglove]\nwait_for_subscriber_s = -1", "output.foxglove.wait_for_subscriber_s", "must be in [0, 3600], got -1"),
     // [submaps]
     ("[submaps]\nmax_distance_m = 0.0", "submaps.max_distance_m", "got 0"),
     ("[submaps]\nmax_distance_m = -5.0", "submaps.max_distance_m", "got -5"),
@@ -230,6 +238,8 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "output.zenoh.mode",
     "output.zenoh.multicast_scouting",
     "output.zenoh.convention",
+    "output.foxglove.enabled",
+    "output.view.enabled",
 ];
 
 #[test]

@@ -48,6 +48,23 @@ pub struct Args {
     /// with `--features zenoh`.
     #[arg(long)]
     zenoh: bool,
+    /// Serve the live view over Foxglove's WebSocket protocol at [output.foxglove] bind
+    /// (default ws://127.0.0.1:8765): open it in the Foxglove app; needs the `foxglove`
+    /// feature (in the default build).
+    #[arg(long)]
+    foxglove: bool,
+    /// Serve the Foxglove live view at this address, ip:port (port 0: any free port, logged);
+    /// implies --foxglove.
+    #[arg(long, value_name = "IP:PORT", value_parser = socket_address)]
+    foxglove_bind: Option<std::net::SocketAddr>,
+    /// Hold the run's start until a Foxglove client subscribes to /slam/pose, at most this
+    /// many seconds (for a fast simulated run); implies --foxglove.
+    #[arg(long, value_name = "SECONDS")]
+    foxglove_wait: Option<u32>,
+    /// Serve a page drawing the live view (radar image, map, pose) at
+    /// http://<[output.foxglove] bind>/; implies --foxglove.
+    #[arg(long)]
+    view: bool,
     /// Run on a rosbag2 MCAP file instead of a radar: Navtech's ROS 2 radar messages
     /// (RadarBScanMsg or RadarFftDataMsg, with RadarConfigurationMsg) and an odometry topic,
     /// as fast as possible (a recording made with --mcap replays to the same trajectory).
@@ -154,6 +171,23 @@ pub fn options(args: &Args) -> anyhow::Result<DaemonOptions> {
     if args.zenoh {
         config.output.zenoh.enabled = true;
     }
+    if args.foxglove || args.foxglove_bind.is_some() || args.foxglove_wait.is_some() || args.view {
+        config.output.foxglove.enabled = true;
+    }
+    if let Some(wait) = args.foxglove_wait {
+        anyhow::ensure!(
+            i64::from(wait) <= config::output::MAX_WAIT_FOR_SUBSCRIBER_S,
+            "--foxglove-wait must be at most {} s",
+            config::output::MAX_WAIT_FOR_SUBSCRIBER_S
+        );
+        config.output.foxglove.wait_for_subscriber_s = wait;
+    }
+    if let Some(bind) = args.foxglove_bind {
+        config.output.foxglove.bind = bind;
+    }
+    if args.view {
+        config.output.view.enabled = true;
+    }
     // A folder of recorded scans is served by the simulator in this process, whatever the
     // configuration's radar address says (without this, --config with --replay-dir dialled
     // the configured radar and waited for ever).
@@ -233,6 +267,11 @@ fn positive_seconds(text: &str) -> Result<f64, String> {
         return Err(format!("must be in (0, {MAX_DURATION_S}] s, got {text}"));
     }
     Ok(v)
+}
+
+/// An address to listen on, `ip:port`, as `[output.foxglove] bind` takes it.
+fn socket_address(text: &str) -> Result<std::net::SocketAddr, String> {
+    config::values::socket_addr(text).map_err(|e| e.to_string())
 }
 
 /// An MCAP file to record to: not empty, ending in `.mcap`.

@@ -376,7 +376,8 @@ async fn close_zenoh(node: Option<crate::output::live::SharedNode>) {
 }
 
 /// The output files a run writes: the configured names in the output folder, the MCAP
-/// recording when one is asked for, and the live Zenoh topics when `[output.zenoh]` is on.
+/// recording when one is asked for, the live Zenoh topics when `[output.zenoh]` is on, and
+/// the Foxglove live view when `[output.foxglove]` or `[output.view]` is.
 fn output_files(
     opts: &DaemonOptions,
     motion: radar_model::motion::MotionModel,
@@ -397,6 +398,10 @@ fn output_files(
             zenoh: o.zenoh.clone(),
             motion,
             node,
+        }),
+        foxglove: (o.foxglove.enabled || o.view.enabled).then(|| crate::output::FoxgloveOutput {
+            settings: o.foxglove.clone(),
+            view: o.view.enabled,
         }),
         ..OutputFiles::in_dir(opts.out_dir.clone())
     }

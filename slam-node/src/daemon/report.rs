@@ -4,7 +4,7 @@ use std::fmt::{self, Write as _};
 
 use crate::daemon::mcap_replay::McapReplayCounts;
 use crate::daemon::zenoh_odometry::ZenohOdometryCounts;
-use crate::output::{LiveSummary, RecordingSummary};
+use crate::output::{FoxgloveSummary, LiveSummary, RecordingSummary};
 use crate::pipeline::radar_odometry::ScanMatchCounts;
 use crate::pipeline::scores::{MapScore, ObservationErrorStats, PoseErrorStats};
 use crate::pipeline::submaps::SubmapSummary;
@@ -106,6 +106,9 @@ pub fn summary_text(r: &DaemonReport) -> String {
     }
     if let Some(live) = &r.writer.live {
         put(&LivePublishing(live));
+    }
+    if let Some(f) = &r.writer.foxglove {
+        put(&FoxglovePublishing(f));
     }
     t
 }
@@ -780,6 +783,33 @@ impl fmt::Display for LivePublishing<'_> {
             live.published.len(),
             live.dropped,
             live.failed
+        )
+    }
+}
+
+/// What the Foxglove live view served.
+struct FoxglovePublishing<'a>(&'a FoxgloveSummary);
+
+impl fmt::Display for FoxglovePublishing<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = self.0;
+        let address = s.address.map_or("-".into(), |a| a.to_string());
+        writeln!(
+            f,
+            "  Foxglove at ws://{address}: {} messages on {} channels to subscribers, {:.1} kB/s sent over {:.1} s; {} events dropped (queue full), {} azimuths not drawn; {} connections, {} subscriptions, {} to unknown channels, {} refused (too many), {} bad requests, {} cut off (sending too much), {} pages",
+            s.total(),
+            s.published.len(),
+            s.bytes_per_s() / 1e3,
+            s.served_s,
+            s.dropped,
+            s.failed,
+            s.connections,
+            s.subscriptions,
+            s.unknown_subscriptions,
+            s.refused,
+            s.bad_requests,
+            s.cut_off,
+            s.pages,
         )
     }
 }

@@ -4,13 +4,16 @@
 //! `slam-node/README.md`.
 //!
 //! The file writers are generic over `std::io::Write`; [`writer`] runs them on their own
-//! thread behind a channel so the filter never waits for a disk.
+//! thread behind a channel so the filter never waits for a disk. The live outputs ([`live`]
+//! over Zenoh, [`foxglove`] over Foxglove's WebSocket protocol) take the same events
+//! through bounded queues of their own and do network IO on their own threads.
 
 pub mod csv;
 pub mod detections;
 pub mod diagnostics;
 pub mod event;
 pub mod figures;
+pub mod foxglove;
 pub mod live;
 pub mod live_error;
 pub mod map;
@@ -26,6 +29,7 @@ pub mod zenoh_node;
 pub use detections::{Detection, RotationDetections};
 pub use diagnostics::{RotationDiagnostics, SpectrumComparison};
 pub use event::OutputEvent;
+pub use foxglove::{FoxgloveError, FoxgloveOutput, FoxgloveSummary};
 pub use live::{LiveError, LiveOutput, LiveSummary};
 pub use map::{MapFeature, MapSnapshot};
 pub use recording::{McapRecorder, RecordingError, RecordingSummary};

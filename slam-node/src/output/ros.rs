@@ -286,7 +286,7 @@ fn covariance6(c: &[[f64; 3]; 3]) -> [f64; 36] {
 }
 
 /// Semi-axes (1 sigma) and the major axis's angle of a 2x2 covariance.
-fn ellipse(c: &[[f64; 4]; 4]) -> (f64, f64, f64) {
+pub(crate) fn ellipse(c: &[[f64; 4]; 4]) -> (f64, f64, f64) {
     let (a, b, d) = (c[0][0], c[0][1], c[1][1]);
     let mean = 0.5 * (a + d);
     let diff = (0.25 * (a - d) * (a - d) + b * b).sqrt();

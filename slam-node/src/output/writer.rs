@@ -16,6 +16,7 @@ use tracing::{info, warn};
 use super::diagnostics::RotationDiagnostics;
 use super::event::OutputEvent;
 use super::figures::{draw_map, draw_spectrum, FigureError, TruthOverlay};
+use super::foxglove::{FoxgloveError, FoxgloveOutput, FoxgloveSummary};
 use super::live::{LiveError, LiveOutput, LiveSummary};
 use super::map::MapSnapshot;
 use super::recording::{McapRecorder, RecordingError, RecordingSummary};
@@ -53,6 +54,9 @@ pub struct OutputFiles {
     pub recording: Option<RecordingFile>,
     /// Publish live over Zenoh too (needs the `zenoh` feature).
     pub live: Option<LiveOutput>,
+    /// Serve the live view over Foxglove's WebSocket protocol too (needs the `foxglove`
+    /// feature).
+    pub foxglove: Option<FoxgloveOutput>,
 }
 
 impl OutputFiles {
@@ -69,6 +73,7 @@ impl OutputFiles {
             saved_map: "map.slmap".into(),
             recording: None,
             live: None,
+            foxglove: None,
         }
     }
 }
@@ -99,6 +104,9 @@ pub enum WriterError {
     /// The live Zenoh output could not start.
     #[error("starting the live Zenoh output")]
     Live(#[from] LiveError),
+    /// The Foxglove output could not start.
+    #[error("starting the Foxglove live view")]
+    Foxglove(#[from] FoxgloveError),
     /// The writer thread panicked.
     #[error("the writer thread panicked")]
     Panicked,
@@ -132,6 +140,8 @@ pub struct WriterSummary {
     /// Why the last saved map could not be written, if it could not (the previous file
     /// stays whole; the other outputs went on).
     pub saved_map_error: Option<String>,
+    /// The Foxglove output, when there was one.
+    pub foxglove: Option<FoxgloveSummary>,
 }
 
 /// The filter's end of the output channel.
@@ -143,6 +153,8 @@ pub struct OutputHandle {
     wants_inputs: bool,
     #[cfg(feature = "zenoh")]
     live: Option<super::live::LivePublisher>,
+    #[cfg(feature = "foxglove")]
+    foxglove: Option<super::foxglove::FoxglovePublisher>,
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> WriterError + '_ {
@@ -168,6 +180,16 @@ impl OutputHandle {
         #[cfg(not(feature = "zenoh"))]
         if files.live.is_some() {
             return Err(LiveError::NotBuilt.into());
+        }
+        #[cfg(feature = "foxglove")]
+        let foxglove = files
+            .foxglove
+            .clone()
+            .map(super::foxglove::FoxglovePublisher::spawn)
+            .transpose()?;
+        #[cfg(not(feature = "foxglove"))]
+        if files.foxglove.is_some() {
+            return Err(FoxgloveError::NotBuilt.into());
         }
         std::fs::create_dir_all(&files.dir).map_err(io_err(&files.dir))?;
         let (tx, rx) = bounded(files.capacity.max(1));
@@ -209,13 +231,28 @@ impl OutputHandle {
             wants_inputs,
             #[cfg(feature = "zenoh")]
             live,
+            #[cfg(feature = "foxglove")]
+            foxglove,
         })
     }
 
-    /// Whether the writer records the inputs (azimuths, odometry): only then are the
-    /// azimuths sent.
+    /// Whether the azimuths are wanted: by a recording, or by the Foxglove output (the radar
+    /// image). Only then are they sent.
     pub fn wants_inputs(&self) -> bool {
+        #[cfg(feature = "foxglove")]
+        if self.foxglove.is_some() {
+            return true;
+        }
         self.wants_inputs
+    }
+
+    /// Where the Foxglove output listens, when there is one.
+    pub fn foxglove_address(&self) -> Option<std::net::SocketAddr> {
+        #[cfg(feature = "foxglove")]
+        if let Some(f) = &self.foxglove {
+            return Some(f.address());
+        }
+        None
     }
 
     /// Whether the odometry samples are wanted: by a recording, or by the live output (the
@@ -236,7 +273,12 @@ impl OutputHandle {
         if let Some(live) = &self.live {
             live.offer(&event);
         }
-        if matches!(event, OutputEvent::Odometry(_)) && !self.wants_inputs {
+        #[cfg(feature = "foxglove")]
+        if let Some(f) = &self.foxglove {
+            f.offer(&event);
+        }
+        if matches!(event, OutputEvent::Odometry(_) | OutputEvent::Azimuth(_)) && !self.wants_inputs
+        {
             return true;
         }
         match self.sender.as_ref().map(|s| s.try_send(event)) {
@@ -255,6 +297,10 @@ impl OutputHandle {
         if let Some(live) = &self.live {
             live.offer(&event);
         }
+        #[cfg(feature = "foxglove")]
+        if let Some(f) = &self.foxglove {
+            f.offer(&event);
+        }
         self.sender.as_ref().is_some_and(|s| s.send(event).is_ok())
     }
 
@@ -270,8 +316,19 @@ impl OutputHandle {
         let live = self.live.take().map(super::live::LivePublisher::finish);
         #[cfg(not(feature = "zenoh"))]
         let live = None;
+        #[cfg(feature = "foxglove")]
+        let foxglove = self
+            .foxglove
+            .take()
+            .map(super::foxglove::FoxglovePublisher::finish);
+        #[cfg(not(feature = "foxglove"))]
+        let foxglove = None;
         match self.join.take().map(JoinHandle::join) {
-            Some(Ok(r)) => r.map(|s| WriterSummary { live, ..s }),
+            Some(Ok(r)) => r.map(|s| WriterSummary {
+                live,
+                foxglove,
+                ..s
+            }),
             Some(Err(_)) => Err(WriterError::Panicked),
             None => Ok(WriterSummary::default()),
         }
