@@ -49,6 +49,8 @@ pub struct RadarOdometryStage {
     motion: MotionModel,
     /// Driving, before the filter has started: the last rotation's end (s).
     last_end_s: Option<f64>,
+    /// Driving: the last registration failed, so the next searches for the motion.
+    lost: bool,
 }
 
 impl RadarOdometryStage {
@@ -63,6 +65,7 @@ impl RadarOdometryStage {
             drives,
             motion,
             last_end_s: None,
+            lost: false,
         }
     }
 
@@ -122,12 +125,17 @@ impl RadarOdometryStage {
         }
         let tally = ekf.motion_tally().copied();
         let end = tally.map(|t| t.rel);
-        let measured = self.matcher.end_rotation(end, false);
+        let measured = self.matcher.end_rotation(end, self.drives && self.lost);
+        self.lost = self.drives && measured.is_none();
         let mut applied = None;
         if let (Some(m), Some(tally)) = (measured.as_ref(), tally) {
             self.score(m, &tally, ekf.state().time_s(), truth);
             self.warn_if_weak(m, ekf.state().time_s());
-            match ekf.observe_motion_since_mark(m.motion, &m.covariance, GATE_CHI2) {
+            // Driving, the registration is the odometry: it is not gated against a
+            // prediction that only repeats the last rotation's motion (a turn's onset would
+            // be refused, and then every registration after it).
+            let gate = if self.drives { f64::INFINITY } else { GATE_CHI2 };
+            match ekf.observe_motion_since_mark(m.motion, &m.covariance, gate) {
                 Ok(outcome) => {
                     if let MotionOutcome::Applied { .. } = outcome {
                         applied = Some(*m);
