@@ -13,7 +13,8 @@
 //! version, the declared length against its limit ([`Limits`]) and against the bytes
 //! present, the CRC, and only then decodes; the decoded map is checked against the rules
 //! of the format (`validate`). No memory is reserved from a declared length that has not
-//! been checked against the bytes present: the payload is read through `Read::take`, and
+//! been checked against the bytes present (a file's size, or at most 1 MiB up front from a
+//! stream): the payload is read through `Read::take`, and
 //! postcard decodes from the bytes read, every collection's declared length bounded by
 //! what is left of them.
 
@@ -120,10 +121,25 @@ pub(crate) fn read_header<R: Read>(r: &mut R, limits: &Limits) -> Result<Header,
     Ok(Header { crc, payload_len })
 }
 
-/// Reads the payload the header declares (never reserving more than was read), checks its
-/// CRC, decodes and validates it.
-pub(crate) fn read_payload<R: Read>(r: &mut R, header: &Header) -> Result<Map, FormatError> {
-    let mut payload = Vec::new();
+/// Bytes reserved up front for a payload whose length has not been checked against the
+/// bytes present (past it the buffer grows with what is read).
+const UNCHECKED_RESERVE: u64 = 1 << 20;
+
+/// Reads the payload the header declares, checks its CRC, decodes and validates it.
+/// `length_checked`: the caller has checked the declared length against the bytes present
+/// (a file's size), so the whole of it is reserved at once; otherwise at most 1 MiB is, and
+/// the buffer grows with what is actually read.
+pub(crate) fn read_payload<R: Read>(
+    r: &mut R,
+    header: &Header,
+    length_checked: bool,
+) -> Result<Map, FormatError> {
+    let reserve = if length_checked {
+        header.payload_len
+    } else {
+        header.payload_len.min(UNCHECKED_RESERVE)
+    };
+    let mut payload = Vec::with_capacity(usize::try_from(reserve).unwrap_or(0));
     r.take(header.payload_len).read_to_end(&mut payload)?;
     if (payload.len() as u64) < header.payload_len {
         return Err(FormatError::Truncated {
@@ -176,14 +192,14 @@ impl Map {
     /// follows is left unread).
     pub fn read_from<R: Read>(mut r: R, limits: &Limits) -> Result<Map, FormatError> {
         let header = read_header(&mut r, limits)?;
-        read_payload(&mut r, &header)
+        read_payload(&mut r, &header, false)
     }
 
     /// A map from a whole file's bytes (bytes after the payload are an error).
     pub fn from_bytes(bytes: &[u8], limits: &Limits) -> Result<Map, FormatError> {
         let mut r = bytes;
         let header = read_header(&mut r, limits)?;
-        let map = read_payload(&mut r, &header)?;
+        let map = read_payload(&mut r, &header, false)?;
         if !r.is_empty() {
             return Err(FormatError::TrailingBytes(r.len() as u64));
         }

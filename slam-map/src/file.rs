@@ -69,7 +69,7 @@ fn load_inner(path: &Path, limits: &Limits) -> Result<Map, FormatError> {
     if size > whole {
         return Err(FormatError::TrailingBytes(size - whole));
     }
-    read_payload(&mut r, &header)
+    read_payload(&mut r, &header, true)
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same folder, renamed over the

@@ -628,7 +628,8 @@ impl Pipeline {
             self.summary.rotations,
             self.ekf.state().time_s()
         );
-        if let Some((map, counts)) = saved_map::build(
+        let started = Instant::now();
+        if let Some((map, mut counts)) = saved_map::build(
             &self.settings.map_save,
             self.front_end.geometry(),
             &self.ekf,
@@ -636,6 +637,8 @@ impl Pipeline {
             loops,
             source,
         ) {
+            let previous = self.summary.saved_map.map_or(0.0, |c| c.max_build_ms);
+            counts.max_build_ms = previous.max(ms(started, Instant::now()));
             self.summary.saved_maps += 1;
             self.summary.saved_map = Some(counts);
             events.push(OutputEvent::SavedMap(Box::new(map)));

@@ -62,7 +62,7 @@ pub(crate) fn take_save_request() -> bool {
 }
 
 /// What went into the last saved map.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct SavedMapCounts {
     /// Submaps (the current one included).
     pub submaps: usize,
@@ -72,6 +72,9 @@ pub struct SavedMapCounts {
     pub loops: usize,
     /// Features left out for a value that is not finite.
     pub dropped_features: usize,
+    /// The longest time building a saved map took on the pipeline thread over the run (ms;
+    /// the writer thread encodes and writes it).
+    pub max_build_ms: f64,
 }
 
 /// The radar's geometry as it announced it, under the profile's name.
@@ -146,6 +149,7 @@ pub fn build(
                 features: map.feature_count(),
                 loops: map.loops.len(),
                 dropped_features: report.dropped_features,
+                max_build_ms: 0.0,
             };
             Some((map, counts))
         }
