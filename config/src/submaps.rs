@@ -91,16 +91,35 @@ impl RawSubmaps {
                 crate::values::ValueError::Rule("must be at least 3".into()),
             );
         }
+        let max_features = c.check(
+            "submaps.max_features",
+            Capacity::new(self.max_features, MAX_SUBMAP_FEATURES),
+        );
+        // A submap closed with fewer features than a loop closure must match can never be
+        // matched, and one of a feature or two closes at nearly every rotation (issue 38:
+        // `max_features = 1` was taken without a word). Checked only when both fields are
+        // valid on their own, so a mistake is reported once.
+        if Capacity::new(self.max_features, MAX_SUBMAP_FEATURES).is_ok()
+            && self.min_matches >= 3
+            && Capacity::new(self.min_matches, 1000).is_ok()
+            && self.max_features < self.min_matches
+        {
+            c.fail(
+                "submaps.max_features",
+                crate::values::ValueError::Rule(format!(
+                    "must be at least submaps.min_matches ({}): a submap closed with fewer \
+                     features can never be matched in a loop closure, got {}",
+                    self.min_matches, self.max_features
+                )),
+            );
+        }
         SubmapSettings {
             enabled: self.enabled,
             max_distance_m: c.check(
                 "submaps.max_distance_m",
                 PositiveF64::new(self.max_distance_m),
             ),
-            max_features: c.check(
-                "submaps.max_features",
-                Capacity::new(self.max_features, MAX_SUBMAP_FEATURES),
-            ),
+            max_features,
             loop_closure: self.loop_closure,
             min_matches,
             max_rival_ratio: c.check(

@@ -188,6 +188,8 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[submaps]\nmax_distance_m = -5.0", "submaps.max_distance_m", "got -5"),
     ("[submaps]\nmax_features = 0", "submaps.max_features", "must be in [1, 5000], got 0"),
     ("[submaps]\nmax_features = 5001", "submaps.max_features", "must be in [1, 5000], got 5001"),
+    ("[submaps]\nmax_features = 1", "submaps.max_features", "must be at least submaps.min_matches (6): a submap closed with fewer features can never be matched in a loop closure, got 1"),
+    ("[submaps]\nmax_features = 9\nmin_matches = 10", "submaps.max_features", "must be at least submaps.min_matches (10)"),
     ("[submaps]\nmin_matches = 2", "submaps.min_matches", "must be at least 3"),
     ("[submaps]\nmin_matches = 0", "submaps.min_matches", "must be in [1, 1000], got 0"),
     ("[submaps]\nmax_rival_ratio = 1.0", "submaps.max_rival_ratio", "got 1"),

@@ -118,13 +118,16 @@ pub enum ReplayError {
         /// What is wrong.
         reason: String,
     },
-    /// Scan times that do not increase.
-    #[error("{path}{}: scan time {later_us} us comes after {earlier_us} us but is not later", row.map(|r| format!(", row {r}")).unwrap_or_default())]
+    /// Scan times that do not increase (two scans named by the same time, `100.png` and
+    /// `0100.png`, or index rows out of order).
+    #[error("{path}{}: scan time {later_us} us comes after {earlier_us} us{} but is not later", row.map(|r| format!(", row {r}")).unwrap_or_default(), earlier_path.as_ref().map(|p| format!(" ({})", p.display())).unwrap_or_default())]
     OutOfOrder {
         /// The scan (Oxford, Boreas) or index file (RADIATE).
         path: PathBuf,
         /// The index's 1-based line number, where there is one.
         row: Option<usize>,
+        /// The earlier scan's file, where the times are files' names (Oxford, Boreas).
+        earlier_path: Option<PathBuf>,
         /// The earlier time (µs since the epoch).
         earlier_us: i64,
         /// The later time (µs since the epoch).

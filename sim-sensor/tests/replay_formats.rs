@@ -186,13 +186,16 @@ fn a_folder_without_scans_or_with_a_scan_named_otherwise_is_refused_by_name() {
     let err = ScanSet::open(dir.path(), None).unwrap_err();
     assert!(matches!(err, ReplayError::Empty(_)), "{err}");
     assert!(err.to_string().contains("radar"), "{err}");
-    // Two names for the same time: out of order, naming the later file.
+    // Two names for the same time: out of order, naming both files (issue 38: the
+    // earlier one was not named).
     std::fs::write(dir.path().join("radar/1000000.png"), b"").unwrap();
     std::fs::write(dir.path().join("radar/01000000.png"), b"").unwrap();
     let err = ScanSet::open(dir.path(), None).unwrap_err();
+    let text = err.to_string();
     assert!(
         matches!(err, ReplayError::OutOfOrder { row: None, .. })
-            && err.to_string().contains("1000000.png"),
+            && text.contains("radar/1000000.png")
+            && text.contains("radar/01000000.png"),
         "{err}"
     );
     std::fs::write(dir.path().join("radar/first.png"), b"").unwrap();

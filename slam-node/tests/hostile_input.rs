@@ -135,6 +135,30 @@ fn a_confirmed_radar_clock_jump_resynchronises_and_mapping_resumes() {
     assert!(p.ekf().feature_count() >= 4);
 }
 
+/// Issue 38 (Low): the summary's stream time is summed over the radar's clocks. Before, a
+/// clock that jumped back an hour made it read "0.0 s of stream", and one that jumped
+/// ahead an hour read an hour more than was streamed.
+#[test]
+fn the_stream_time_is_what_was_streamed_whichever_way_the_radar_clock_jumps() {
+    for jump_s in [-3600.0, 3600.0] {
+        let mut az = support::still_radar_azimuths(12, T0_NS);
+        let n = az.len();
+        let streamed_s = az[n - 1].timestamp_s - az[0].timestamp_s;
+        for a in az.iter_mut().skip(n / 3) {
+            a.timestamp_s += jump_s;
+        }
+        let clock: Vec<f64> = az.iter().map(|a| a.timestamp_s).collect();
+        let (s, _) = run(&az, &clock, |_, o| o);
+        assert_eq!(s.clock_jumps, 1, "jump {jump_s} s");
+        // Less only the azimuths taken for outliers before the jump was confirmed.
+        assert!(
+            s.stream_s() <= streamed_s && s.stream_s() > streamed_s - 1.0,
+            "jump {jump_s} s: {} s of stream, {streamed_s} s streamed",
+            s.stream_s()
+        );
+    }
+}
+
 #[test]
 fn contoured_azimuths_are_not_taken_for_empty_range() {
     let all = support::still_radar_azimuths(30, T0_NS);

@@ -19,7 +19,10 @@ use std::path::Path;
 use radar_model::geometry::Pose2;
 
 use super::files::FileKind;
-use super::truth::{check_span, read_text, relative_to_first, TruthError};
+use super::truth::{
+    check_span, plausible, read_text, relative_to_first, TruthError, MAX_ANGLE_RAD,
+    MAX_COORDINATE_M, MAX_SPEED_MPS,
+};
 
 /// Fields a row has at least.
 pub const FIELDS: usize = 13;
@@ -107,8 +110,15 @@ pub fn read_radar_poses(path: &Path) -> Result<Vec<EnuPose>, TruthError> {
             .first()
             .and_then(|s| s.parse::<i64>().ok())
             .ok_or_else(|| bad("field 1 (GPSTime) is not an integer of microseconds".into()))?;
-        let heading = x_axis_heading(num(7)?, num(8)?, num(9)?)
-            .ok_or_else(|| bad("roll and pitch put the radar's x axis near vertical".into()))?;
+        let within = |k: usize, limit: f64, what: &str| -> Result<f64, TruthError> {
+            plausible(num(k)?, limit, k, what).map_err(&bad)
+        };
+        let heading = x_axis_heading(
+            within(7, MAX_ANGLE_RAD, "roll, rad")?,
+            within(8, MAX_ANGLE_RAD, "pitch, rad")?,
+            within(9, MAX_ANGLE_RAD, "heading, rad")?,
+        )
+        .ok_or_else(|| bad("roll and pitch put the radar's x axis near vertical".into()))?;
         if let Some(prev) = out.last() {
             if time_us <= prev.time_us {
                 return Err(TruthError::OutOfOrder {
@@ -121,8 +131,15 @@ pub fn read_radar_poses(path: &Path) -> Result<Vec<EnuPose>, TruthError> {
         }
         out.push(EnuPose {
             time_us,
-            pose: Pose2::new(num(1)?, num(2)?, heading),
-            velocity_en_mps: (num(4)?, num(5)?),
+            pose: Pose2::new(
+                within(1, MAX_COORDINATE_M, "easting, m")?,
+                within(2, MAX_COORDINATE_M, "northing, m")?,
+                heading,
+            ),
+            velocity_en_mps: (
+                within(4, MAX_SPEED_MPS, "east velocity, m/s")?,
+                within(5, MAX_SPEED_MPS, "north velocity, m/s")?,
+            ),
         });
     }
     Ok(out)
@@ -222,5 +239,15 @@ mod tests {
         std::fs::write(&path, "GPSTime\n2000,1,2,3,4,5,6,0,0,nan,0,0,0\n").unwrap();
         let err = read_radar_poses(&path).unwrap_err();
         assert!(err.to_string().contains("field 10"), "{err}");
+        // Finite but absurd: refused by field, not printed as a drive of 1e300 m.
+        std::fs::write(&path, "GPSTime\n2000,1e300,2,3,4,5,6,0,0,0,0,0,0\n").unwrap();
+        let err = read_radar_poses(&path).unwrap_err();
+        assert!(
+            err.to_string().contains("field 2 (easting, m) is 1e300"),
+            "{err}"
+        );
+        std::fs::write(&path, "GPSTime\n2000,1,2,3,4,5e9,6,0,0,0,0,0,0\n").unwrap();
+        let err = read_radar_poses(&path).unwrap_err();
+        assert!(err.to_string().contains("field 6 (north velocity"), "{err}");
     }
 }

@@ -34,7 +34,9 @@ use radar_model::geometry::{wrap_angle, Pose2};
 use super::files::{read_bounded, read_bounded_text, FileKind};
 use super::format::{ScanFile, ENCODER_SIZE};
 use super::png::{PolarRow, PolarScan, MAX_IMAGE_BYTES};
-use super::truth::{check_span, read_text, relative_to_first, TruthError};
+use super::truth::{
+    check_span, plausible, read_text, relative_to_first, TruthError, MAX_SPEED_MPS,
+};
 use crate::error::ReplayError;
 
 /// Below this speed (m/s) the course over ground is not a heading; the last one is held.
@@ -114,6 +116,7 @@ pub fn read_scan_index(index: &Path, scan_dir: &Path) -> Result<Vec<ScanFile>, R
                 return Err(ReplayError::OutOfOrder {
                     path: index.to_path_buf(),
                     row: Some(row),
+                    earlier_path: None,
                     earlier_us: prev.time_us,
                     later_us: time_us,
                 });
@@ -308,12 +311,19 @@ pub fn read_gps_fix(path: &Path, time_us: i64) -> Result<GpsFix, TruthError> {
             reason: format!("latitude {lat} / longitude {lon} out of range"),
         });
     }
+    let speed = |k: usize, what: &str| {
+        plausible(twist[k], MAX_SPEED_MPS, k, what).map_err(|reason| TruthError::Row {
+            path: path.to_path_buf(),
+            row: 17,
+            reason,
+        })
+    };
     Ok(GpsFix {
         time_us,
         lat_deg: lat,
         lon_deg: lon,
-        v_north_mps: twist[0],
-        v_east_mps: twist[1],
+        v_north_mps: speed(0, "north velocity, m/s")?,
+        v_east_mps: speed(1, "east velocity, m/s")?,
     })
 }
 

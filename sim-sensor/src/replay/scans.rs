@@ -179,6 +179,7 @@ fn list_named_scans(scan_dir: &Path) -> Result<Vec<ScanFile>, ReplayError> {
         return Err(ReplayError::OutOfOrder {
             path: w[1].path.clone(),
             row: None,
+            earlier_path: Some(w[0].path.clone()),
             earlier_us: w[0].time_us,
             later_us: w[1].time_us,
         });

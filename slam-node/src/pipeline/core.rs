@@ -290,6 +290,7 @@ impl Pipeline {
                     "the radar's clock jumped: the filter moves to the new clock (map kept, pose uncertainty grown, odometry awaited)"
                 );
                 self.summary.clock_jumps += 1;
+                self.summary.clock_jumped();
                 self.end_rotation(events);
                 self.last_rotation = None;
                 if let Err(e) = self.ekf.resync_clock(to_s) {

@@ -191,7 +191,17 @@ pub struct Derived {
     pub choice: Choice,
     /// The profile's keys the configuration wrote (its values won).
     pub overridden: Vec<&'static str>,
+    /// Keys the configuration wrote that the chosen detector does not use (the CFAR
+    /// window's under `tpp` or `learned`): warned about, not silently taken.
+    pub unused: Vec<&'static str>,
 }
+
+/// The CFAR window's keys: only `ca-cfar` and `os-cfar` use them.
+const CFAR_KEYS: [&str; 3] = [
+    "detector.guard_cells",
+    "detector.reference_cells",
+    "detector.os_rank",
+];
 
 /// The profile's value of `key` unless the configuration writes it: records the override.
 fn take<T>(
@@ -439,10 +449,22 @@ impl PipelineSettings {
             // odometry meant.
             s.motion = super::settings::motion_model(&effective);
         }
+        let cfar = matches!(
+            s.detector.kind,
+            crate::detect::DetectorKind::CaCfar | crate::detect::DetectorKind::OsCfar
+        );
+        let unused = match written {
+            Written::Keys(keys) if !cfar => CFAR_KEYS
+                .into_iter()
+                .filter(|k| keys.contains(*k))
+                .collect(),
+            _ => Vec::new(),
+        };
         Ok(Derived {
             settings: s,
             choice,
             overridden,
+            unused,
         })
     }
 }
@@ -554,6 +576,13 @@ impl Derived {
             );
         }
         info!(kind = ?self.settings.detector.kind, domain = ?self.settings.detector.domain, "detector");
+        if !self.unused.is_empty() {
+            warn!(
+                keys = %self.unused.join(", "),
+                kind = ?self.settings.detector.kind,
+                "the configuration sets CFAR window keys this detector does not use: they have no effect"
+            );
+        }
     }
 }
 
@@ -592,6 +621,26 @@ mod tests {
         let keys = config::written_keys(text);
         PipelineSettings::derive(&c, Written::Keys(&keys), named(p), &SourceFacts::default())
             .unwrap()
+    }
+
+    #[test]
+    fn cfar_window_keys_written_for_a_detector_that_does_not_use_them_are_named() {
+        // Issue 38: `guard_cells` with `kind = "learned"` was taken without a word.
+        let d = derive_from(
+            "[detector]\nkind = \"learned\"\nguard_cells = 3\nreference_cells = 40\n",
+            &profile::CTS350X,
+        );
+        assert_eq!(
+            d.unused,
+            vec!["detector.guard_cells", "detector.reference_cells"]
+        );
+        let d = derive_from("[detector]\nguard_cells = 3\n", &profile::PAPER_2006);
+        assert_eq!(d.unused, vec!["detector.guard_cells"], "tpp, the default");
+        let d = derive_from(
+            "[detector]\nkind = \"ca-cfar\"\nguard_cells = 3\n",
+            &profile::PAPER_2006,
+        );
+        assert!(d.unused.is_empty());
     }
 
     #[test]

@@ -370,15 +370,14 @@ pub fn run_pipeline(
                 p(pipeline.summary(), pipeline.ekf());
             }
         }
-        // Stream time is the pipeline's accepted clock: one wild timestamp neither ends the
-        // run nor stretches it.
+        // Stream time is the pipeline's accepted clock, summed over its jumps: one wild
+        // timestamp neither ends the run nor stretches it, and a clock that jumps back does
+        // not make the run longer.
         if let Some(now) = pipeline.last_time_s() {
-            let first = *first_time_s.get_or_insert(now);
-            if control
-                .max_stream_s
-                .is_some_and(|limit| now - first >= limit)
-            {
-                info!(stream_s = now - first, "stream duration reached");
+            first_time_s.get_or_insert(now);
+            let stream_s = pipeline.summary().stream_s();
+            if control.max_stream_s.is_some_and(|limit| stream_s >= limit) {
+                info!(stream_s, "stream duration reached");
                 break;
             }
         }

@@ -61,10 +61,12 @@ pub struct PipelineSummary {
     pub saved_maps: u64,
     /// What went into the last one.
     pub saved_map: Option<super::saved_map::SavedMapCounts>,
-    /// Stream time of the first and last azimuth.
+    /// Stream time of the first azimuth on the radar's current clock (since its last jump).
     pub first_time_s: Option<f64>,
     /// Last azimuth's time.
     pub last_time_s: Option<f64>,
+    /// Stream time covered on the clocks before the radar's last jump, seconds.
+    pub stream_before_jumps_s: f64,
     /// Processing time summed over rotations, ms.
     pub processing_ms: f64,
     /// Detection time summed, ms.
@@ -143,12 +145,26 @@ impl PipelineSummary {
         keep_recent(&mut self.recent_ms, d.total_ms);
     }
 
-    /// Stream time covered, seconds.
+    /// Stream time covered, seconds: summed over the radar's clocks, so a clock that jumps
+    /// (back, or ahead) neither cancels nor inflates it (issue 38: after a jump back the
+    /// summary read "0.0 s of stream").
     pub fn stream_s(&self) -> f64 {
+        self.stream_before_jumps_s + self.current_clock_s()
+    }
+
+    fn current_clock_s(&self) -> f64 {
         match (self.first_time_s, self.last_time_s) {
             (Some(a), Some(b)) => (b - a).max(0.0),
             _ => 0.0,
         }
+    }
+
+    /// The radar's clock has jumped: what was covered on the old clock is kept, and the
+    /// next azimuth starts the new one.
+    pub fn clock_jumped(&mut self) {
+        self.stream_before_jumps_s += self.current_clock_s();
+        self.first_time_s = None;
+        self.last_time_s = None;
     }
 
     /// Stream seconds processed per second of processing time (one thread).
