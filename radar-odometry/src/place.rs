@@ -386,7 +386,7 @@ impl PlaceDescriptor {
 /// Ring keys of many places, for the nearest ones to a query: a k-d tree (kiddo's immutable
 /// tree, which takes any number of equal keys) rebuilt on the first query after places were
 /// added, O(n log n) over the places indexed.
-#[derive(Debug, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct PlaceIndex {
     keys: Vec<[f32; RINGS]>,
     ids: Vec<u64>,

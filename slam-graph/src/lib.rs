@@ -6,6 +6,8 @@
 //!   factorisation (faer) per step; marginal covariances.
 //! - [`align`]: loop-closure verification by jointly compatible, unambiguous association of
 //!   many features, with their reflectivity and absorption.
+//! - [`places`]: loop-closure candidates from place descriptors (radar-odometry's
+//!   [`radar_odometry::PlaceDescriptor`]), for returns the pose uncertainty does not reach.
 //! - [`layer`]: [`GlobalMap`] (synchronous, deterministic) and [`GlobalLayer`] (the same on a
 //!   thread of its own, never blocking the caller).
 //!
@@ -14,6 +16,7 @@
 pub mod align;
 pub mod graph;
 pub mod layer;
+pub mod places;
 pub mod se2;
 
 pub use align::{align, AlignSettings, Alignment, Refusal};
@@ -21,3 +24,4 @@ pub use graph::{Edge, EdgeKind, GraphError, PoseGraph, Solution, SolveSettings};
 pub use layer::{
     AddReport, GlobalLayer, GlobalMap, GlobalSettings, GlobalSolution, GlobalStats, LoopClosure,
 };
+pub use places::{PlaceCandidate, PlaceSearch};
