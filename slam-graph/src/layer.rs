@@ -365,7 +365,14 @@ impl GlobalMap {
                 }
             }
         }
-        self.place_candidates(k, &newest, &mut verified, report);
+        // The descriptors are for returns the prior does not find: when it found one, the
+        // place search is skipped (it costs tens of ms; every verified closure of the prior
+        // has been through the same verifier).
+        if verified.is_empty() {
+            self.place_candidates(k, &newest, &mut verified, report);
+        } else if s.place.enabled {
+            self.places.skip(&self.submaps, s.align.min_hits, &s.place);
+        }
         if verified.is_empty() {
             return;
         }

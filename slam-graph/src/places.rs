@@ -191,6 +191,20 @@ impl Places {
         query
     }
 
+    /// Describes the newest submap without looking it up (the descriptor is kept for later
+    /// submaps to find).
+    pub(crate) fn skip(
+        &mut self,
+        submaps: &[Arc<FrozenSubmap>],
+        min_hits: u64,
+        settings: &PlaceSearch,
+    ) {
+        let k = submaps.len().saturating_sub(1);
+        let points = place_points(submaps, k, min_hits);
+        let own = PlaceDescriptor::new(points, &settings.descriptor).ok();
+        self.descriptors.push(own);
+    }
+
     /// Candidates for the newest submap `k` among the earlier ones `i` with
     /// `eligible(i)` (far enough behind), nearest by descriptor first.
     pub(crate) fn candidates(
