@@ -31,6 +31,10 @@ pub struct RawSubmaps {
     /// Earlier submaps are loop-closure candidates within this many standard deviations of
     /// the relative position. Default 3.
     pub search_sigmas: f64,
+    /// Earlier submaps are also loop-closure candidates when their place descriptor matches
+    /// the new one's (slam-graph's `places`), however far the pose estimate puts them; the
+    /// verifier decides either way. Default true.
+    pub place_recognition: bool,
 }
 
 impl Default for RawSubmaps {
@@ -43,6 +47,7 @@ impl Default for RawSubmaps {
             min_matches: 6,
             max_rival_ratio: 0.6,
             search_sigmas: 3.0,
+            place_recognition: true,
         }
     }
 }
@@ -64,6 +69,8 @@ pub struct SubmapSettings {
     pub max_rival_ratio: OpenProbability,
     /// Search width in standard deviations.
     pub search_sigmas: PositiveF64,
+    /// Candidates from place descriptors too.
+    pub place_recognition: bool,
 }
 
 impl Default for SubmapSettings {
@@ -130,6 +137,7 @@ impl RawSubmaps {
                 "submaps.search_sigmas",
                 PositiveF64::new(self.search_sigmas),
             ),
+            place_recognition: self.place_recognition,
         }
     }
 }
@@ -144,6 +152,7 @@ impl From<&SubmapSettings> for RawSubmaps {
             min_matches: s.min_matches.get() as i64,
             max_rival_ratio: s.max_rival_ratio.get(),
             search_sigmas: s.search_sigmas.get(),
+            place_recognition: s.place_recognition,
         }
     }
 }

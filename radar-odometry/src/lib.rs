@@ -7,7 +7,8 @@
 //! The pieces stand alone: [`register`] two clouds you already have; [`ScanMatcher`] for a
 //! stream of azimuths; [`KStrongest`] to take returns from raw power profiles when you have
 //! no detector. `cargo run --release -p radar-odometry --example register_two_scans` registers
-//! two recorded Oxford scans. slam-node's pipeline uses it to measure motion for the filter
+//! two recorded Oxford scans. [`place`] describes a place (the points around it) for loop
+//! closure without a pose prior. slam-node's pipeline uses it to measure motion for the filter
 //! and, with `[odometry] source = "none"`, to drive the filter's prediction on the radar alone.
 //!
 //! No IO, no clock, no threads: time and motion estimates come in as arguments.
@@ -16,6 +17,7 @@ pub mod cloud;
 pub mod extract;
 pub mod grid;
 pub mod matcher;
+pub mod place;
 pub mod register;
 
 pub use cloud::ReferenceCloud;
@@ -23,5 +25,8 @@ pub use extract::KStrongest;
 pub use grid::PointGrid;
 pub use matcher::{
     MatcherCounts, RadarReturn, Return, RotationMotion, ScanMatchSettings, ScanMatcher, MAX_POINTS,
+};
+pub use place::{
+    PlaceDescriptor, PlaceError, PlaceIndex, PlaceMatch, PlaceQuery, PlaceSettings, QueryMatch,
 };
 pub use register::{covariance, in_frame_of, register, Constraint, Registration, HEADING_LENGTH_M};

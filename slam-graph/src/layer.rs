@@ -25,6 +25,7 @@ use tracing::{info, warn};
 
 use crate::align::{align, AlignSettings, Alignment, Refusal};
 use crate::graph::{Edge, EdgeKind, PoseGraph, SolveSettings};
+use crate::places::{PlaceSearch, Places};
 use crate::se2::{compose, compose_covariance, inverse, transform_point};
 
 /// The global layer's settings.
@@ -48,6 +49,8 @@ pub struct GlobalSettings {
     /// least this far (m, summed over the submaps in between) since it: a loop is a return
     /// after an excursion, not the overlap of neighbouring submaps.
     pub min_loop_travel_m: f64,
+    /// Candidates from place descriptors, besides those from the pose uncertainty.
+    pub place: PlaceSearch,
 }
 
 impl Default for GlobalSettings {
@@ -60,6 +63,7 @@ impl Default for GlobalSettings {
             max_search_sigma_m: 50.0,
             skip_recent: 1,
             min_loop_travel_m: 100.0,
+            place: PlaceSearch::default(),
         }
     }
 }
@@ -83,6 +87,8 @@ pub struct LoopClosure {
     pub dof: usize,
     /// Matches of the best rival transform.
     pub rival_matches: usize,
+    /// The candidate came from a place descriptor (not from the pose uncertainty).
+    pub from_place: bool,
 }
 
 /// The optimised frames.
@@ -105,6 +111,8 @@ pub struct GlobalSolution {
 pub struct AddReport {
     /// Candidates offered to the verifier.
     pub candidates: usize,
+    /// Of which from place descriptors.
+    pub place_candidates: usize,
     /// Closures accepted into the graph.
     pub accepted: Vec<LoopClosure>,
     /// Refusals, by candidate submap.
@@ -126,8 +134,12 @@ pub struct GlobalStats {
     pub submaps: usize,
     /// Candidates offered to the verifier.
     pub candidates: u64,
+    /// Of which from place descriptors.
+    pub place_candidates: u64,
     /// Loop closures in the graph.
     pub loops: u64,
+    /// Of which from place descriptors.
+    pub place_loops: u64,
     /// Verified closures dropped for disagreeing with another.
     pub conflicting: u64,
     /// Closures dropped after the solve.
@@ -169,6 +181,7 @@ pub struct GlobalMap {
     loops: Vec<LoopClosure>,
     version: u64,
     stats: GlobalStats,
+    places: Places,
 }
 
 impl GlobalMap {
@@ -184,6 +197,7 @@ impl GlobalMap {
             loops: Vec::new(),
             version: 0,
             stats: GlobalStats::default(),
+            places: Places::default(),
         }
     }
 
@@ -311,7 +325,8 @@ impl GlobalMap {
             return;
         };
         let (cn, rn) = self.discs[k];
-        let mut verified: Vec<(usize, Alignment)> = Vec::new();
+        // (earlier submap, alignment, from a place descriptor)
+        let mut verified: Vec<(usize, Alignment, bool)> = Vec::new();
         for i in 0..k.saturating_sub(s.skip_recent) {
             // Frame i + 1 is where submap i ended.
             if self.travel[k] - self.travel[i + 1] < s.min_loop_travel_m {
@@ -343,12 +358,20 @@ impl GlobalMap {
                 &search_cov,
                 &s.align,
             ) {
-                Ok(a) => verified.push((i, a)),
+                Ok(a) => verified.push((i, a, false)),
                 Err(r) => {
                     tracing::debug!(candidate = i, submap = k, refusal = ?r, "loop closure refused");
                     report.refused.push((i, r));
                 }
             }
+        }
+        // The descriptors are for returns the prior does not find: when it found one, the
+        // place search is skipped (it costs tens of ms; every verified closure of the prior
+        // has been through the same verifier).
+        if verified.is_empty() {
+            self.place_candidates(k, &newest, &mut verified, report);
+        } else if s.place.enabled {
+            self.places.skip(&self.submaps, s.align.min_hits, &s.place);
         }
         if verified.is_empty() {
             return;
@@ -359,7 +382,7 @@ impl GlobalMap {
         verified.sort_by_key(|v| std::cmp::Reverse(v.1.matches.len()));
         let implied: Vec<(Pose2, Matrix3<f64>)> = verified
             .iter()
-            .map(|(i, a)| {
+            .map(|(i, a, _)| {
                 let fi = self.graph.nodes()[*i];
                 (
                     compose(&fi, &a.transform),
@@ -391,7 +414,7 @@ impl GlobalMap {
                     .map_or(true, |ch| e.dot(&ch.solve(&e)) > bound);
                 far && outside
             })
-            .map(|((_, a), _)| a.matches.len())
+            .map(|((_, a, _), _)| a.matches.len())
             .max()
             .unwrap_or(0);
         if rival as f64 >= s.align.max_rival_ratio * best_matches as f64 {
@@ -406,7 +429,7 @@ impl GlobalMap {
             return;
         }
         verified.truncate(1);
-        for (i, a) in verified {
+        for (i, a, from_place) in verified {
             report.accepted.push(LoopClosure {
                 from: i,
                 to: k,
@@ -416,7 +439,58 @@ impl GlobalMap {
                 nis: a.nis,
                 dof: a.dof,
                 rival_matches: a.rival_matches,
+                from_place,
             });
+        }
+    }
+
+    /// Describes the new submap `k` and offers the verifier the earlier submaps its place
+    /// descriptor matches (far enough behind, not verified already), each with the
+    /// descriptor's transform as the prior (see [`crate::places`]).
+    fn place_candidates(
+        &mut self,
+        k: usize,
+        newest: &FrozenSubmap,
+        verified: &mut Vec<(usize, Alignment, bool)>,
+        report: &mut AddReport,
+    ) {
+        let s = self.settings;
+        if !s.place.enabled {
+            return;
+        }
+        let Some(query) = self
+            .places
+            .describe(&self.submaps, s.align.min_hits, &s.place)
+        else {
+            return;
+        };
+        let travel = &self.travel;
+        let last = k.saturating_sub(s.skip_recent);
+        let eligible = |i: usize| i < last && travel[k] - travel[i + 1] >= s.place.min_travel_m;
+        let candidates =
+            self.places
+                .candidates(&self.submaps, &query, eligible, s.align.min_hits, &s.place);
+        for c in candidates {
+            if verified.iter().any(|v| v.0 == c.index) {
+                continue;
+            }
+            report.candidates += 1;
+            report.place_candidates += 1;
+            self.stats.candidates += 1;
+            self.stats.place_candidates += 1;
+            match align(
+                &self.submaps[c.index].features,
+                &newest.features,
+                &c.prior,
+                &c.covariance,
+                &s.align,
+            ) {
+                Ok(a) => verified.push((c.index, a, true)),
+                Err(r) => {
+                    tracing::debug!(candidate = c.index, submap = k, distance = c.distance, refusal = ?r, "loop closure from a place descriptor refused");
+                    report.refused.push((c.index, r));
+                }
+            }
         }
     }
 
@@ -468,6 +542,7 @@ impl GlobalMap {
                         info!(from = l.from, to = l.to, matches = l.matches, "loop closed");
                     }
                     self.stats.loops += kept.len() as u64;
+                    self.stats.place_loops += kept.iter().filter(|l| l.from_place).count() as u64;
                     self.loops.extend(kept.iter().cloned());
                     report.accepted = kept;
                     return;

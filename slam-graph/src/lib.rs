@@ -6,6 +6,10 @@
 //!   factorisation (faer) per step; marginal covariances.
 //! - [`align`]: loop-closure verification by jointly compatible, unambiguous association of
 //!   many features, with their reflectivity and absorption.
+//! - [`places`]: loop-closure candidates from place descriptors (radar-odometry's
+//!   [`radar_odometry::PlaceDescriptor`]), for returns the pose uncertainty does not reach.
+//! - [`revisits`]: closures scored over every true revisit of a ground truth (recall and
+//!   precision).
 //! - [`layer`]: [`GlobalMap`] (synchronous, deterministic) and [`GlobalLayer`] (the same on a
 //!   thread of its own, never blocking the caller).
 //!
@@ -14,6 +18,8 @@
 pub mod align;
 pub mod graph;
 pub mod layer;
+pub mod places;
+pub mod revisits;
 pub mod se2;
 
 pub use align::{align, AlignSettings, Alignment, Refusal};
@@ -21,3 +27,5 @@ pub use graph::{Edge, EdgeKind, GraphError, PoseGraph, Solution, SolveSettings};
 pub use layer::{
     AddReport, GlobalLayer, GlobalMap, GlobalSettings, GlobalSolution, GlobalStats, LoopClosure,
 };
+pub use places::{PlaceCandidate, PlaceSearch};
+pub use revisits::{score_revisits, RevisitRule, RevisitScore};

@@ -441,6 +441,23 @@ impl fmt::Display for Submaps<'_> {
                 sm.loops_false
             )?;
         }
+        if let Some(r) = &sm.revisits {
+            let pct =
+                |v: Option<f64>| v.map_or("n/a".to_string(), |v| format!("{:.0}%", 100.0 * v));
+            writeln!(
+                f,
+                "  true revisits (origins within 10 m, at least 300 m driven apart): {} pairs over {} revisiting submaps, {} closed (recall {}); {} of {} closures true (precision {}); candidates from place descriptors {}, closures {}",
+                r.pairs,
+                r.revisiting,
+                r.closed,
+                pct(r.recall()),
+                r.correct,
+                r.closures,
+                pct(r.precision()),
+                g.place_candidates,
+                g.place_loops
+            )?;
+        }
         Ok(())
     }
 }

@@ -130,6 +130,7 @@ impl SubmapOptions {
         };
         global.align.min_matches = s.min_matches.get();
         global.align.max_rival_ratio = s.max_rival_ratio.get();
+        global.place.enabled = s.place_recognition;
         Some(Self {
             limits: slam_filter::SubmapLimits {
                 max_distance_m: s.max_distance_m.get(),

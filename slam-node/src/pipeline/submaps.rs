@@ -48,6 +48,9 @@ pub struct SubmapSummary {
     pub loops_true: usize,
     /// False loop closures.
     pub loops_false: usize,
+    /// Closures over every true revisit (within 10 m, at least 300 m of driving apart),
+    /// when the truth is known.
+    pub revisits: Option<slam_graph::RevisitScore>,
 }
 
 /// A whole trajectory against the truth.
@@ -371,6 +374,7 @@ impl SubmapRun {
             }
             truth(map.submaps().get(i - 1)?.end_s)
         };
+        self.summary.revisits = Some(revisit_score(map, &est, &tru, &frame_truth));
         for l in map.loops() {
             let (Some(a), Some(b)) = (frame_truth(l.from), frame_truth(l.to)) else {
                 continue;
@@ -475,6 +479,49 @@ pub struct SubmapParts<'a> {
     pub frame_covs: &'a [Matrix3<f64>],
     /// Loop closures accepted so far.
     pub loops: &'a [LoopClosure],
+}
+
+/// The closures over every true revisit: frame `i`'s true origin is the vehicle's true
+/// position when it started (frame 0: the first pose), its driving the true path length
+/// up to then.
+fn revisit_score(
+    map: &GlobalMap,
+    est: &[PoseSample],
+    tru: &[Pose2],
+    frame_truth: &dyn Fn(usize) -> Option<Pose2>,
+) -> slam_graph::RevisitScore {
+    let mut driven = Vec::with_capacity(tru.len());
+    let mut total = 0.0;
+    for (k, t) in tru.iter().enumerate() {
+        if let Some(prev) = k.checked_sub(1).and_then(|p| tru.get(p)) {
+            total += (t.x - prev.x).hypot(t.y - prev.y);
+        }
+        driven.push(total);
+    }
+    // The last sample at or before `time`.
+    let at = |time: f64| {
+        est.partition_point(|p| p.timestamp_s <= time)
+            .checked_sub(1)
+    };
+    let frames = map.submaps().len() + 1;
+    let start_s = |i: usize| match i {
+        0 => est.first().map(|p| p.timestamp_s),
+        _ => map.submaps().get(i - 1).map(|s| s.end_s),
+    };
+    let truth: Vec<Option<Pose2>> = (0..frames).map(frame_truth).collect();
+    let (origins, driven_m): (Vec<Option<[f64; 2]>>, Vec<f64>) = (0..frames)
+        .map(|i| match start_s(i).and_then(at) {
+            Some(k) => (Some([tru[k].x, tru[k].y]), driven[k]),
+            None => (None, 0.0),
+        })
+        .unzip();
+    slam_graph::score_revisits(
+        map.loops(),
+        &truth,
+        &origins,
+        &driven_m,
+        &slam_graph::RevisitRule::default(),
+    )
 }
 
 /// A frozen submap's feature in the world through its submap's frame.
