@@ -213,6 +213,7 @@ const CASES: &[(&str, &str, &str)] = &[
 /// parse error, tested in `unknown_keys.rs`).
 const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "submaps.enabled",
+    "submaps.place_recognition",
     "submaps.loop_closure",
     "map.save",
     "radar.tcp_nodelay",
