@@ -134,7 +134,11 @@ impl RadarOdometryStage {
             // Driving, the registration is the odometry: it is not gated against a
             // prediction that only repeats the last rotation's motion (a turn's onset would
             // be refused, and then every registration after it).
-            let gate = if self.drives { f64::INFINITY } else { GATE_CHI2 };
+            let gate = if self.drives {
+                f64::INFINITY
+            } else {
+                GATE_CHI2
+            };
             match ekf.observe_motion_since_mark(m.motion, &m.covariance, gate) {
                 Ok(outcome) => {
                     if let MotionOutcome::Applied { .. } = outcome {
