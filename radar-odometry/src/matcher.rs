@@ -15,6 +15,11 @@ use crate::register::{covariance, in_frame_of, register, Constraint, Registratio
 
 /// Points a rotation's cloud holds at most, whatever the radar's geometry.
 pub const MAX_POINTS: usize = 1 << 15;
+/// A registration pairing under this share of what recent ones paired is retried from
+/// other headings ([`ScanMatcher`]'s `follow`).
+pub const TURN_PAIRED_SHARE: f64 = 0.7;
+/// The heading offsets (rad, each either side) a registration is retried from.
+pub const TURN_SEEDS_RAD: [f64; 2] = [0.05, 0.1];
 /// Pairs a registration needs at least, however few points a rotation has.
 pub const MIN_PAIRS_FLOOR: usize = 12;
 /// A weak registration's standard deviation along its weak direction (m): no information.
@@ -133,6 +138,8 @@ pub struct MatcherCounts {
     pub weak: u64,
     /// Registrations that searched over starts.
     pub searched: u64,
+    /// Registrations retried from other headings (few pairs: a turn's onset).
+    pub turned: u64,
 }
 
 /// The clouds of the current and previous rotation.
@@ -146,6 +153,9 @@ pub struct ScanMatcher {
     /// Scratch for one azimuth's strongest returns.
     order: Vec<usize>,
     counts: MatcherCounts,
+    /// The share of a cloud's points paired in recent registrations (an average over about
+    /// ten), against which a registration stuck short of a turn shows.
+    paired_share: Option<f64>,
 }
 
 impl ScanMatcher {
@@ -231,15 +241,24 @@ impl ScanMatcher {
         };
         let local = in_frame_of(&end, &points);
         let mut out = None;
-        if let Some(reference) = self.previous.as_ref() {
+        // Replaced by this rotation's cloud below, whatever the registration does.
+        if let Some(reference) = self.previous.take() {
+            let reference = &reference;
             self.counts.tried += 1;
             let min_pairs = self.min_pairs(local.len());
             let reg = if search {
                 self.counts.searched += 1;
                 self.search(reference, &local, end, min_pairs)
             } else {
-                register(reference, &local, end, self.settings.pair_gate_m, min_pairs)
+                self.follow(reference, &local, end, min_pairs)
             };
+            if let (Some(r), false) = (reg.as_ref(), local.is_empty()) {
+                let share = r.pairs as f64 / local.len() as f64;
+                self.paired_share = Some(match self.paired_share {
+                    Some(s) => 0.9 * s + 0.1 * share,
+                    None => share,
+                });
+            }
             out = reg.and_then(|reg| self.measured(reg, search));
             match &out {
                 Some(m) if m.weak => self.counts.weak += 1,
@@ -267,6 +286,41 @@ impl ScanMatcher {
         self.settings
             .min_pairs
             .min((points / 2).max(MIN_PAIRS_FLOOR))
+    }
+
+    /// The registration started at `end`; when it pairs far fewer of the cloud's points than
+    /// recent ones did (under [`TURN_PAIRED_SHARE`] of their share), it may have stopped short
+    /// of a turn's onset, which the motion estimate did not foresee: the registration is
+    /// tried again from headings [`TURN_SEEDS_RAD`] either side and the one with the most
+    /// pairs kept (ICP's basin in heading is a few hundredths of a radian at this gate).
+    fn follow(
+        &mut self,
+        reference: &ReferenceCloud,
+        local: &[[f64; 2]],
+        end: Pose2,
+        min_pairs: usize,
+    ) -> Option<Registration> {
+        let gate = self.settings.pair_gate_m;
+        let first = register(reference, local, end, gate, min_pairs);
+        let (Some(typical), false) = (self.paired_share, local.is_empty()) else {
+            return first;
+        };
+        let share = first
+            .as_ref()
+            .map_or(0.0, |r| r.pairs as f64 / local.len() as f64);
+        if share >= TURN_PAIRED_SHARE * typical {
+            return first;
+        }
+        self.counts.turned += 1;
+        TURN_SEEDS_RAD
+            .iter()
+            .flat_map(|d| [*d, -*d])
+            .filter_map(|d| {
+                let start = Pose2::new(end.x, end.y, end.theta + d);
+                register(reference, local, start, gate, min_pairs)
+            })
+            .chain(first)
+            .max_by(|a, b| a.pairs.cmp(&b.pairs).then(b.rms_m.total_cmp(&a.rms_m)))
     }
 
     /// The registration with the most pairs (then the smallest residual) over starts spread
