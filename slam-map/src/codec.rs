@@ -21,18 +21,9 @@
 use std::io::{self, Read, Write};
 
 use crate::error::{FormatError, WriteError};
+pub use crate::format::{FORMAT_VERSION, HEADER_LEN, MAGIC};
 use crate::model::Map;
 use crate::validate::validate;
-
-/// The first eight bytes of every map file. The first byte is not ASCII (a text file is
-/// not taken for a map) and the CR LF pair catches a transfer that rewrote line endings.
-pub const MAGIC: [u8; 8] = [0x89, b'S', b'L', b'M', b'A', b'P', b'\r', b'\n'];
-
-/// The format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
-
-/// Bytes before the payload.
-pub const HEADER_LEN: usize = 24;
 
 /// What a reader accepts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -3,7 +3,7 @@
 use std::io;
 use std::path::PathBuf;
 
-use crate::codec::{FORMAT_VERSION, MAGIC};
+use crate::format::{FORMAT_VERSION, MAGIC};
 
 /// Why bytes are not a map this build can use.
 #[derive(Debug, thiserror::Error)]

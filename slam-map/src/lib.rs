@@ -24,6 +24,7 @@ pub mod codec;
 pub mod convert;
 pub mod error;
 mod file;
+pub mod format;
 pub mod model;
 pub mod profile;
 pub mod validate;

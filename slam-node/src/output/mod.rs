@@ -20,6 +20,7 @@ pub mod map;
 pub mod recording;
 pub mod ros;
 pub mod saved_map;
+pub mod summary;
 pub mod trajectory;
 pub mod writer;
 pub mod zenoh_keys;

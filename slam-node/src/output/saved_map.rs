@@ -7,7 +7,7 @@ use std::path::Path;
 use slam_map::Map;
 use tracing::{info, warn};
 
-use super::writer::WriterSummary;
+use super::summary::WriterSummary;
 
 /// Saves `map` at `path` and records the outcome in `summary`.
 pub fn save(map: &Map, path: &Path, summary: &mut WriterSummary) {

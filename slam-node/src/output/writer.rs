@@ -16,10 +16,11 @@ use tracing::{info, warn};
 use super::diagnostics::RotationDiagnostics;
 use super::event::OutputEvent;
 use super::figures::{draw_map, draw_spectrum, FigureError, TruthOverlay};
-use super::foxglove::{FoxgloveError, FoxgloveOutput, FoxgloveSummary};
-use super::live::{LiveError, LiveOutput, LiveSummary};
+use super::foxglove::{FoxgloveError, FoxgloveOutput};
+use super::live::{LiveError, LiveOutput};
 use super::map::MapSnapshot;
-use super::recording::{McapRecorder, RecordingError, RecordingSummary};
+use super::recording::{McapRecorder, RecordingError};
+pub use super::summary::WriterSummary;
 use super::trajectory::{PoseSample, TumWriter};
 
 /// The MCAP recording of a run.
@@ -110,38 +111,6 @@ pub enum WriterError {
     /// The writer thread panicked.
     #[error("the writer thread panicked")]
     Panicked,
-}
-
-/// What the writer wrote.
-#[derive(Debug, Clone, Default)]
-pub struct WriterSummary {
-    /// Poses written.
-    pub poses: u64,
-    /// Rotations written.
-    pub rotations: u64,
-    /// Map snapshots written.
-    pub maps: u64,
-    /// Spectrum comparisons written.
-    pub spectra: u64,
-    /// Figures drawn.
-    pub figures: Vec<PathBuf>,
-    /// The data files written.
-    pub files: Vec<PathBuf>,
-    /// The MCAP recording, when one was made.
-    pub recording: Option<RecordingSummary>,
-    /// Why the recording stopped early, if it did (the other outputs went on).
-    pub recording_error: Option<String>,
-    /// The live Zenoh output, when there was one.
-    pub live: Option<LiveSummary>,
-    /// Saved maps written (`[map]`).
-    pub saved_maps: u64,
-    /// The last saved map's size (bytes).
-    pub saved_map_bytes: Option<u64>,
-    /// Why the last saved map could not be written, if it could not (the previous file
-    /// stays whole; the other outputs went on).
-    pub saved_map_error: Option<String>,
-    /// The Foxglove output, when there was one.
-    pub foxglove: Option<FoxgloveSummary>,
 }
 
 /// The filter's end of the output channel.

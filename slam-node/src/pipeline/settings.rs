@@ -105,7 +105,7 @@ pub struct PipelineSettings {
     /// source = "none"` or `--radar-only`).
     pub radar_drives: bool,
     /// The saved map (`[map]`).
-    pub map_save: super::saved_map::MapSaveSettings,
+    pub map_save: super::map_save::MapSaveSettings,
 }
 
 /// Local submaps and the global layer.
@@ -335,7 +335,7 @@ impl PipelineSettings {
             radar_stall: Duration::from_secs(2),
             map_every_rotations: 20,
             submaps: SubmapOptions::from_config(&c.submaps),
-            map_save: super::saved_map::MapSaveSettings::from_config(c),
+            map_save: super::map_save::MapSaveSettings::from_config(c),
             scan_match: ScanMatchSettings {
                 enabled: c.odometry.radar_odometry,
                 sigma_xy_m: c.odometry.radar_odometry_sigma_m.get(),

@@ -1,0 +1,11 @@
+//! The header constants of the map file, shared by the codec and its errors. No IO.
+
+/// The first eight bytes of every map file. The first byte is not ASCII (a text file is
+/// not taken for a map) and the CR LF pair catches a transfer that rewrote line endings.
+pub const MAGIC: [u8; 8] = [0x89, b'S', b'L', b'M', b'A', b'P', b'\r', b'\n'];
+
+/// The format version this build writes and reads.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// Bytes before the payload.
+pub const HEADER_LEN: usize = 24;
