@@ -200,6 +200,7 @@ const CASES: &[(&str, &str, &str)] = &[
 const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "submaps.enabled",
     "submaps.loop_closure",
+    "submaps.place_recognition",
     "radar.tcp_nodelay",
     "radar.non_contoured",
     "radar.drop_policy",
