@@ -4,7 +4,10 @@
 //! call it directly): each frozen submap becomes a node, chained to the previous one by the
 //! vehicle's pose at the switch; the earlier submaps its features could overlap (by the
 //! current estimate and the uncertainty of the two frames) are offered to the verifier
-//! ([`crate::align`]); verified closures become loop edges; the graph is solved. If several
+//! ([`crate::align`]); when none of them verifies, the earlier submaps whose place
+//! descriptor matches the new one's ([`crate::places`]) are offered to the same verifier,
+//! with the descriptor's transform as the prior; verified closures become loop edges; the
+//! graph is solved. If several
 //! earlier submaps verify and disagree on where the new one is, none is taken (repeated
 //! structure). A solve that fails, does not converge, or leaves a loop edge far outside its
 //! own uncertainty is logged and the previous solution stays.

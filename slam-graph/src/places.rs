@@ -53,10 +53,10 @@ impl Default for PlaceSearch {
             descriptor: PlaceSettings::default(),
             neighbours: 10,
             max_distance: 0.5,
-            max_candidates: 3,
+            max_candidates: 2,
             min_travel_m: 200.0,
-            prior_sigma_m: 3.0,
-            prior_sigma_rad: 0.08,
+            prior_sigma_m: 2.0,
+            prior_sigma_rad: 0.05,
         }
     }
 }

@@ -8,10 +8,10 @@
 //! trajectory's error.
 //!
 //! Run: `cargo run --release -p evaluation --bin loop_closure -- [--config
-//! config/examples/city-drive.toml] [--duration 440] [--steer-bias RAD] [--speed-bias M/S]
-//! [--radar-only]`. The biases are added to the simulator's odometry (`[sim] bias_steer_rad`,
-//! `bias_speed_mps`) so that the pose prior is loose and wrong; `--radar-only` runs without
-//! odometry (`[odometry] source = "none"`). Outputs go to a temporary folder.
+//! config/examples/city-drive.toml] [--scene FILE] [--duration 440] [--steer-bias RAD]
+//! [--speed-bias M/S]`. The biases are added to the simulator's odometry (`[sim]
+//! bias_steer_rad`, `bias_speed_mps`) so that the pose prior is loose and wrong. Outputs go
+//! to a temporary folder.
 
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
@@ -28,6 +28,9 @@ struct Args {
     /// The configuration (its `[sim]` scene is run in this process).
     #[arg(long, default_value = "config/examples/city-drive.toml")]
     config: PathBuf,
+    /// A scene file replacing the configuration's `[sim] scene`.
+    #[arg(long)]
+    scene: Option<PathBuf>,
     /// Seconds of stream.
     #[arg(long, default_value_t = 440.0)]
     duration: f64,
@@ -37,22 +40,19 @@ struct Args {
     /// Speed bias added to the simulator's odometry (m/s).
     #[arg(long, default_value_t = 0.0)]
     speed_bias: f64,
-    /// No odometry: radar odometry drives the filter.
-    #[arg(long)]
-    radar_only: bool,
 }
 
 fn options(args: &Args, place: bool, out: &std::path::Path) -> anyhow::Result<DaemonOptions> {
     let (mut config, written) =
         config::Config::load_with_written(&args.config).context("loading the configuration")?;
     config.submaps.place_recognition = place;
+    if let Some(scene) = &args.scene {
+        config.sim.scene = config::sim::SceneRef::File(scene.clone());
+    }
     config.sim.bias_steer_rad =
         config::values::FiniteF64::new(args.steer_bias).context("--steer-bias")?;
     config.sim.bias_speed_mps =
         config::values::FiniteF64::new(args.speed_bias).context("--speed-bias")?;
-    if args.radar_only {
-        config.odometry.source = config::odometry::OdometrySource::None;
-    }
     let mut sim = sim_sensor::SimOptions::from_config(&config.sim).context("the simulator")?;
     sim.bind = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
     sim.odometry_bind = Some(std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
@@ -96,12 +96,14 @@ fn main() -> anyhow::Result<()> {
     }
     let runtime = tokio::runtime::Runtime::new()?;
     println!(
-        "loop closure over the true revisits: {} for {} s, odometry steer bias {} rad, speed bias {} m/s{}",
+        "loop closure over the true revisits: {}{} for {} s, odometry steer bias {} rad, speed bias {} m/s",
         args.config.display(),
+        args.scene
+            .as_ref()
+            .map_or(String::new(), |s| format!(" with the scene {}", s.display())),
         args.duration,
         args.steer_bias,
-        args.speed_bias,
-        if args.radar_only { ", radar only" } else { "" }
+        args.speed_bias
     );
     println!("candidates           | revisits (pairs / submaps) | closed | recall | closures | true | precision | from places (cand. / closed) | global RMS / max m | online RMS m");
     for place in [false, true] {
