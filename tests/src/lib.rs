@@ -156,3 +156,37 @@ pub async fn run(run: &Run, out: &Path, limit: Duration) -> Result<DaemonReport,
 pub fn print(report: &DaemonReport) {
     println!("{}", slam_node::daemon::report::summary_text(report));
 }
+
+/// The Oxford Radar RobotCar scans in `../shared`, or `None` with a SKIPPED line when they
+/// are absent.
+pub fn oxford_dir() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/oxford-radar-robotcar");
+    if dir.join("radar").is_dir() {
+        Some(dir)
+    } else {
+        println!(
+            "SKIPPED: the Oxford Radar RobotCar scans are not at {} (they live in ../shared beside the workspace)",
+            dir.display()
+        );
+        None
+    }
+}
+
+/// The daemon's options for a test: `config`, whose file wrote `written` (`None`: no keys),
+/// outputs in `out`, no figures, no progress lines, no simulator yet.
+pub fn test_options(config: config::Config, written: Option<&str>, out: &Path) -> DaemonOptions {
+    DaemonOptions {
+        config,
+        simulator: None,
+        mcap: None,
+        max_stream_s: None,
+        out_dir: out.to_path_buf(),
+        figures: false,
+        progress_every_rotations: 0,
+        stop: Arc::new(AtomicBool::new(false)),
+        keep_configured_compensation: false,
+        spectrum_bearings_deg: Vec::new(),
+        detector: None,
+        written: Some(written.map(config::written_keys).unwrap_or_default()),
+    }
+}

@@ -13,26 +13,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+use e2e_tests::{oxford_dir, test_options as options};
 use radar_model::geometry::{wrap_angle, Pose2};
 use sim_sensor::settings::Pacing;
 use sim_sensor::{SimOptions, SimServer, SourceSpec};
 use slam_node::daemon::replay::OdometryErrors;
-use slam_node::daemon::{
-    run_daemon, run_mcap_replay, DaemonOptions, EmbeddedSim, RecordedReplay, Simulator,
-};
-
-fn oxford_dir() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/oxford-radar-robotcar");
-    if dir.join("radar").is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "SKIPPED: the Oxford Radar RobotCar scans are not at {} (they live in ../shared beside the workspace)",
-            dir.display()
-        );
-        None
-    }
-}
+use slam_node::daemon::{run_daemon, run_mcap_replay, EmbeddedSim, RecordedReplay, Simulator};
 
 /// A TUM trajectory's poses (x, y, heading), in time order.
 fn read_tum(path: &Path) -> Vec<(f64, Pose2)> {
@@ -56,23 +42,6 @@ fn relative(poses: &[(f64, Pose2)]) -> Vec<(f64, Pose2)> {
         return Vec::new();
     };
     poses.iter().map(|&(t, p)| (t, first.between(&p))).collect()
-}
-
-fn options(config: config::Config, written: Option<&str>, out: &Path) -> DaemonOptions {
-    DaemonOptions {
-        config,
-        simulator: None,
-        mcap: None,
-        max_stream_s: None,
-        out_dir: out.to_path_buf(),
-        figures: false,
-        progress_every_rotations: 0,
-        stop: Arc::new(AtomicBool::new(false)),
-        keep_configured_compensation: false,
-        spectrum_bearings_deg: Vec::new(),
-        detector: None,
-        written: Some(written.map(config::written_keys).unwrap_or_default()),
-    }
 }
 
 /// The largest difference in position (m) and heading (rad) between two runs' poses

@@ -5,43 +5,12 @@
 //! is not scored. The Oxford cases skip with a message when the scans are absent.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 
+use e2e_tests::{oxford_dir, test_options as options};
 use sim_sensor::settings::Pacing;
 use sim_sensor::SimOptions;
 use slam_node::daemon::replay::OdometryErrors;
-use slam_node::daemon::{run_daemon, DaemonOptions, EmbeddedSim, RecordedReplay, Simulator};
-
-fn oxford_dir() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/oxford-radar-robotcar");
-    if dir.join("radar").is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "SKIPPED: the Oxford Radar RobotCar scans are not at {} (they live in ../shared beside the workspace)",
-            dir.display()
-        );
-        None
-    }
-}
-
-fn options(config: config::Config, written: &str, out: &Path) -> DaemonOptions {
-    DaemonOptions {
-        config,
-        simulator: None,
-        mcap: None,
-        max_stream_s: None,
-        out_dir: out.to_path_buf(),
-        figures: false,
-        progress_every_rotations: 0,
-        stop: Arc::new(AtomicBool::new(false)),
-        keep_configured_compensation: false,
-        spectrum_bearings_deg: Vec::new(),
-        detector: None,
-        written: Some(config::written_keys(written)),
-    }
-}
+use slam_node::daemon::{run_daemon, EmbeddedSim, RecordedReplay, Simulator};
 
 /// The vehicle's configuration as shipped, with no odometry.
 fn vehicle_radar_only() -> String {
@@ -84,7 +53,7 @@ async fn the_realistic_street_is_driven_on_the_radar_alone() {
     .expect("the realistic street");
     let mut sim = SimOptions::for_tests(scene);
     sim.pacing = Pacing::AsFastAsPossible;
-    let mut opts = options(config, &text, work.path());
+    let mut opts = options(config, Some(&text), work.path());
     opts.max_stream_s = Some(10.0);
     opts.simulator = Some(Simulator {
         sim: EmbeddedSim::new(sim),
@@ -116,7 +85,7 @@ fn recorded(dir: PathBuf) -> RecordedReplay {
 async fn replay(dir: PathBuf, out: &Path) -> slam_node::daemon::DaemonReport {
     let mut sim = SimOptions::for_tests(sim_sensor::scene::shipped::load("outdoor-field").unwrap());
     sim.pacing = Pacing::AsFastAsPossible;
-    let mut opts = options(config::Config::default(), "", out);
+    let mut opts = options(config::Config::default(), None, out);
     opts.detector = Some(slam_node::detect::DetectorSettings::default());
     opts.simulator = Some(Simulator {
         sim: EmbeddedSim::new(sim),
