@@ -444,7 +444,7 @@ impl RunState {
         let p = ekf.pose_covariance();
         let health = self
             .health_every
-            .filter(|k| *k > 0 && self.out.rotations.len() % *k == 0)
+            .filter(|k| *k > 0 && self.out.rotations.len().is_multiple_of(*k))
             .map(|_| ekf.covariance_health(true));
         self.out.rotations.push(RotationRecord {
             health,

@@ -324,7 +324,7 @@ pub fn register(image: &Image, later: &Cloud, starts: &[Pose2]) -> Option<(Pose2
                 step.iter_mut().for_each(|s| *s *= 0.5);
             }
         }
-        if best.as_ref().map_or(true, |b| score > b.1) {
+        if best.as_ref().is_none_or(|b| score > b.1) {
             best = Some((Pose2::new(at[0], at[1], wrap_angle(at[2])), score));
         }
     }

@@ -129,7 +129,7 @@ impl FftData {
             });
         }
         let bins = payload.slice(offset..);
-        if width == BinWidth::Sixteen && bins.len() % 2 != 0 {
+        if width == BinWidth::Sixteen && !bins.len().is_multiple_of(2) {
             return Err(PayloadError::OddBinPayload { len: bins.len() });
         }
         let timestamp =
@@ -209,7 +209,7 @@ impl FftData {
                 offset: self.fft_data_offset,
             });
         }
-        if self.width == BinWidth::Sixteen && self.bins.len() % 2 != 0 {
+        if self.width == BinWidth::Sixteen && !self.bins.len().is_multiple_of(2) {
             return Err(EncodeError::OddBinBytes {
                 len: self.bins.len(),
             });
@@ -259,7 +259,7 @@ pub fn encode_fft_frame(
     timestamp: Timestamp,
     bins: &[u8],
 ) -> Result<(), EncodeError> {
-    if width == BinWidth::Sixteen && bins.len() % 2 != 0 {
+    if width == BinWidth::Sixteen && !bins.len().is_multiple_of(2) {
         return Err(EncodeError::OddBinBytes { len: bins.len() });
     }
     let payload_len = FFT_HEADER_LEN + bins.len();

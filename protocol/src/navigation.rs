@@ -63,7 +63,7 @@ impl NavigationData {
         let timestamp =
             Timestamp::new(seconds, nanos).map_err(|_| PayloadError::BadNanos { nanos })?;
         let target_bytes = payload.len().saturating_sub(NAVIGATION_HEADER_LEN);
-        if target_bytes % NAVIGATION_TARGET_LEN != 0 {
+        if !target_bytes.is_multiple_of(NAVIGATION_TARGET_LEN) {
             return Err(PayloadError::BadNavigationTargets { len: target_bytes });
         }
         let n = target_bytes / NAVIGATION_TARGET_LEN;

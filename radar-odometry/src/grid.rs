@@ -141,7 +141,7 @@ impl PointGrid {
             for &i in &self.order[from..to] {
                 let p = points[i as usize];
                 let d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]);
-                if d2 <= bound && best.map_or(true, |(_, b)| d2 < b) {
+                if d2 <= bound && best.is_none_or(|(_, b)| d2 < b) {
                     best = Some((i as usize, d2));
                     bound = d2;
                 }

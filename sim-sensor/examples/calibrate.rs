@@ -131,7 +131,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     .clamp(0.3, 10.0);
             }
         }
-        if best.as_ref().map_or(true, |(e, _)| err < *e) {
+        if best.as_ref().is_none_or(|(e, _)| err < *e) {
             best = Some((err, trial));
         }
     }

@@ -162,7 +162,7 @@ impl FaultInjector {
     pub fn skip_azimuth(&mut self) -> bool {
         self.azimuths_seen += 1;
         match self.settings.skip_azimuth_every_n {
-            Some(n) if self.active => self.azimuths_seen % n.get() == 0,
+            Some(n) if self.active => self.azimuths_seen.is_multiple_of(n.get()),
             _ => false,
         }
     }
@@ -176,7 +176,7 @@ impl FaultInjector {
         }
         let m = self.messages_sent;
         if let Some(n) = self.settings.corrupt_every_n {
-            if m % n.get() == 0 {
+            if m.is_multiple_of(n.get()) {
                 // Deterministic choice of the signature byte, varying between messages.
                 let position = usize::try_from(m.wrapping_mul(7) % 16).unwrap_or(0);
                 if let (Some(byte), Some(good)) = (frame.get_mut(position), SIGNATURE.get(position))

@@ -56,7 +56,7 @@ impl Trajectory {
         while checkpoints.len() < n_checkpoints {
             pose = step_pose(&model, &scene.schedule, pose, step)?;
             step += 1;
-            if step % CHECKPOINT_STEPS == 0 {
+            if step.is_multiple_of(CHECKPOINT_STEPS) {
                 checkpoints.push(pose);
             }
         }
@@ -138,7 +138,7 @@ impl Trajectory {
         while cursor.step < target_step {
             cursor.pose = step_pose(&self.model, &self.schedule, cursor.pose, cursor.step)?;
             cursor.step += 1;
-            if cursor.step % CHECKPOINT_STEPS == 0 && cursor.step > cursor.anchors[0].0 {
+            if cursor.step.is_multiple_of(CHECKPOINT_STEPS) && cursor.step > cursor.anchors[0].0 {
                 cursor.anchors = [(cursor.step, cursor.pose), cursor.anchors[0]];
             }
         }

@@ -122,7 +122,7 @@ async fn corruption_inverts_one_signature_byte_in_every_nth_message_and_a_decode
     for (i, frame) in raw.chunks_exact(frame_len).enumerate() {
         let message = i as u64 + 2;
         let diffs: Vec<usize> = (0..16).filter(|&b| frame[b] != SIGNATURE[b]).collect();
-        if message % 3 == 0 {
+        if message.is_multiple_of(3) {
             let position = (message * 7 % 16) as usize;
             assert_eq!(diffs, vec![position], "message {message}");
             assert_eq!(frame[position], !SIGNATURE[position]);

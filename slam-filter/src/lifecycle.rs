@@ -144,7 +144,7 @@ impl TentativeList {
                 continue;
             };
             let d2 = d.dot(&ch.solve(&d));
-            if d2 <= gate_2dof && best.map_or(true, |(_, b, _)| d2 < b) {
+            if d2 <= gate_2dof && best.is_none_or(|(_, b, _)| d2 < b) {
                 best = Some((idx, d2, prior));
             }
         }

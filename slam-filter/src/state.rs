@@ -214,7 +214,7 @@ impl SlamState {
         time_s: f64,
     ) -> Result<Self, FilterError> {
         let n = mean.len();
-        if n < FEATURE_BASE || (n - FEATURE_BASE) % FEATURE_DIM != 0 {
+        if n < FEATURE_BASE || !(n - FEATURE_BASE).is_multiple_of(FEATURE_DIM) {
             return Err(FilterError::Shape("state length must be 9 + 4 N"));
         }
         if cov.nrows() != n || cov.ncols() != n {

@@ -734,7 +734,7 @@ fn parked_across_a_gap(s: FilterSettings, clutter_every: usize) -> (f64, Filter)
             let in_beam = common::in_beam(&truth, &map, bearing, half, f64::INFINITY);
             let mut seen = noisy(&truth, &in_beam, 0.0, &mut rng);
             clutter += 1;
-            if clutter % clutter_every == 0 {
+            if clutter.is_multiple_of(clutter_every) {
                 use rand::Rng;
                 seen.push(Target {
                     range_m: rng.gen_range(3.0..30.0),

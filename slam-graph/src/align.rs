@@ -293,7 +293,7 @@ pub fn align(
     'outer: for i in 0..m {
         for j in (i + 1)..m {
             k += 1;
-            if k % stride != 0 {
+            if !k.is_multiple_of(stride) {
                 continue;
             }
             if hypotheses.len() >= settings.max_hypotheses {

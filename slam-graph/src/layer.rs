@@ -414,7 +414,7 @@ impl GlobalMap {
                 let far = (best.x - q.x).hypot(best.y - q.y) > sep || e.z.abs() > 0.1 * sep;
                 let outside = (best_cov + d)
                     .cholesky()
-                    .map_or(true, |ch| e.dot(&ch.solve(&e)) > bound);
+                    .is_none_or(|ch| e.dot(&ch.solve(&e)) > bound);
                 far && outside
             })
             .map(|((_, a, _), _)| a.matches.len())

@@ -298,7 +298,7 @@ fn refine(a: &[[f64; 2]], b: &[[f64; 2]], prior: Pose2, settings: &PlaceSearch) 
     for step in -4..=4 {
         let yaw = wrap_angle(prior.theta + f64::from(step) * 0.01);
         if let Some((t, n, spread)) = vote_translation(a, b, yaw, [prior.x, prior.y], reach) {
-            if best.map_or(true, |(_, m, sm)| n > m || (n == m && spread < sm)) {
+            if best.is_none_or(|(_, m, sm)| n > m || (n == m && spread < sm)) {
                 best = Some((Pose2::new(t[0], t[1], yaw), n, spread));
             }
         }

@@ -49,7 +49,7 @@ fn run(args: cli::Args) -> anyhow::Result<()> {
         Box::new(
             move |s: &slam_node::pipeline::PipelineSummary,
                   ekf: &slam_node::pipeline::DaemonEkf| {
-                if s.rotations % every == 0 {
+                if s.rotations.is_multiple_of(every) {
                     eprintln!("{}", report::progress_line(s, ekf));
                 }
             },

@@ -204,7 +204,7 @@ async fn serve_radar(
                     let mut encoder = az.encoder;
                     let mut bins = az.bins.clone();
                     match phase {
-                        Phase::FarFutureStamps if future_sent < 3 && next % 50 == 0 => {
+                        Phase::FarFutureStamps if future_sent < 3 && next.is_multiple_of(50) => {
                             future_sent += 1;
                             stamp = Timestamp::new(YEAR_2100_S, 0).expect("2100");
                         }

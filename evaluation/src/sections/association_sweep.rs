@@ -152,7 +152,7 @@ pub fn pairs_scene(spacing_m: f64, contrast: Contrast, seconds: f64) -> Result<S
             let y = side * LATERAL_M[k % LATERAL_M.len()];
             let kinds = contrast.kinds();
             // Which member comes first alternates, so neither kind always leads.
-            let (a, b) = if k % 2 == 0 {
+            let (a, b) = if k.is_multiple_of(2) {
                 (kinds[0], kinds[1])
             } else {
                 (kinds[1], kinds[0])

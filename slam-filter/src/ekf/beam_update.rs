@@ -143,7 +143,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 (Some(&slot), Some(z)) => self.repeat_look(slot, [z[0], z[1]], beam.timestamp_s),
                 _ => 1.0,
             };
-            inflation.extend(std::iter::repeat(k).take(r.len()));
+            inflation.extend(std::iter::repeat_n(k, r.len()));
             rows.extend(r);
             claimed.push(j);
         }

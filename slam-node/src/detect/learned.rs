@@ -194,7 +194,10 @@ impl LearnedFloor {
     /// recomputed.
     pub fn offer(&mut self, smoothed: &[u16], raw: &[u8]) -> bool {
         self.azimuths += 1;
-        let due = !self.ready || self.azimuths % self.settings.sample_every as u64 == 0;
+        let due = !self.ready
+            || self
+                .azimuths
+                .is_multiple_of(self.settings.sample_every as u64);
         if !due {
             return false;
         }

@@ -303,9 +303,10 @@ impl<W: Write + Seek> McapRecorder<W> {
     }
 
     fn on_azimuth(&mut self, az: &Azimuth) -> Result<(), RecordingError> {
-        let changed = self.geometry.as_ref().map_or(true, |g| {
-            !(Arc::ptr_eq(g, &az.geometry) || **g == *az.geometry)
-        });
+        let changed = self
+            .geometry
+            .as_ref()
+            .is_none_or(|g| !(Arc::ptr_eq(g, &az.geometry) || **g == *az.geometry));
         if changed {
             self.geometry = Some(Arc::clone(&az.geometry));
             let msg = ros::radar_configuration(az);

@@ -579,7 +579,7 @@ impl Pipeline {
             );
         }
         let every = self.settings.map_every_rotations;
-        if every > 0 && self.summary.rotations % every == 0 {
+        if every > 0 && self.summary.rotations.is_multiple_of(every) {
             let map = self.map_snapshot();
             events.push(OutputEvent::Map(map));
         }

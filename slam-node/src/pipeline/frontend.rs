@@ -473,7 +473,7 @@ impl FrontEnd {
     /// Whether the radar's last look along `bearing_rad` reached `range_m`.
     pub fn covers(&self, bearing_rad: f64, range_m: f64) -> bool {
         self.covered_range_m(bearing_rad)
-            .map_or(true, |covered| range_m <= covered)
+            .is_none_or(|covered| range_m <= covered)
     }
 
     /// Releases everything still held (end of stream) into `beams`.

@@ -330,7 +330,7 @@ pub fn run_pipeline(
             let deadline = Instant::now() + odometry_wait;
             while pipeline
                 .odometry_latest_s()
-                .map_or(true, |t| t < az.timestamp_s)
+                .is_none_or(|t| t < az.timestamp_s)
             {
                 let now = Instant::now();
                 if now >= deadline {

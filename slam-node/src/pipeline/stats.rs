@@ -103,7 +103,7 @@ impl RotationStats {
     /// Whether a comparison of a beam with `features` mapped features should replace the
     /// rotation's figure sample (the beam with the most features wins).
     pub fn better_sample(&self, features: usize) -> bool {
-        self.sample.as_ref().map_or(true, |(k, _)| features > *k)
+        self.sample.as_ref().is_none_or(|(k, _)| features > *k)
     }
 
     /// Keeps a comparison for the figures: a chosen bearing's, or the rotation's best.

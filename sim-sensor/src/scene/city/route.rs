@@ -272,7 +272,7 @@ impl Path {
             let (foot, heading) = piece.at(u);
             let d = (p[0] - foot[0]).hypot(p[1] - foot[1]);
             let e = heading.cos() * (p[1] - foot[1]) - heading.sin() * (p[0] - foot[0]);
-            if best.map_or(true, |b| d < b.0 - 1e-9) {
+            if best.is_none_or(|b| d < b.0 - 1e-9) {
                 best = Some((d, k, self.starts.get(k)? + u, e, heading));
             }
         }

@@ -67,9 +67,10 @@ impl ImageBuilder {
 
     /// Takes one azimuth; returns the previous rotation's image when `az` starts another.
     pub fn push(&mut self, az: &Azimuth) -> Option<RotationImage> {
-        let new_geometry = self.geometry.as_ref().map_or(true, |g| {
-            !(Arc::ptr_eq(g, &az.geometry) || **g == *az.geometry)
-        });
+        let new_geometry = self
+            .geometry
+            .as_ref()
+            .is_none_or(|g| !(Arc::ptr_eq(g, &az.geometry) || **g == *az.geometry));
         let finished = if self.rotation.is_some_and(|r| r != az.rotation) || new_geometry {
             self.finish()
         } else {
