@@ -30,10 +30,11 @@ fn vehicle_radar_only() -> String {
             }
             continue;
         }
-        // The odometry's own keys go; so do the recording and output paths (the test's
-        // folder is used).
+        // The odometry's own keys go; so do the radar's address (the embedded simulator
+        // binds 127.0.0.1:0 and the driver is pointed at the port it got), the recording and
+        // output paths (the test's folder is used).
         let key = line.split('=').next().unwrap_or("").trim();
-        if in_odometry || key == "record_path" || key == "directory" {
+        if in_odometry || matches!(key, "address" | "record_path" | "directory") {
             continue;
         }
         out.push_str(line);
