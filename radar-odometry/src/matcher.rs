@@ -182,11 +182,6 @@ impl ScanMatcher {
         self.counts
     }
 
-    /// Whether a previous rotation's cloud is held to register the next against.
-    pub fn has_reference(&self) -> bool {
-        self.previous.is_some()
-    }
-
     /// Adds one azimuth's returns at `bearing_rad`, the sensor at `sensor` (the frame at the
     /// last mark; `None` when there is none: nothing is added). Keeps the strongest
     /// [`ScanMatchSettings::points_per_azimuth`] within the range limits.
