@@ -10,13 +10,14 @@
 //!     ../shared/data/oxford-radar-robotcar/radar/1547131046606586.png
 //! ```
 //! With no arguments it takes the first two scans of `../shared/data/oxford-radar-robotcar`.
-//! The rotation is not de-skewed (the motion within it is unknown to a two-scan example): at
-//! 10 m/s that costs a few centimetres.
+//! The first rotation is not de-skewed (the motion within it is unknown to a two-scan
+//! example); the second is re-placed along the motion its registration measures, from its
+//! rows' timestamps.
 
 use std::path::{Path, PathBuf};
 
 use radar_model::geometry::Pose2;
-use radar_odometry::{KStrongest, ScanMatchSettings, ScanMatcher};
+use radar_odometry::{KStrongest, RotationEnd, ScanMatchSettings, ScanMatcher};
 use sim_sensor::replay::png::read_polar_png;
 
 /// The CTS350-X of the Oxford data set: bin size (m) and encoder counts per rotation.
@@ -40,16 +41,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..KStrongest::default()
     };
     let mut matcher = ScanMatcher::new(settings);
-    let origin = Some(Pose2::new(0.0, 0.0, 0.0));
+    let origin = Pose2::new(0.0, 0.0, 0.0);
     let mut result = None;
+    // Times relative to the first scan's first row; a rotation ends at its last row.
+    let (mut epoch_us, mut since_s) = (None, 0.0);
     for path in [&a, &b] {
         let scan = read_polar_png(path).map_err(|e| format!("{}: {e}", path.display()))?;
         let mut points = 0;
+        let mut until_s = since_s;
         for row in scan.rows.iter().filter(|r| r.valid) {
             let bearing = std::f64::consts::TAU * f64::from(row.encoder) / ENCODER_SIZE;
             let returns = extract.returns(&row.bins, BIN_SIZE_M);
             points += returns.len().min(settings.points_per_azimuth);
-            matcher.add_azimuth(origin, bearing, &returns);
+            let epoch = *epoch_us.get_or_insert(row.timestamp_us);
+            until_s = (row.timestamp_us - epoch) as f64 * 1e-6;
+            matcher.add_azimuth(Some(origin), until_s, bearing, &returns);
         }
         println!(
             "{}: {} azimuths, {points} returns",
@@ -57,7 +63,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             scan.rows.len()
         );
         let t = std::time::Instant::now();
-        result = matcher.end_rotation(origin, true);
+        let end = RotationEnd {
+            pose: origin,
+            since_s,
+            until_s,
+        };
+        since_s = until_s;
+        result = matcher.end_rotation(Some(end), true);
         if matcher.counts().tried > 0 {
             println!("registered in {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
         }

@@ -24,7 +24,8 @@ pub use cloud::ReferenceCloud;
 pub use extract::KStrongest;
 pub use grid::PointGrid;
 pub use matcher::{
-    MatcherCounts, RadarReturn, Return, RotationMotion, ScanMatchSettings, ScanMatcher, MAX_POINTS,
+    MatcherCounts, RadarReturn, Return, RotationEnd, RotationMotion, ScanMatchSettings,
+    ScanMatcher, MAX_POINTS,
 };
 pub use place::{
     PlaceDescriptor, PlaceError, PlaceIndex, PlaceMatch, PlaceQuery, PlaceSettings, QueryMatch,

@@ -11,7 +11,9 @@ use nalgebra::{Matrix3, Vector3};
 use radar_model::geometry::Pose2;
 
 use crate::cloud::ReferenceCloud;
-use crate::register::{covariance, in_frame_of, register, Constraint, Registration};
+use crate::register::{
+    along, covariance, in_frame_of, register, register_swept, Constraint, Registration,
+};
 
 /// Points a rotation's cloud holds at most, whatever the radar's geometry.
 pub const MAX_POINTS: usize = 1 << 15;
@@ -60,6 +62,15 @@ pub struct ScanMatchSettings {
     /// Without a motion estimate (the first rotations, after a failed registration) the
     /// registration is tried from starts up to this far ahead and behind (m).
     pub search_m: f64,
+    /// Whether the registration places the rotation's returns along the motion it is
+    /// trying (a constant twist from the last mark to the rotation's end,
+    /// [`register_swept`]) instead of where the caller's estimate put them, and places the
+    /// next rotation's reference along the motion found. Where the caller's estimate missed
+    /// a turn's onset, a rotation swept through the turn is bent by up to the whole turn,
+    /// and a registration of it as placed stops short of the turn. Swept, only the late
+    /// returns pin the motion (the early ones were seen from near the mark whatever the
+    /// motion), so on a straight road it is noisier. Off by default.
+    pub deskew: bool,
 }
 
 impl Default for ScanMatchSettings {
@@ -78,6 +89,7 @@ impl Default for ScanMatchSettings {
             min_residual_m: 0.02,
             weak_constraint: 0.02,
             search_m: 6.0,
+            deskew: false,
         }
     }
 }
@@ -140,6 +152,29 @@ pub struct MatcherCounts {
     pub searched: u64,
     /// Registrations retried from other headings (few pairs: a turn's onset).
     pub turned: u64,
+    /// Registrations kept that placed the returns along the motion they tried (swept).
+    pub swept: u64,
+}
+
+/// A return as seen, for re-placing it along a measured motion.
+#[derive(Debug, Clone, Copy)]
+struct Seen {
+    range_m: f64,
+    bearing_rad: f64,
+    /// Its azimuth's time (s).
+    time_s: f64,
+}
+
+/// The end of a rotation as the caller knows it: the vehicle's pose at `until_s` in its
+/// frame at `since_s` (the last mark), from the caller's motion estimate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RotationEnd {
+    /// The pose at `until_s` in the frame at `since_s`.
+    pub pose: Pose2,
+    /// The mark's time (s): the previous rotation's end.
+    pub since_s: f64,
+    /// This rotation's end (s).
+    pub until_s: f64,
 }
 
 /// The clouds of the current and previous rotation.
@@ -148,8 +183,13 @@ pub struct ScanMatcher {
     settings: ScanMatchSettings,
     /// This rotation's points in the frame at the last mark.
     current: Vec<[f64; 2]>,
+    /// The same points as seen: range, bearing and their azimuth's time.
+    seen: Vec<Seen>,
     /// The previous rotation's points in the vehicle's frame at its end.
     previous: Option<ReferenceCloud>,
+    /// Whether they were placed along a motion (registered, or the caller's estimate), not
+    /// swept from where the caller had none.
+    reference_placed: bool,
     /// Scratch for one azimuth's strongest returns.
     order: Vec<usize>,
     counts: MatcherCounts,
@@ -182,12 +222,14 @@ impl ScanMatcher {
         self.counts
     }
 
-    /// Adds one azimuth's returns at `bearing_rad`, the sensor at `sensor` (the frame at the
-    /// last mark; `None` when there is none: nothing is added). Keeps the strongest
-    /// [`ScanMatchSettings::points_per_azimuth`] within the range limits.
+    /// Adds one azimuth's returns at `bearing_rad`, swept at `time_s`, the sensor at
+    /// `sensor` (the frame at the last mark; `None` when there is none: nothing is added).
+    /// Keeps the strongest [`ScanMatchSettings::points_per_azimuth`] within the range
+    /// limits.
     pub fn add_azimuth<R: RadarReturn>(
         &mut self,
         sensor: Option<Pose2>,
+        time_s: f64,
         bearing_rad: f64,
         returns: &[R],
     ) {
@@ -218,8 +260,13 @@ impl ScanMatcher {
         }
         let room = MAX_POINTS.saturating_sub(self.current.len());
         for &i in self.order.iter().take(keep.min(room)) {
-            self.current
-                .push(sensor.point_at(returns[i].range_m(), bearing_rad));
+            let range_m = returns[i].range_m();
+            self.current.push(sensor.point_at(range_m, bearing_rad));
+            self.seen.push(Seen {
+                range_m,
+                bearing_rad,
+                time_s,
+            });
         }
     }
 
@@ -228,24 +275,60 @@ impl ScanMatcher {
     /// cloud against the previous rotation's, started at `end`, or, with `search`, from
     /// starts spread [`ScanMatchSettings::search_m`] ahead and behind (the caller has no
     /// motion estimate), and returns the measured motion when the registration holds.
-    pub fn end_rotation(&mut self, end: Option<Pose2>, search: bool) -> Option<RotationMotion> {
+    pub fn end_rotation(
+        &mut self,
+        end: Option<RotationEnd>,
+        search: bool,
+    ) -> Option<RotationMotion> {
         let points = std::mem::take(&mut self.current);
-        let Some(end) = end else {
+        let seen = std::mem::take(&mut self.seen);
+        let Some(RotationEnd {
+            pose: end,
+            since_s,
+            until_s,
+        }) = end
+        else {
             self.previous = None;
             return None;
         };
-        let local = in_frame_of(&end, &points);
+        let mut local = in_frame_of(&end, &points);
+        // Whether `local` is placed along a motion: the caller's estimate, or below the
+        // motion registered.
+        let mut placed = !search;
+        // Swept: each return in the sensor's frame when it was swept, and how far through
+        // the rotation that was.
+        let swept = (self.settings.deskew && until_s > since_s && !seen.is_empty()).then(|| {
+            let origin = Pose2::new(0.0, 0.0, 0.0);
+            let span = until_s - since_s;
+            let sensor: Vec<[f64; 2]> = seen
+                .iter()
+                .map(|p| origin.point_at(p.range_m, p.bearing_rad))
+                .collect();
+            let fractions: Vec<f64> = seen.iter().map(|p| (p.time_s - since_s) / span).collect();
+            (sensor, fractions)
+        });
         let mut out = None;
         // Replaced by this rotation's cloud below, whatever the registration does.
         if let Some(reference) = self.previous.take() {
             let reference = &reference;
             self.counts.tried += 1;
             let min_pairs = self.min_pairs(local.len());
+            let gate = self.settings.pair_gate_m;
+            // Swept only against a reference placed along a motion: a reference swept from
+            // where the caller had no estimate (searching) is as bent as this cloud placed
+            // the same way, and the two are registered as they are.
+            let sweep = swept.as_ref().filter(|_| self.reference_placed && !search);
+            let fit = |start: Pose2| match sweep {
+                Some((sensor, fractions)) => {
+                    register_swept(reference, sensor, fractions, start, gate, min_pairs)
+                }
+                None => register(reference, &local, start, gate, min_pairs),
+            };
             let reg = if search {
                 self.counts.searched += 1;
-                self.search(reference, &local, end, min_pairs)
+                self.search(&fit, end)
             } else {
-                self.follow(reference, &local, end, min_pairs)
+                self.follow(&fit, local.len(), end)
             };
             if let (Some(r), false) = (reg.as_ref(), local.is_empty()) {
                 let share = r.pairs as f64 / local.len() as f64;
@@ -254,6 +337,15 @@ impl ScanMatcher {
                     None => share,
                 });
             }
+            if let (Some(r), Some((sensor, fractions))) = (reg.as_ref(), swept.as_ref()) {
+                // The next rotation's reference: this cloud placed along the motion found,
+                // in its frame (the frame the filter's next mark stands for).
+                local = place_along(&r.pose, sensor, fractions);
+                placed = true;
+                if sweep.is_some() {
+                    self.counts.swept += 1;
+                }
+            }
             out = reg.and_then(|reg| self.measured(reg, search));
             match &out {
                 Some(m) if m.weak => self.counts.weak += 1,
@@ -261,6 +353,7 @@ impl ScanMatcher {
                 None => self.counts.failed += 1,
             }
         }
+        self.reference_placed = placed;
         self.previous = if local.is_empty() {
             None
         } else {
@@ -283,26 +376,25 @@ impl ScanMatcher {
             .min((points / 2).max(MIN_PAIRS_FLOOR))
     }
 
-    /// The registration started at `end`; when it pairs far fewer of the cloud's points than
-    /// recent ones did (under [`TURN_PAIRED_SHARE`] of their share), it may have stopped short
-    /// of a turn's onset, which the motion estimate did not foresee: the registration is
-    /// tried again from headings [`TURN_SEEDS_RAD`] either side and the one with the most
-    /// pairs kept (ICP's basin in heading is a few hundredths of a radian at this gate).
+    /// The registration (`fit` from a start) started at `end`; when it pairs far fewer of
+    /// the cloud's `points` than recent ones did (under [`TURN_PAIRED_SHARE`] of their
+    /// share), it may have stopped short of a turn's onset, which the motion estimate did not
+    /// foresee: the registration is tried again from headings [`TURN_SEEDS_RAD`] either side
+    /// and the one with the most pairs kept (ICP's basin in heading is a few hundredths of a
+    /// radian at this gate).
     fn follow(
         &mut self,
-        reference: &ReferenceCloud,
-        local: &[[f64; 2]],
+        fit: &dyn Fn(Pose2) -> Option<Registration>,
+        points: usize,
         end: Pose2,
-        min_pairs: usize,
     ) -> Option<Registration> {
-        let gate = self.settings.pair_gate_m;
-        let first = register(reference, local, end, gate, min_pairs);
-        let (Some(typical), false) = (self.paired_share, local.is_empty()) else {
+        let first = fit(end);
+        let (Some(typical), false) = (self.paired_share, points == 0) else {
             return first;
         };
         let share = first
             .as_ref()
-            .map_or(0.0, |r| r.pairs as f64 / local.len() as f64);
+            .map_or(0.0, |r| r.pairs as f64 / points as f64);
         if share >= TURN_PAIRED_SHARE * typical {
             return first;
         }
@@ -310,31 +402,23 @@ impl ScanMatcher {
         TURN_SEEDS_RAD
             .iter()
             .flat_map(|d| [*d, -*d])
-            .filter_map(|d| {
-                let start = Pose2::new(end.x, end.y, end.theta + d);
-                register(reference, local, start, gate, min_pairs)
-            })
+            .filter_map(|d| fit(Pose2::new(end.x, end.y, end.theta + d)))
             .chain(first)
             .max_by(|a, b| a.pairs.cmp(&b.pairs).then(b.rms_m.total_cmp(&a.rms_m)))
     }
 
-    /// The registration with the most pairs (then the smallest residual) over starts spread
-    /// along the vehicle's axis, a pair gate apart.
+    /// The registration (`fit` from a start) with the most pairs (then the smallest
+    /// residual) over starts spread along the vehicle's axis, a pair gate apart.
     fn search(
         &self,
-        reference: &ReferenceCloud,
-        local: &[[f64; 2]],
+        fit: &dyn Fn(Pose2) -> Option<Registration>,
         end: Pose2,
-        min_pairs: usize,
     ) -> Option<Registration> {
         let s = &self.settings;
         let step = s.pair_gate_m.max(0.1);
         let n = (s.search_m / step).ceil().clamp(0.0, 200.0) as i32;
         (-n..=n)
-            .filter_map(|k| {
-                let start = Pose2::new(end.x + f64::from(k) * step, end.y, end.theta);
-                register(reference, local, start, s.pair_gate_m, min_pairs)
-            })
+            .filter_map(|k| fit(Pose2::new(end.x + f64::from(k) * step, end.y, end.theta)))
             .max_by(|a, b| a.pairs.cmp(&b.pairs).then(b.rms_m.total_cmp(&a.rms_m)))
     }
 
@@ -363,6 +447,19 @@ impl ScanMatcher {
     }
 }
 
+/// The returns `sensor` (each in the sensor's frame when swept, `fractions` of the way
+/// through the rotation) placed along `motion` (a constant twist), in `motion`'s frame.
+fn place_along(motion: &Pose2, sensor: &[[f64; 2]], fractions: &[f64]) -> Vec<[f64; 2]> {
+    sensor
+        .iter()
+        .zip(fractions)
+        .map(|(p, f)| {
+            let at = motion.between(&along(motion, *f));
+            at.point_at(p[0].hypot(p[1]), -p[1].atan2(p[0]))
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -371,30 +468,41 @@ mod tests {
     /// of the beam.
     fn scan(world: &[[f64; 2]], pose: &Pose2) -> Vec<(f64, Vec<Return>)> {
         let local = in_frame_of(pose, world);
-        (0..400)
-            .map(|k| {
-                let bearing = std::f64::consts::TAU * f64::from(k) / 400.0;
-                let returns = local
-                    .iter()
-                    .filter(|p| {
-                        let b = p[1].atan2(p[0]);
-                        radar_model::geometry::wrap_angle(-b - bearing).abs()
-                            < std::f64::consts::PI / 400.0
-                    })
-                    .map(|p| Return {
-                        range_m: p[0].hypot(p[1]),
-                        strength_db: 30.0,
-                    })
-                    .collect();
-                (bearing, returns)
-            })
-            .collect()
+        (0..400).map(|k| azimuth(&local, k)).collect()
     }
 
+    /// Azimuth `k` of 400 of the points `local` (in the sensor's frame).
+    fn azimuth(local: &[[f64; 2]], k: u32) -> (f64, Vec<Return>) {
+        let bearing = std::f64::consts::TAU * f64::from(k) / 400.0;
+        let returns = local
+            .iter()
+            .filter(|p| {
+                let b = p[1].atan2(p[0]);
+                radar_model::geometry::wrap_angle(-b - bearing).abs() < std::f64::consts::PI / 400.0
+            })
+            .map(|p| Return {
+                range_m: p[0].hypot(p[1]),
+                strength_db: 30.0,
+            })
+            .collect();
+        (bearing, returns)
+    }
+
+    /// Feeds a scan taken from `pose`, all at once (no motion during the rotation).
     fn feed(m: &mut ScanMatcher, world: &[[f64; 2]], pose: &Pose2) {
         for (bearing, returns) in scan(world, pose) {
-            m.add_azimuth(Some(Pose2::new(0.0, 0.0, 0.0)), bearing, &returns);
+            m.add_azimuth(Some(Pose2::new(0.0, 0.0, 0.0)), 0.0, bearing, &returns);
         }
+    }
+
+    /// The caller's estimate: the origin, over a rotation of no length (nothing to
+    /// re-place).
+    fn at_origin() -> Option<RotationEnd> {
+        Some(RotationEnd {
+            pose: Pose2::new(0.0, 0.0, 0.0),
+            since_s: 0.0,
+            until_s: 0.0,
+        })
     }
 
     /// Building fronts with set-backs every few metres on both sides and posts between:
@@ -444,13 +552,11 @@ mod tests {
         let truth = Pose2::new(3.1, 0.02, 0.01);
         let mut m = ScanMatcher::new(settings);
         feed(&mut m, &world, &Pose2::new(0.0, 0.0, 0.0));
-        assert!(m
-            .end_rotation(Some(Pose2::new(0.0, 0.0, 0.0)), true)
-            .is_none());
+        assert!(m.end_rotation(at_origin(), true).is_none());
         feed(&mut m, &world, &truth);
         // Expressed at the mark: the cloud was placed at the origin, so `end` is the origin.
         let found = m
-            .end_rotation(Some(Pose2::new(0.0, 0.0, 0.0)), true)
+            .end_rotation(at_origin(), true)
             .expect("found by the search");
         assert!(found.searched);
         assert!((found.motion.x - truth.x).abs() < 0.05, "{found:?}");
@@ -477,10 +583,10 @@ mod tests {
         };
         let mut m = ScanMatcher::new(settings);
         feed(&mut m, &wall, &Pose2::new(0.0, 0.0, 0.0));
-        m.end_rotation(Some(Pose2::new(0.0, 0.0, 0.0)), false);
+        m.end_rotation(at_origin(), false);
         feed(&mut m, &wall, &Pose2::new(1.0, 0.0, 0.0));
         let got = m
-            .end_rotation(Some(Pose2::new(0.0, 0.0, 0.0)), false)
+            .end_rotation(at_origin(), false)
             .expect("registers across the wall");
         assert!(got.weak, "{:?}", got.constraint);
         assert_eq!(m.counts().weak, 1);
@@ -493,6 +599,102 @@ mod tests {
             got.covariance[(1, 1)].sqrt() < 0.2,
             "across the wall the motion is seen: sigma {} m",
             got.covariance[(1, 1)].sqrt()
+        );
+    }
+
+    /// Azimuth `k` of 400 swept from the pose `k / 400` of the way along a constant twist
+    /// that ends at `end` (the pose at the rotation's end in the frame at its start), from
+    /// `start`, as a spinning radar on a turning vehicle sees the world.
+    fn feed_swept(
+        m: &mut ScanMatcher,
+        world: &[[f64; 2]],
+        start: &Pose2,
+        end: &Pose2,
+        estimate: &Pose2,
+        t0: f64,
+    ) {
+        use crate::register::{exp, log};
+        let twist = log(end);
+        let estimate_twist = log(estimate);
+        let along = |twist: [f64; 3], f: f64| exp([f * twist[0], f * twist[1], f * twist[2]]);
+        let compose = |a: &Pose2, b: &Pose2| {
+            let p = a.point_at(b.x.hypot(b.y), -b.y.atan2(b.x));
+            Pose2::new(p[0], p[1], a.theta + b.theta)
+        };
+        for k in 1..=400u32 {
+            let f = f64::from(k) / 400.0;
+            let pose = compose(start, &along(twist, f));
+            let (bearing, returns) = azimuth(&in_frame_of(&pose, world), k % 400);
+            // The caller places the returns along its own estimate of the motion.
+            m.add_azimuth(
+                Some(along(estimate_twist, f)),
+                t0 + 0.25 * f,
+                bearing,
+                &returns,
+            );
+        }
+    }
+
+    #[test]
+    fn the_exponential_inverts_the_logarithm() {
+        use crate::register::{exp, log};
+        for pose in [
+            Pose2::new(2.5, 0.1, 0.1),
+            Pose2::new(-1.0, 0.3, -0.4),
+            Pose2::new(0.2, 0.0, 1e-9),
+        ] {
+            let back = exp(log(&pose));
+            assert!((back.x - pose.x).abs() < 1e-12, "{pose:?} {back:?}");
+            assert!((back.y - pose.y).abs() < 1e-12, "{pose:?} {back:?}");
+            assert!((back.theta - pose.theta).abs() < 1e-12, "{pose:?} {back:?}");
+        }
+    }
+
+    /// A turn's onset the caller did not foresee: the vehicle drove straight through the
+    /// reference rotation and turns at 0.4 rad/s through this one, while the caller places
+    /// its returns as if it still drove straight. The returns swept through the turn are
+    /// bent by up to the whole turn; registered as placed, the heading stops well short of
+    /// the turn; re-placed along the motion measured, it reaches it.
+    #[test]
+    fn a_cloud_swept_through_an_unforeseen_turn_is_replaced_along_it() {
+        let world = town();
+        let straight = Pose2::new(2.5, 0.0, 0.0);
+        let turn = crate::register::exp([2.5, 0.0, 0.1]);
+        let heading_error = |deskew: bool| {
+            let settings = ScanMatchSettings {
+                enabled: true,
+                points_per_azimuth: 50,
+                min_pairs: 50,
+                deskew,
+                ..ScanMatchSettings::default()
+            };
+            let mut m = ScanMatcher::new(settings);
+            // Three rotations straight down the street, then the turn's first.
+            let mut start = Pose2::new(-10.0, 0.0, 0.0);
+            let mut got = None;
+            for (k, truth) in [straight, straight, straight, turn].iter().enumerate() {
+                let t0 = 0.25 * k as f64;
+                feed_swept(&mut m, &world, &start, truth, &straight, t0);
+                let end = RotationEnd {
+                    pose: straight,
+                    since_s: t0,
+                    until_s: t0 + 0.25,
+                };
+                got = m.end_rotation(Some(end), false);
+                let p = start.point_at(truth.x.hypot(truth.y), -truth.y.atan2(truth.x));
+                start = Pose2::new(p[0], p[1], start.theta + truth.theta);
+            }
+            let got = got.expect("registers");
+            (got.motion.theta - turn.theta).abs()
+        };
+        let (bent, replaced) = (heading_error(false), heading_error(true));
+        assert!(
+            bent > 0.02,
+            "as placed, the heading stops short: {bent} rad"
+        );
+        assert!(
+            replaced < 0.008,
+            "re-placed, the heading reaches the turn: {replaced} rad (as placed {bent})"
         );
     }
 }

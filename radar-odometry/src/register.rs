@@ -2,7 +2,7 @@
 //! plane, and what its information says about the directions the scene constrains.
 
 use kiddo::SquaredEuclidean;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Complex, Matrix3, Vector3};
 use radar_model::geometry::{wrap_angle, Pose2};
 
 use crate::cloud::{ReferenceCloud, GRID_MAX_REACH};
@@ -39,6 +39,46 @@ pub fn register(
     gate_m: f64,
     min_pairs: usize,
 ) -> Option<Registration> {
+    icp(reference, current, None, initial, gate_m, min_pairs)
+}
+
+/// [`register`] for a cloud swept while the vehicle moved: `current[i]` is a return in the
+/// sensor's frame at the moment it was swept, `fractions[i]` how far through the motion
+/// that moment was (0 at the reference's frame, 1 at the pose sought). The motion is taken
+/// as constant (a constant twist), so the return is moved by the exponential of that
+/// fraction of the sought pose's logarithm: every iteration re-places the whole cloud along
+/// the motion it is trying, and a turn's onset that the start did not foresee no longer bends
+/// the cloud it is fitting. The pose found is the sensor's at fraction 1.
+///
+/// # Panics
+/// Never; `fractions` shorter than `current` leaves the rest at fraction 1.
+pub fn register_swept(
+    reference: &ReferenceCloud,
+    current: &[[f64; 2]],
+    fractions: &[f64],
+    initial: Pose2,
+    gate_m: f64,
+    min_pairs: usize,
+) -> Option<Registration> {
+    icp(
+        reference,
+        current,
+        Some(fractions),
+        initial,
+        gate_m,
+        min_pairs,
+    )
+}
+
+/// The ICP of [`register`] and [`register_swept`].
+fn icp(
+    reference: &ReferenceCloud,
+    current: &[[f64; 2]],
+    fractions: Option<&[f64]>,
+    initial: Pose2,
+    gate_m: f64,
+    min_pairs: usize,
+) -> Option<Registration> {
     const ITERATIONS: usize = 40;
     if reference.points.is_empty() || current.is_empty() {
         return None;
@@ -56,12 +96,28 @@ pub fn register(
             .grid
             .reach(gate)
             .is_some_and(|r| r <= GRID_MAX_REACH);
-        let (s, c) = t.theta.sin_cos();
+        let (s_end, c_end) = t.theta.sin_cos();
+        let sweep = fractions.map(|_| Sweep::new(&t));
         let mut h = Matrix3::<f64>::zeros();
         let mut g = Vector3::<f64>::zeros();
         let (mut n, mut lines, mut sum_r2) = (0usize, 0usize, 0.0);
-        for p in current {
-            let moved = [t.x + c * p[0] - s * p[1], t.y + s * p[0] + c * p[1]];
+        for (i, p) in current.iter().enumerate() {
+            // Where the return lands, and how that moves with the pose's x, y and heading.
+            let (moved, jx, jy, jt) = match &sweep {
+                Some(sweep) => {
+                    let f = fractions.and_then(|f| f.get(i)).copied().unwrap_or(1.0);
+                    sweep.place(f, p)
+                }
+                None => (
+                    [
+                        t.x + c_end * p[0] - s_end * p[1],
+                        t.y + s_end * p[0] + c_end * p[1],
+                    ],
+                    [1.0, 0.0],
+                    [0.0, 1.0],
+                    [-s_end * p[0] - c_end * p[1], c_end * p[0] - s_end * p[1]],
+                ),
+            };
             let nearest = if use_grid {
                 reference
                     .grid
@@ -80,15 +136,14 @@ pub fn register(
             else {
                 continue;
             };
-            // d(moved)/d(theta).
-            let dm = [-s * p[0] - c * p[1], c * p[0] - s * p[1]];
             let d = [moved[0] - q[0], moved[1] - q[1]];
             n += 1;
             match normal {
                 Some(nv) => {
                     lines += 1;
                     let r = nv[0] * d[0] + nv[1] * d[1];
-                    let j = Vector3::new(nv[0], nv[1], nv[0] * dm[0] + nv[1] * dm[1]);
+                    let dot = |v: [f64; 2]| nv[0] * v[0] + nv[1] * v[1];
+                    let j = Vector3::new(dot(jx), dot(jy), dot(jt));
                     let w = 1.0 / (1.0 + r * r / scale2);
                     h += w * j * j.transpose();
                     g += w * r * j;
@@ -98,11 +153,7 @@ pub fn register(
                     let r2 = d[0] * d[0] + d[1] * d[1];
                     let w = 1.0 / (1.0 + r2 / scale2);
                     for (axis, r) in d.iter().enumerate() {
-                        let j = if axis == 0 {
-                            Vector3::new(1.0, 0.0, dm[0])
-                        } else {
-                            Vector3::new(0.0, 1.0, dm[1])
-                        };
+                        let j = Vector3::new(jx[axis], jy[axis], jt[axis]);
                         h += w * j * j.transpose();
                         g += w * r * j;
                     }
@@ -136,6 +187,104 @@ pub fn register(
         }
     }
     last
+}
+
+/// A constant twist from the identity to a pose `T`, in complex form (the plane as complex
+/// numbers: `T`'s translation `t`, heading `theta`): the pose a fraction `f` of the way is
+/// `(f V(f theta) / V(theta) t, f theta)` with `V(phi) = (e^{i phi} - 1) / (i phi)`, so its
+/// derivatives with `T`'s components are exact, not the first order of a small motion.
+struct Sweep {
+    t: Complex<f64>,
+    theta: f64,
+    /// `1 / V(theta)`.
+    v_inv: Complex<f64>,
+    /// `V'(theta)`.
+    dv: Complex<f64>,
+}
+
+impl Sweep {
+    fn new(pose: &Pose2) -> Self {
+        let (v, dv) = v_and_derivative(pose.theta);
+        Self {
+            t: Complex::new(pose.x, pose.y),
+            theta: pose.theta,
+            v_inv: v.inv(),
+            dv,
+        }
+    }
+
+    /// The point `p` (in the sensor's frame a fraction `f` of the way) in the frame at the
+    /// start, and its derivatives with `T`'s x, y and heading.
+    fn place(&self, f: f64, p: &[f64; 2]) -> ([f64; 2], [f64; 2], [f64; 2], [f64; 2]) {
+        let (vf, dvf) = v_and_derivative(f * self.theta);
+        // d(origin)/d(t) acts on t as multiplication by c.
+        let c = f * vf * self.v_inv;
+        let origin = c * self.t;
+        let d_origin = f * self.t * (f * dvf * self.v_inv - vf * self.v_inv * self.v_inv * self.dv);
+        let rotated = Complex::from_polar(1.0, f * self.theta) * Complex::new(p[0], p[1]);
+        let moved = origin + rotated;
+        let d_theta = d_origin + f * Complex::<f64>::i() * rotated;
+        let jy = Complex::<f64>::i() * c;
+        (
+            [moved.re, moved.im],
+            [c.re, c.im],
+            [jy.re, jy.im],
+            [d_theta.re, d_theta.im],
+        )
+    }
+}
+
+/// `V(phi) = (e^{i phi} - 1) / (i phi)` and its derivative, by their series near zero.
+fn v_and_derivative(phi: f64) -> (Complex<f64>, Complex<f64>) {
+    if phi.abs() < 1e-3 {
+        let p2 = phi * phi;
+        (
+            Complex::new(1.0 - p2 / 6.0, phi / 2.0 - phi * p2 / 24.0),
+            Complex::new(-phi / 3.0 + phi * p2 / 30.0, 0.5 - p2 / 8.0),
+        )
+    } else {
+        let e = Complex::from_polar(1.0, phi);
+        let i = Complex::<f64>::i();
+        ((e - 1.0) / (i * phi), (phi * e + i * e - i) / (phi * phi))
+    }
+}
+
+/// SE(2)'s logarithm: the twist `[v_x, v_y, omega]` (per unit of motion) whose exponential
+/// is `pose`.
+pub fn log(pose: &Pose2) -> [f64; 3] {
+    let (a, b) = series(pose.theta);
+    // exp's translation is V (v_x, v_y) with V = [[a, -b], [b, a]].
+    let det = a * a + b * b;
+    [
+        (a * pose.x + b * pose.y) / det,
+        (-b * pose.x + a * pose.y) / det,
+        pose.theta,
+    ]
+}
+
+/// SE(2)'s exponential of the twist `[v_x, v_y, omega]`.
+pub fn exp(twist: [f64; 3]) -> Pose2 {
+    let (a, b) = series(twist[2]);
+    Pose2::new(
+        a * twist[0] - b * twist[1],
+        b * twist[0] + a * twist[1],
+        twist[2],
+    )
+}
+
+/// `sin t / t` and `(1 - cos t) / t`, by their series near zero.
+fn series(t: f64) -> (f64, f64) {
+    if t.abs() < 1e-6 {
+        (1.0 - t * t / 6.0, t / 2.0)
+    } else {
+        (t.sin() / t, (1.0 - t.cos()) / t)
+    }
+}
+
+/// The pose `fraction` of the way along `motion` at a constant twist.
+pub fn along(motion: &Pose2, fraction: f64) -> Pose2 {
+    let w = log(motion);
+    exp([fraction * w[0], fraction * w[1], fraction * w[2]])
 }
 
 /// `points` (in some frame) expressed in the frame of `pose` (a pose in that frame).
@@ -323,6 +472,43 @@ mod tests {
         let cov = covariance(&reg, &floor, 10.0, 0.02).expect("invertible");
         for i in 0..3 {
             assert!(cov[(i, i)] < 2.0 * floor[(i, i)], "{cov}");
+        }
+    }
+
+    /// The swept placement's derivatives against central differences, at fractions from
+    /// before the start to past the end, for a straight motion, a turn and a near-zero turn.
+    #[test]
+    fn the_swept_placement_s_jacobian_matches_finite_differences() {
+        let p = [23.0, -7.5];
+        for pose in [
+            Pose2::new(2.5, 0.0, 0.0),
+            Pose2::new(2.4, 0.3, 0.12),
+            Pose2::new(-1.0, 0.2, -4e-4),
+        ] {
+            for f in [-0.1, 0.0, 0.3, 0.5, 0.97, 1.0, 1.2] {
+                let (moved, jx, jy, jt) = Sweep::new(&pose).place(f, &p);
+                // Fraction 1 is the pose itself; the placement is the pose along the twist.
+                let at = along(&pose, f);
+                let direct = at.point_at(p[0].hypot(p[1]), -p[1].atan2(p[0]));
+                assert!((moved[0] - direct[0]).abs() < 1e-9 && (moved[1] - direct[1]).abs() < 1e-9);
+                let h = 1e-6;
+                for (k, analytic) in [jx, jy, jt].iter().enumerate() {
+                    let shifted = |e: f64| {
+                        let mut q = [pose.x, pose.y, pose.theta];
+                        q[k] += e;
+                        Sweep::new(&Pose2::new(q[0], q[1], q[2])).place(f, &p).0
+                    };
+                    let (a, b) = (shifted(h), shifted(-h));
+                    for axis in 0..2 {
+                        let numeric = (a[axis] - b[axis]) / (2.0 * h);
+                        assert!(
+                            (numeric - analytic[axis]).abs() < 1e-5,
+                            "pose {pose:?} f {f} column {k} axis {axis}: analytic {} numeric {numeric}",
+                            analytic[axis]
+                        );
+                    }
+                }
+            }
         }
     }
 }

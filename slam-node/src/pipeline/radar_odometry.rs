@@ -15,7 +15,7 @@
 
 use radar_model::geometry::{wrap_angle, Pose2};
 use radar_model::motion::MotionModel;
-use radar_odometry::{RadarReturn, RotationMotion, ScanMatchSettings, ScanMatcher};
+use radar_odometry::{RadarReturn, RotationEnd, RotationMotion, ScanMatchSettings, ScanMatcher};
 use tracing::{debug, warn};
 
 pub use super::counts::ScanMatchCounts;
@@ -87,6 +87,8 @@ impl RadarOdometryStage {
             failed: m.failed,
             weak: m.weak,
             searched: m.searched,
+            turned: m.turned,
+            swept: m.swept,
             ..self.counts
         }
     }
@@ -105,7 +107,8 @@ impl RadarOdometryStage {
             None if self.drives && ekf.held_odometry().is_none() => Some(Pose2::new(0.0, 0.0, 0.0)),
             sensor => sensor,
         };
-        self.matcher.add_azimuth(sensor, bearing_rad, detections);
+        self.matcher
+            .add_azimuth(sensor, time_s, bearing_rad, detections);
     }
 
     /// Closes a rotation whose last azimuth came at `end_s`: registers it and gives the
@@ -124,7 +127,12 @@ impl RadarOdometryStage {
             return self.start(end_s);
         }
         let tally = ekf.motion_tally().copied();
-        let end = tally.map(|t| t.rel);
+        let until_s = ekf.state().time_s();
+        let end = tally.map(|t| RotationEnd {
+            pose: t.rel,
+            since_s: t.since_s,
+            until_s,
+        });
         let measured = self.matcher.end_rotation(end, self.drives && self.lost);
         self.lost = self.drives && measured.is_none();
         let mut applied = None;
@@ -172,9 +180,15 @@ impl RadarOdometryStage {
     /// origin) of this rotation against the last gives the first motion, stamped at this
     /// rotation's end.
     fn start(&mut self, end_s: f64) -> Option<OdometrySample> {
-        let origin = Some(Pose2::new(0.0, 0.0, 0.0));
-        let measured = self.matcher.end_rotation(origin, true);
         let previous_end_s = self.last_end_s.replace(end_s);
+        // Before the filter has started the cloud was placed from the origin; the rotation
+        // spans from the previous one's end (unknown for the first: no re-placing).
+        let origin = Some(RotationEnd {
+            pose: Pose2::new(0.0, 0.0, 0.0),
+            since_s: previous_end_s.unwrap_or(end_s),
+            until_s: end_s,
+        });
+        let measured = self.matcher.end_rotation(origin, true);
         let (m, start_s) = (measured?, previous_end_s?);
         let distance = m.motion.x.signum() * m.motion.x.hypot(m.motion.y);
         let input = self
