@@ -128,12 +128,6 @@ pub struct RawOdometry {
     pub radar_odometry_sigma_m: f64,
     /// Standard deviation of one registration's rotation, rad > 0. Default 0.003.
     pub radar_odometry_sigma_rad: f64,
-    /// Radar odometry registers each rotation swept: its returns placed along the motion
-    /// the registration is trying (a constant twist over the rotation), not along the
-    /// filter's prediction, so that a turn's onset the prediction missed does not bend the
-    /// cloud. Noisier on a straight road (only the late returns of a rotation pin its
-    /// motion). Default false; see slam-node's README for what it measured.
-    pub radar_odometry_swept: bool,
 }
 
 impl Default for RawOdometry {
@@ -161,7 +155,6 @@ impl Default for RawOdometry {
             radar_odometry: false,
             radar_odometry_sigma_m: 0.05,
             radar_odometry_sigma_rad: 0.003,
-            radar_odometry_swept: false,
         }
     }
 }
@@ -240,8 +233,6 @@ pub struct OdometrySettings {
     pub radar_odometry_sigma_m: PositiveF64,
     /// One registration's rotation standard deviation, rad.
     pub radar_odometry_sigma_rad: PositiveF64,
-    /// Rotations registered swept along the motion tried.
-    pub radar_odometry_swept: bool,
 }
 
 impl Default for OdometrySettings {
@@ -418,7 +409,6 @@ impl RawOdometry {
                 "odometry.radar_odometry_sigma_rad",
                 PositiveF64::new(self.radar_odometry_sigma_rad),
             ),
-            radar_odometry_swept: self.radar_odometry_swept,
         }
     }
 }
@@ -467,7 +457,6 @@ impl From<&OdometrySettings> for RawOdometry {
             radar_odometry: s.radar_odometry,
             radar_odometry_sigma_m: s.radar_odometry_sigma_m.get(),
             radar_odometry_sigma_rad: s.radar_odometry_sigma_rad.get(),
-            radar_odometry_swept: s.radar_odometry_swept,
         }
     }
 }

@@ -222,7 +222,6 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "odometry.source",
     "odometry.motion_model",
     "odometry.radar_odometry",
-    "odometry.radar_odometry_swept",
     "odometry.speed_scale_from_landmarks",
     "detector.points_only",
     "detector.extended_reobserve",

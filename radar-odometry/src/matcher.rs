@@ -22,6 +22,9 @@ pub const MAX_POINTS: usize = 1 << 15;
 pub const TURN_PAIRED_SHARE: f64 = 0.7;
 /// The heading offsets (rad, each either side) a registration is retried from.
 pub const TURN_SEEDS_RAD: [f64; 2] = [0.05, 0.1];
+/// A search also starts straight ahead when the estimate it starts from turns more than
+/// this over the rotation (rad).
+pub const SEARCH_STRAIGHT_RAD: f64 = 0.01;
 /// Pairs a registration needs at least, however few points a rotation has.
 pub const MIN_PAIRS_FLOOR: usize = 12;
 /// A weak registration's standard deviation along its weak direction (m): no information.
@@ -408,7 +411,11 @@ impl ScanMatcher {
     }
 
     /// The registration (`fit` from a start) with the most pairs (then the smallest
-    /// residual) over starts spread along the vehicle's axis, a pair gate apart.
+    /// residual) over starts spread along the vehicle's axis, a pair gate apart, at the
+    /// estimate's heading and, where that turns, at none: a motion estimate held from the
+    /// middle of a turn keeps turning (a tenth of a radian a rotation), far outside ICP's
+    /// basin once the road is straight again, and searching at its heading alone never
+    /// finds the motion again.
     fn search(
         &self,
         fit: &dyn Fn(Pose2) -> Option<Registration>,
@@ -417,8 +424,15 @@ impl ScanMatcher {
         let s = &self.settings;
         let step = s.pair_gate_m.max(0.1);
         let n = (s.search_m / step).ceil().clamp(0.0, 200.0) as i32;
-        (-n..=n)
-            .filter_map(|k| fit(Pose2::new(end.x + f64::from(k) * step, end.y, end.theta)))
+        let headings: &[f64] = if end.theta.abs() > SEARCH_STRAIGHT_RAD {
+            &[end.theta, 0.0]
+        } else {
+            &[end.theta]
+        };
+        headings
+            .iter()
+            .flat_map(|theta| (-n..=n).map(move |k| (k, *theta)))
+            .filter_map(|(k, theta)| fit(Pose2::new(end.x + f64::from(k) * step, end.y, theta)))
             .max_by(|a, b| a.pairs.cmp(&b.pairs).then(b.rms_m.total_cmp(&a.rms_m)))
     }
 
@@ -563,6 +577,40 @@ mod tests {
         assert!((found.motion.y - truth.y).abs() < 0.05, "{found:?}");
         assert_eq!(m.counts().searched, 1);
         assert_eq!(m.counts().tried, 1);
+    }
+
+    /// Lost after a turn: the motion estimate still turns a tenth of a radian a rotation
+    /// while the vehicle drives straight. The search also starts straight ahead and finds
+    /// the motion; at the estimate's heading alone it found none.
+    #[test]
+    fn a_search_from_a_held_turn_also_starts_straight_ahead() {
+        let world = town();
+        let settings = ScanMatchSettings {
+            enabled: true,
+            points_per_azimuth: 50,
+            min_pairs: 50,
+            ..ScanMatchSettings::default()
+        };
+        let truth = Pose2::new(3.1, 0.02, 0.01);
+        let held_turn = RotationEnd {
+            pose: Pose2::new(3.1, 0.0, 0.1),
+            since_s: 0.0,
+            until_s: 0.0,
+        };
+        let mut m = ScanMatcher::new(settings);
+        feed(&mut m, &world, &Pose2::new(0.0, 0.0, 0.0));
+        m.end_rotation(at_origin(), true);
+        // The caller places the returns as if it had turned: at the end of its estimate.
+        for (bearing, returns) in scan(&world, &truth) {
+            m.add_azimuth(Some(held_turn.pose), 0.0, bearing, &returns);
+        }
+        let found = m
+            .end_rotation(Some(held_turn), true)
+            .expect("found from the straight start");
+        // The cloud was placed turned by the estimate: the motion found is the truth's.
+        let found_theta = found.motion.theta;
+        assert!(found_theta.abs() < 0.01, "{found:?}");
+        assert!((found.motion.x - 3.1).abs() < 0.05, "{found:?}");
     }
 
     #[test]

@@ -314,8 +314,8 @@ impl fmt::Display for RadarOdometry<'_> {
         };
         writeln!(
             f,
-            "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated; {} retried from other headings (few pairs: a turn's onset), {} registered as swept along the motion they tried",
-            m.tried, m.failed, m.applied, m.gated, m.turned, m.swept
+            "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated; {} retried from other headings (few pairs: a turn's onset)",
+            m.tried, m.failed, m.applied, m.gated, m.turned
         )?;
         if m.drives {
             writeln!(

@@ -34,8 +34,6 @@ pub struct ScanMatchCounts {
     pub searched: u64,
     /// Registrations retried from other headings (they paired few points: a turn's onset).
     pub turned: u64,
-    /// Registrations that placed the returns along the motion they tried (swept).
-    pub swept: u64,
     /// Whether radar odometry drove the filter's prediction (no wheel odometry).
     pub drives: bool,
     /// Sum of the applied measurements' NIS (3 dof each).

@@ -88,7 +88,6 @@ impl RadarOdometryStage {
             weak: m.weak,
             searched: m.searched,
             turned: m.turned,
-            swept: m.swept,
             ..self.counts
         }
     }

@@ -340,7 +340,6 @@ impl PipelineSettings {
                 enabled: c.odometry.radar_odometry,
                 sigma_xy_m: c.odometry.radar_odometry_sigma_m.get(),
                 sigma_theta_rad: c.odometry.radar_odometry_sigma_rad.get(),
-                deskew: c.odometry.radar_odometry_swept,
                 ..ScanMatchSettings::default()
             },
             radar_drives: false,
