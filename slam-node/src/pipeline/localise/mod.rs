@@ -44,7 +44,7 @@ pub const MAX_LOADED: usize = 150;
 /// While searching, the local map keeps features within this of the vehicle (m).
 const SEARCH_KEEP_M: f64 = 100.0;
 /// While searching, an attempt after this much driving (m) or this many rotations.
-const ATTEMPT_EVERY_M: f64 = 5.0;
+const ATTEMPT_EVERY_M: f64 = 15.0;
 const ATTEMPT_EVERY_ROTATIONS: u64 = 10;
 /// Map features used for places and verification: seen at least this often.
 const MIN_HITS: u64 = 3;

@@ -14,7 +14,13 @@
 //! A fix is taken only when, at two attempts in a row, exactly one transform verified
 //! (several verified transforms further apart than [`SAME_M`] / [`SAME_RAD`] are places
 //! alike: nothing is taken, and the search waits for the local map to tell them apart) and
-//! the second agrees with the first. No IO.
+//! the second agrees with the first. The map is also asked whether it repeats itself there
+//! ([`PlaceSearcher::rivals`]): the map's own features around the verified pose are
+//! described and looked up among the map's places; every look-alike place elsewhere is
+//! offered to the verifier too, and if the local map fits one of them nearly as well
+//! ([`RIVAL_SHARE`] of the matches) the places are alike and nothing is taken. A street of
+//! identical blocks is never fixed on until the local map reaches something that tells the
+//! blocks apart. No IO.
 
 use nalgebra::Matrix3;
 use radar_model::geometry::{wrap_angle, Pose2};
@@ -22,7 +28,7 @@ use radar_odometry::{PlaceDescriptor, PlaceIndex, PlaceQuery, PlaceSettings};
 use slam_filter::{FrozenSubmap, SubmapFeature};
 use slam_graph::places::{refine, PlaceSearch};
 use slam_graph::se2::{compose, inverse, transform_point};
-use slam_graph::{align, AlignSettings};
+use slam_graph::{align, AlignSettings, Refusal};
 
 use super::known::MapFeatures;
 
@@ -44,6 +50,13 @@ const MAX_CANDIDATES: usize = 6;
 pub const MIN_FIX_MATCHES: usize = 8;
 /// Map features within this of a guess (m) are offered to the verifier.
 const VERIFY_RADIUS_M: f64 = 120.0;
+/// A look-alike place of the map that the local map fits with at least this share of the
+/// best place's matches makes the fix ambiguous.
+pub const RIVAL_SHARE: f64 = 0.6;
+/// Look-alike places offered to the verifier at most per check (nearest by descriptor).
+const MAX_RIVAL_CHECKS: usize = 12;
+/// A look-alike place nearer than this to the verified pose (m) is the same place.
+const RIVAL_MIN_SEPARATION_M: f64 = 10.0;
 
 /// A transform of the local frame into the map's, verified.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -198,26 +211,7 @@ impl PlaceSearcher {
             .collect();
         let mut verified: Vec<Verified> = Vec::new();
         for (guess, cov) in guesses {
-            let centre = compose(&guess, vehicle);
-            let a: Vec<SubmapFeature> = map
-                .features
-                .iter()
-                .enumerate()
-                .filter(|(_, f)| (f.xy[0] - centre.x).hypot(f.xy[1] - centre.y) <= VERIFY_RADIUS_M)
-                .map(|(k, f)| f.as_submap_feature(k as u64))
-                .collect();
-            let a_xy: Vec<[f64; 2]> = a
-                .iter()
-                .filter(|f| f.hits >= min_hits)
-                .map(|f| f.xy)
-                .collect();
-            let prior = refine(&a_xy, &b_xy, guess, &search);
-            if let Ok(al) = align(&a, &local.features, &prior, &cov, &self.align) {
-                let v = Verified {
-                    transform: al.transform,
-                    covariance: al.covariance,
-                    matches: al.matches.len(),
-                };
+            if let Some(v) = self.verify(map, local, &b_xy, vehicle, guess, &cov) {
                 match verified
                     .iter_mut()
                     .find(|w| same(&w.transform, &v.transform, SAME_M, SAME_RAD))
@@ -234,6 +228,13 @@ impl PlaceSearcher {
                 Attempt::NothingVerified { best_distance }
             }
             [v] if v.matches >= MIN_FIX_MATCHES => {
+                let v = *v;
+                let rivals = self.rivals(map, local, &b_xy, vehicle, &v);
+                if rivals > 0 {
+                    self.pending = None;
+                    return Attempt::Ambiguous(1 + rivals);
+                }
+                let v = &v;
                 let confirmed = self
                     .pending
                     .is_some_and(|p| same(&p.transform, &v.transform, CONFIRM_M, CONFIRM_RAD));
@@ -254,6 +255,165 @@ impl PlaceSearcher {
                 Attempt::Ambiguous(many.len())
             }
         }
+    }
+}
+
+impl PlaceSearcher {
+    /// Offers the local map (`local`, its well-seen points `b_xy`, the vehicle at `vehicle`
+    /// in it) to the verifier against the map's features around `guess` (the local frame
+    /// in the map's), with that prior and covariance.
+    fn verify(
+        &self,
+        map: &MapFeatures,
+        local: &FrozenSubmap,
+        b_xy: &[[f64; 2]],
+        vehicle: &Pose2,
+        guess: Pose2,
+        cov: &Matrix3<f64>,
+    ) -> Option<Verified> {
+        self.verify_or_refusal(map, local, b_xy, vehicle, guess, cov)
+            .ok()
+    }
+
+    /// [`Self::verify`], with the verifier's refusal.
+    fn verify_or_refusal(
+        &self,
+        map: &MapFeatures,
+        local: &FrozenSubmap,
+        b_xy: &[[f64; 2]],
+        vehicle: &Pose2,
+        guess: Pose2,
+        cov: &Matrix3<f64>,
+    ) -> Result<Verified, Refusal> {
+        let centre = compose(&guess, vehicle);
+        let a: Vec<SubmapFeature> = map
+            .features
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| (f.xy[0] - centre.x).hypot(f.xy[1] - centre.y) <= VERIFY_RADIUS_M)
+            .map(|(k, f)| f.as_submap_feature(k as u64))
+            .collect();
+        let a_xy: Vec<[f64; 2]> = a
+            .iter()
+            .filter(|f| f.hits >= self.align.min_hits)
+            .map(|f| f.xy)
+            .collect();
+        let prior = refine(&a_xy, b_xy, guess, &PlaceSearch::default());
+        let al = align(&a, &local.features, &prior, cov, &self.align)?;
+        Ok(Verified {
+            transform: al.transform,
+            covariance: al.covariance,
+            matches: al.matches.len(),
+        })
+    }
+
+    /// Places of the map that look like the one `v` puts the vehicle in (the map's own
+    /// features around that pose, looked up among its places) and that the local map fits
+    /// with at least [`RIVAL_SHARE`] of `v`'s matches: rivals of the fix.
+    pub fn rivals(
+        &mut self,
+        map: &MapFeatures,
+        local: &FrozenSubmap,
+        b_xy: &[[f64; 2]],
+        vehicle: &Pose2,
+        v: &Verified,
+    ) -> usize {
+        let here = compose(&v.transform, vehicle);
+        let to_here = inverse(&here);
+        let r = self.settings.max_range_m;
+        let points: Vec<[f64; 2]> = map
+            .features
+            .iter()
+            .filter(|f| f.hits >= self.align.min_hits)
+            .map(|f| transform_point(&to_here, f.xy))
+            .filter(|p| p[0].hypot(p[1]) <= r)
+            .collect();
+        // Every place of the map is compared with the map around the pose (one descriptor,
+        // cheap); those alike are compared again around shifted origins for where the pose
+        // would be there.
+        let Ok(described) = PlaceDescriptor::new(points.iter().copied(), &self.settings) else {
+            return 0;
+        };
+        let Ok(query) = PlaceQuery::new(&points, &self.settings) else {
+            return 0;
+        };
+        let search = PlaceSearch::default();
+        let loose = Matrix3::from_diagonal(&nalgebra::Vector3::new(
+            search.prior_sigma_m.powi(2),
+            search.prior_sigma_m.powi(2),
+            search.prior_sigma_rad.powi(2),
+        ));
+        let to_vehicle = inverse(vehicle);
+        let mut alternatives: Vec<(f64, Pose2)> = Vec::new();
+        for (place, d) in &self.places {
+            if (place.x - here.x).hypot(place.y - here.y) < RIVAL_MIN_SEPARATION_M
+                || d.compare(&described).distance > MAX_DISTANCE
+            {
+                continue;
+            }
+            let Some(m) = query.compare(d) else {
+                continue;
+            };
+            if m.place.distance > MAX_DISTANCE {
+                continue;
+            }
+            let t = Pose2::new(m.transform[0], m.transform[1], m.transform[2]);
+            let there = compose(place, &t);
+            if (there.x - here.x).hypot(there.y - here.y) < RIVAL_MIN_SEPARATION_M {
+                continue;
+            }
+            // Look-alikes within a few metres of one another are one place: the nearest
+            // by descriptor stands for them.
+            match alternatives
+                .iter_mut()
+                .find(|(_, a)| same(a, &there, RIVAL_MIN_SEPARATION_M, 0.2))
+            {
+                Some(a) if a.0 > m.place.distance => *a = (m.place.distance, there),
+                Some(_) => {}
+                None => alternatives.push((m.place.distance, there)),
+            }
+        }
+        alternatives.sort_by(|a, b| a.0.total_cmp(&b.0));
+        alternatives.truncate(MAX_RIVAL_CHECKS);
+        let mut rivals: Vec<Pose2> = Vec::new();
+        for (_, there) in alternatives {
+            if !rivals.is_empty() {
+                // One rival is enough to wait.
+                break;
+            }
+            let guess = compose(&there, &to_vehicle);
+            let verified = self.verify_or_refusal(map, local, b_xy, vehicle, guess, &loose);
+            tracing::debug!(
+                x_m = there.x,
+                y_m = there.y,
+                outcome = ?verified.as_ref().map(|w| w.matches),
+                best = v.matches,
+                "a look-alike place of the map offered to the verifier"
+            );
+            // Refused because two transforms fit there about equally: the local map fits
+            // that place (twice), a rival all the same.
+            if let Err(Refusal::Ambiguous { best, .. }) = verified {
+                if best as f64 >= RIVAL_SHARE * v.matches as f64
+                    && !rivals.iter().any(|x| same(x, &guess, SAME_M, SAME_RAD))
+                {
+                    rivals.push(guess);
+                }
+                continue;
+            }
+            if let Ok(w) = verified {
+                let far = !same(&w.transform, &v.transform, RIVAL_MIN_SEPARATION_M, 0.2);
+                let strong = w.matches as f64 >= RIVAL_SHARE * v.matches as f64;
+                if far
+                    && strong
+                    && !rivals
+                        .iter()
+                        .any(|x| same(x, &w.transform, SAME_M, SAME_RAD))
+                {
+                    rivals.push(w.transform);
+                }
+            }
+        }
+        rivals.len()
     }
 }
 
