@@ -39,8 +39,8 @@ impl fmt::Display for Localisation<'_> {
         }
         writeln!(
             f,
-            "  tracking: {} rotations published in the map's frame; map features put into the filter {}, taken out {}, refused {}",
-            l.published, l.inserted, l.removed, l.refused
+            "  tracking: {} rotations published in the map's frame; {} fixes, {} lost (no map feature seen for 12 rotations); map features put into the filter {}, taken out {}, refused {}",
+            l.published, l.fixes, l.lost, l.inserted, l.removed, l.refused
         )?;
         if let Some(s) = &l.score {
             writeln!(

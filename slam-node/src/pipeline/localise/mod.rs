@@ -43,9 +43,15 @@ use search::{Attempt, PlaceSearcher};
 pub const MAX_LOADED: usize = 150;
 /// While searching, the local map keeps features within this of the vehicle (m).
 const SEARCH_KEEP_M: f64 = 100.0;
+/// While searching, the filter's frame is restarted at the vehicle after this much driving
+/// (m), the previous frame's features kept for the place queries.
+const SEARCH_WINDOW_M: f64 = 100.0;
 /// While searching, an attempt after this much driving (m) or this many rotations.
 const ATTEMPT_EVERY_M: f64 = 15.0;
 const ATTEMPT_EVERY_ROTATIONS: u64 = 10;
+/// Tracking: this many rotations in a row without an update from a map feature lose the
+/// fix (off the map, or a fix that was wrong): the search starts again.
+const LOST_AFTER_ROTATIONS: u32 = 12;
 /// Map features used for places and verification: seen at least this often.
 const MIN_HITS: u64 = 3;
 
@@ -127,12 +133,26 @@ pub struct LocaliseSummary {
     pub refused: u64,
     /// Rotations published in the map's frame.
     pub published: u64,
+    /// Fixes taken (the first and any after a loss).
+    pub fixes: u64,
+    /// Fixes lost (no map feature seen for a while while tracking).
+    pub lost: u64,
     /// Against the truth, when it is known.
     pub score: Option<LocaliseScore>,
 }
 
 enum Phase {
-    Searching { last: Option<Pose2>, since: u64 },
+    Searching {
+        /// Where the last attempt was made (the local frame).
+        last: Option<Pose2>,
+        /// Rotations since.
+        since: u64,
+        /// Driven in the current local frame (m), and the pose it was counted to.
+        driven_m: f64,
+        counted_to: Option<Pose2>,
+        /// The previous local frame's features, in the current frame.
+        previous: Option<Box<FrozenSubmap>>,
+    },
     Tracking,
 }
 
@@ -144,6 +164,9 @@ pub struct Localiser {
     loaded: Loaded,
     rule: SwapRule,
     tracking: FilterSettings,
+    searching: FilterSettings,
+    updates_seen: u64,
+    quiet_rotations: u32,
     motion: radar_model::motion::MotionModel,
     observer: RadarBeamModel,
     phase: Phase,
@@ -228,6 +251,9 @@ impl Localiser {
                 every_m: 2.0,
             },
             tracking,
+            searching: s.filter.clone(),
+            updates_seen: 0,
+            quiet_rotations: 0,
             motion: s.motion,
             observer: RadarBeamModel { power: s.power },
             phase: if l.prior.is_some() {
@@ -236,6 +262,9 @@ impl Localiser {
                 Phase::Searching {
                     last: None,
                     since: 0,
+                    driven_m: 0.0,
+                    counted_to: None,
+                    previous: None,
                 }
             },
             first_rotation_s: None,
@@ -250,6 +279,7 @@ impl Localiser {
         if matches!(self.phase, Phase::Tracking) {
             *ekf = self.tracking_filter(ekf, ekf.pose(), ekf.pose_covariance())?;
             self.summary.time_to_fix_s = Some(0.0);
+            self.summary.fixes = 1;
         }
         Ok(())
     }
@@ -289,11 +319,42 @@ impl Localiser {
                 self.loaded
                     .swap(ekf, &self.features, &self.rule, ekf.state().time_s(), false);
                 self.summary.published += 1;
+                let updates = ekf.stats().updates;
+                if updates == self.updates_seen {
+                    self.quiet_rotations += 1;
+                } else {
+                    self.quiet_rotations = 0;
+                }
+                self.updates_seen = updates;
+                if self.quiet_rotations >= LOST_AFTER_ROTATIONS {
+                    self.lose_fix(ekf, time_s - first);
+                }
             }
-            Phase::Searching { last, since } => {
+            Phase::Searching {
+                last,
+                since,
+                driven_m,
+                counted_to,
+                previous,
+            } => {
                 *since += 1;
                 trim_local_map(ekf, SEARCH_KEEP_M);
                 let pose = ekf.pose();
+                if let Some(p) = counted_to.replace(pose) {
+                    *driven_m += (pose.x - p.x).hypot(pose.y - p.y);
+                }
+                if *driven_m >= SEARCH_WINDOW_M {
+                    // A new local frame at the vehicle: the search's uncertainty in its own
+                    // frame stays that of one window; the previous window's features are
+                    // kept, moved into the new frame.
+                    let closed = ekf.start_submap();
+                    *previous = Some(Box::new(reframed(&closed)));
+                    self.searcher.reframe(&closed.end_pose);
+                    *driven_m = 0.0;
+                    *counted_to = Some(ekf.pose());
+                    *last = Some(ekf.pose());
+                    return;
+                }
                 let due = last
                     .is_none_or(|p| (p.x - pose.x).hypot(p.y - pose.y) >= ATTEMPT_EVERY_M)
                     || *since >= ATTEMPT_EVERY_ROTATIONS;
@@ -303,7 +364,10 @@ impl Localiser {
                 *last = Some(pose);
                 *since = 0;
                 self.summary.attempts += 1;
-                let local = FrozenSubmap::from_state(ekf.state());
+                let mut local = FrozenSubmap::from_state(ekf.state());
+                if let Some(prev) = previous.as_ref() {
+                    local.features.extend(prev.features.iter().copied());
+                }
                 let attempt = self.searcher.attempt(&self.features, &local, &pose);
                 self.on_attempt(attempt, ekf, time_s - first);
             }
@@ -311,6 +375,47 @@ impl Localiser {
         self.summary.inserted = self.loaded.inserted;
         self.summary.removed = self.loaded.removed;
         self.summary.refused = self.loaded.refused;
+    }
+
+    /// No map feature seen for [`LOST_AFTER_ROTATIONS`]: the fix is dropped, nothing more
+    /// is published in the map's frame, and the search starts again in a frame of its own.
+    fn lose_fix(&mut self, ekf: &mut DaemonEkf, since_start_s: f64) {
+        self.summary.lost += 1;
+        warn!(
+            file = %self.path.display(),
+            after_s = since_start_s,
+            rotations = self.quiet_rotations,
+            "localisation lost: no feature of the map seen for a while (off the map, or a wrong fix); no pose is published, searching again"
+        );
+        let fresh = Ekf::new(
+            self.searching.clone(),
+            Pose2::new(0.0, 0.0, 0.0),
+            Matrix3::zeros(),
+            ekf.state().time_s(),
+            self.motion,
+            self.observer,
+        )
+        .and_then(|mut e| {
+            if let Some(held) = ekf.held_odometry() {
+                e.apply_odometry(held)?;
+            }
+            Ok(e)
+        });
+        match fresh {
+            Ok(e) => *ekf = e,
+            Err(e) => warn!(error = %e, "the search filter could not start"),
+        }
+        self.loaded.clear();
+        self.quiet_rotations = 0;
+        self.updates_seen = 0;
+        self.searcher.forget();
+        self.phase = Phase::Searching {
+            last: None,
+            since: 0,
+            driven_m: 0.0,
+            counted_to: None,
+            previous: None,
+        };
     }
 
     fn on_attempt(&mut self, attempt: Attempt, ekf: &mut DaemonEkf, since_start_s: f64) {
@@ -333,8 +438,13 @@ impl Localiser {
                             true,
                         );
                         self.phase = Phase::Tracking;
-                        self.summary.time_to_fix_s = Some(since_start_s);
-                        self.summary.rotations_to_fix = self.rotations;
+                        self.updates_seen = ekf.stats().updates;
+                        self.quiet_rotations = 0;
+                        self.summary.fixes += 1;
+                        if self.summary.time_to_fix_s.is_none() {
+                            self.summary.time_to_fix_s = Some(since_start_s);
+                            self.summary.rotations_to_fix = self.rotations;
+                        }
                         info!(
                             file = %self.path.display(),
                             after_s = since_start_s,
@@ -401,6 +511,28 @@ impl Localiser {
         let mut s = self.summary.clone();
         s.score = score::score(online);
         s
+    }
+}
+
+/// A closed local frame's features in the next frame (the one starting at its end pose):
+/// positions moved, covariances turned.
+fn reframed(closed: &FrozenSubmap) -> FrozenSubmap {
+    let back = slam_graph::se2::inverse(&closed.end_pose);
+    let r = slam_graph::se2::rotation(back.theta);
+    FrozenSubmap {
+        end_pose: Pose2::new(0.0, 0.0, 0.0),
+        end_cov: Matrix3::zeros(),
+        features: closed
+            .features
+            .iter()
+            .map(|f| slam_filter::SubmapFeature {
+                xy: slam_graph::se2::transform_point(&back, f.xy),
+                xy_cov: r * f.xy_cov * r.transpose(),
+                ..*f
+            })
+            .collect(),
+        loss_db: closed.loss_db,
+        end_s: closed.end_s,
     }
 }
 

@@ -53,6 +53,9 @@ const VERIFY_RADIUS_M: f64 = 120.0;
 /// A look-alike place of the map that the local map fits with at least this share of the
 /// best place's matches makes the fix ambiguous.
 pub const RIVAL_SHARE: f64 = 0.6;
+/// A place of the map elsewhere whose descriptor is this close to the map's around a
+/// verified pose is a copy of it: no fix there.
+pub const SELF_SIMILAR_DISTANCE: f64 = 0.15;
 /// Look-alike places offered to the verifier at most per check (nearest by descriptor).
 const MAX_RIVAL_CHECKS: usize = 12;
 /// A look-alike place nearer than this to the verified pose (m) is the same place.
@@ -145,6 +148,19 @@ impl PlaceSearcher {
                 ..AlignSettings::default()
             },
         }
+    }
+
+    /// The local frame restarted at `origin` (in the old one): a pending candidate is
+    /// re-expressed in the new frame.
+    pub fn reframe(&mut self, origin: &Pose2) {
+        if let Some(p) = self.pending.as_mut() {
+            p.transform = compose(&p.transform, origin);
+        }
+    }
+
+    /// Forgets a pending candidate (the search starts again).
+    pub fn forget(&mut self) {
+        self.pending = None;
     }
 
     /// Places described.
@@ -374,6 +390,14 @@ impl PlaceSearcher {
             }
         }
         alternatives.sort_by(|a, b| a.0.total_cmp(&b.0));
+        if alternatives
+            .first()
+            .is_some_and(|(d, _)| *d <= SELF_SIMILAR_DISTANCE)
+        {
+            // The map itself has a near copy of this place elsewhere: whatever the local
+            // map fits, the place is not told apart (repeated blocks).
+            return 1;
+        }
         alternatives.truncate(MAX_RIVAL_CHECKS);
         let mut rivals: Vec<Pose2> = Vec::new();
         for (_, there) in alternatives {
