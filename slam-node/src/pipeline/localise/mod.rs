@@ -40,7 +40,7 @@ pub use score::LocaliseScore;
 use search::{Attempt, PlaceSearcher};
 
 /// Features of the map held in the filter at most while tracking.
-pub const MAX_LOADED: usize = 150;
+pub const MAX_LOADED: usize = 100;
 /// While searching, the local map keeps features within this of the vehicle (m).
 const SEARCH_KEEP_M: f64 = 100.0;
 /// While searching, the filter's frame is restarted at the vehicle after this much driving
