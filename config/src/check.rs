@@ -38,6 +38,7 @@ placeholder! {
     Duration => Duration::from_secs(1),
     SocketAddr => SocketAddr::from((Ipv4Addr::LOCALHOST, 0)),
     u64 => 0,
+    [f64; 3] => [1.0; 3],
     usize => 0,
     std::path::PathBuf => std::path::PathBuf::from("placeholder"),
     f64 => 0.0,

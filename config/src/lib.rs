@@ -56,7 +56,7 @@ pub use detector::{DetectorSettings, RawDetector};
 pub use error::{ConfigError, FieldError, FieldErrors, Location};
 pub use faults::{FaultSettings, RawFaults};
 pub use filter::{FilterSettings, RawFilter};
-pub use map::{MapSettings, RawMap};
+pub use map::{MapMode, MapSettings, RawMap};
 pub use model::{ModelSettings, RawModel};
 pub use odometry::{OdometrySettings, RawOdometry};
 pub use output::{OutputSettings, RawOutput};

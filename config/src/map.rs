@@ -1,5 +1,6 @@
 //! `[map]`: the saved map (slam-map's `.slmap` file: submaps, their frames in the global
-//! graph, features, loop closures, the radar profile), for a later run to localise in.
+//! graph, features, loop closures, the radar profile), for a later run to localise in, and
+//! what a run does with a map it is given (`mode`, slam-node's `--map FILE`).
 
 use std::path::PathBuf;
 
@@ -12,6 +13,21 @@ use crate::values::{NonNegativeF64, ValueError};
 /// The shortest period between two saves during a run (s): a save writes the whole map.
 pub const MIN_SAVE_EVERY_S: f64 = 1.0;
 
+/// The default prior's standard deviations `[x m, y m, heading rad]`.
+pub const DEFAULT_INITIAL_SIGMA: [f64; 3] = [1.0, 1.0, 0.03];
+
+/// What the run does with a map (`[map] mode`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MapMode {
+    /// Map from nothing (no map is read): the default.
+    #[default]
+    Map,
+    /// Load the map given with `--map FILE` and track the vehicle in it without adding
+    /// features; the published pose is in the map's frame.
+    Localise,
+}
+
 /// `[map]` as written in the file.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
@@ -23,6 +39,21 @@ pub struct RawMap {
     /// Also write it every this many seconds of the run's clock, at least 1 (0: only at the
     /// end). Default 0.
     pub save_every_s: f64,
+    /// `"map"` (map from nothing, the default) or `"localise"` (track in the map given with
+    /// `--map FILE`; nothing is saved).
+    pub mode: MapMode,
+    /// Localising: the map file to localise in (slam-node's `--map FILE` sets it; a relative
+    /// path is taken from the working directory).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub file: Option<PathBuf>,
+    /// Localising: where the vehicle starts in the map's frame, `[x m, y m, heading rad]`.
+    /// Without it the run looks for its place in the map (place recognition) and publishes
+    /// no pose until it has a fix.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub initial_pose: Option<[f64; 3]>,
+    /// The prior's standard deviations `[x m, y m, heading rad]`, each > 0. Default
+    /// `[1.0, 1.0, 0.03]`.
+    pub initial_sigma: [f64; 3],
 }
 
 impl Default for RawMap {
@@ -31,6 +62,10 @@ impl Default for RawMap {
             save: true,
             path: "map.slmap".into(),
             save_every_s: 0.0,
+            mode: MapMode::Map,
+            file: None,
+            initial_pose: None,
+            initial_sigma: DEFAULT_INITIAL_SIGMA,
         }
     }
 }
@@ -44,6 +79,14 @@ pub struct MapSettings {
     pub path: PathBuf,
     /// The period of saves during the run (s); `None`: only at the end.
     pub save_every_s: Option<f64>,
+    /// What the run does with a map.
+    pub mode: MapMode,
+    /// The map file to localise in.
+    pub file: Option<PathBuf>,
+    /// Localising: the prior pose in the map's frame (heading wrapped to (-pi, pi]).
+    pub initial_pose: Option<[f64; 3]>,
+    /// Its standard deviations, each finite and > 0.
+    pub initial_sigma: [f64; 3],
 }
 
 impl Default for MapSettings {
@@ -68,6 +111,43 @@ fn period(s: f64) -> Result<Option<f64>, ValueError> {
     }
 }
 
+fn prior_pose(p: Option<[f64; 3]>) -> Result<Option<[f64; 3]>, ValueError> {
+    let Some([x, y, t]) = p else {
+        return Ok(None);
+    };
+    if !(x.is_finite() && y.is_finite() && t.is_finite()) {
+        return Err(ValueError::Rule(format!(
+            "must be three finite numbers [x m, y m, heading rad], got [{x}, {y}, {t}]"
+        )));
+    }
+    let wrapped =
+        (t + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+    let wrapped = if wrapped <= -std::f64::consts::PI {
+        std::f64::consts::PI
+    } else {
+        wrapped
+    };
+    Ok(Some([x, y, wrapped]))
+}
+
+fn map_file(p: Option<&PathBuf>) -> Result<Option<PathBuf>, ValueError> {
+    match p {
+        Some(p) if p.as_os_str().is_empty() => Err(ValueError::Rule("empty".into())),
+        _ => Ok(p.cloned()),
+    }
+}
+
+fn prior_sigma(s: [f64; 3]) -> Result<[f64; 3], ValueError> {
+    if s.iter().all(|v| v.is_finite() && *v > 0.0) {
+        Ok(s)
+    } else {
+        Err(ValueError::Rule(format!(
+            "must be three finite numbers > 0 [x m, y m, heading rad], got [{}, {}, {}]",
+            s[0], s[1], s[2]
+        )))
+    }
+}
+
 impl RawMap {
     /// Validates this section alone; errors name `map.<field>`.
     pub fn validate(&self) -> Result<MapSettings, FieldErrors> {
@@ -81,6 +161,10 @@ impl RawMap {
             save: self.save,
             path: c.check("map.path", crate::output::relative_file(&self.path)),
             save_every_s: c.check("map.save_every_s", period(self.save_every_s)),
+            mode: self.mode,
+            file: c.check("map.file", map_file(self.file.as_ref())),
+            initial_pose: c.check("map.initial_pose", prior_pose(self.initial_pose)),
+            initial_sigma: c.check("map.initial_sigma", prior_sigma(self.initial_sigma)),
         }
     }
 }
@@ -91,6 +175,10 @@ impl From<&MapSettings> for RawMap {
             save: s.save,
             path: s.path.clone(),
             save_every_s: s.save_every_s.unwrap_or(0.0),
+            mode: s.mode,
+            file: s.file.clone(),
+            initial_pose: s.initial_pose,
+            initial_sigma: s.initial_sigma,
         }
     }
 }
@@ -105,6 +193,7 @@ mod tests {
             save: true,
             path: "../elsewhere.slmap".into(),
             save_every_s: 0.5,
+            ..RawMap::default()
         };
         let errors = raw.validate().unwrap_err().to_string();
         for field in ["map.path", "map.save_every_s"] {
@@ -131,5 +220,36 @@ mod tests {
         .unwrap();
         assert_eq!(every.save_every_s, Some(30.0));
         assert_eq!(RawMap::from(&every).validate().unwrap(), every);
+    }
+
+    #[test]
+    fn a_prior_pose_is_checked_and_its_heading_wrapped() {
+        let raw = RawMap {
+            mode: MapMode::Localise,
+            initial_pose: Some([1.0, 2.0, 7.0]),
+            ..RawMap::default()
+        };
+        let s = raw.validate().unwrap();
+        let [x, y, t] = s.initial_pose.unwrap();
+        assert_eq!((x, y), (1.0, 2.0));
+        assert!((t - (7.0 - std::f64::consts::TAU)).abs() < 1e-12);
+        assert_eq!(RawMap::from(&s).validate().unwrap(), s);
+        for (pose, sigma, field) in [
+            (
+                Some([f64::NAN, 0.0, 0.0]),
+                DEFAULT_INITIAL_SIGMA,
+                "map.initial_pose",
+            ),
+            (None, [1.0, 0.0, 0.1], "map.initial_sigma"),
+            (None, [1.0, 1.0, f64::INFINITY], "map.initial_sigma"),
+        ] {
+            let raw = RawMap {
+                initial_pose: pose,
+                initial_sigma: sigma,
+                ..RawMap::default()
+            };
+            let e = raw.validate().unwrap_err().to_string();
+            assert!(e.contains(field), "{e}");
+        }
     }
 }

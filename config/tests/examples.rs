@@ -308,6 +308,7 @@ fn the_sim_example_writes_every_key() {
         ("detector", &["pfa", "threshold_db", "os_rank"][..]),
         ("model", &["compensation_table"][..]),
         ("odometry", &["path", "wheelbase_m", "topic", "message"][..]),
+        ("map", &["initial_pose", "file"][..]),
     ] {
         for key in keys {
             let named = examples::SIM.lines().any(|l| {

@@ -199,6 +199,9 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[map]\npath = \"/tmp/map.slmap\"", "map.path", "must be a relative path inside output.directory"),
     ("[map]\nsave_every_s = 0.5", "map.save_every_s", "at least 1 s, got 0.5"),
     ("[map]\nsave_every_s = -1.0", "map.save_every_s", "got -1"),
+    ("[map]\nfile = \"\"", "map.file", "empty"),
+    ("[map]\ninitial_pose = [0.0, nan, 0.0]", "map.initial_pose", "three finite numbers"),
+    ("[map]\ninitial_sigma = [1.0, 1.0, 0.0]", "map.initial_sigma", "finite numbers > 0"),
     // the learned front end and the radar's model
     ("[detector]\nfloor_sigma = 0.0", "detector.floor_sigma", "got 0"),
     ("[detector]\nfloor_min_snr_db = -1.0", "detector.floor_min_snr_db", "got -1"),
@@ -216,6 +219,7 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "submaps.place_recognition",
     "submaps.loop_closure",
     "map.save",
+    "map.mode",
     "radar.tcp_nodelay",
     "radar.non_contoured",
     "radar.drop_policy",

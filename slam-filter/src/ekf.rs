@@ -17,12 +17,14 @@
 //! - `prediction`: odometry, the prediction to a time, gaps and clock changes;
 //! - `motion`: the measured motion since a mark (stochastic cloning);
 //! - `relocalise`: relocalisation against the map after a gap;
+//! - `known`: features known beforehand (a saved map's) put into the state and taken out;
 //! - `queries`: the estimates and counts a caller reads;
 //! - `report`: the values those return.
 
 mod beam_update;
 mod burst;
 mod init;
+mod known;
 mod map;
 mod motion;
 mod prediction;

@@ -206,6 +206,10 @@ pub struct FilterSettings {
     pub max_targets_per_beam: usize,
     /// Upper bound on the number of tentative targets held (bounded memory).
     pub max_tentatives: usize,
+    /// Unclaimed targets become tentatives and, once confirmed, features (the SLAM filter).
+    /// False: the map is what [`crate::Ekf::insert_known_feature`] put in (localisation in
+    /// a saved map); unclaimed targets are counted and dropped. Default true.
+    pub add_features: bool,
     /// Upper bound on the number of features in the state (bounded memory).
     pub max_features: usize,
     /// A feature is retired after this many consecutive beams in which it was predicted to be
@@ -277,6 +281,7 @@ impl Default for FilterSettings {
             tentative_timeout_s: 2.0,
             max_targets_per_beam: 64,
             max_tentatives: 4_096,
+            add_features: true,
             max_features: 2_000,
             retire_after_misses: 8,
             initial_rho: 0.3,

@@ -292,7 +292,7 @@ impl Places {
 /// The prior's translation voted again from the features, under headings around the
 /// descriptor's (it is known to a fraction of a 6 degree sector); unchanged when too few
 /// features agree.
-fn refine(a: &[[f64; 2]], b: &[[f64; 2]], prior: Pose2, settings: &PlaceSearch) -> Pose2 {
+pub fn refine(a: &[[f64; 2]], b: &[[f64; 2]], prior: Pose2, settings: &PlaceSearch) -> Pose2 {
     let reach = 3.0 * settings.prior_sigma_m;
     let mut best: Option<(Pose2, usize, f64)> = None;
     for step in -4..=4 {

@@ -35,6 +35,10 @@ pub struct Args {
     /// Output folder (default: [output] directory).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Localise in this saved map (slam-map's `.slmap`, written by an earlier run) instead
+    /// of mapping from nothing: needs `[map] mode = "localise"`; sets `[map] file`.
+    #[arg(long, value_name = "FILE")]
+    map: Option<PathBuf>,
     /// Do not draw SVG figures.
     #[arg(long)]
     no_figures: bool,
@@ -167,6 +171,9 @@ pub fn options(args: &Args) -> anyhow::Result<DaemonOptions> {
     };
     if let Some(mcap) = &args.mcap {
         config.output.mcap = Some(mcap.clone());
+    }
+    if let Some(map) = &args.map {
+        config.map.file = Some(map.clone());
     }
     if args.zenoh {
         config.output.zenoh.enabled = true;

@@ -45,6 +45,10 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         report: &mut BeamReport,
         far_m: f64,
     ) -> Result<(), FilterError> {
+        if !self.settings.add_features {
+            self.stats.dropped_targets += unclaimed.len() as u64;
+            return Ok(());
+        }
         let gate2 = self.gates.threshold(2);
         for &j in unclaimed {
             let Some(t) = beam.targets.get(j) else {

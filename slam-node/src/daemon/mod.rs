@@ -5,6 +5,7 @@
 //! client); the pipeline runs on its own thread fed by the driver's lock-free channel; the
 //! writer runs on another, fed by a channel the pipeline never blocks on.
 
+mod localise_report;
 pub mod report;
 pub mod zenoh_odometry;
 
@@ -56,6 +57,15 @@ pub enum DaemonError {
     /// The Zenoh session or the odometry subscription could not start.
     #[error("Zenoh")]
     Zenoh(#[from] crate::output::LiveError),
+    /// The map to localise in could not be read (the message names the file and why).
+    #[error(transparent)]
+    Map(Box<slam_map::LoadError>),
+    /// `[map] mode = "localise"` without a map.
+    #[error("[map] mode = \"localise\" needs a map to localise in: --map FILE (or [map] file)")]
+    NoMap,
+    /// A map given without `[map] mode = "localise"`.
+    #[error("map file {0}: a map is read only with [map] mode = \"localise\"")]
+    MapNotUsed(PathBuf),
 }
 
 impl DaemonError {
@@ -207,10 +217,32 @@ fn recipe(opts: &DaemonOptions) -> Result<crate::pipeline::SettingsRecipe, Daemo
                 .collect(),
             ..crate::pipeline::SourceFacts::default()
         },
+        localise: localise_settings(&opts.config)?,
     };
     // An unknown `[radar] model` is refused before anything connects.
     recipe.named_model()?;
     Ok(recipe)
+}
+
+/// The saved map to localise in (`[map] mode = "localise"`, `--map FILE`): read and checked
+/// here, so that a missing, truncated, corrupt or future-version file refuses the run
+/// before anything connects.
+fn localise_settings(
+    c: &config::Config,
+) -> Result<Option<crate::pipeline::localise::LocaliseSettings>, DaemonError> {
+    match (c.map.mode, &c.map.file) {
+        (config::MapMode::Map, None) => Ok(None),
+        (config::MapMode::Map, Some(p)) => Err(DaemonError::MapNotUsed(p.clone())),
+        (config::MapMode::Localise, None) => Err(DaemonError::NoMap),
+        (config::MapMode::Localise, Some(p)) => {
+            let map = slam_map::Map::load(p).map_err(|e| DaemonError::Map(Box::new(e)))?;
+            Ok(Some(crate::pipeline::localise::LocaliseSettings::new(
+                p.clone(),
+                Arc::new(map),
+                &c.map,
+            )))
+        }
+    }
 }
 
 /// The daemon's inputs from the source `opts` asks for: an MCAP recording, the simulator in

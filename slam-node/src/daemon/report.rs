@@ -92,6 +92,9 @@ pub fn summary_text(r: &DaemonReport) -> String {
     put(&InputHealth(s));
     put(&Outputs(r));
     put(&SavedMapLine(r));
+    if let Some(l) = &s.localise {
+        put(&super::localise_report::Localisation(l));
+    }
     if let Some(c) = &r.mcap_replay {
         put(&McapReplay(c));
     }

@@ -10,6 +10,7 @@
 //! | statistics | [`RotationStats`] | per-rotation counts, timings, NIS, spectrum comparison |
 //! | submaps | [`SubmapRun`] (optional) | frozen submaps, their frames in the world, the switch, the global layer's thread |
 //! | truth | [`TruthObserver`] (optional) | scores against ground truth, changes nothing |
+//! | localisation | [`Localiser`] (optional) | a saved map's features in the filter, the search for the fix, what is published |
 
 use std::time::Instant;
 
@@ -23,6 +24,7 @@ use super::clock::{Verdict, WireClock};
 use super::ekf::DaemonEkf;
 use super::frontend::{doppler_range_shift_m, FrontEnd, GeometryError};
 use super::gate::{worth_logging, OdometryGate};
+use super::localise::{LocaliseError, Localiser};
 use super::radar_odometry::RadarOdometryStage;
 use super::saved_map;
 use super::settings::PipelineSettings;
@@ -59,6 +61,9 @@ pub enum PipelineError {
     /// The settings could not be derived for the radar that connected.
     #[error(transparent)]
     Settings(#[from] super::settings::SettingsError),
+    /// The saved map to localise in does not suit this run.
+    #[error(transparent)]
+    Localise(#[from] LocaliseError),
 }
 
 /// The daemon's processing state.
@@ -86,6 +91,8 @@ pub struct Pipeline {
     cpu_mark: Option<std::time::Duration>,
     /// The run's clock at the last periodic saved map (`[map] save_every_s`).
     last_map_save_s: Option<f64>,
+    /// Localisation in a saved map (`[map] mode = "localise"`).
+    localise: Option<Localiser>,
 }
 
 fn filter_at(
@@ -116,7 +123,7 @@ impl Pipeline {
         truth: Option<Box<dyn TruthOracle>>,
     ) -> Result<Self, PipelineError> {
         let [x, y, theta] = settings.initial_pose;
-        let ekf = filter_at(
+        let mut ekf = filter_at(
             &settings,
             Pose2::new(x, y, wrap_angle(theta)),
             start_time_s.unwrap_or(0.0),
@@ -126,7 +133,16 @@ impl Pipeline {
             .map(SubmapRun::new)
             .transpose()
             .map_err(PipelineError::GlobalLayer)?;
+        let localise = match settings.localise.as_ref() {
+            Some(l) => {
+                let mut localiser = Localiser::new(l, &settings)?;
+                localiser.begin(&mut ekf)?;
+                Some(localiser)
+            }
+            None => None,
+        };
         Ok(Self {
+            localise,
             submaps,
             front_end: FrontEnd::new(settings.front_end()),
             gate: OdometryGate::new(
@@ -206,7 +222,10 @@ impl Pipeline {
     /// sample: the filter is (re)started there, before any feature exists. Without truth the
     /// configured initial pose at the first sample defines it.
     fn start_at_first_odometry(&mut self, sample: &OdometrySample) {
-        if self.filter_started || self.ekf.held_odometry().is_some() || self.ekf.feature_count() > 0
+        if self.filter_started
+            || self.ekf.held_odometry().is_some()
+            || self.ekf.feature_count() > 0
+            || self.localise.is_some()
         {
             return;
         }
@@ -548,35 +567,37 @@ impl Pipeline {
         );
         self.warn_if_behind(d.total_ms);
         self.measure_cpu();
-        let (pose, cov) = self.world_pose();
-        let published = PoseSample {
-            timestamp_s: self.ekf.state().time_s(),
-            x_m: pose.x,
-            y_m: pose.y,
-            theta_rad: pose.theta,
-            covariance: [
-                [cov[(0, 0)], cov[(0, 1)], cov[(0, 2)]],
-                [cov[(1, 0)], cov[(1, 1)], cov[(1, 2)]],
-                [cov[(2, 0)], cov[(2, 1)], cov[(2, 2)]],
-            ],
-        };
-        // With truth, the online trajectory is kept to be scored at the end (a pose a
-        // rotation: 8.6 MB for six hours at 4 Hz).
-        if let Some(truth) = self.truth.as_ref() {
-            if let Some(t) = truth.pose_at(published.timestamp_s) {
-                self.online.push((published, t));
+        // Localising: nothing is published in the map's frame before the fix.
+        if let Some((pose, cov)) = self.pose_to_publish() {
+            let published = PoseSample {
+                timestamp_s: self.ekf.state().time_s(),
+                x_m: pose.x,
+                y_m: pose.y,
+                theta_rad: pose.theta,
+                covariance: [
+                    [cov[(0, 0)], cov[(0, 1)], cov[(0, 2)]],
+                    [cov[(1, 0)], cov[(1, 1)], cov[(1, 2)]],
+                    [cov[(2, 0)], cov[(2, 1)], cov[(2, 2)]],
+                ],
+            };
+            // With truth, the online trajectory is kept to be scored at the end (a pose a
+            // rotation: 8.6 MB for six hours at 4 Hz).
+            if let Some(truth) = self.truth.as_ref() {
+                if let Some(t) = truth.pose_at(published.timestamp_s) {
+                    self.online.push((published, t));
+                }
             }
-        }
-        events.push(OutputEvent::Pose(published));
-        if let Some(truth) = self.truth.as_mut() {
-            truth.on_rotation(
-                self.ekf.state().time_s(),
-                pose,
-                cov,
-                self.ekf.held_odometry().is_some(),
-                self.settings.filter.max_range_m,
-                &mut d,
-            );
+            events.push(OutputEvent::Pose(published));
+            if let Some(truth) = self.truth.as_mut() {
+                truth.on_rotation(
+                    self.ekf.state().time_s(),
+                    pose,
+                    cov,
+                    self.ekf.held_odometry().is_some(),
+                    self.settings.filter.max_range_m,
+                    &mut d,
+                );
+            }
         }
         let every = self.settings.map_every_rotations;
         if every > 0 && self.summary.rotations.is_multiple_of(every) {
@@ -591,6 +612,17 @@ impl Pipeline {
             self.summary.current_submap = s.current();
         }
         self.save_map_if_due(events);
+    }
+
+    /// The pose published this rotation: the filter's in the world; localising, the
+    /// localiser's in the map's frame once it has a fix (after its rotation's work).
+    fn pose_to_publish(&mut self) -> Option<(Pose2, Matrix3<f64>)> {
+        let Some(l) = self.localise.as_mut() else {
+            return Some(self.world_pose());
+        };
+        let t = self.ekf.state().time_s();
+        l.end_rotation(&mut self.ekf, t);
+        l.published(&self.ekf)
     }
 
     /// Every `[map] save_every_s` of the run's clock, and when asked (SIGUSR1): the saved
@@ -753,6 +785,7 @@ impl Pipeline {
             s.online = Some(super::submaps::score_trajectory(&est, &tru));
         }
         s.odometry_out_of_order = self.gate.out_of_order();
+        s.localise = self.localise.as_ref().map(|l| l.summary(&self.online));
         if let Some(truth) = self.truth.as_ref() {
             let features = match self.submaps.as_ref() {
                 Some(sm) => sm.world_features(&self.ekf),

@@ -105,6 +105,8 @@ pub struct SettingsRecipe {
     pub written: Option<BTreeSet<String>>,
     /// What the run adds.
     pub facts: SourceFacts,
+    /// The saved map to localise in (`--map FILE`, `[map] mode = "localise"`).
+    pub localise: Option<super::localise::LocaliseSettings>,
 }
 
 impl SettingsRecipe {
@@ -114,6 +116,7 @@ impl SettingsRecipe {
             config,
             written: None,
             facts: SourceFacts::default(),
+            localise: None,
         }
     }
 
@@ -178,7 +181,12 @@ impl SettingsRecipe {
             Some(keys) => Written::Keys(keys),
             None => Written::Everything,
         };
-        PipelineSettings::derive(&self.config, written, choice, &facts)
+        let mut derived = PipelineSettings::derive(&self.config, written, choice, &facts)?;
+        if let Some(l) = &self.localise {
+            l.apply(&mut derived.settings);
+            derived.settings.localise = Some(l.clone());
+        }
+        Ok(derived)
     }
 }
 

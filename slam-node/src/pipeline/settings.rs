@@ -106,6 +106,8 @@ pub struct PipelineSettings {
     pub radar_drives: bool,
     /// The saved map (`[map]`).
     pub map_save: super::map_save::MapSaveSettings,
+    /// Localisation in a saved map (`--map FILE`, `[map] mode = "localise"`).
+    pub localise: Option<super::localise::LocaliseSettings>,
 }
 
 /// Local submaps and the global layer.
@@ -343,6 +345,7 @@ impl PipelineSettings {
                 ..ScanMatchSettings::default()
             },
             radar_drives: false,
+            localise: None,
         })
     }
 

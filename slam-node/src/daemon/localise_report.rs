@@ -1,0 +1,61 @@
+//! The summary lines of a run that localised in a saved map.
+
+use std::fmt;
+
+use crate::pipeline::localise::LocaliseSummary;
+
+/// Localisation in a saved map: the map, the fix, and the published poses against the
+/// truth when it is known.
+pub(super) struct Localisation<'a>(pub &'a LocaliseSummary);
+
+impl fmt::Display for Localisation<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let l = self.0;
+        writeln!(
+            f,
+            "  localisation in {}: {} submaps, {} features, {} places; {}",
+            l.path,
+            l.map_submaps,
+            l.map_features,
+            l.places,
+            if l.prior {
+                "started from the prior pose"
+            } else {
+                "started without a prior (place recognition)"
+            }
+        )?;
+        match l.time_to_fix_s {
+            Some(t) if !l.prior => writeln!(
+                f,
+                "  first fix after {t:.1} s ({} rotations, {} search attempts, {} refused as places alike)",
+                l.rotations_to_fix, l.attempts, l.ambiguous
+            )?,
+            Some(_) => {}
+            None => writeln!(
+                f,
+                "  NO FIX: not localised in the map ({} search attempts, {} refused as places alike); no pose was published in the map's frame",
+                l.attempts, l.ambiguous
+            )?,
+        }
+        writeln!(
+            f,
+            "  tracking: {} rotations published in the map's frame; {} fixes, {} lost (no map feature seen for 12 rotations); map features put into the filter {}, taken out {}, refused {}",
+            l.published, l.fixes, l.lost, l.inserted, l.removed, l.refused
+        )?;
+        if let Some(s) = &l.score {
+            writeln!(
+                f,
+                "  localisation vs truth over {} published poses: RMS along track {:.3} m, across {:.3} m, heading {:.3} deg; max {:.2} m; consistency score sqrt(e' inv(P) e / 3) mean {:.2} (Boreas; 1 = honest covariance); the first published pose off by {:.2} m, {:.2} deg",
+                s.poses,
+                s.along_rms_m,
+                s.across_rms_m,
+                s.heading_rms_rad.to_degrees(),
+                s.max_m,
+                s.consistency,
+                s.first_error_m,
+                s.first_heading_rad.to_degrees()
+            )?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,302 @@
+//! The saved map's features in the map's frame, and the few near the vehicle that the
+//! filter holds as known landmarks, swapped in and out as the vehicle moves. No IO.
+
+use std::collections::{HashMap, HashSet};
+
+use nalgebra::{Matrix2, Matrix3};
+use radar_model::geometry::Pose2;
+use slam_filter::{FeatureId, SubmapFeature};
+use slam_graph::se2::{compose_covariance, inverse, rotation, transform_point};
+use slam_map::model::unpack2;
+use slam_map::Map;
+
+use crate::pipeline::DaemonEkf;
+
+/// A saved feature in the map's frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WorldFeature {
+    /// The submap it was mapped in.
+    pub submap: usize,
+    /// Position in the map's frame (m).
+    pub xy: [f64; 2],
+    /// Its covariance in the submap's frame turned into the map's (m^2): the submap
+    /// frame's own uncertainty is not in it (see [`MapFeatures::frame_covariance_at`]).
+    pub xy_cov: Matrix2<f64>,
+    /// Material logits.
+    pub uv: [f64; 2],
+    /// Their covariance.
+    pub uv_cov: Matrix2<f64>,
+    /// Observations the mapping run used.
+    pub hits: u64,
+}
+
+impl WorldFeature {
+    /// As the loop-closure verifier takes features (in the map's frame).
+    pub fn as_submap_feature(&self, id: u64) -> SubmapFeature {
+        SubmapFeature {
+            id: FeatureId(id),
+            xy: self.xy,
+            xy_cov: self.xy_cov,
+            uv: self.uv,
+            uv_cov: self.uv_cov,
+            hits: self.hits,
+        }
+    }
+}
+
+/// Every feature of a map in its frame, and the submap frames.
+#[derive(Debug, Clone)]
+pub struct MapFeatures {
+    /// The features.
+    pub features: Vec<WorldFeature>,
+    /// Each submap's frame in the map's frame and its covariance.
+    pub frames: Vec<(Pose2, Matrix3<f64>)>,
+    /// Where each submap ended (the next one's frame; the last one's end pose).
+    pub ends: Vec<Pose2>,
+    /// Each submap's end pose in its own frame and its covariance there (the mapping
+    /// vehicle's uncertainty relative to the frame when the submap closed).
+    pub end_local: Vec<(Pose2, Matrix3<f64>)>,
+}
+
+/// A covariance made symmetric positive definite enough to enter the filter: at least
+/// `floor` on the diagonal (the saved marginal of a feature seen many times can be tiny).
+fn floored(m: Matrix2<f64>, floor: f64) -> Matrix2<f64> {
+    let s = 0.5 * (m + m.transpose());
+    let e = s.symmetric_eigen();
+    let mut vals = e.eigenvalues;
+    for v in vals.iter_mut() {
+        *v = v.max(floor);
+    }
+    e.eigenvectors * Matrix2::from_diagonal(&vals) * e.eigenvectors.transpose()
+}
+
+impl MapFeatures {
+    /// The map's features placed by their submaps' frames.
+    pub fn new(map: &Map) -> Self {
+        let mut features = Vec::with_capacity(map.feature_count());
+        let mut frames = Vec::with_capacity(map.submaps.len());
+        let mut ends = Vec::with_capacity(map.submaps.len());
+        let mut end_local = Vec::with_capacity(map.submaps.len());
+        for (k, s) in map.submaps.iter().enumerate() {
+            let frame = Pose2::from(s.frame);
+            let r = rotation(frame.theta);
+            frames.push((frame, slam_map::model::unpack3(&s.frame_cov)));
+            ends.push(slam_graph::se2::compose(&frame, &Pose2::from(s.end_pose)));
+            end_local.push((
+                Pose2::from(s.end_pose),
+                slam_map::model::unpack3(&s.end_cov),
+            ));
+            for f in &s.features {
+                features.push(WorldFeature {
+                    submap: k,
+                    xy: transform_point(&frame, f.xy),
+                    xy_cov: floored(r * unpack2(&f.xy_cov) * r.transpose(), 1e-6),
+                    uv: f.uv,
+                    uv_cov: floored(unpack2(&f.uv_cov), 1e-6),
+                    hits: f.hits,
+                });
+            }
+        }
+        Self {
+            features,
+            frames,
+            ends,
+            end_local,
+        }
+    }
+
+    /// The submap whose stretch of drive (its frame to its end) passes nearest `xy`.
+    pub fn nearest_submap(&self, xy: [f64; 2]) -> Option<usize> {
+        let dist = |k: usize| {
+            let a = self.frames[k].0;
+            let b = self.ends[k];
+            segment_distance([a.x, a.y], [b.x, b.y], xy)
+        };
+        (0..self.frames.len()).min_by(|&i, &j| dist(i).total_cmp(&dist(j)))
+    }
+
+    /// The uncertainty the map adds to a pose estimated against its features near `pose`:
+    /// errors the features share, which matching many of them does not average away. The
+    /// mapping vehicle's pose where it passed nearest (its frame's covariance in the map,
+    /// composed with its covariance in the frame, grown linearly along the submap's
+    /// stretch from zero at the frame to the saved end covariance) is carried to `pose`:
+    /// the features it mapped there are off by its error, rigidly.
+    pub fn frame_covariance_at(&self, pose: &Pose2) -> Matrix3<f64> {
+        let Some(k) = self.nearest_submap([pose.x, pose.y]) else {
+            return Matrix3::zeros();
+        };
+        let (frame, frame_cov) = self.frames[k];
+        let (end, end_cov) = self.end_local[k];
+        let local = slam_graph::se2::compose(&inverse(&frame), pose);
+        // Where along the stretch (0 at the frame, 1 at the end) the vehicle is.
+        let len2 = end.x * end.x + end.y * end.y;
+        let s = if len2 > 0.0 {
+            ((local.x * end.x + local.y * end.y) / len2).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        let mapper = Pose2::new(s * end.x, s * end.y, s * end.theta);
+        let mapper_cov = s * 0.5 * (end_cov + end_cov.transpose());
+        let mapper_world = slam_graph::se2::compose(&frame, &mapper);
+        let mapper_world_cov = compose_covariance(&frame, &frame_cov, &mapper, &mapper_cov);
+        let rel = slam_graph::se2::compose(&inverse(&mapper_world), pose);
+        compose_covariance(&mapper_world, &mapper_world_cov, &rel, &Matrix3::zeros())
+    }
+}
+
+/// The distance from `p` to the segment `a`-`b`.
+fn segment_distance(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let len2 = d[0] * d[0] + d[1] * d[1];
+    let t = if len2 > 0.0 {
+        (((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1]) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p[0] - a[0] - t * d[0]).hypot(p[1] - a[1] - t * d[1])
+}
+
+/// The map's features the filter holds now.
+#[derive(Debug, Clone, Default)]
+pub struct Loaded {
+    /// Map feature index -> the filter's id.
+    ids: HashMap<usize, FeatureId>,
+    /// Features the filter retired (not seen where they should be): not put back until
+    /// the vehicle has left them behind.
+    gone: HashSet<usize>,
+    /// Where the last swap was made.
+    last_swap: Option<Pose2>,
+    /// Features put in and taken out over the run.
+    pub inserted: u64,
+    /// Taken out.
+    pub removed: u64,
+    /// Refused by the filter (a covariance not positive definite).
+    pub refused: u64,
+}
+
+/// How the swap chooses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SwapRule {
+    /// Features held at most (the nearest).
+    pub max_loaded: usize,
+    /// Features further than this from the vehicle are not held (m).
+    pub radius_m: f64,
+    /// A feature held stays until it is not among the nearest `max_loaded * keep_factor`.
+    pub keep_factor: f64,
+    /// Swap after the vehicle moved this far (m) or turned a tenth of it (rad).
+    pub every_m: f64,
+}
+
+impl Loaded {
+    /// How many the filter holds.
+    pub fn len(&self) -> usize {
+        self.ids.len()
+    }
+
+    /// Whether none is held.
+    pub fn is_empty(&self) -> bool {
+        self.ids.is_empty()
+    }
+
+    /// Forgets every feature (the filter was replaced).
+    pub fn clear(&mut self) {
+        self.ids.clear();
+        self.gone.clear();
+        self.last_swap = None;
+    }
+
+    /// Puts the nearest features into the filter and takes out those left behind, when
+    /// the vehicle moved far enough since the last swap (or `force`).
+    pub fn swap(
+        &mut self,
+        ekf: &mut DaemonEkf,
+        map: &MapFeatures,
+        rule: &SwapRule,
+        time_s: f64,
+        force: bool,
+    ) {
+        let pose = ekf.pose();
+        let moved = self.last_swap.is_none_or(|p| {
+            (p.x - pose.x).hypot(p.y - pose.y) >= rule.every_m
+                || radar_model::geometry::wrap_angle(p.theta - pose.theta).abs()
+                    >= 0.1 * rule.every_m
+        });
+        if !(force || moved) {
+            return;
+        }
+        self.last_swap = Some(pose);
+        // Retired by the filter: remembered as gone.
+        let state = ekf.state();
+        let retired: Vec<usize> = self
+            .ids
+            .iter()
+            .filter(|(_, id)| state.slot_of(**id).is_none())
+            .map(|(k, _)| *k)
+            .collect();
+        for k in retired {
+            self.ids.remove(&k);
+            self.gone.insert(k);
+        }
+        let mut near: Vec<(f64, usize)> = map
+            .features
+            .iter()
+            .enumerate()
+            .filter_map(|(k, f)| {
+                let d = (f.xy[0] - pose.x).hypot(f.xy[1] - pose.y);
+                (d <= rule.radius_m).then_some((d, k))
+            })
+            .collect();
+        near.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let keep_n = ((rule.max_loaded as f64) * rule.keep_factor).ceil() as usize;
+        let keep: HashSet<usize> = near.iter().take(keep_n).map(|(_, k)| *k).collect();
+        self.gone.retain(|k| keep.contains(k));
+        let out: Vec<(usize, FeatureId)> = self
+            .ids
+            .iter()
+            .filter(|(k, _)| !keep.contains(k))
+            .map(|(k, id)| (*k, *id))
+            .collect();
+        for (k, id) in out {
+            if ekf.remove_feature(id).is_ok() {
+                self.removed += 1;
+            }
+            self.ids.remove(&k);
+        }
+        for (_, k) in near {
+            if self.ids.len() >= rule.max_loaded {
+                break;
+            }
+            if self.ids.contains_key(&k) || self.gone.contains(&k) {
+                continue;
+            }
+            let f = &map.features[k];
+            match ekf.insert_known_feature(f.xy, &f.xy_cov, f.uv, &f.uv_cov, time_s) {
+                Ok(id) => {
+                    self.ids.insert(k, id);
+                    self.inserted += 1;
+                }
+                Err(_) => self.refused += 1,
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_segment_distance_clamps_to_the_ends() {
+        assert!((segment_distance([0.0, 0.0], [10.0, 0.0], [5.0, 3.0]) - 3.0).abs() < 1e-12);
+        assert!((segment_distance([0.0, 0.0], [10.0, 0.0], [13.0, 4.0]) - 5.0).abs() < 1e-12);
+        assert!((segment_distance([1.0, 1.0], [1.0, 1.0], [4.0, 5.0]) - 5.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_floored_covariance_is_positive_definite_and_keeps_a_large_one() {
+        let tiny = Matrix2::new(1e-12, 0.0, 0.0, 0.0);
+        assert!(floored(tiny, 1e-6).cholesky().is_some());
+        let big = Matrix2::new(2.0, 0.5, 0.5, 1.0);
+        assert!((floored(big, 1e-6) - big).norm() < 1e-12);
+    }
+}

@@ -1,0 +1,552 @@
+//! Localisation in a saved map (`--map FILE`, `[map] mode = "localise"`): the vehicle is
+//! tracked against the map's features without adding any, and the pose is published in
+//! the map's frame with its covariance.
+//!
+//! - **Tracking** ([`known`]): the map's features nearest the vehicle are put into the
+//!   filter as known landmarks with the covariance they were saved with, and taken out
+//!   when left behind, so the state stays the size of one submap; the filter maps nothing
+//!   (`FilterSettings::add_features` false) and retires nothing. The published covariance
+//!   is the filter's plus the nearest submap frame's own uncertainty in the map (a shared
+//!   error of its features that averaging them does not reduce).
+//! - **With a prior** (`[map] initial_pose`, `initial_sigma`): tracking starts there.
+//! - **Without** ([`search`]): the filter maps in a frame of its own until place
+//!   recognition and the loop-closure verifier find that frame in the map, twice in
+//!   agreement and never two places at once; then tracking starts from there. Until the fix
+//!   no pose is published and the log says why (WARN at the 1st, 2nd, 4th... attempt).
+//!
+//! No IO: the map is loaded by the caller (the command line), and its radar profile is
+//! checked here against the run's.
+
+pub mod known;
+pub mod score;
+pub mod search;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use nalgebra::Matrix3;
+use radar_model::geometry::{wrap_angle, Pose2};
+use serde::Serialize;
+use slam_filter::{Ekf, FilterError, FilterSettings, FrozenSubmap, RadarBeamModel};
+use slam_graph::se2::compose_covariance;
+use slam_map::{Map, ProfileMismatch};
+use tracing::{info, warn};
+
+use super::gate::worth_logging;
+use super::settings::PipelineSettings;
+use super::DaemonEkf;
+use known::{Loaded, MapFeatures, SwapRule};
+pub use score::LocaliseScore;
+use search::{Attempt, PlaceSearcher};
+
+/// Features of the map held in the filter at most while tracking.
+pub const MAX_LOADED: usize = 100;
+/// While searching, the local map keeps features within this of the vehicle (m).
+const SEARCH_KEEP_M: f64 = 100.0;
+/// While searching, the filter's frame is restarted at the vehicle after this much driving
+/// (m), the previous frame's features kept for the place queries.
+const SEARCH_WINDOW_M: f64 = 100.0;
+/// While searching, an attempt after this much driving (m) or this many rotations.
+const ATTEMPT_EVERY_M: f64 = 15.0;
+const ATTEMPT_EVERY_ROTATIONS: u64 = 10;
+/// Tracking: this many rotations in a row without an update from a map feature lose the
+/// fix (off the map, or a fix that was wrong): the search starts again.
+const LOST_AFTER_ROTATIONS: u32 = 12;
+/// Map features used for places and verification: seen at least this often.
+const MIN_HITS: u64 = 3;
+
+/// The map a run localises in, and how it starts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LocaliseSettings {
+    /// The file it was read from (for messages).
+    pub path: PathBuf,
+    /// The map.
+    pub map: Arc<Map>,
+    /// The prior pose in the map's frame and its standard deviations, when given.
+    pub prior: Option<([f64; 3], [f64; 3])>,
+}
+
+impl LocaliseSettings {
+    /// From `[map]` and the map loaded from `path`.
+    pub fn new(path: PathBuf, map: Arc<Map>, c: &config::MapSettings) -> Self {
+        Self {
+            path,
+            map,
+            prior: c.initial_pose.map(|p| (p, c.initial_sigma)),
+        }
+    }
+
+    /// What localising changes in the pipeline's settings: no submaps (the map's are the
+    /// submaps), nothing saved, the filter started at the prior (or at the origin of a
+    /// frame of its own to search from).
+    pub fn apply(&self, s: &mut PipelineSettings) {
+        s.submaps = None;
+        s.map_save.enabled = false;
+        let (pose, std) = self.prior.unwrap_or(([0.0; 3], [0.0; 3]));
+        s.initial_pose = pose;
+        s.initial_pose_std = std;
+    }
+}
+
+/// Why localisation could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum LocaliseError {
+    /// The map was made with a radar whose geometry differs from this one's.
+    #[error("map file {path}: {mismatch}: its features cannot be matched with this radar's")]
+    Profile {
+        /// The file.
+        path: PathBuf,
+        /// The differences.
+        mismatch: Box<ProfileMismatch>,
+    },
+    /// The map holds no feature to localise against.
+    #[error("map file {0}: the map holds no feature to localise against")]
+    Empty(PathBuf),
+}
+
+/// What localisation did over a run.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct LocaliseSummary {
+    /// The map file.
+    pub path: String,
+    /// Its submaps and features.
+    pub map_submaps: usize,
+    /// Features.
+    pub map_features: usize,
+    /// Places described for the search.
+    pub places: usize,
+    /// Started from a prior pose.
+    pub prior: bool,
+    /// Stream time from the first rotation to the fix (s); `None`: no fix.
+    pub time_to_fix_s: Option<f64>,
+    /// Rotations before the fix.
+    pub rotations_to_fix: u64,
+    /// Search attempts, and those that found places alike.
+    pub attempts: u64,
+    /// Attempts refused as ambiguous.
+    pub ambiguous: u64,
+    /// Map features put into the filter, taken out, refused.
+    pub inserted: u64,
+    /// Taken out.
+    pub removed: u64,
+    /// Refused.
+    pub refused: u64,
+    /// Rotations published in the map's frame.
+    pub published: u64,
+    /// Fixes taken (the first and any after a loss).
+    pub fixes: u64,
+    /// Fixes lost (no map feature seen for a while while tracking).
+    pub lost: u64,
+    /// Against the truth, when it is known.
+    pub score: Option<LocaliseScore>,
+}
+
+enum Phase {
+    Searching {
+        /// Where the last attempt was made (the local frame).
+        last: Option<Pose2>,
+        /// Rotations since.
+        since: u64,
+        /// Driven in the current local frame (m), and the pose it was counted to.
+        driven_m: f64,
+        counted_to: Option<Pose2>,
+        /// The previous local frame's features, in the current frame.
+        previous: Option<Box<FrozenSubmap>>,
+    },
+    Tracking,
+}
+
+/// The localisation stage.
+pub struct Localiser {
+    path: PathBuf,
+    features: MapFeatures,
+    searcher: PlaceSearcher,
+    loaded: Loaded,
+    rule: SwapRule,
+    tracking: FilterSettings,
+    searching: FilterSettings,
+    updates_seen: u64,
+    quiet_rotations: u32,
+    motion: radar_model::motion::MotionModel,
+    observer: RadarBeamModel,
+    phase: Phase,
+    first_rotation_s: Option<f64>,
+    rotations: u64,
+    summary: LocaliseSummary,
+}
+
+impl std::fmt::Debug for Localiser {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Localiser")
+            .field("path", &self.path)
+            .field("summary", &self.summary)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Localiser {
+    /// Checks the map against the run's radar profile (refused when the geometry differs,
+    /// a warning when only the name does) and describes its places.
+    pub fn new(l: &LocaliseSettings, s: &PipelineSettings) -> Result<Self, LocaliseError> {
+        let map = &l.map;
+        match radar_model::profile::by_name(&s.map_save.profile) {
+            Some(profile) => match map.check_profile(profile) {
+                Ok(()) => {}
+                Err(mismatch) if mismatch.geometry_differs() => {
+                    return Err(LocaliseError::Profile {
+                        path: l.path.clone(),
+                        mismatch: Box::new(mismatch),
+                    })
+                }
+                Err(mismatch) => warn!(
+                    file = %l.path.display(),
+                    "{mismatch}: the same geometry, localising anyway"
+                ),
+            },
+            None => warn!(
+                file = %l.path.display(),
+                profile = %s.map_save.profile,
+                "the run's radar profile is unknown: the map's ({}) is not checked",
+                map.profile.name
+            ),
+        }
+        if map.feature_count() == 0 {
+            return Err(LocaliseError::Empty(l.path.clone()));
+        }
+        let features = MapFeatures::new(map);
+        let searcher = PlaceSearcher::new(&features, MIN_HITS);
+        let tracking = FilterSettings {
+            add_features: false,
+            retire_unseen_after_s: 0.0,
+            retire_unrepeatable_below: 0.0,
+            retire_after_misses: u32::MAX,
+            max_features: s.filter.max_features.max(MAX_LOADED),
+            ..s.filter.clone()
+        };
+        let summary = LocaliseSummary {
+            path: l.path.display().to_string(),
+            map_submaps: map.submaps.len(),
+            map_features: map.feature_count(),
+            places: searcher.places(),
+            prior: l.prior.is_some(),
+            ..LocaliseSummary::default()
+        };
+        info!(
+            file = %l.path.display(),
+            submaps = map.submaps.len(),
+            features = map.feature_count(),
+            places = searcher.places(),
+            prior = l.prior.is_some(),
+            "localising in a saved map"
+        );
+        Ok(Self {
+            path: l.path.clone(),
+            features,
+            searcher,
+            loaded: Loaded::default(),
+            rule: SwapRule {
+                max_loaded: MAX_LOADED.min(tracking.max_features),
+                radius_m: s.filter.max_range_m,
+                keep_factor: 1.3,
+                every_m: 2.0,
+            },
+            tracking,
+            searching: s.filter.clone(),
+            updates_seen: 0,
+            quiet_rotations: 0,
+            motion: s.motion,
+            observer: RadarBeamModel { power: s.power },
+            phase: if l.prior.is_some() {
+                Phase::Tracking
+            } else {
+                Phase::Searching {
+                    last: None,
+                    since: 0,
+                    driven_m: 0.0,
+                    counted_to: None,
+                    previous: None,
+                }
+            },
+            first_rotation_s: None,
+            rotations: 0,
+            summary,
+        })
+    }
+
+    /// With a prior, the filter the pipeline built (at the prior) becomes the tracking
+    /// filter: it maps nothing and retires nothing.
+    pub fn begin(&mut self, ekf: &mut DaemonEkf) -> Result<(), FilterError> {
+        if matches!(self.phase, Phase::Tracking) {
+            *ekf = self.tracking_filter(ekf, ekf.pose(), ekf.pose_covariance())?;
+            self.summary.time_to_fix_s = Some(0.0);
+            self.summary.fixes = 1;
+        }
+        Ok(())
+    }
+
+    fn tracking_filter(
+        &self,
+        old: &DaemonEkf,
+        pose: Pose2,
+        cov: Matrix3<f64>,
+    ) -> Result<DaemonEkf, FilterError> {
+        let mut ekf = Ekf::new(
+            self.tracking.clone(),
+            pose,
+            0.5 * (cov + cov.transpose()),
+            old.state().time_s(),
+            self.motion,
+            self.observer,
+        )?;
+        if let Some(held) = old.held_odometry() {
+            ekf.apply_odometry(held)?;
+        }
+        Ok(ekf)
+    }
+
+    /// Whether a pose in the map's frame is published.
+    pub fn has_fix(&self) -> bool {
+        matches!(self.phase, Phase::Tracking)
+    }
+
+    /// Once a rotation, after the filter's updates: swaps the map's features while
+    /// tracking; while searching, trims the local map and now and then looks for the fix.
+    pub fn end_rotation(&mut self, ekf: &mut DaemonEkf, time_s: f64) {
+        self.rotations += 1;
+        let first = *self.first_rotation_s.get_or_insert(time_s);
+        match &mut self.phase {
+            Phase::Tracking => {
+                self.loaded
+                    .swap(ekf, &self.features, &self.rule, ekf.state().time_s(), false);
+                self.summary.published += 1;
+                let updates = ekf.stats().updates;
+                if updates == self.updates_seen {
+                    self.quiet_rotations += 1;
+                } else {
+                    self.quiet_rotations = 0;
+                }
+                self.updates_seen = updates;
+                if self.quiet_rotations >= LOST_AFTER_ROTATIONS {
+                    self.lose_fix(ekf, time_s - first);
+                }
+            }
+            Phase::Searching {
+                last,
+                since,
+                driven_m,
+                counted_to,
+                previous,
+            } => {
+                *since += 1;
+                trim_local_map(ekf, SEARCH_KEEP_M);
+                let pose = ekf.pose();
+                if let Some(p) = counted_to.replace(pose) {
+                    *driven_m += (pose.x - p.x).hypot(pose.y - p.y);
+                }
+                if *driven_m >= SEARCH_WINDOW_M {
+                    // A new local frame at the vehicle: the search's uncertainty in its own
+                    // frame stays that of one window; the previous window's features are
+                    // kept, moved into the new frame.
+                    let closed = ekf.start_submap();
+                    *previous = Some(Box::new(reframed(&closed)));
+                    self.searcher.reframe(&closed.end_pose);
+                    *driven_m = 0.0;
+                    *counted_to = Some(ekf.pose());
+                    *last = Some(ekf.pose());
+                    return;
+                }
+                let due = last
+                    .is_none_or(|p| (p.x - pose.x).hypot(p.y - pose.y) >= ATTEMPT_EVERY_M)
+                    || *since >= ATTEMPT_EVERY_ROTATIONS;
+                if !due {
+                    return;
+                }
+                *last = Some(pose);
+                *since = 0;
+                self.summary.attempts += 1;
+                let mut local = FrozenSubmap::from_state(ekf.state());
+                if let Some(prev) = previous.as_ref() {
+                    local.features.extend(prev.features.iter().copied());
+                }
+                let attempt = self.searcher.attempt(&self.features, &local, &pose);
+                self.on_attempt(attempt, ekf, time_s - first);
+            }
+        }
+        self.summary.inserted = self.loaded.inserted;
+        self.summary.removed = self.loaded.removed;
+        self.summary.refused = self.loaded.refused;
+    }
+
+    /// No map feature seen for [`LOST_AFTER_ROTATIONS`]: the fix is dropped, nothing more
+    /// is published in the map's frame, and the search starts again in a frame of its own.
+    fn lose_fix(&mut self, ekf: &mut DaemonEkf, since_start_s: f64) {
+        self.summary.lost += 1;
+        warn!(
+            file = %self.path.display(),
+            after_s = since_start_s,
+            rotations = self.quiet_rotations,
+            "localisation lost: no feature of the map seen for a while (off the map, or a wrong fix); no pose is published, searching again"
+        );
+        let fresh = Ekf::new(
+            self.searching.clone(),
+            Pose2::new(0.0, 0.0, 0.0),
+            Matrix3::zeros(),
+            ekf.state().time_s(),
+            self.motion,
+            self.observer,
+        )
+        .and_then(|mut e| {
+            if let Some(held) = ekf.held_odometry() {
+                e.apply_odometry(held)?;
+            }
+            Ok(e)
+        });
+        match fresh {
+            Ok(e) => *ekf = e,
+            Err(e) => warn!(error = %e, "the search filter could not start"),
+        }
+        self.loaded.clear();
+        self.quiet_rotations = 0;
+        self.updates_seen = 0;
+        self.searcher.forget();
+        self.phase = Phase::Searching {
+            last: None,
+            since: 0,
+            driven_m: 0.0,
+            counted_to: None,
+            previous: None,
+        };
+    }
+
+    fn on_attempt(&mut self, attempt: Attempt, ekf: &mut DaemonEkf, since_start_s: f64) {
+        let n = self.summary.attempts;
+        match attempt {
+            Attempt::Fix(v) => {
+                let local = ekf.pose();
+                let pose = slam_graph::se2::compose(&v.transform, &local);
+                let cov =
+                    compose_covariance(&v.transform, &v.covariance, &local, &ekf.pose_covariance());
+                match self.tracking_filter(ekf, pose, cov) {
+                    Ok(new) => {
+                        *ekf = new;
+                        self.loaded.clear();
+                        self.loaded.swap(
+                            ekf,
+                            &self.features,
+                            &self.rule,
+                            ekf.state().time_s(),
+                            true,
+                        );
+                        self.phase = Phase::Tracking;
+                        self.updates_seen = ekf.stats().updates;
+                        self.quiet_rotations = 0;
+                        self.summary.fixes += 1;
+                        if self.summary.time_to_fix_s.is_none() {
+                            self.summary.time_to_fix_s = Some(since_start_s);
+                            self.summary.rotations_to_fix = self.rotations;
+                        }
+                        info!(
+                            file = %self.path.display(),
+                            after_s = since_start_s,
+                            x_m = pose.x,
+                            y_m = pose.y,
+                            heading_rad = wrap_angle(pose.theta),
+                            matches = v.matches,
+                            "localised in the map: publishing the pose in the map's frame"
+                        );
+                    }
+                    Err(e) => warn!(error = %e, "the fix could not start the tracking filter"),
+                }
+            }
+            Attempt::Candidate(v) => info!(
+                matches = v.matches,
+                "a place of the map verified: confirming at the next attempt"
+            ),
+            Attempt::Ambiguous(k) => {
+                self.summary.ambiguous += 1;
+                if worth_logging(self.summary.ambiguous) {
+                    info!(
+                        places = k,
+                        "places of the map alike verified: waiting until the map tells them apart"
+                    );
+                }
+            }
+            Attempt::TooFewFeatures | Attempt::NothingVerified { .. } => {
+                if worth_logging(n) {
+                    let why = match attempt {
+                        Attempt::TooFewFeatures => {
+                            "too few features around the vehicle yet".to_owned()
+                        }
+                        Attempt::NothingVerified {
+                            best_distance: Some(d),
+                        } => format!(
+                            "no place of the map verified (nearest descriptor distance {d:.2})"
+                        ),
+                        _ => "no place of the map resembles this one".to_owned(),
+                    };
+                    warn!(
+                        file = %self.path.display(),
+                        attempts = n,
+                        after_s = since_start_s,
+                        "not localised in the map yet: {why}; no pose is published, still trying"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The pose to publish in the map's frame and its covariance (the filter's plus the
+    /// nearest submap frame's); `None` before the fix.
+    pub fn published(&self, ekf: &DaemonEkf) -> Option<(Pose2, Matrix3<f64>)> {
+        if !self.has_fix() {
+            return None;
+        }
+        let pose = ekf.pose();
+        let cov = ekf.pose_covariance() + self.features.frame_covariance_at(&pose);
+        Some((pose, 0.5 * (cov + cov.transpose())))
+    }
+
+    /// The summary, scored against `online` (each published pose with the true pose).
+    pub fn summary(&self, online: &[(crate::output::PoseSample, Pose2)]) -> LocaliseSummary {
+        let mut s = self.summary.clone();
+        s.score = score::score(online);
+        s
+    }
+}
+
+/// A closed local frame's features in the next frame (the one starting at its end pose):
+/// positions moved, covariances turned.
+fn reframed(closed: &FrozenSubmap) -> FrozenSubmap {
+    let back = slam_graph::se2::inverse(&closed.end_pose);
+    let r = slam_graph::se2::rotation(back.theta);
+    FrozenSubmap {
+        end_pose: Pose2::new(0.0, 0.0, 0.0),
+        end_cov: Matrix3::zeros(),
+        features: closed
+            .features
+            .iter()
+            .map(|f| slam_filter::SubmapFeature {
+                xy: slam_graph::se2::transform_point(&back, f.xy),
+                xy_cov: r * f.xy_cov * r.transpose(),
+                ..*f
+            })
+            .collect(),
+        loss_db: closed.loss_db,
+        end_s: closed.end_s,
+    }
+}
+
+/// Takes out of the searching filter the features further than `keep_m` from the vehicle
+/// (the local map stays bounded however long the search).
+fn trim_local_map(ekf: &mut DaemonEkf, keep_m: f64) {
+    let pose = ekf.pose();
+    let far: Vec<slam_filter::FeatureId> = ekf
+        .features()
+        .into_iter()
+        .filter(|f| (f.x_m - pose.x).hypot(f.y_m - pose.y) > keep_m)
+        .map(|f| f.id)
+        .collect();
+    for id in far {
+        let _ = ekf.remove_feature(id);
+    }
+}

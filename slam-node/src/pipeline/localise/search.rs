@@ -1,0 +1,471 @@
+//! Finding where the vehicle is in the map without a prior: place recognition over the
+//! map, then the loop-closure verifier.
+//!
+//! While searching, the filter maps in a frame of its own (the vehicle starts at its
+//! origin). The map is described beforehand by places every [`PLACE_SPACING_M`] along its
+//! drive (radar-odometry's polar descriptor of every map feature within the descriptor's
+//! range, axes of the map's frame). Every few metres of driving the local map around the
+//! vehicle is described (in the vehicle's frame, around shifted origins), the nearest map
+//! places by ring key are compared under every rotation, and each match below the distance
+//! threshold gives a guess of the local frame in the map's, refined by a vote over feature
+//! offsets (slam-graph's `places::refine`) and offered to the verifier (`slam_graph::align`:
+//! jointly compatible, unambiguous association of many features with their material).
+//!
+//! A fix is taken only when, at two attempts in a row, exactly one transform verified
+//! (several verified transforms further apart than [`SAME_M`] / [`SAME_RAD`] are places
+//! alike: nothing is taken, and the search waits for the local map to tell them apart) and
+//! the second agrees with the first. The map is also asked whether it repeats itself there
+//! ([`PlaceSearcher::rivals`]): the map's own features around the verified pose are
+//! described and looked up among the map's places; every look-alike place elsewhere is
+//! offered to the verifier too, and if the local map fits one of them nearly as well
+//! ([`RIVAL_SHARE`] of the matches) the places are alike and nothing is taken. A street of
+//! identical blocks is never fixed on until the local map reaches something that tells the
+//! blocks apart. No IO.
+
+use nalgebra::Matrix3;
+use radar_model::geometry::{wrap_angle, Pose2};
+use radar_odometry::{PlaceDescriptor, PlaceIndex, PlaceQuery, PlaceSettings};
+use slam_filter::{FrozenSubmap, SubmapFeature};
+use slam_graph::places::{refine, PlaceSearch};
+use slam_graph::se2::{compose, inverse, transform_point};
+use slam_graph::{align, AlignSettings, Refusal};
+
+use super::known::MapFeatures;
+
+/// Places of the map every this many metres along its drive.
+pub const PLACE_SPACING_M: f64 = 10.0;
+/// Two verified transforms within this distance (m) and heading (rad) are one place.
+pub const SAME_M: f64 = 2.0;
+/// See [`SAME_M`].
+pub const SAME_RAD: f64 = 0.05;
+/// A fix needs the second verification within this of the first (m, rad).
+const CONFIRM_M: f64 = 1.0;
+const CONFIRM_RAD: f64 = 0.03;
+/// Map places compared in full per attempt (nearest by ring key).
+const NEIGHBOURS: usize = 12;
+/// Matches below this descriptor distance are verified, at most this many.
+const MAX_DISTANCE: f64 = 0.5;
+const MAX_CANDIDATES: usize = 6;
+/// Fewest features matched for a fix.
+pub const MIN_FIX_MATCHES: usize = 8;
+/// Map features within this of a guess (m) are offered to the verifier.
+const VERIFY_RADIUS_M: f64 = 120.0;
+/// A look-alike place of the map that the local map fits with at least this share of the
+/// best place's matches makes the fix ambiguous.
+pub const RIVAL_SHARE: f64 = 0.6;
+/// A place of the map elsewhere whose descriptor is this close to the map's around a
+/// verified pose is a copy of it: no fix there.
+pub const SELF_SIMILAR_DISTANCE: f64 = 0.15;
+/// Look-alike places offered to the verifier at most per check (nearest by descriptor).
+const MAX_RIVAL_CHECKS: usize = 12;
+/// A look-alike place nearer than this to the verified pose (m) is the same place.
+const RIVAL_MIN_SEPARATION_M: f64 = 10.0;
+
+/// A transform of the local frame into the map's, verified.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Verified {
+    /// The local frame in the map's.
+    pub transform: Pose2,
+    /// Its covariance.
+    pub covariance: Matrix3<f64>,
+    /// Features matched.
+    pub matches: usize,
+}
+
+/// What one attempt found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Attempt {
+    /// Too few local features to describe the place yet.
+    TooFewFeatures,
+    /// No map place was close enough, or none verified.
+    NothingVerified {
+        /// The nearest descriptor distance found.
+        best_distance: Option<f64>,
+    },
+    /// More than one place verified: the map does not tell them apart yet.
+    Ambiguous(usize),
+    /// One place verified; a fix needs it confirmed at the next attempt.
+    Candidate(Verified),
+    /// Confirmed: the fix.
+    Fix(Verified),
+}
+
+/// The map's places and the search's state.
+#[derive(Debug)]
+pub struct PlaceSearcher {
+    settings: PlaceSettings,
+    places: Vec<(Pose2, PlaceDescriptor)>,
+    index: PlaceIndex,
+    pending: Option<Verified>,
+    align: AlignSettings,
+}
+
+/// Points along the drive of the map: each submap's frame to its end, every `spacing` m.
+fn drive_points(map: &MapFeatures, spacing: f64) -> Vec<[f64; 2]> {
+    let mut out = Vec::new();
+    for ((frame, _), end) in map.frames.iter().zip(&map.ends) {
+        let (a, b) = ([frame.x, frame.y], [end.x, end.y]);
+        let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+        let n = (len / spacing).ceil().max(1.0) as usize;
+        for i in 0..n {
+            let t = i as f64 / n as f64;
+            out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+        }
+    }
+    if let Some(end) = map.ends.last() {
+        out.push([end.x, end.y]);
+    }
+    out
+}
+
+impl PlaceSearcher {
+    /// Describes the map's places.
+    pub fn new(map: &MapFeatures, min_hits: u64) -> Self {
+        let settings = PlaceSettings::default();
+        let mut places = Vec::new();
+        let mut index = PlaceIndex::new();
+        let r2 = settings.max_range_m * settings.max_range_m;
+        for p in drive_points(map, PLACE_SPACING_M) {
+            let points: Vec<[f64; 2]> = map
+                .features
+                .iter()
+                .filter(|f| f.hits >= min_hits)
+                .map(|f| [f.xy[0] - p[0], f.xy[1] - p[1]])
+                .filter(|d| d[0] * d[0] + d[1] * d[1] <= r2)
+                .collect();
+            if let Ok(d) = PlaceDescriptor::new(points, &settings) {
+                index.insert(places.len() as u64, &d);
+                places.push((Pose2::new(p[0], p[1], 0.0), d));
+            }
+        }
+        Self {
+            settings,
+            places,
+            index,
+            pending: None,
+            align: AlignSettings {
+                min_hits,
+                ..AlignSettings::default()
+            },
+        }
+    }
+
+    /// The local frame restarted at `origin` (in the old one): a pending candidate is
+    /// re-expressed in the new frame.
+    pub fn reframe(&mut self, origin: &Pose2) {
+        if let Some(p) = self.pending.as_mut() {
+            p.transform = compose(&p.transform, origin);
+        }
+    }
+
+    /// Forgets a pending candidate (the search starts again).
+    pub fn forget(&mut self) {
+        self.pending = None;
+    }
+
+    /// Places described.
+    pub fn places(&self) -> usize {
+        self.places.len()
+    }
+
+    /// One attempt with the local map `local` (the filter's features in its own frame) and
+    /// the vehicle at `vehicle` in it.
+    pub fn attempt(&mut self, map: &MapFeatures, local: &FrozenSubmap, vehicle: &Pose2) -> Attempt {
+        let min_hits = self.align.min_hits;
+        let to_vehicle = inverse(vehicle);
+        let r = self.settings.max_range_m;
+        let query_points: Vec<[f64; 2]> = local
+            .features
+            .iter()
+            .filter(|f| f.hits >= min_hits)
+            .map(|f| transform_point(&to_vehicle, f.xy))
+            .filter(|p| p[0].hypot(p[1]) <= r)
+            .collect();
+        let Ok(query) = PlaceQuery::new(&query_points, &self.settings) else {
+            return Attempt::TooFewFeatures;
+        };
+        let mut matches: Vec<(f64, Pose2)> = self
+            .index
+            .nearest_to_query(&query, NEIGHBOURS)
+            .into_iter()
+            .filter_map(|(id, _)| {
+                let (place, d) = self.places.get(usize::try_from(id).ok()?)?;
+                let m = query.compare(d)?;
+                let t = Pose2::new(m.transform[0], m.transform[1], m.transform[2]);
+                // The vehicle in the map, then the local frame in the map.
+                let vehicle_in_map = compose(place, &t);
+                Some((m.place.distance, compose(&vehicle_in_map, &to_vehicle)))
+            })
+            .collect();
+        matches.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let best_distance = matches.first().map(|m| m.0);
+        let mut guesses: Vec<(Pose2, Matrix3<f64>)> = Vec::new();
+        let search = PlaceSearch::default();
+        let loose = Matrix3::from_diagonal(&nalgebra::Vector3::new(
+            search.prior_sigma_m.powi(2),
+            search.prior_sigma_m.powi(2),
+            search.prior_sigma_rad.powi(2),
+        ));
+        for (d, g) in matches.into_iter().filter(|m| m.0 <= MAX_DISTANCE) {
+            let _ = d;
+            if guesses.len() >= MAX_CANDIDATES {
+                break;
+            }
+            if !guesses.iter().any(|(h, _)| same(h, &g, SAME_M, SAME_RAD)) {
+                guesses.push((g, loose));
+            }
+        }
+        if let Some(p) = self.pending {
+            let tight = Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 1.0, 0.02f64.powi(2)));
+            guesses.push((p.transform, tight));
+        }
+        let b_xy: Vec<[f64; 2]> = local
+            .features
+            .iter()
+            .filter(|f| f.hits >= min_hits)
+            .map(|f| f.xy)
+            .collect();
+        let mut verified: Vec<Verified> = Vec::new();
+        for (guess, cov) in guesses {
+            if let Some(v) = self.verify(map, local, &b_xy, vehicle, guess, &cov) {
+                match verified
+                    .iter_mut()
+                    .find(|w| same(&w.transform, &v.transform, SAME_M, SAME_RAD))
+                {
+                    Some(w) if w.matches < v.matches => *w = v,
+                    Some(_) => {}
+                    None => verified.push(v),
+                }
+            }
+        }
+        match verified.as_slice() {
+            [] => {
+                self.pending = None;
+                Attempt::NothingVerified { best_distance }
+            }
+            [v] if v.matches >= MIN_FIX_MATCHES => {
+                let v = *v;
+                let rivals = self.rivals(map, local, &b_xy, vehicle, &v);
+                if rivals > 0 {
+                    self.pending = None;
+                    return Attempt::Ambiguous(1 + rivals);
+                }
+                let v = &v;
+                let confirmed = self
+                    .pending
+                    .is_some_and(|p| same(&p.transform, &v.transform, CONFIRM_M, CONFIRM_RAD));
+                if confirmed {
+                    self.pending = None;
+                    Attempt::Fix(*v)
+                } else {
+                    self.pending = Some(*v);
+                    Attempt::Candidate(*v)
+                }
+            }
+            [_] => {
+                self.pending = None;
+                Attempt::NothingVerified { best_distance }
+            }
+            many => {
+                self.pending = None;
+                Attempt::Ambiguous(many.len())
+            }
+        }
+    }
+}
+
+impl PlaceSearcher {
+    /// Offers the local map (`local`, its well-seen points `b_xy`, the vehicle at `vehicle`
+    /// in it) to the verifier against the map's features around `guess` (the local frame
+    /// in the map's), with that prior and covariance.
+    fn verify(
+        &self,
+        map: &MapFeatures,
+        local: &FrozenSubmap,
+        b_xy: &[[f64; 2]],
+        vehicle: &Pose2,
+        guess: Pose2,
+        cov: &Matrix3<f64>,
+    ) -> Option<Verified> {
+        self.verify_or_refusal(map, local, b_xy, vehicle, guess, cov)
+            .ok()
+    }
+
+    /// [`Self::verify`], with the verifier's refusal.
+    fn verify_or_refusal(
+        &self,
+        map: &MapFeatures,
+        local: &FrozenSubmap,
+        b_xy: &[[f64; 2]],
+        vehicle: &Pose2,
+        guess: Pose2,
+        cov: &Matrix3<f64>,
+    ) -> Result<Verified, Refusal> {
+        let centre = compose(&guess, vehicle);
+        let a: Vec<SubmapFeature> = map
+            .features
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| (f.xy[0] - centre.x).hypot(f.xy[1] - centre.y) <= VERIFY_RADIUS_M)
+            .map(|(k, f)| f.as_submap_feature(k as u64))
+            .collect();
+        let a_xy: Vec<[f64; 2]> = a
+            .iter()
+            .filter(|f| f.hits >= self.align.min_hits)
+            .map(|f| f.xy)
+            .collect();
+        let prior = refine(&a_xy, b_xy, guess, &PlaceSearch::default());
+        let al = align(&a, &local.features, &prior, cov, &self.align)?;
+        Ok(Verified {
+            transform: al.transform,
+            covariance: al.covariance,
+            matches: al.matches.len(),
+        })
+    }
+
+    /// Places of the map that look like the one `v` puts the vehicle in (the map's own
+    /// features around that pose, looked up among its places) and that the local map fits
+    /// with at least [`RIVAL_SHARE`] of `v`'s matches: rivals of the fix.
+    pub fn rivals(
+        &mut self,
+        map: &MapFeatures,
+        local: &FrozenSubmap,
+        b_xy: &[[f64; 2]],
+        vehicle: &Pose2,
+        v: &Verified,
+    ) -> usize {
+        let here = compose(&v.transform, vehicle);
+        let to_here = inverse(&here);
+        let r = self.settings.max_range_m;
+        let points: Vec<[f64; 2]> = map
+            .features
+            .iter()
+            .filter(|f| f.hits >= self.align.min_hits)
+            .map(|f| transform_point(&to_here, f.xy))
+            .filter(|p| p[0].hypot(p[1]) <= r)
+            .collect();
+        // Every place of the map is compared with the map around the pose (one descriptor,
+        // cheap); those alike are compared again around shifted origins for where the pose
+        // would be there.
+        let Ok(described) = PlaceDescriptor::new(points.iter().copied(), &self.settings) else {
+            return 0;
+        };
+        let Ok(query) = PlaceQuery::new(&points, &self.settings) else {
+            return 0;
+        };
+        let search = PlaceSearch::default();
+        let loose = Matrix3::from_diagonal(&nalgebra::Vector3::new(
+            search.prior_sigma_m.powi(2),
+            search.prior_sigma_m.powi(2),
+            search.prior_sigma_rad.powi(2),
+        ));
+        let to_vehicle = inverse(vehicle);
+        let mut alternatives: Vec<(f64, Pose2)> = Vec::new();
+        for (place, d) in &self.places {
+            if (place.x - here.x).hypot(place.y - here.y) < RIVAL_MIN_SEPARATION_M
+                || d.compare(&described).distance > MAX_DISTANCE
+            {
+                continue;
+            }
+            let Some(m) = query.compare(d) else {
+                continue;
+            };
+            if m.place.distance > MAX_DISTANCE {
+                continue;
+            }
+            let t = Pose2::new(m.transform[0], m.transform[1], m.transform[2]);
+            let there = compose(place, &t);
+            if (there.x - here.x).hypot(there.y - here.y) < RIVAL_MIN_SEPARATION_M {
+                continue;
+            }
+            // Look-alikes within a few metres of one another are one place: the nearest
+            // by descriptor stands for them.
+            match alternatives
+                .iter_mut()
+                .find(|(_, a)| same(a, &there, RIVAL_MIN_SEPARATION_M, 0.2))
+            {
+                Some(a) if a.0 > m.place.distance => *a = (m.place.distance, there),
+                Some(_) => {}
+                None => alternatives.push((m.place.distance, there)),
+            }
+        }
+        alternatives.sort_by(|a, b| a.0.total_cmp(&b.0));
+        if alternatives
+            .first()
+            .is_some_and(|(d, _)| *d <= SELF_SIMILAR_DISTANCE)
+        {
+            // The map itself has a near copy of this place elsewhere: whatever the local
+            // map fits, the place is not told apart (repeated blocks).
+            return 1;
+        }
+        alternatives.truncate(MAX_RIVAL_CHECKS);
+        let mut rivals: Vec<Pose2> = Vec::new();
+        for (_, there) in alternatives {
+            if !rivals.is_empty() {
+                // One rival is enough to wait.
+                break;
+            }
+            let guess = compose(&there, &to_vehicle);
+            let verified = self.verify_or_refusal(map, local, b_xy, vehicle, guess, &loose);
+            tracing::debug!(
+                x_m = there.x,
+                y_m = there.y,
+                outcome = ?verified.as_ref().map(|w| w.matches),
+                best = v.matches,
+                "a look-alike place of the map offered to the verifier"
+            );
+            // Refused because two transforms fit there about equally: the local map fits
+            // that place (twice), a rival all the same.
+            if let Err(Refusal::Ambiguous { best, .. }) = verified {
+                if best as f64 >= RIVAL_SHARE * v.matches as f64
+                    && !rivals.iter().any(|x| same(x, &guess, SAME_M, SAME_RAD))
+                {
+                    rivals.push(guess);
+                }
+                continue;
+            }
+            if let Ok(w) = verified {
+                let far = !same(&w.transform, &v.transform, RIVAL_MIN_SEPARATION_M, 0.2);
+                let strong = w.matches as f64 >= RIVAL_SHARE * v.matches as f64;
+                if far
+                    && strong
+                    && !rivals
+                        .iter()
+                        .any(|x| same(x, &w.transform, SAME_M, SAME_RAD))
+                {
+                    rivals.push(w.transform);
+                }
+            }
+        }
+        rivals.len()
+    }
+}
+
+/// Whether two transforms are within `m` metres and `rad` radians.
+fn same(a: &Pose2, b: &Pose2, m: f64, rad: f64) -> bool {
+    (a.x - b.x).hypot(a.y - b.y) <= m && wrap_angle(a.theta - b.theta).abs() <= rad
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn drive_points_are_spaced_along_each_submap() {
+        let map = MapFeatures {
+            features: Vec::new(),
+            frames: vec![
+                (Pose2::new(0.0, 0.0, 0.0), Matrix3::zeros()),
+                (Pose2::new(25.0, 0.0, 0.0), Matrix3::zeros()),
+            ],
+            ends: vec![Pose2::new(25.0, 0.0, 0.0), Pose2::new(25.0, 20.0, 0.0)],
+            end_local: Vec::new(),
+        };
+        let p = drive_points(&map, 10.0);
+        // 25 m in 3 steps, 20 m in 2, and the end.
+        assert_eq!(p.len(), 6);
+        assert_eq!(p[0], [0.0, 0.0]);
+        assert_eq!(p[3], [25.0, 0.0]);
+        assert_eq!(p[5], [25.0, 20.0]);
+    }
+}
