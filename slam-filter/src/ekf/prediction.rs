@@ -105,7 +105,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     }
 
     /// Jumps the state to `time_s` across an odometry gap: the pose covariance grows by what the
-    /// vehicle could have done meanwhile (see
+    /// vehicle could have done meanwhile, once a map exists (see
     /// [`FilterSettings::gap_speed_mps`](crate::FilterSettings::gap_speed_mps)).
     fn bridge_gap(&mut self, time_s: f64) {
         // The motion across the gap is unknown: no tally spans it.
@@ -117,7 +117,21 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     }
 
     /// Grows the pose covariance by what the vehicle could do in `gap_s` of unknown motion.
+    ///
+    /// With no feature mapped yet nothing is grown: the map frame is only the pose itself
+    /// then, so it is re-anchored at the pose estimate (counted in
+    /// [`FilterStats::gaps_before_map`](crate::FilterStats::gaps_before_map)). Growing it
+    /// instead left every feature mapped afterwards with the gap's uncertainty (20 m and
+    /// 120 degrees of heading for a 10 s gap), which no later measurement can take back
+    /// (nothing observes the frame), and whose linearisation turned a parked vehicle's
+    /// heading by 100 degrees and more as the map formed.
     fn inflate_for_gap(&mut self, gap_s: f64) {
+        if self.state.feature_count() == 0 {
+            self.stats.gaps_before_map += 1;
+            // Tentatives were placed in the old frame.
+            self.tentatives = TentativeList::default();
+            return;
+        }
         let s = &self.settings;
         let sigma_xy = (s.gap_speed_mps * gap_s).min(s.gap_max_sigma_m);
         let sigma_theta = (s.gap_yaw_rate_rps * gap_s).min(std::f64::consts::PI);
@@ -129,7 +143,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     }
 
     /// Moves the filter onto a new clock at `time_s` (the sensor's clock was set, forwards or
-    /// backwards): the map is kept, the pose covariance grows as across a gap of
+    /// backwards): the map is kept, the pose covariance grows (once a map exists) as across a gap of
     /// [`FilterSettings::max_predict_gap_s`](crate::FilterSettings::max_predict_gap_s) of unknown
     /// motion, and the held odometry is dropped (it belongs to the old clock): beams are refused
     /// until odometry on the new clock arrives. Counted in

@@ -71,6 +71,10 @@ pub struct FilterStats {
     pub excluded_targets: u64,
     /// Odometry gaps bridged by re-initialising the pose covariance.
     pub bridged_gaps: u64,
+    /// Of the bridged gaps and clock resynchronisations, those met before any feature was
+    /// mapped: the map frame was re-anchored at the pose estimate and the pose covariance
+    /// not grown.
+    pub gaps_before_map: u64,
     /// Relocalisations accepted after a gap (see
     /// [`FilterSettings::relocalise_after_gap`](crate::FilterSettings::relocalise_after_gap)).
     pub relocalisations: u64,
