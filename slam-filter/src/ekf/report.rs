@@ -83,8 +83,8 @@ pub struct FilterStats {
     /// Relocalisations given up after
     /// [`FilterSettings::relocalise_give_up_s`](crate::FilterSettings::relocalise_give_up_s).
     pub relocalisations_abandoned: u64,
-    /// Beams whose targets were kept from starting features because the target rate was a
-    /// burst (see [`FilterSettings::burst_factor`](crate::FilterSettings::burst_factor)).
+    /// Beams not used because the target rate was a burst (see
+    /// [`FilterSettings::burst_factor`](crate::FilterSettings::burst_factor)).
     pub burst_beams: u64,
     /// Measurements of the motion since a mark applied
     /// ([`Ekf::observe_motion_since_mark`](crate::Ekf::observe_motion_since_mark)).

@@ -61,6 +61,9 @@ pub enum PipelineError {
     Settings(#[from] super::settings::SettingsError),
 }
 
+/// Warnings about a burst of targets at most this often (stream seconds).
+const BURST_WARN_EVERY_S: f64 = 5.0;
+
 /// The daemon's processing state.
 #[derive(Debug)]
 pub struct Pipeline {
@@ -86,6 +89,8 @@ pub struct Pipeline {
     cpu_mark: Option<std::time::Duration>,
     /// The run's clock at the last periodic saved map (`[map] save_every_s`).
     last_map_save_s: Option<f64>,
+    /// Stream time of the last warning about a burst of targets.
+    burst_warned_s: f64,
 }
 
 fn filter_at(
@@ -153,6 +158,7 @@ impl Pipeline {
             online: Vec::new(),
             cpu_mark: None,
             last_map_save_s: None,
+            burst_warned_s: f64::NEG_INFINITY,
             settings,
         })
     }
@@ -380,9 +386,21 @@ impl Pipeline {
             return;
         }
         let covered = self.front_end.covered_range_m(beam.bearing_rad);
+        let bursts = self.ekf.stats().burst_beams;
         let processed = self
             .ekf
             .process_beam_offered(beam, covered, &offered.may_start);
+        if self.ekf.stats().burst_beams > bursts {
+            self.summary.burst_beams += 1;
+            if beam.timestamp_s - self.burst_warned_s > BURST_WARN_EVERY_S {
+                self.burst_warned_s = beam.timestamp_s;
+                warn!(
+                    time_s = beam.timestamp_s,
+                    beams = self.summary.burst_beams,
+                    "a burst of targets far above the learned rate (a swamped receiver, interference): the radar is taken as blind, its beams are not used"
+                );
+            }
+        }
         match processed {
             Ok(report) => {
                 self.summary.beams += 1;
