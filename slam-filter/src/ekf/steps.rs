@@ -21,6 +21,10 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// 6. **augmentation**: unclaimed targets start or confirm tentatives, and confirmed ones
     ///    enter the state with their reflectivity and absorption.
     ///
+    /// A beam inside a burst of targets (see
+    /// [`FilterSettings::burst_factor`](crate::FilterSettings::burst_factor)) is only predicted
+    /// to: the radar is taken to be blind.
+    ///
     /// Non-finite input, too many targets, a time before the state's or a gap past the limit
     /// are rejected before the state is touched. If the batched update fails (S not positive
     /// definite, or a variance would go non-positive) the state has been predicted to the
