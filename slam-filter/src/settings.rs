@@ -97,8 +97,10 @@ pub struct FilterSettings {
     /// Across an odometry gap longer than `max_predict_gap_s` nothing is known of the motion:
     /// the filter jumps to the new sample's time and re-initialises the pose covariance by
     /// adding `(gap_speed_mps * gap)^2` to x and y and `(gap_yaw_rate_rps * gap)^2` to the
-    /// heading, capped at `gap_max_sigma_m` and pi (the map is kept). Before any feature is
-    /// mapped nothing is added: the map frame is re-anchored at the pose estimate.
+    /// heading, capped at `gap_max_sigma_m` and pi (the map is kept). With no map to
+    /// relocalise against (no feature, or fewer than `relocalise_min_features` when
+    /// relocalising, which are dropped) nothing is added: the map frame is re-anchored at
+    /// the pose estimate.
     pub gap_speed_mps: f64,
     /// See [`Self::gap_speed_mps`] (rad/s).
     pub gap_yaw_rate_rps: f64,

@@ -557,15 +557,14 @@ fn an_odometry_gap_past_the_limit_is_bridged_not_refused_forever() {
     };
     f.apply_odometry(odo(T0)).unwrap();
     f.apply_odometry(odo(T0 + 0.1)).unwrap();
-    // A map exists (before it does, a gap re-anchors the map frame instead: below).
-    let z = targets(&Pose2::default(), &[feature(20.0, 5.0, 0.5, 0.2)], 0.0);
-    f.initialise_feature(&z[0], z[0].bearing_rad, T0 + 0.1)
-        .unwrap();
+    // A map to relocalise against exists (without one, a gap re-anchors the map frame
+    // instead: below).
+    map_three_posts(&mut f, T0 + 0.1);
     let before = f.pose_covariance();
     // The bridge is silent for 60 s, then odometry returns.
     f.apply_odometry(odo(T0 + 60.1)).unwrap();
     assert_eq!(f.stats().bridged_gaps, 1);
-    assert_eq!(f.stats().gaps_before_map, 0);
+    assert_eq!(f.stats().reanchored_gaps, 0);
     assert_eq!(f.state().time_s(), T0 + 60.1);
     let after = f.pose_covariance();
     assert!(
@@ -583,7 +582,8 @@ fn an_odometry_gap_past_the_limit_is_bridged_not_refused_forever() {
 /// Issue 38, item 10: odometry that went back in time for 10 s before the map existed was
 /// bridged by growing the pose covariance (20 m, 120 degrees), which no measurement can take
 /// back once features are mapped from it. With no feature mapped the map frame is only the
-/// pose: a gap or a clock resynchronisation re-anchors it at the estimate instead.
+/// pose: a gap or a clock resynchronisation re-anchors it at the estimate instead; so it
+/// does with one or two features, too few to relocalise against (they are dropped).
 #[test]
 fn a_gap_or_clock_jump_before_any_feature_is_mapped_re_anchors_the_map_frame() {
     let mut f = filter(settings(), Pose2::default(), [1e-4, 1e-4, 1e-6]);
@@ -598,17 +598,35 @@ fn a_gap_or_clock_jump_before_any_feature_is_mapped_re_anchors_the_map_frame() {
     f.resync_clock(T0 - 100.0).unwrap();
     f.apply_odometry(still(T0 - 99.9)).unwrap();
     let stats = f.stats();
-    assert_eq!((stats.bridged_gaps, stats.gaps_before_map), (2, 2));
+    assert_eq!((stats.bridged_gaps, stats.reanchored_gaps), (2, 2));
     assert_eq!(f.pose_covariance(), before, "the pose covariance grew");
     assert_eq!(f.state().time_s(), T0 - 99.9);
-    // Once a feature is mapped, a gap grows the pose covariance again.
-    let z = targets(&Pose2::default(), &[feature(20.0, 5.0, 0.5, 0.2)], 0.0);
-    f.initialise_feature(&z[0], z[0].bearing_rad, T0 - 99.9)
-        .unwrap();
+    // Two features, too few to relocalise against: dropped, and the frame re-anchored.
+    for xy in [[20.0, 5.0], [-8.0, 12.0]] {
+        let z = targets(&Pose2::default(), &[feature(xy[0], xy[1], 0.5, 0.2)], 0.0);
+        f.initialise_feature(&z[0], z[0].bearing_rad, T0 - 99.9)
+            .unwrap();
+    }
+    let retired = f.stats().retired;
     f.apply_odometry(still(T0 - 90.0)).unwrap();
-    assert_eq!((f.stats().bridged_gaps, f.stats().gaps_before_map), (3, 2));
+    assert_eq!((f.stats().bridged_gaps, f.stats().reanchored_gaps), (3, 3));
+    assert_eq!((f.feature_count(), f.stats().retired), (0, retired + 2));
+    assert_eq!(f.pose_covariance(), before, "the pose covariance grew");
+    // With a map to relocalise against, a gap grows the pose covariance again.
+    map_three_posts(&mut f, T0 - 90.0);
+    f.apply_odometry(still(T0 - 80.0)).unwrap();
+    assert_eq!((f.stats().bridged_gaps, f.stats().reanchored_gaps), (4, 3));
+    assert_eq!(f.feature_count(), 3);
     assert!(f.pose_covariance()[(0, 0)] > before[(0, 0)] + 100.0);
     assert_healthy(&f);
+}
+
+/// Maps three posts seen from the origin at `t` (enough to relocalise against).
+fn map_three_posts(f: &mut Filter, t: f64) {
+    for xy in [[20.0, 5.0], [-8.0, 12.0], [6.0, -14.0]] {
+        let z = targets(&Pose2::default(), &[feature(xy[0], xy[1], 0.5, 0.2)], 0.0);
+        f.initialise_feature(&z[0], z[0].bearing_rad, t).unwrap();
+    }
 }
 
 /// The beam at `xy`'s bearing from `truth`, with its one target where `xy` is, noise-free.

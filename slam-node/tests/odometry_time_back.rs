@@ -63,7 +63,7 @@ fn odometry_stamped_back_in_time_before_the_map_exists_leaves_the_parked_vehicle
     );
     assert_eq!(summary.odometry_clock_jumps, 1);
     let stats = p.ekf().stats();
-    assert_eq!((stats.bridged_gaps, stats.gaps_before_map), (1, 1));
+    assert_eq!((stats.bridged_gaps, stats.reanchored_gaps), (1, 1));
     // Nothing was mapped while the odometry was bad; then the map formed.
     assert!(track.iter().filter(|t| t.0 < BACK_S).all(|t| t.3 == 0));
     // From 2 s after the odometry returned: a parked vehicle's estimate that stays put and
@@ -81,6 +81,69 @@ fn odometry_stamped_back_in_time_before_the_map_exists_leaves_the_parked_vehicle
     assert!(pose.x.hypot(pose.y) < 0.2, "{pose:?}");
     // The reflectors mapped where they are (a parked radar's map churns: one of the four
     // may be between retirement and re-mapping at any moment).
+    let features = p.ekf().features();
+    let mapped = REFLECTORS
+        .iter()
+        .filter(|&&(x, y)| features.iter().any(|f| (f.x_m - x).hypot(f.y_m - y) < 1.0))
+        .count();
+    assert!(
+        mapped >= 3,
+        "{mapped} reflectors mapped within 1 m: {features:?}"
+    );
+}
+
+/// The same with the map begun: the odometry steps 10 s back 1.3 s after the start, when
+/// two of the four reflectors are mapped, and comes back 10 s later. Two features are too
+/// few to relocalise against, and beam by beam inside the grown gates (20 m, 65 degrees)
+/// the parked vehicle was put up to 34 m and 155 degrees off; now the two are dropped and the map
+/// starts again at the pose estimate.
+#[test]
+fn odometry_stepping_back_when_two_features_are_mapped_leaves_the_parked_vehicle_where_it_is() {
+    let t0 = T0_NS as f64 * 1e-9;
+    let (step_at, back) = (1.3, 10.0);
+    let azimuths = still_radar_azimuths(45, T0_NS); // 18 s
+    let mut p = Pipeline::new(still_radar_settings(), None, None).expect("the pipeline");
+    let mut events = Vec::new();
+    let mut sent = 0u32;
+    let mut worst_m = 0.0f64;
+    let mut worst_deg = 0.0f64;
+    let mut mapped_at_the_gap = None;
+    for az in &azimuths {
+        let now_s = az.timestamp_s - t0;
+        while f64::from(sent) * 0.05 <= now_s + 0.1 {
+            let s = f64::from(sent) * 0.05;
+            let stamp = if (step_at..step_at + back).contains(&s) {
+                t0 + s - back
+            } else {
+                t0 + s
+            };
+            p.push_odometry(still(stamp));
+            sent += 1;
+        }
+        let mapped_before = p.ekf().feature_count();
+        p.process_azimuth(az, &mut events).expect("processed");
+        if p.ekf().stats().bridged_gaps == 1 && mapped_at_the_gap.is_none() {
+            mapped_at_the_gap = Some(mapped_before);
+        }
+        events.clear();
+        let pose = p.ekf().pose();
+        worst_m = worst_m.max(pose.x.hypot(pose.y));
+        worst_deg = worst_deg.max(pose.theta.to_degrees().abs());
+    }
+    p.finish(&mut events);
+    let stats = p.ekf().stats();
+    println!("features mapped when the odometry came back: {mapped_at_the_gap:?}; {stats:?}");
+    assert_eq!((stats.bridged_gaps, stats.reanchored_gaps), (1, 1));
+    // The case meant: a map begun, too small to relocalise against.
+    assert!(
+        matches!(mapped_at_the_gap, Some(1 | 2)),
+        "{mapped_at_the_gap:?} features mapped when the odometry came back"
+    );
+    assert!(
+        worst_m < 0.5,
+        "the parked vehicle's estimate went {worst_m:.1} m off"
+    );
+    assert!(worst_deg < 3.0, "and {worst_deg:.1} degrees");
     let features = p.ekf().features();
     let mapped = REFLECTORS
         .iter()

@@ -56,7 +56,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     }
 
     /// Removes the features `ids` from the state and counts them retired.
-    fn retire(&mut self, ids: &[FeatureId]) -> Result<(), FilterError> {
+    pub(super) fn retire(&mut self, ids: &[FeatureId]) -> Result<(), FilterError> {
         for &id in ids {
             self.state.remove(id)?;
             self.stats.retired += 1;

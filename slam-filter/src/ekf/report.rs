@@ -71,10 +71,12 @@ pub struct FilterStats {
     pub excluded_targets: u64,
     /// Odometry gaps bridged by re-initialising the pose covariance.
     pub bridged_gaps: u64,
-    /// Of the bridged gaps and clock resynchronisations, those met before any feature was
-    /// mapped: the map frame was re-anchored at the pose estimate and the pose covariance
-    /// not grown.
-    pub gaps_before_map: u64,
+    /// Of the bridged gaps and clock resynchronisations, those met with no map to relocalise
+    /// against (no feature mapped, or fewer than
+    /// [`FilterSettings::relocalise_min_features`](crate::FilterSettings::relocalise_min_features),
+    /// which were dropped): the map frame was re-anchored at the pose estimate and the pose
+    /// covariance not grown.
+    pub reanchored_gaps: u64,
     /// Relocalisations accepted after a gap (see
     /// [`FilterSettings::relocalise_after_gap`](crate::FilterSettings::relocalise_after_gap)).
     pub relocalisations: u64,

@@ -255,18 +255,28 @@ impl Pipeline {
     }
 
     fn apply_odometry(&mut self, s: OdometrySample) {
-        let (gaps, from_s) = (self.ekf.stats().bridged_gaps, self.ekf.state().time_s());
+        let before = *self.ekf.stats();
+        let from_s = self.ekf.state().time_s();
         if let Err(e) = self.ekf.apply_odometry(s) {
             self.summary.filter_errors += 1;
             warn!(error = %e, "odometry sample rejected by the filter");
         }
         let stats = self.ekf.stats();
-        if stats.bridged_gaps > gaps && worth_logging(stats.bridged_gaps) {
+        if stats.bridged_gaps > before.bridged_gaps && worth_logging(stats.bridged_gaps) {
             let gap_s = s.timestamp_s - from_s;
-            if stats.gaps_before_map > 0 && self.ekf.feature_count() == 0 {
-                warn!(gap_s, bridged = stats.bridged_gaps, "no odometry across the gap: nothing mapped yet, so the map frame starts at the pose estimate");
+            if stats.reanchored_gaps > before.reanchored_gaps {
+                warn!(
+                    gap_s,
+                    bridged = stats.bridged_gaps,
+                    dropped = stats.retired - before.retired,
+                    "no odometry across the gap and no map to relocalise against: the map starts again, its frame at the pose estimate"
+                );
             } else {
-                warn!(gap_s, bridged = stats.bridged_gaps, "no odometry across the gap: the pose uncertainty grown by what the vehicle could have done meanwhile");
+                warn!(
+                    gap_s,
+                    bridged = stats.bridged_gaps,
+                    "no odometry across the gap: the pose uncertainty grown by what the vehicle could have done meanwhile"
+                );
             }
         }
     }
