@@ -68,6 +68,9 @@ pub struct Ekf<M, O> {
     /// odometry held; not refused, not held for a relocalisation): a rotation with none is
     /// not scored by [`Self::score_rotation`].
     last_mapped_beam_s: f64,
+    /// Time of the latest beam judged part of a burst (see
+    /// [`FilterSettings::burst_factor`]): no feature counts as unseen before it.
+    last_burst_beam_s: f64,
 }
 
 impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
@@ -110,6 +113,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             relocalising: None,
             target_rate: TargetRate::default(),
             last_mapped_beam_s: f64::NEG_INFINITY,
+            last_burst_beam_s: f64::NEG_INFINITY,
         })
     }
 }

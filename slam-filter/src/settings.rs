@@ -97,7 +97,10 @@ pub struct FilterSettings {
     /// Across an odometry gap longer than `max_predict_gap_s` nothing is known of the motion:
     /// the filter jumps to the new sample's time and re-initialises the pose covariance by
     /// adding `(gap_speed_mps * gap)^2` to x and y and `(gap_yaw_rate_rps * gap)^2` to the
-    /// heading, capped at `gap_max_sigma_m` and pi (the map is kept).
+    /// heading, capped at `gap_max_sigma_m` and pi (the map is kept). With no map to
+    /// relocalise against (no feature, or fewer than `relocalise_min_features` when
+    /// relocalising, which are dropped) nothing is added: the map frame is re-anchored at
+    /// the pose estimate.
     pub gap_speed_mps: f64,
     /// See [`Self::gap_speed_mps`] (rad/s).
     pub gap_yaw_rate_rps: f64,
@@ -137,10 +140,12 @@ pub struct FilterSettings {
     /// the filter keeps two exponentially weighted rates of targets per second, a short one
     /// (time constant `burst_window_s`) and the learned norm (time constant `burst_norm_s`,
     /// bias-corrected so that it is the plain mean early on). While the short rate is above
-    /// `burst_factor` times the norm plus `burst_floor_per_s`, the beams' targets may
-    /// re-observe mapped features but start (or confirm) none. The norm keeps learning, so
-    /// a lasting change of scene (a street after a field) is accepted within about a norm
-    /// time constant. Infinity switches the guard off.
+    /// `burst_factor` times the norm plus `burst_floor_per_s`, the radar is taken to be
+    /// blind: the beams are not used (no update, no misses, no new features), and no feature
+    /// counts as unseen before the burst's end. The norm keeps learning, from a burst at most
+    /// the threshold's rate (so it grows geometrically, not to the burst's rate within a few
+    /// seconds), and a lasting change of scene (a street after a field) is accepted within
+    /// about a norm time constant. Infinity switches the guard off.
     pub burst_factor: f64,
     /// See [`Self::burst_factor`] (targets per second).
     pub burst_floor_per_s: f64,

@@ -56,7 +56,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     }
 
     /// Removes the features `ids` from the state and counts them retired.
-    fn retire(&mut self, ids: &[FeatureId]) -> Result<(), FilterError> {
+    pub(super) fn retire(&mut self, ids: &[FeatureId]) -> Result<(), FilterError> {
         for &id in ids {
             self.state.remove(id)?;
             self.stats.retired += 1;
@@ -91,7 +91,8 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 let p = self.state.params(slot)?;
                 let track = self.state.tracks().get(slot)?;
                 let rb = range_bearing(&pose, [p.x_m, p.y_m]);
-                let unseen = now - track.last_seen_s > limit;
+                // A burst blinds the radar: the unseen time counts from its end.
+                let unseen = now - track.last_seen_s.max(self.last_burst_beam_s) > limit;
                 let in_range = (near..=far).contains(&rb.range_m);
                 (unseen && in_range && in_view(rb.bearing_rad, rb.range_m)).then_some(track.id)
             })

@@ -31,7 +31,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             Some(_)
                 if sample.timestamp_s - self.state.time_s() > self.settings.max_predict_gap_s =>
             {
-                self.bridge_gap(sample.timestamp_s);
+                self.bridge_gap(sample.timestamp_s)?;
             }
             Some(held) => {
                 if sample.timestamp_s >= self.state.time_s() {
@@ -105,19 +105,44 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     }
 
     /// Jumps the state to `time_s` across an odometry gap: the pose covariance grows by what the
-    /// vehicle could have done meanwhile (see
+    /// vehicle could have done meanwhile, once a map exists (see
     /// [`FilterSettings::gap_speed_mps`](crate::FilterSettings::gap_speed_mps)).
-    fn bridge_gap(&mut self, time_s: f64) {
+    fn bridge_gap(&mut self, time_s: f64) -> Result<(), FilterError> {
         // The motion across the gap is unknown: no tally spans it.
         self.state.tally = None;
-        self.inflate_for_gap(time_s - self.state.time_s());
+        self.inflate_for_gap(time_s - self.state.time_s())?;
         self.state.set_time_s(time_s);
         self.stats.bridged_gaps += 1;
         self.start_relocalising();
+        Ok(())
     }
 
     /// Grows the pose covariance by what the vehicle could do in `gap_s` of unknown motion.
-    fn inflate_for_gap(&mut self, gap_s: f64) {
+    ///
+    /// Unless there is no map to relocalise against: with no feature mapped, or (when
+    /// relocalising is on) fewer than
+    /// [`FilterSettings::relocalise_min_features`](crate::FilterSettings::relocalise_min_features),
+    /// which are dropped, nothing is grown and the map frame is re-anchored at the pose
+    /// estimate (counted in
+    /// [`FilterStats::reanchored_gaps`](crate::FilterStats::reanchored_gaps)). Growing it
+    /// instead left every feature mapped afterwards with the gap's uncertainty (20 m and
+    /// 120 degrees of heading for a 10 s gap), which no later measurement can take back
+    /// (nothing observes the frame), and whose linearisation turned a parked vehicle's
+    /// heading by 100 degrees and more as the map formed; with one or two features mapped,
+    /// too few to relocalise against, beam-by-beam association in the grown gates put it
+    /// 24 m and 155 degrees off.
+    fn inflate_for_gap(&mut self, gap_s: f64) -> Result<(), FilterError> {
+        let mapped = self.state.feature_count();
+        let too_few =
+            self.settings.relocalise_after_gap && mapped < self.settings.relocalise_min_features;
+        if mapped == 0 || too_few {
+            let ids: Vec<_> = self.state.tracks().iter().map(|t| t.id).collect();
+            self.retire(&ids)?;
+            self.stats.reanchored_gaps += 1;
+            // Tentatives were placed in the old frame.
+            self.tentatives = TentativeList::default();
+            return Ok(());
+        }
         let s = &self.settings;
         let sigma_xy = (s.gap_speed_mps * gap_s).min(s.gap_max_sigma_m);
         let sigma_theta = (s.gap_yaw_rate_rps * gap_s).min(std::f64::consts::PI);
@@ -126,10 +151,11 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             sigma_xy * sigma_xy,
             sigma_theta * sigma_theta,
         ]);
+        Ok(())
     }
 
     /// Moves the filter onto a new clock at `time_s` (the sensor's clock was set, forwards or
-    /// backwards): the map is kept, the pose covariance grows as across a gap of
+    /// backwards): the map is kept, the pose covariance grows (once a map exists) as across a gap of
     /// [`FilterSettings::max_predict_gap_s`](crate::FilterSettings::max_predict_gap_s) of unknown
     /// motion, and the held odometry is dropped (it belongs to the old clock): beams are refused
     /// until odometry on the new clock arrives. Counted in
@@ -141,7 +167,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 value: time_s,
             });
         }
-        self.inflate_for_gap(self.settings.max_predict_gap_s);
+        self.inflate_for_gap(self.settings.max_predict_gap_s)?;
         self.state.set_time_s(time_s);
         self.state.tally = None;
         self.stats.bridged_gaps += 1;

@@ -71,6 +71,12 @@ pub struct FilterStats {
     pub excluded_targets: u64,
     /// Odometry gaps bridged by re-initialising the pose covariance.
     pub bridged_gaps: u64,
+    /// Of the bridged gaps and clock resynchronisations, those met with no map to relocalise
+    /// against (no feature mapped, or fewer than
+    /// [`FilterSettings::relocalise_min_features`](crate::FilterSettings::relocalise_min_features),
+    /// which were dropped): the map frame was re-anchored at the pose estimate and the pose
+    /// covariance not grown.
+    pub reanchored_gaps: u64,
     /// Relocalisations accepted after a gap (see
     /// [`FilterSettings::relocalise_after_gap`](crate::FilterSettings::relocalise_after_gap)).
     pub relocalisations: u64,
@@ -79,8 +85,8 @@ pub struct FilterStats {
     /// Relocalisations given up after
     /// [`FilterSettings::relocalise_give_up_s`](crate::FilterSettings::relocalise_give_up_s).
     pub relocalisations_abandoned: u64,
-    /// Beams whose targets were kept from starting features because the target rate was a
-    /// burst (see [`FilterSettings::burst_factor`](crate::FilterSettings::burst_factor)).
+    /// Beams not used because the target rate was a burst (see
+    /// [`FilterSettings::burst_factor`](crate::FilterSettings::burst_factor)).
     pub burst_beams: u64,
     /// Measurements of the motion since a mark applied
     /// ([`Ekf::observe_motion_since_mark`](crate::Ekf::observe_motion_since_mark)).

@@ -547,6 +547,13 @@ impl fmt::Display for Refusals<'_> {
             run.odometry_errors,
             run.output_drops
         )?;
+        if s.burst_beams > 0 {
+            writeln!(
+                f,
+                "  noise bursts: {} beams not used (targets far above the learned rate: the radar taken as blind)",
+                s.burst_beams
+            )?;
+        }
         if run.far_ahead_of_odometry > 0 {
             writeln!(
                 f,

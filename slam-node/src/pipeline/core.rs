@@ -66,6 +66,9 @@ pub enum PipelineError {
     Localise(#[from] LocaliseError),
 }
 
+/// Warnings about a burst of targets at most this often (stream seconds).
+const BURST_WARN_EVERY_S: f64 = 5.0;
+
 /// The daemon's processing state.
 #[derive(Debug)]
 pub struct Pipeline {
@@ -93,6 +96,8 @@ pub struct Pipeline {
     last_map_save_s: Option<f64>,
     /// Localisation in a saved map (`[map] mode = "localise"`).
     localise: Option<Localiser>,
+    /// Stream time of the last warning about a burst of targets.
+    burst_warned_s: f64,
 }
 
 fn filter_at(
@@ -169,6 +174,7 @@ impl Pipeline {
             online: Vec::new(),
             cpu_mark: None,
             last_map_save_s: None,
+            burst_warned_s: f64::NEG_INFINITY,
             settings,
         })
     }
@@ -268,9 +274,29 @@ impl Pipeline {
     }
 
     fn apply_odometry(&mut self, s: OdometrySample) {
+        let before = *self.ekf.stats();
+        let from_s = self.ekf.state().time_s();
         if let Err(e) = self.ekf.apply_odometry(s) {
             self.summary.filter_errors += 1;
             warn!(error = %e, "odometry sample rejected by the filter");
+        }
+        let stats = self.ekf.stats();
+        if stats.bridged_gaps > before.bridged_gaps && worth_logging(stats.bridged_gaps) {
+            let gap_s = s.timestamp_s - from_s;
+            if stats.reanchored_gaps > before.reanchored_gaps {
+                warn!(
+                    gap_s,
+                    bridged = stats.bridged_gaps,
+                    dropped = stats.retired - before.retired,
+                    "no odometry across the gap and no map to relocalise against: the map starts again, its frame at the pose estimate"
+                );
+            } else {
+                warn!(
+                    gap_s,
+                    bridged = stats.bridged_gaps,
+                    "no odometry across the gap: the pose uncertainty grown by what the vehicle could have done meanwhile"
+                );
+            }
         }
     }
 
@@ -389,9 +415,21 @@ impl Pipeline {
             return;
         }
         let covered = self.front_end.covered_range_m(beam.bearing_rad);
+        let bursts = self.ekf.stats().burst_beams;
         let processed = self
             .ekf
             .process_beam_offered(beam, covered, &offered.may_start);
+        if self.ekf.stats().burst_beams > bursts {
+            self.summary.burst_beams += 1;
+            if beam.timestamp_s - self.burst_warned_s > BURST_WARN_EVERY_S {
+                self.burst_warned_s = beam.timestamp_s;
+                warn!(
+                    time_s = beam.timestamp_s,
+                    beams = self.summary.burst_beams,
+                    "a burst of targets far above the learned rate (a swamped receiver, interference): the radar is taken as blind, its beams are not used"
+                );
+            }
+        }
         match processed {
             Ok(report) => {
                 self.summary.beams += 1;

@@ -105,6 +105,9 @@ pub struct PipelineSummary {
     /// Features retired for being re-observed too rarely (`[filter]
     /// retire_unrepeatable_below`).
     pub features_retired_unrepeatable: u64,
+    /// Beams not used because they came in a burst of targets far above the learned rate
+    /// (the filter's burst guard: a swamped receiver, interference).
+    pub burst_beams: u64,
     /// The submap the filter runs in now (0 with one dense map); poses in progress lines
     /// are in its frame.
     pub current_submap: usize,
