@@ -519,6 +519,16 @@ mod tests {
         })
     }
 
+    /// Settings for the test scenes: every return of an azimuth kept, 50 pairs needed.
+    fn dense() -> ScanMatchSettings {
+        ScanMatchSettings {
+            enabled: true,
+            points_per_azimuth: 50,
+            min_pairs: 50,
+            ..ScanMatchSettings::default()
+        }
+    }
+
     /// Building fronts with set-backs every few metres on both sides and posts between:
     /// a street whose structure pins the motion along it.
     fn town() -> Vec<[f64; 2]> {
@@ -557,12 +567,7 @@ mod tests {
     #[test]
     fn a_search_finds_a_motion_far_beyond_the_pair_gate() {
         let world = town();
-        let settings = ScanMatchSettings {
-            enabled: true,
-            points_per_azimuth: 50,
-            min_pairs: 50,
-            ..ScanMatchSettings::default()
-        };
+        let settings = dense();
         let truth = Pose2::new(3.1, 0.02, 0.01);
         let mut m = ScanMatcher::new(settings);
         feed(&mut m, &world, &Pose2::new(0.0, 0.0, 0.0));
@@ -585,12 +590,7 @@ mod tests {
     #[test]
     fn a_search_from_a_held_turn_also_starts_straight_ahead() {
         let world = town();
-        let settings = ScanMatchSettings {
-            enabled: true,
-            points_per_azimuth: 50,
-            min_pairs: 50,
-            ..ScanMatchSettings::default()
-        };
+        let settings = dense();
         let truth = Pose2::new(3.1, 0.02, 0.01);
         let held_turn = RotationEnd {
             pose: Pose2::new(3.1, 0.0, 0.1),
@@ -709,13 +709,7 @@ mod tests {
         let straight = Pose2::new(2.5, 0.0, 0.0);
         let turn = crate::register::exp([2.5, 0.0, 0.1]);
         let heading_error = |deskew: bool| {
-            let settings = ScanMatchSettings {
-                enabled: true,
-                points_per_azimuth: 50,
-                min_pairs: 50,
-                deskew,
-                ..ScanMatchSettings::default()
-            };
+            let settings = ScanMatchSettings { deskew, ..dense() };
             let mut m = ScanMatcher::new(settings);
             // Three rotations straight down the street, then the turn's first.
             let mut start = Pose2::new(-10.0, 0.0, 0.0);
