@@ -9,7 +9,7 @@ mod support;
 
 use rand::{Rng, SeedableRng};
 use slam_node::pipeline::Pipeline;
-use support::{still, still_radar_azimuths, still_radar_settings, REFLECTORS};
+use support::{assert_reflectors_mapped, still, still_radar_azimuths, still_radar_settings};
 
 /// Unix time of the first azimuth, nanoseconds.
 const T0_NS: u64 = 1_700_000_000_000_000_000;
@@ -74,15 +74,8 @@ fn six_seconds_of_noise_leave_the_map_and_the_parked_vehicle_as_they_were() {
         worst_heading < 3.0,
         "heading off by up to {worst_heading:.1} degrees"
     );
+    assert_reflectors_mapped(p.ekf());
     let features = p.ekf().features();
-    let mapped = REFLECTORS
-        .iter()
-        .filter(|&&(x, y)| features.iter().any(|f| (f.x_m - x).hypot(f.y_m - y) < 1.0))
-        .count();
-    assert!(
-        mapped >= 3,
-        "{mapped} reflectors mapped within 1 m: {features:?}"
-    );
     assert!(
         features.len() <= 6,
         "{} features for 4 reflectors",

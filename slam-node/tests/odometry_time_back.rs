@@ -10,7 +10,7 @@
 mod support;
 
 use slam_node::pipeline::Pipeline;
-use support::{still, still_radar_azimuths, still_radar_settings, REFLECTORS};
+use support::{assert_reflectors_mapped, still, still_radar_azimuths, still_radar_settings};
 
 /// Unix time of the first azimuth, nanoseconds.
 const T0_NS: u64 = 1_700_000_000_000_000_000;
@@ -81,15 +81,7 @@ fn odometry_stamped_back_in_time_before_the_map_exists_leaves_the_parked_vehicle
     assert!(pose.x.hypot(pose.y) < 0.2, "{pose:?}");
     // The reflectors mapped where they are (a parked radar's map churns: one of the four
     // may be between retirement and re-mapping at any moment).
-    let features = p.ekf().features();
-    let mapped = REFLECTORS
-        .iter()
-        .filter(|&&(x, y)| features.iter().any(|f| (f.x_m - x).hypot(f.y_m - y) < 1.0))
-        .count();
-    assert!(
-        mapped >= 3,
-        "{mapped} reflectors mapped within 1 m: {features:?}"
-    );
+    assert_reflectors_mapped(p.ekf());
 }
 
 /// The same with the map begun: the odometry steps 10 s back 1.3 s after the start, when
@@ -144,13 +136,5 @@ fn odometry_stepping_back_when_two_features_are_mapped_leaves_the_parked_vehicle
         "the parked vehicle's estimate went {worst_m:.1} m off"
     );
     assert!(worst_deg < 3.0, "and {worst_deg:.1} degrees");
-    let features = p.ekf().features();
-    let mapped = REFLECTORS
-        .iter()
-        .filter(|&&(x, y)| features.iter().any(|f| (f.x_m - x).hypot(f.y_m - y) < 1.0))
-        .count();
-    assert!(
-        mapped >= 3,
-        "{mapped} reflectors mapped within 1 m: {features:?}"
-    );
+    assert_reflectors_mapped(p.ekf());
 }

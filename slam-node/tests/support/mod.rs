@@ -217,6 +217,20 @@ impl SimRadar {
 /// The four reflectors the still radar of the pipeline tests looks at, world metres.
 pub const REFLECTORS: [(f64, f64); 4] = [(10.0, 5.0), (-8.0, 12.0), (20.0, -15.0), (-12.0, -9.0)];
 
+/// Asserts that at least three of [`REFLECTORS`] have a feature of `ekf` within 1 m (a
+/// parked radar's map churns: one of the four may be between retirement and re-mapping).
+pub fn assert_reflectors_mapped(ekf: &slam_node::pipeline::DaemonEkf) {
+    let features = ekf.features();
+    let mapped = REFLECTORS
+        .iter()
+        .filter(|&&(x, y)| features.iter().any(|f| (f.x_m - x).hypot(f.y_m - y) < 1.0))
+        .count();
+    assert!(
+        mapped >= 3,
+        "{mapped} reflectors mapped within 1 m: {features:?}"
+    );
+}
+
 /// The daemon's shipped settings with slam-node's measured detector, the simulator's
 /// 40 dB/decade receiver, and an exactly known start pose.
 pub fn still_radar_settings() -> slam_node::pipeline::PipelineSettings {
