@@ -265,11 +265,14 @@ impl ScanMatcher {
         for &i in self.order.iter().take(keep.min(room)) {
             let range_m = returns[i].range_m();
             self.current.push(sensor.point_at(range_m, bearing_rad));
-            self.seen.push(Seen {
-                range_m,
-                bearing_rad,
-                time_s,
-            });
+            // Kept only for the swept registration, which re-places them.
+            if s.deskew {
+                self.seen.push(Seen {
+                    range_m,
+                    bearing_rad,
+                    time_s,
+                });
+            }
         }
     }
 

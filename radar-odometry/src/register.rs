@@ -250,35 +250,18 @@ fn v_and_derivative(phi: f64) -> (Complex<f64>, Complex<f64>) {
 }
 
 /// SE(2)'s logarithm: the twist `[v_x, v_y, omega]` (per unit of motion) whose exponential
-/// is `pose`.
+/// is `pose` (the translation is `V(omega) v`, see [`Sweep`]).
 pub fn log(pose: &Pose2) -> [f64; 3] {
-    let (a, b) = series(pose.theta);
-    // exp's translation is V (v_x, v_y) with V = [[a, -b], [b, a]].
-    let det = a * a + b * b;
-    [
-        (a * pose.x + b * pose.y) / det,
-        (-b * pose.x + a * pose.y) / det,
-        pose.theta,
-    ]
+    let (v, _) = v_and_derivative(pose.theta);
+    let u = Complex::new(pose.x, pose.y) / v;
+    [u.re, u.im, pose.theta]
 }
 
 /// SE(2)'s exponential of the twist `[v_x, v_y, omega]`.
 pub fn exp(twist: [f64; 3]) -> Pose2 {
-    let (a, b) = series(twist[2]);
-    Pose2::new(
-        a * twist[0] - b * twist[1],
-        b * twist[0] + a * twist[1],
-        twist[2],
-    )
-}
-
-/// `sin t / t` and `(1 - cos t) / t`, by their series near zero.
-fn series(t: f64) -> (f64, f64) {
-    if t.abs() < 1e-6 {
-        (1.0 - t * t / 6.0, t / 2.0)
-    } else {
-        (t.sin() / t, (1.0 - t.cos()) / t)
-    }
+    let (v, _) = v_and_derivative(twist[2]);
+    let t = v * Complex::new(twist[0], twist[1]);
+    Pose2::new(t.re, t.im, twist[2])
 }
 
 /// The pose `fraction` of the way along `motion` at a constant twist.
