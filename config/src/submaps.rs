@@ -35,6 +35,12 @@ pub struct RawSubmaps {
     /// the new one's (slam-graph's `places`), however far the pose estimate puts them; the
     /// verifier decides either way. Default true.
     pub place_recognition: bool,
+    /// Each submap also keeps its scan (radar odometry's registered returns, walls and
+    /// fences included, one per metre cell), and loop closures between two submaps with
+    /// scans are verified by registering the scans (slam-graph's `scans`) rather than by
+    /// the few point features a city of extended objects leaves. Needs radar odometry;
+    /// without it the features verify as before. Default true.
+    pub scan_loop_closure: bool,
 }
 
 impl Default for RawSubmaps {
@@ -48,6 +54,7 @@ impl Default for RawSubmaps {
             max_rival_ratio: 0.6,
             search_sigmas: 3.0,
             place_recognition: true,
+            scan_loop_closure: true,
         }
     }
 }
@@ -71,6 +78,8 @@ pub struct SubmapSettings {
     pub search_sigmas: PositiveF64,
     /// Candidates from place descriptors too.
     pub place_recognition: bool,
+    /// Loop closures verified by the submaps' scans where they have them.
+    pub scan_loop_closure: bool,
 }
 
 impl Default for SubmapSettings {
@@ -138,6 +147,7 @@ impl RawSubmaps {
                 PositiveF64::new(self.search_sigmas),
             ),
             place_recognition: self.place_recognition,
+            scan_loop_closure: self.scan_loop_closure,
         }
     }
 }
@@ -153,6 +163,7 @@ impl From<&SubmapSettings> for RawSubmaps {
             max_rival_ratio: s.max_rival_ratio.get(),
             search_sigmas: s.search_sigmas.get(),
             place_recognition: s.place_recognition,
+            scan_loop_closure: s.scan_loop_closure,
         }
     }
 }

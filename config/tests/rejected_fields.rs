@@ -217,6 +217,7 @@ const CASES: &[(&str, &str, &str)] = &[
 const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "submaps.enabled",
     "submaps.place_recognition",
+    "submaps.scan_loop_closure",
     "submaps.loop_closure",
     "map.save",
     "map.mode",

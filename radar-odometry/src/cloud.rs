@@ -66,6 +66,29 @@ impl ReferenceCloud {
         &self.points
     }
 
+    /// The point nearest `p` within `max_m`: its index and distance (m); `None` when there
+    /// is none that close or the cloud is empty.
+    pub fn nearest_within(&self, p: &[f64; 2], max_m: f64) -> Option<(usize, f64)> {
+        if self.points.is_empty() {
+            return None;
+        }
+        let nn = self.tree.nearest_one::<SquaredEuclidean>(p);
+        let d = nn.distance.max(0.0).sqrt();
+        (d <= max_m).then_some((nn.item as usize, d))
+    }
+
+    /// The distance from `p` to the surface at its nearest point within `max_m`: along the
+    /// point's normal where it lies on a line-like surface, else to the point itself; with
+    /// that point's index. `None` when no point is that close.
+    pub fn surface_distance(&self, p: &[f64; 2], max_m: f64) -> Option<(usize, f64)> {
+        let (i, d) = self.nearest_within(p, max_m)?;
+        let q = self.points.get(i)?;
+        Some(match self.normals.get(i).copied().flatten() {
+            Some(n) => (i, ((p[0] - q[0]) * n[0] + (p[1] - q[1]) * n[1]).abs()),
+            None => (i, d),
+        })
+    }
+
     /// How many points have a normal (lie on a line-like surface).
     pub fn with_normals(&self) -> usize {
         self.normals.iter().filter(|n| n.is_some()).count()

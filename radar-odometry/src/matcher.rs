@@ -225,6 +225,15 @@ impl ScanMatcher {
         self.counts
     }
 
+    /// The last rotation's cloud in the vehicle's frame at that rotation's end (the
+    /// reference the next rotation registers against), `None` before the first rotation or
+    /// after one that had no motion estimate. A mapper places it with the pose it
+    /// estimates for that moment (slam-node accumulates it into each submap's scan for loop
+    /// closure).
+    pub fn last_cloud(&self) -> Option<&[[f64; 2]]> {
+        self.previous.as_ref().map(ReferenceCloud::points)
+    }
+
     /// Adds one azimuth's returns at `bearing_rad`, swept at `time_s`, the sensor at
     /// `sensor` (the frame at the last mark; `None` when there is none: nothing is added).
     /// Keeps the strongest [`ScanMatchSettings::points_per_azimuth`] within the range

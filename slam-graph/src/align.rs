@@ -107,6 +107,18 @@ pub enum Refusal {
     },
     /// The refinement did not give a positive definite covariance.
     Degenerate,
+    /// Scans: the registration's residual is too large for a second look at one place.
+    PoorFit {
+        /// Root-mean-square residual (m).
+        rms_m: f64,
+    },
+    /// Scans: the registration does not pin every direction (a bare corridor).
+    Unconstrained {
+        /// Standard deviation along the weakest direction (m).
+        sigma_m: f64,
+        /// And in heading (rad).
+        sigma_rad: f64,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]

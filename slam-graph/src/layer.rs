@@ -28,7 +28,8 @@ use tracing::{info, warn};
 
 use crate::align::{align, AlignSettings, Alignment, Refusal};
 use crate::graph::{Edge, EdgeKind, PoseGraph, SolveSettings};
-use crate::places::{PlaceSearch, Places};
+use crate::places::{place_points, PlaceSearch, Places};
+use crate::scans::{align_scans, reference_scan, ScanAlignSettings, ScanReference};
 use crate::se2::{compose, compose_covariance, inverse, transform_point};
 
 /// The global layer's settings.
@@ -54,6 +55,8 @@ pub struct GlobalSettings {
     pub min_loop_travel_m: f64,
     /// Candidates from place descriptors, besides those from the pose uncertainty.
     pub place: PlaceSearch,
+    /// Verification by the submaps' scans where both have one ([`crate::scans`]).
+    pub scans: ScanAlignSettings,
 }
 
 impl Default for GlobalSettings {
@@ -67,6 +70,7 @@ impl Default for GlobalSettings {
             skip_recent: 1,
             min_loop_travel_m: 100.0,
             place: PlaceSearch::default(),
+            scans: ScanAlignSettings::default(),
         }
     }
 }
@@ -155,18 +159,16 @@ pub struct GlobalStats {
     pub bad_submaps: u64,
 }
 
-/// Centre and radius of a submap's features, in its frame.
-fn disc(submap: &FrozenSubmap) -> ([f64; 2], f64) {
-    let n = submap.features.len().max(1) as f64;
-    let (sx, sy) = submap
-        .features
+/// Centre and radius of points (a submap's features, or its scan), in its frame.
+fn disc(points: &[[f64; 2]]) -> ([f64; 2], f64) {
+    let n = points.len().max(1) as f64;
+    let (sx, sy) = points
         .iter()
-        .fold((0.0, 0.0), |(x, y), f| (x + f.xy[0], y + f.xy[1]));
+        .fold((0.0, 0.0), |(x, y), p| (x + p[0], y + p[1]));
     let c = [sx / n, sy / n];
-    let r = submap
-        .features
+    let r = points
         .iter()
-        .map(|f| (f.xy[0] - c[0]).hypot(f.xy[1] - c[1]))
+        .map(|p| (p[0] - c[0]).hypot(p[1] - c[1]))
         .fold(0.0, f64::max);
     (c, r)
 }
@@ -176,6 +178,8 @@ fn disc(submap: &FrozenSubmap) -> ([f64; 2], f64) {
 pub struct GlobalMap {
     settings: GlobalSettings,
     submaps: Vec<Arc<FrozenSubmap>>,
+    /// Each submap's scan as the scan verifier pairs against (`None`: verified by features).
+    scans: Vec<Option<Arc<ScanReference>>>,
     discs: Vec<([f64; 2], f64)>,
     /// Distance (m) from the first frame to each frame along the chain of switch poses.
     travel: Vec<f64>,
@@ -193,6 +197,7 @@ impl GlobalMap {
         Self {
             settings,
             submaps: Vec::new(),
+            scans: Vec::new(),
             discs: Vec::new(),
             travel: vec![0.0],
             graph: PoseGraph::new(),
@@ -239,6 +244,18 @@ impl GlobalMap {
     /// next submap starts where this one ended), its chain edge, verified loop closures,
     /// and a solve.
     pub fn add_submap(&mut self, submap: Arc<FrozenSubmap>) -> AddReport {
+        self.add_submap_with_scan(submap, None)
+    }
+
+    /// [`Self::add_submap`] with the submap's scan (its registered radar returns in its
+    /// frame, see [`crate::scans::ScanAccumulator`]): loop closures between two submaps that
+    /// both have one are verified by registering the scans, and the place descriptor is
+    /// built from the scan.
+    pub fn add_submap_with_scan(
+        &mut self,
+        submap: Arc<FrozenSubmap>,
+        scan: Option<Vec<[f64; 2]>>,
+    ) -> AddReport {
         let started = Instant::now();
         let mut report = AddReport::default();
         if self.graph.nodes().is_empty() {
@@ -286,7 +303,14 @@ impl GlobalMap {
             covariance: submap.end_cov,
             kind: EdgeKind::Chain,
         });
-        self.discs.push(disc(&submap));
+        let scan = scan
+            .filter(|p| self.settings.scans.enabled && p.len() >= self.settings.scans.min_pairs)
+            .map(|p| Arc::new(reference_scan(p, &self.settings.scans)));
+        let feature_points: Vec<[f64; 2]> = submap.features.iter().map(|f| f.xy).collect();
+        self.discs.push(disc(
+            scan.as_ref().map_or(&feature_points[..], |c| c.points()),
+        ));
+        self.scans.push(scan);
         let last = self.travel.last().copied().unwrap_or(0.0);
         self.travel
             .push(last + submap.end_pose.x.hypot(submap.end_pose.y));
@@ -330,6 +354,9 @@ impl GlobalMap {
         let (cn, rn) = self.discs[k];
         // (earlier submap, alignment, from a place descriptor)
         let mut verified: Vec<(usize, Alignment, bool)> = Vec::new();
+        let by_scan = self.scans.get(k).is_some_and(Option::is_some);
+        // (earlier submap, prior, its covariance, how near)
+        let mut offered: Vec<(usize, Pose2, Matrix3<f64>, f64)> = Vec::new();
         for i in 0..k.saturating_sub(s.skip_recent) {
             // Frame i + 1 is where submap i ended.
             if self.travel[k] - self.travel[i + 1] < s.min_loop_travel_m {
@@ -340,12 +367,27 @@ impl GlobalMap {
                 .max(0.0)
                 .sqrt()
                 .min(s.max_search_sigma_m);
-            let (ci, ri) = self.discs[i];
-            let c = transform_point(&z, cn);
-            let gap = (c[0] - ci[0]).hypot(c[1] - ci[1]) - ri - rn;
+            // A scan reaches as far as the radar sees, so scan discs overlap along whole
+            // districts: two submaps with scans are candidates when their frames' origins
+            // may be within the scan's reach; features, when their discs may overlap.
+            let gap = if by_scan && self.scans.get(i).is_some_and(Option::is_some) {
+                z.x.hypot(z.y) - s.scans.origin_reach_m
+            } else {
+                let (ci, ri) = self.discs[i];
+                let c = transform_point(&z, cn);
+                (c[0] - ci[0]).hypot(c[1] - ci[1]) - ri - rn
+            };
             if gap > s.search_sigmas * sigma {
                 continue;
             }
+            offered.push((i, z, cov, gap / sigma.max(1e-3)));
+        }
+        if by_scan {
+            // Each scan verification registers from 27 starts: the nearest few only.
+            offered.sort_by(|a, b| a.3.total_cmp(&b.3));
+            offered.truncate(s.scans.max_prior_candidates);
+        }
+        for (i, z, cov, _) in offered {
             report.candidates += 1;
             self.stats.candidates += 1;
             let mut search_cov = cov;
@@ -354,13 +396,7 @@ impl GlobalMap {
             for d in 0..2 {
                 search_cov[(d, d)] = search_cov[(d, d)].min(cap);
             }
-            match align(
-                &self.submaps[i].features,
-                &newest.features,
-                &z,
-                &search_cov,
-                &s.align,
-            ) {
+            match self.verify(i, k, &newest, &z, &search_cov) {
                 Ok(a) => verified.push((i, a, false)),
                 Err(r) => {
                     tracing::debug!(candidate = i, submap = k, refusal = ?r, "loop closure refused");
@@ -374,7 +410,8 @@ impl GlobalMap {
         if verified.is_empty() {
             self.place_candidates(k, &newest, &mut verified, report);
         } else if s.place.enabled {
-            self.places.skip(&self.submaps, s.align.min_hits, &s.place);
+            let points = self.place_points(k);
+            self.places.skip(points, &s.place);
         }
         if verified.is_empty() {
             return;
@@ -461,18 +498,22 @@ impl GlobalMap {
         if !s.place.enabled {
             return;
         }
-        let Some(query) = self
-            .places
-            .describe(&self.submaps, s.align.min_hits, &s.place)
-        else {
+        let points = self.place_points(k);
+        let Some(query) = self.places.describe(&points, &s.place) else {
             return;
         };
         let travel = &self.travel;
         let last = k.saturating_sub(s.skip_recent);
         let eligible = |i: usize| i < last && travel[k] - travel[i + 1] >= s.place.min_travel_m;
-        let candidates =
-            self.places
-                .candidates(&self.submaps, &query, eligible, s.align.min_hits, &s.place);
+        let by_scan = self.scans.get(k).is_some_and(Option::is_some);
+        let candidates = self.places.candidates(
+            &self.submaps,
+            &query,
+            eligible,
+            s.align.min_hits,
+            &s.place,
+            !by_scan,
+        );
         for c in candidates {
             if verified.iter().any(|v| v.0 == c.index) {
                 continue;
@@ -481,19 +522,47 @@ impl GlobalMap {
             report.place_candidates += 1;
             self.stats.candidates += 1;
             self.stats.place_candidates += 1;
-            match align(
-                &self.submaps[c.index].features,
-                &newest.features,
-                &c.prior,
-                &c.covariance,
-                &s.align,
-            ) {
+            match self.verify(c.index, k, newest, &c.prior, &c.covariance) {
                 Ok(a) => verified.push((c.index, a, true)),
                 Err(r) => {
                     tracing::debug!(candidate = c.index, submap = k, distance = c.distance, refusal = ?r, "loop closure from a place descriptor refused");
                     report.refused.push((c.index, r));
                 }
             }
+        }
+    }
+
+    /// The points submap `k`'s place is described by: its scan when it has one, else its
+    /// features and its predecessor's.
+    fn place_points(&self, k: usize) -> Vec<[f64; 2]> {
+        match self.scans.get(k) {
+            Some(Some(scan)) => scan.points().to_vec(),
+            _ => place_points(&self.submaps, k, self.settings.align.min_hits),
+        }
+    }
+
+    /// Verifies that submap `k` (`newest`) is a second look at submap `i`, `prior` being
+    /// `k`'s frame in `i`'s: by their scans when both have one, else by their features.
+    fn verify(
+        &self,
+        i: usize,
+        k: usize,
+        newest: &FrozenSubmap,
+        prior: &Pose2,
+        prior_cov: &Matrix3<f64>,
+    ) -> Result<Alignment, Refusal> {
+        let s = &self.settings;
+        match (self.scans.get(i), self.scans.get(k)) {
+            (Some(Some(a)), Some(Some(b))) => {
+                align_scans(a, b.points(), prior, prior_cov, &s.align, &s.scans)
+            }
+            _ => align(
+                &self.submaps[i].features,
+                &newest.features,
+                prior,
+                prior_cov,
+                &s.align,
+            ),
         }
     }
 
@@ -566,7 +635,7 @@ impl GlobalMap {
 /// A message to the layer's thread.
 #[derive(Debug)]
 enum ToLayer {
-    Submap(Arc<FrozenSubmap>),
+    Submap(Arc<FrozenSubmap>, Option<Vec<[f64; 2]>>),
 }
 
 /// The global layer on a thread of its own.
@@ -593,8 +662,8 @@ impl GlobalLayer {
             .name("global-layer".into())
             .spawn(move || {
                 let mut map = GlobalMap::new(settings);
-                while let Ok(ToLayer::Submap(s)) = rx.recv() {
-                    let report = map.add_submap(s);
+                while let Ok(ToLayer::Submap(s, scan)) = rx.recv() {
+                    let report = map.add_submap_with_scan(s, scan);
                     let solution = Arc::new(map.solution(report.elapsed_ms));
                     if sol_tx.try_send((solution, report)).is_err() {
                         warn!("the real-time path is not reading the global layer's solutions: one dropped");
@@ -615,10 +684,19 @@ impl GlobalLayer {
     /// Hands a frozen submap to the layer without waiting. `false` when the queue is full
     /// or the thread is gone (logged; counted in [`Self::refused_sends`]).
     pub fn submit(&mut self, submap: Arc<FrozenSubmap>) -> bool {
+        self.submit_with_scan(submap, None)
+    }
+
+    /// [`Self::submit`] with the submap's scan ([`GlobalMap::add_submap_with_scan`]).
+    pub fn submit_with_scan(
+        &mut self,
+        submap: Arc<FrozenSubmap>,
+        scan: Option<Vec<[f64; 2]>>,
+    ) -> bool {
         let Some(tx) = self.to_layer.as_ref() else {
             return false;
         };
-        match tx.try_send(ToLayer::Submap(submap)) {
+        match tx.try_send(ToLayer::Submap(submap, scan)) {
             Ok(()) => true,
             Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {
                 self.refused_sends += 1;

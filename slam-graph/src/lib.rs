@@ -16,10 +16,12 @@
 //! No IO and no clock besides the solve timings.
 
 pub mod align;
+pub mod correlate;
 pub mod graph;
 pub mod layer;
 pub mod places;
 pub mod revisits;
+pub mod scans;
 pub mod se2;
 
 pub use align::{align, AlignSettings, Alignment, Refusal};
@@ -28,4 +30,5 @@ pub use layer::{
     AddReport, GlobalLayer, GlobalMap, GlobalSettings, GlobalSolution, GlobalStats, LoopClosure,
 };
 pub use places::{PlaceCandidate, PlaceSearch};
-pub use revisits::{score_revisits, RevisitRule, RevisitScore};
+pub use revisits::{score_path_revisits, score_revisits, PathSample, RevisitRule, RevisitScore};
+pub use scans::{align_scans, reference_scan, ScanAccumulator, ScanAlignSettings, ScanReference};

@@ -86,7 +86,11 @@ pub(crate) struct Places {
 
 /// The points a submap's place is described by: its features and its predecessor's, in its
 /// frame (features seen at least `min_hits` times).
-fn place_points(submaps: &[Arc<FrozenSubmap>], k: usize, min_hits: u64) -> Vec<[f64; 2]> {
+pub(crate) fn place_points(
+    submaps: &[Arc<FrozenSubmap>],
+    k: usize,
+    min_hits: u64,
+) -> Vec<[f64; 2]> {
     let mut points: Vec<[f64; 2]> = Vec::new();
     if let Some(s) = submaps.get(k) {
         points.extend(
@@ -173,15 +177,13 @@ fn vote_translation(
 impl Places {
     /// Describes the newest submap `k` (the last of `submaps`); its query, when it has
     /// enough points.
+    /// `points` are the newest submap's place points (see [`place_points`], or its scan).
     pub(crate) fn describe(
         &mut self,
-        submaps: &[Arc<FrozenSubmap>],
-        min_hits: u64,
+        points: &[[f64; 2]],
         settings: &PlaceSearch,
     ) -> Option<PlaceQuery> {
-        let k = submaps.len().checked_sub(1)?;
-        let points = place_points(submaps, k, min_hits);
-        let query = PlaceQuery::new(&points, &settings.descriptor).ok();
+        let query = PlaceQuery::new(points, &settings.descriptor).ok();
         let own = query
             .as_ref()
             .and_then(|q| q.shifted.first())
@@ -193,14 +195,7 @@ impl Places {
 
     /// Describes the newest submap without looking it up (the descriptor is kept for later
     /// submaps to find).
-    pub(crate) fn skip(
-        &mut self,
-        submaps: &[Arc<FrozenSubmap>],
-        min_hits: u64,
-        settings: &PlaceSearch,
-    ) {
-        let k = submaps.len().saturating_sub(1);
-        let points = place_points(submaps, k, min_hits);
+    pub(crate) fn skip(&mut self, points: Vec<[f64; 2]>, settings: &PlaceSearch) {
         let own = PlaceDescriptor::new(points, &settings.descriptor).ok();
         self.descriptors.push(own);
     }
@@ -214,6 +209,7 @@ impl Places {
         eligible: impl Fn(usize) -> bool,
         min_hits: u64,
         settings: &PlaceSearch,
+        refine_by_features: bool,
     ) -> Vec<PlaceCandidate> {
         let k = submaps.len().saturating_sub(1);
         while self.indexed < k && eligible(self.indexed) {
@@ -270,13 +266,19 @@ impl Places {
                 if out.iter().any(|c| c.index == j) {
                     continue;
                 }
-                let earlier: Vec<[f64; 2]> = submaps[j]
-                    .features
-                    .iter()
-                    .filter(|f| f.hits >= min_hits)
-                    .map(|f| f.xy)
-                    .collect();
-                let prior = refine(&earlier, &newest, prior, settings);
+                // With scans the verifier's starts find the translation; with features it
+                // is voted again from them.
+                let prior = if refine_by_features {
+                    let earlier: Vec<[f64; 2]> = submaps[j]
+                        .features
+                        .iter()
+                        .filter(|f| f.hits >= min_hits)
+                        .map(|f| f.xy)
+                        .collect();
+                    refine(&earlier, &newest, prior, settings)
+                } else {
+                    prior
+                };
                 out.push(PlaceCandidate {
                     index: j,
                     prior,

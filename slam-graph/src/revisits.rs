@@ -131,6 +131,83 @@ pub fn score_revisits(
     s
 }
 
+/// One true pose of the drive for [`score_path_revisits`]: where the vehicle was, how far
+/// it had driven, and in which submap.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PathSample {
+    /// True position (m).
+    pub xy: [f64; 2],
+    /// True distance driven (m).
+    pub driven_m: f64,
+    /// The submap the vehicle was mapping.
+    pub submap: usize,
+}
+
+/// Scores `loops` over the revisits of the earlier *path*, not only of earlier frame
+/// origins: frame `j` revisits submap `i` when `j`'s true origin lies within
+/// [`RevisitRule::within_m`] of the true path driven in submap `i`, at least
+/// [`RevisitRule::min_apart_m`] of driving before (frames are 100 m apart along the route,
+/// so a second pass rarely starts a frame where the first did; this counts every return).
+/// A correct closure joins the revisit when it links submap `j - 1` or `j` (both hold
+/// frame `j`'s place) to a submap `i` whose path passed within reach.
+/// Arguments as [`score_revisits`], with `path` the true drive.
+pub fn score_path_revisits(
+    loops: &[LoopClosure],
+    truth: &[Option<Pose2>],
+    origins: &[Option<[f64; 2]>],
+    driven_m: &[f64],
+    path: &[PathSample],
+    rule: &RevisitRule,
+) -> RevisitScore {
+    let n = origins.len().min(driven_m.len());
+    let partners = |j: usize| -> Vec<usize> {
+        let Some(o) = origins[j] else {
+            return Vec::new();
+        };
+        let mut p: Vec<usize> = path
+            .iter()
+            .filter(|q| {
+                q.submap < j
+                    && driven_m[j] - q.driven_m >= rule.min_apart_m
+                    && (q.xy[0] - o[0]).hypot(q.xy[1] - o[1]) <= rule.within_m
+            })
+            .map(|q| q.submap)
+            .collect();
+        p.sort_unstable();
+        p.dedup();
+        p
+    };
+    let mut s = RevisitScore {
+        closures: loops.len(),
+        from_place: loops.iter().filter(|l| l.from_place).count(),
+        ..RevisitScore::default()
+    };
+    let correct: Vec<&LoopClosure> = loops
+        .iter()
+        .filter(|l| is_correct(l, truth, rule) == Some(true))
+        .collect();
+    s.correct = correct.len();
+    for j in 0..n {
+        let p = partners(j);
+        if p.is_empty() {
+            continue;
+        }
+        s.pairs += p.len();
+        s.revisiting += 1;
+        let holds_new = |submap: usize| submap == j || submap + 1 == j;
+        let joined = correct
+            .iter()
+            .filter(|l| holds_new(l.to) && p.contains(&l.from))
+            .count();
+        tracing::debug!(submap = j, partners = ?p, closed = joined > 0, "a true revisit of the path");
+        s.correct_on_revisits += joined;
+        if joined > 0 {
+            s.closed += 1;
+        }
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -182,6 +259,17 @@ mod tests {
         )];
         let s = score_revisits(&beside, &truth, &origins, &driven, &rule);
         assert_eq!((s.closed, s.correct, s.precision()), (1, 1, Some(1.0)));
+        // Along the path: frame 6's origin (100, 7) lies within 10 m of the path driven in
+        // submap 1 (from x = 100 to 200) and submap 0 (ending at x = 100).
+        let path: Vec<PathSample> = (0..60)
+            .map(|k| PathSample {
+                xy: [10.0 * k as f64, 0.0],
+                driven_m: 10.0 * k as f64,
+                submap: k / 10,
+            })
+            .collect();
+        let s = score_path_revisits(&loops, &truth, &origins, &driven, &path, &rule);
+        assert_eq!((s.revisiting, s.closed, s.correct), (2, 1, 1));
         // Too little driving between them: no revisit.
         let short: Vec<f64> = (0..8).map(|i| 10.0 * i as f64).collect();
         let s = score_revisits(&loops, &truth, &origins, &short, &rule);

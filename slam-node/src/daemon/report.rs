@@ -449,7 +449,7 @@ impl fmt::Display for Submaps<'_> {
                 |v: Option<f64>| v.map_or("n/a".to_string(), |v| format!("{:.0}%", 100.0 * v));
             writeln!(
                 f,
-                "  true revisits (origins within 10 m, at least 300 m driven apart): {} pairs over {} revisiting submaps, {} closed (recall {}); {} of {} closures true (precision {}); candidates from place descriptors {}, closures {}",
+                "  true revisits (a submap's true origin within 10 m of the path of an earlier one, at least 300 m driven apart): {} pairs over {} revisiting submaps, {} closed (recall {}); {} of {} closures true (precision {}); candidates from place descriptors {}, closures {}",
                 r.pairs,
                 r.revisiting,
                 r.closed,

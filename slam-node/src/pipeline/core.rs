@@ -754,6 +754,10 @@ impl Pipeline {
                 self.apply_odometry(s);
             }
         }
+        if let (Some(submaps), Some(cloud)) = (self.submaps.as_mut(), self.scan_match.last_cloud())
+        {
+            submaps.add_scan(&self.ekf.pose(), cloud);
+        }
         if self.ekf.held_odometry().is_some() {
             self.ekf.mark_motion();
         }

@@ -79,6 +79,12 @@ impl RadarOdometryStage {
         self.drives
     }
 
+    /// The last rotation's registered cloud in the vehicle's frame at its end (see
+    /// [`radar_odometry::ScanMatcher::last_cloud`]).
+    pub fn last_cloud(&self) -> Option<&[[f64; 2]]> {
+        self.matcher.last_cloud()
+    }
+
     /// What it did so far.
     pub fn counts(&self) -> ScanMatchCounts {
         let m = self.matcher.counts();

@@ -133,6 +133,7 @@ impl SubmapOptions {
         global.align.min_matches = s.min_matches.get();
         global.align.max_rival_ratio = s.max_rival_ratio.get();
         global.place.enabled = s.place_recognition;
+        global.scans.enabled = s.scan_loop_closure;
         Some(Self {
             limits: slam_filter::SubmapLimits {
                 max_distance_m: s.max_distance_m.get(),

@@ -15,7 +15,7 @@ use radar_model::geometry::Pose2;
 use radar_model::material::Material;
 use slam_filter::{FeatureEstimate, FrozenSubmap, SubmapFeature};
 use slam_graph::se2::{compose, compose_covariance, rotation};
-use slam_graph::{GlobalLayer, GlobalMap, GlobalStats, LoopClosure};
+use slam_graph::{GlobalLayer, GlobalMap, GlobalStats, LoopClosure, ScanAccumulator};
 use tracing::{info, warn};
 
 use super::ekf::DaemonEkf;
@@ -148,6 +148,8 @@ pub struct SubmapRun {
     summary: SubmapSummary,
     /// Loop closures the layer reported accepting so far (for a map saved mid-run).
     loops: Vec<LoopClosure>,
+    /// The current submap's scan (radar odometry's clouds), handed over with it.
+    scan: ScanAccumulator,
 }
 
 /// `cov` of a pose in a frame, re-expressed with the frame at `frame` (covariance
@@ -179,6 +181,7 @@ impl SubmapRun {
             last_local: None,
             history: Vec::new(),
             loops: Vec::new(),
+            scan: ScanAccumulator::new(&options.global.scans),
             summary: SubmapSummary {
                 submaps: 1,
                 ..SubmapSummary::default()
@@ -262,6 +265,14 @@ impl SubmapRun {
         }
     }
 
+    /// Adds a rotation's registered cloud (in the vehicle's frame at the rotation's end) to
+    /// the current submap's scan, placed by `pose`, the filter's pose in the submap then.
+    pub fn add_scan(&mut self, pose: &Pose2, cloud: &[[f64; 2]]) {
+        if self.options.global.scans.enabled {
+            self.scan.add(pose, cloud);
+        }
+    }
+
     /// Once a rotation, after the filter's updates: records the pose, takes a new global
     /// solution, and closes the submap (starting the next) when it is full. Returns whether
     /// a new submap started.
@@ -301,12 +312,16 @@ impl SubmapRun {
         );
         self.frames.push(p);
         self.frame_covs.push(c);
+        let scan = self.scan.take();
+        let scan_points = scan.len();
         if let Some(layer) = self.layer.as_mut() {
-            layer.submit(Arc::clone(&frozen));
+            let scan = (self.options.global.scans.enabled && !scan.is_empty()).then_some(scan);
+            layer.submit_with_scan(Arc::clone(&frozen), scan);
         }
         info!(
             submap = k,
             features,
+            scan_points,
             driven_m = self.driven_m,
             "submap closed; the next starts at the vehicle"
         );
@@ -515,11 +530,24 @@ fn revisit_score(
             None => (None, 0.0),
         })
         .unzip();
-    slam_graph::score_revisits(
+    // The true drive, each pose with the submap it was mapped in.
+    let ends: Vec<f64> = map.submaps().iter().map(|s| s.end_s).collect();
+    let path: Vec<slam_graph::PathSample> = est
+        .iter()
+        .zip(tru)
+        .zip(&driven)
+        .map(|((e, t), d)| slam_graph::PathSample {
+            xy: [t.x, t.y],
+            driven_m: *d,
+            submap: ends.partition_point(|end| *end < e.timestamp_s),
+        })
+        .collect();
+    slam_graph::score_path_revisits(
         map.loops(),
         &truth,
         &origins,
         &driven_m,
+        &path,
         &slam_graph::RevisitRule::default(),
     )
 }
