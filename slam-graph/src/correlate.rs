@@ -121,16 +121,19 @@ pub struct Peak {
     pub score: f64,
 }
 
-/// The best transform of `points` onto `grid` in `window` around `prior`, and the best one
-/// at least `separation_m` (or a tenth of it in rad) away from it: `(best, rival)`; `None`
-/// for an empty scan. Cost: (window cells)^2 x headings x points lookups.
+/// The best transform of `points` onto `grid` in `window` around `prior`, and the highest
+/// other peaks (local maxima), each at least `separation_m` (or a tenth of it in rad) from
+/// the best and from each other, at most `rivals` of them, highest first:
+/// `(best, rivals)`; `None` for an empty scan. Cost: (window cells)^2 x headings x points
+/// lookups.
 pub fn correlate(
     grid: &ScoreGrid,
     points: &[[f64; 2]],
     prior: &Pose2,
     window: &Window,
     separation_m: f64,
-) -> Option<(Peak, Option<Peak>)> {
+    rivals: usize,
+) -> Option<(Peak, Vec<Peak>)> {
     if points.is_empty() || window.step_rad <= 0.0 {
         return None;
     }
@@ -174,25 +177,63 @@ pub fn correlate(
     };
     let best = scores.iter().copied().max_by(|a, b| a.3.total_cmp(&b.3))?;
     let best_pose = pose_of(best);
-    let rival = scores
-        .iter()
-        .copied()
-        .filter(|r| {
-            let p = pose_of(*r);
-            (p.x - best_pose.x).hypot(p.y - best_pose.y) > separation_m
-                || wrap_angle(p.theta - best_pose.theta).abs() > 0.1 * separation_m
-        })
-        .max_by(|a, b| a.3.total_cmp(&b.3))
-        .map(|r| Peak {
-            pose: pose_of(r),
-            score: r.3,
-        });
+    // The rival is another *peak*: a local maximum of the score over its 26 neighbours in
+    // (heading, x, y), far enough from the best. A ridge falling away from the best (a
+    // street's walls slid along themselves) is the best's own basin, not a rival; how well
+    // the walls pin the slide is the refinement's covariance to say.
+    let n_side = side as i64;
+    let layers = 2 * n_t + 1;
+    let at = |t: i64, j: i64, i: i64| -> f64 {
+        if t < 0 || j < 0 || i < 0 || t >= layers || j >= n_side || i >= n_side {
+            return f64::NEG_INFINITY;
+        }
+        scores[((t * n_side + j) * n_side + i) as usize].3
+    };
+    let far = |p: &Pose2, q: &Pose2| {
+        (p.x - q.x).hypot(p.y - q.y) > separation_m
+            || wrap_angle(p.theta - q.theta).abs() > 0.1 * separation_m
+    };
+    let mut peaks: Vec<Peak> = Vec::new();
+    for t in 0..layers {
+        for j in 0..n_side {
+            for i in 0..n_side {
+                let r = scores[((t * n_side + j) * n_side + i) as usize];
+                let p = pose_of(r);
+                if !far(&p, &best_pose) {
+                    continue;
+                }
+                let peak = (-1..=1).all(|dt| {
+                    (-1..=1).all(|dj| {
+                        (-1..=1).all(|di| {
+                            (dt, dj, di) == (0, 0, 0) || at(t + dt, j + dj, i + di) <= r.3
+                        })
+                    })
+                });
+                if peak {
+                    peaks.push(Peak {
+                        pose: p,
+                        score: r.3,
+                    });
+                }
+            }
+        }
+    }
+    peaks.sort_by(|a, b| b.score.total_cmp(&a.score));
+    let mut kept: Vec<Peak> = Vec::new();
+    for p in peaks {
+        if kept.len() >= rivals {
+            break;
+        }
+        if kept.iter().all(|k| far(&k.pose, &p.pose)) {
+            kept.push(p);
+        }
+    }
     Some((
         Peak {
             pose: best_pose,
             score: best.3,
         },
-        rival,
+        kept,
     ))
 }
 
@@ -221,8 +262,9 @@ mod tests {
             half_rad: 0.1,
             step_rad: 0.01,
         };
-        let (best, rival) =
-            correlate(&grid, &scan, &Pose2::new(0.0, 0.0, 0.0), &window, 3.0).expect("peak");
+        let (best, rivals) =
+            correlate(&grid, &scan, &Pose2::new(0.0, 0.0, 0.0), &window, 3.0, 3).expect("peak");
+        let rival = rivals.first();
         assert!((best.pose.x - truth.x).abs() <= 0.5, "{best:?}");
         assert!((best.pose.y - truth.y).abs() <= 0.5, "{best:?}");
         assert!((best.pose.theta - truth.theta).abs() <= 0.011, "{best:?}");

@@ -25,7 +25,7 @@ use std::collections::HashMap;
 
 use nalgebra::{Matrix3, Vector3};
 use radar_model::geometry::{wrap_angle, Pose2};
-use radar_odometry::{covariance, register, ReferenceCloud};
+use radar_odometry::{covariance, register, ReferenceCloud, Registration};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use crate::align::{AlignSettings, Alignment, Refusal};
@@ -59,10 +59,13 @@ pub struct ScanAlignSettings {
     pub search_points: usize,
     /// The best transform's mean score must reach this (1: every point on a point).
     pub min_score: f64,
-    /// The best transform elsewhere in the window (farther than `rival_separation_m`, or a
-    /// tenth of it in rad) refuses the closure when it scores this share of the best.
-    pub max_rival_score_ratio: f64,
-    /// See `max_rival_score_ratio` (m).
+    /// The search's other peaks (farther than `rival_separation_m` from the best, or a
+    /// tenth of it in rad) refined by ICP as well, at most this many.
+    pub rival_peaks: usize,
+    /// A refinement that ends elsewhere with this share of the best's inliers refuses the
+    /// closure (repeated structure).
+    pub max_rival_ratio: f64,
+    /// See `rival_peaks` (m).
     pub rival_separation_m: f64,
     /// Fewest pairs for a closure.
     pub min_pairs: usize,
@@ -105,7 +108,8 @@ impl Default for ScanAlignSettings {
             search_step_rad: 0.01,
             search_points: 600,
             min_score: 0.3,
-            max_rival_score_ratio: 0.85,
+            rival_peaks: 3,
+            max_rival_ratio: 0.8,
             rival_separation_m: 5.0,
             min_pairs: 300,
             inlier_m: 0.3,
@@ -306,31 +310,59 @@ pub fn align_scans(
             .clamp(2.0 * s.search_step_rad, s.max_window_rad),
         step_rad: s.search_step_rad,
     };
-    let Some((best, rival)) = correlate(grid, &sample, prior, &window, s.rival_separation_m) else {
+    let Some((best, peaks)) = correlate(
+        grid,
+        &sample,
+        prior,
+        &window,
+        s.rival_separation_m,
+        s.rival_peaks,
+    ) else {
         return Err(Refusal::TooFewMatches(0));
     };
-    let scaled = |score: f64| (score * current.len() as f64) as usize;
     if best.score < s.min_score {
-        return Err(Refusal::TooFewMatches(scaled(best.score)));
+        return Err(Refusal::TooFewMatches(
+            (best.score * current.len() as f64) as usize,
+        ));
     }
-    let rival_score = rival.map_or(0.0, |r| r.score);
-    if rival_score >= s.max_rival_score_ratio * best.score {
+    // ICP refines the best peak and the highest others with every point, from a gate of two
+    // cells; the refinement with the most inliers wins, and one that converged elsewhere
+    // (not into the winner's basin) with nearly as many is a rival: repeated structure.
+    let refine = |start: Pose2| {
+        let reg = register(
+            &reference.cloud,
+            current,
+            start,
+            2.0 * s.search_cell_m,
+            s.min_pairs,
+        )?;
+        let n = inliers(&reference.cloud, current, &reg.pose, s.inlier_m);
+        Some((reg, n))
+    };
+    let mut refined: Vec<(Registration, usize)> = std::iter::once(best)
+        .chain(peaks)
+        .filter_map(|p| refine(p.pose))
+        .collect();
+    refined.sort_by(|a, b| b.1.cmp(&a.1));
+    let Some((reg, inlying)) = refined.first().copied() else {
+        return Err(Refusal::TooFewMatches(0));
+    };
+    let rival = refined
+        .iter()
+        .skip(1)
+        .filter(|(r, _)| {
+            (r.pose.x - reg.pose.x).hypot(r.pose.y - reg.pose.y) > s.rival_separation_m
+                || wrap_angle(r.pose.theta - reg.pose.theta).abs() > 0.1 * s.rival_separation_m
+        })
+        .map(|(_, n)| *n)
+        .max()
+        .unwrap_or(0);
+    if rival as f64 >= s.max_rival_ratio * inlying as f64 {
         return Err(Refusal::Ambiguous {
-            best: scaled(best.score),
-            rival: scaled(rival_score),
+            best: inlying,
+            rival,
         });
     }
-    // ICP refines the search's best with every point, from a gate of two cells.
-    let Some(reg) = register(
-        &reference.cloud,
-        current,
-        best.pose,
-        2.0 * s.search_cell_m,
-        s.min_pairs,
-    ) else {
-        return Err(Refusal::TooFewMatches(scaled(best.score)));
-    };
-    let inlying = inliers(&reference.cloud, current, &reg.pose, s.inlier_m);
     let overlap = inlying as f64 / current.len() as f64;
     if reg.pairs < s.min_pairs || inlying < s.min_pairs || overlap < s.min_overlap {
         return Err(Refusal::TooFewMatches(inlying));
@@ -388,7 +420,7 @@ pub fn align_scans(
         matches,
         nis,
         dof,
-        rival_matches: scaled(rival_score),
+        rival_matches: rival,
     })
 }
 
