@@ -100,6 +100,27 @@ pub fn score_revisits(
                 && driven_m[j] - driven_m[i] >= rule.min_apart_m
         })
     };
+    let holds = |frame: usize, submap: usize| submap == frame || submap + 1 == frame;
+    tally(
+        loops,
+        truth,
+        rule,
+        n,
+        |j| partners(j).collect(),
+        |l, j, p| holds(j, l.to) && p.iter().any(|&i| holds(i, l.from)),
+    )
+}
+
+/// Counts the revisits (`partners(j)`: the frames or submaps frame `j` revisits) and the
+/// correct closures that join them (`joins(closure, j, partners)`).
+fn tally(
+    loops: &[LoopClosure],
+    truth: &[Option<Pose2>],
+    rule: &RevisitRule,
+    frames: usize,
+    partners: impl Fn(usize) -> Vec<usize>,
+    joins: impl Fn(&LoopClosure, usize, &[usize]) -> bool,
+) -> RevisitScore {
     let mut s = RevisitScore {
         closures: loops.len(),
         from_place: loops.iter().filter(|l| l.from_place).count(),
@@ -110,18 +131,14 @@ pub fn score_revisits(
         .filter(|l| is_correct(l, truth, rule) == Some(true))
         .collect();
     s.correct = correct.len();
-    for j in 0..n {
-        let p: Vec<usize> = partners(j).collect();
+    for j in 0..frames {
+        let p = partners(j);
         if p.is_empty() {
             continue;
         }
         s.pairs += p.len();
         s.revisiting += 1;
-        let holds = |frame: usize, submap: usize| submap == frame || submap + 1 == frame;
-        let joined = correct
-            .iter()
-            .filter(|l| holds(j, l.to) && p.iter().any(|&i| holds(i, l.from)))
-            .count();
+        let joined = correct.iter().filter(|l| joins(l, j, &p)).count();
         tracing::debug!(submap = j, partners = ?p, closed = joined > 0, "a true revisit");
         s.correct_on_revisits += joined;
         if joined > 0 {
@@ -177,35 +194,10 @@ pub fn score_path_revisits(
         p.dedup();
         p
     };
-    let mut s = RevisitScore {
-        closures: loops.len(),
-        from_place: loops.iter().filter(|l| l.from_place).count(),
-        ..RevisitScore::default()
-    };
-    let correct: Vec<&LoopClosure> = loops
-        .iter()
-        .filter(|l| is_correct(l, truth, rule) == Some(true))
-        .collect();
-    s.correct = correct.len();
-    for j in 0..n {
-        let p = partners(j);
-        if p.is_empty() {
-            continue;
-        }
-        s.pairs += p.len();
-        s.revisiting += 1;
-        let holds_new = |submap: usize| submap == j || submap + 1 == j;
-        let joined = correct
-            .iter()
-            .filter(|l| holds_new(l.to) && p.contains(&l.from))
-            .count();
-        tracing::debug!(submap = j, partners = ?p, closed = joined > 0, "a true revisit of the path");
-        s.correct_on_revisits += joined;
-        if joined > 0 {
-            s.closed += 1;
-        }
-    }
-    s
+    let holds_new = |submap: usize, j: usize| submap == j || submap + 1 == j;
+    tally(loops, truth, rule, n, partners, |l, j, p| {
+        holds_new(l.to, j) && p.contains(&l.from)
+    })
 }
 
 #[cfg(test)]
