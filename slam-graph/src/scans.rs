@@ -343,7 +343,7 @@ pub fn align_scans(
         .chain(peaks)
         .filter_map(|p| refine(p.pose))
         .collect();
-    refined.sort_by(|a, b| b.1.cmp(&a.1));
+    refined.sort_by_key(|r| std::cmp::Reverse(r.1));
     let Some((reg, inlying)) = refined.first().copied() else {
         return Err(Refusal::TooFewMatches(0));
     };
