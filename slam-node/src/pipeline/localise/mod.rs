@@ -20,6 +20,10 @@
 pub mod known;
 pub mod score;
 pub mod search;
+pub mod support;
+
+#[cfg(test)]
+mod repeated_tests;
 
 use std::path::PathBuf;
 use std::sync::Arc;
