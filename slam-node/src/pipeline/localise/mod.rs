@@ -11,7 +11,9 @@
 //! - **With a prior** (`[map] initial_pose`, `initial_sigma`): tracking starts there.
 //! - **Without** ([`search`]): the filter maps in a frame of its own until place
 //!   recognition and the loop-closure verifier find that frame in the map, twice in
-//!   agreement and never two places at once; then tracking starts from there. Until the fix
+//!   agreement, never two places at once, and clearly ahead of every other place of the map
+//!   that could fit; then tracking starts from there. The search runs on a thread of its
+//!   own ([`worker`]); the pipeline thread never waits for it in real time. Until the fix
 //!   no pose is published and the log says why (WARN at the 1st, 2nd, 4th... attempt).
 //!
 //! No IO: the map is loaded by the caller (the command line), and its radar profile is

@@ -14,12 +14,13 @@
 //! A fix is taken only when, at two attempts in a row, exactly one transform verified
 //! (several verified transforms further apart than [`SAME_M`] / [`SAME_RAD`] are places
 //! alike: nothing is taken, and the search waits for the local map to tell them apart) and
-//! the second agrees with the first. The map is also asked whether it repeats itself there
-//! ([`PlaceSearcher::rivals`]): the map's own features around the verified pose are
-//! described and looked up among the map's places; every look-alike place elsewhere is
-//! offered to the verifier too, and if the local map fits one of them nearly as well
-//! ([`RIVAL_SHARE`] of the matches) the places are alike and nothing is taken. A street of
-//! identical blocks is never fixed on until the local map reaches something that tells the
+//! the second agrees with the first. The winner must also clearly beat every other place of
+//! the map that could fit ([`PlaceSearcher::rivals`]): the places the attempt matched by
+//! descriptor, and those where the map looks like the winner's place (the map's own
+//! features around the verified pose, looked up among all its places), each scored by the
+//! local features it explains ([`super::support::MapGrid`]); one explaining
+//! [`RIVAL_SHARE`] of the winner's is a rival, and nothing is taken. A street of identical
+//! blocks is never fixed on until the local map reaches something that tells the
 //! blocks apart. No IO.
 
 use nalgebra::Matrix3;
