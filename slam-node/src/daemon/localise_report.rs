@@ -37,6 +37,13 @@ impl fmt::Display for Localisation<'_> {
                 l.attempts, l.ambiguous
             )?,
         }
+        if l.attempts > 0 {
+            writeln!(
+                f,
+                "  place search on its own thread: {} attempts, wall time per attempt p50 {:.1} ms, max {:.1} ms (the pipeline thread never waits for it in real time)",
+                l.attempts, l.search_ms_p50, l.search_ms_max
+            )?;
+        }
         writeln!(
             f,
             "  tracking: {} rotations published in the map's frame; {} fixes, {} lost (no map feature seen for 12 rotations); map features put into the filter {}, taken out {}, refused {}",

@@ -11,7 +11,9 @@
 //! - **With a prior** (`[map] initial_pose`, `initial_sigma`): tracking starts there.
 //! - **Without** ([`search`]): the filter maps in a frame of its own until place
 //!   recognition and the loop-closure verifier find that frame in the map, twice in
-//!   agreement and never two places at once; then tracking starts from there. Until the fix
+//!   agreement, never two places at once, and clearly ahead of every other place of the map
+//!   that could fit; then tracking starts from there. The search runs on a thread of its
+//!   own ([`worker`]); the pipeline thread never waits for it in real time. Until the fix
 //!   no pose is published and the log says why (WARN at the 1st, 2nd, 4th... attempt).
 //!
 //! No IO: the map is loaded by the caller (the command line), and its radar profile is
@@ -20,7 +22,13 @@
 pub mod known;
 pub mod score;
 pub mod search;
+pub mod support;
+pub mod worker;
 
+#[cfg(test)]
+mod repeated_tests;
+
+use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -38,6 +46,7 @@ use super::DaemonEkf;
 use known::{Loaded, MapFeatures, SwapRule};
 pub use score::LocaliseScore;
 use search::{Attempt, PlaceSearcher};
+use worker::{Outcome, SearchWorker};
 
 /// Features of the map held in the filter at most while tracking.
 pub const MAX_LOADED: usize = 100;
@@ -54,6 +63,8 @@ const ATTEMPT_EVERY_ROTATIONS: u64 = 10;
 const LOST_AFTER_ROTATIONS: u32 = 12;
 /// Map features used for places and verification: seen at least this often.
 const MIN_HITS: u64 = 3;
+/// Local frame restarts remembered to carry a late search outcome into the current frame.
+const MAX_RESTARTS_KEPT: usize = 8;
 
 /// The map a run localises in, and how it starts.
 #[derive(Debug, Clone, PartialEq)]
@@ -102,6 +113,9 @@ pub enum LocaliseError {
     /// The map holds no feature to localise against.
     #[error("map file {0}: the map holds no feature to localise against")]
     Empty(PathBuf),
+    /// The place search's thread could not start.
+    #[error("the place search's thread could not start: {0}")]
+    Thread(#[source] std::io::Error),
 }
 
 /// What localisation did over a run.
@@ -137,6 +151,10 @@ pub struct LocaliseSummary {
     pub fixes: u64,
     /// Fixes lost (no map feature seen for a while while tracking).
     pub lost: u64,
+    /// Search attempts' wall time on the search's thread (ms): median and largest.
+    pub search_ms_p50: f64,
+    /// Largest.
+    pub search_ms_max: f64,
     /// Against the truth, when it is known.
     pub score: Option<LocaliseScore>,
 }
@@ -159,8 +177,13 @@ enum Phase {
 /// The localisation stage.
 pub struct Localiser {
     path: PathBuf,
-    features: MapFeatures,
-    searcher: PlaceSearcher,
+    features: Arc<MapFeatures>,
+    worker: SearchWorker,
+    /// The search's local frame (restarted with the window and with a new search), and
+    /// the recent restarts: from frame k, the next frame's origin in it (`None`: a new
+    /// search, nothing carries over).
+    frame: u64,
+    restarts: VecDeque<(u64, Option<Pose2>)>,
     loaded: Loaded,
     rule: SwapRule,
     tracking: FilterSettings,
@@ -213,8 +236,11 @@ impl Localiser {
         if map.feature_count() == 0 {
             return Err(LocaliseError::Empty(l.path.clone()));
         }
-        let features = MapFeatures::new(map);
+        let features = Arc::new(MapFeatures::new(map));
         let searcher = PlaceSearcher::new(&features, MIN_HITS);
+        let places = searcher.places();
+        let worker =
+            SearchWorker::spawn(searcher, Arc::clone(&features)).map_err(LocaliseError::Thread)?;
         let tracking = FilterSettings {
             add_features: false,
             retire_unseen_after_s: 0.0,
@@ -227,7 +253,7 @@ impl Localiser {
             path: l.path.display().to_string(),
             map_submaps: map.submaps.len(),
             map_features: map.feature_count(),
-            places: searcher.places(),
+            places,
             prior: l.prior.is_some(),
             ..LocaliseSummary::default()
         };
@@ -235,14 +261,16 @@ impl Localiser {
             file = %l.path.display(),
             submaps = map.submaps.len(),
             features = map.feature_count(),
-            places = searcher.places(),
+            places,
             prior = l.prior.is_some(),
             "localising in a saved map"
         );
         Ok(Self {
             path: l.path.clone(),
             features,
-            searcher,
+            worker,
+            frame: 0,
+            restarts: VecDeque::new(),
             loaded: Loaded::default(),
             rule: SwapRule {
                 max_loaded: MAX_LOADED.min(tracking.max_features),
@@ -330,14 +358,27 @@ impl Localiser {
                     self.lose_fix(ekf, time_s - first);
                 }
             }
-            Phase::Searching {
-                last,
-                since,
-                driven_m,
-                counted_to,
-                previous,
-            } => {
+            Phase::Searching { since, .. } => {
                 *since += 1;
+                if let Some(o) = self.worker.poll(time_s) {
+                    if let Some(attempt) = carried(o, self.frame, &self.restarts) {
+                        self.on_attempt(attempt, ekf, time_s - first);
+                        if matches!(self.phase, Phase::Tracking) {
+                            self.note_swaps();
+                            return;
+                        }
+                    }
+                }
+                let Phase::Searching {
+                    last,
+                    since,
+                    driven_m,
+                    counted_to,
+                    previous,
+                } = &mut self.phase
+                else {
+                    return;
+                };
                 trim_local_map(ekf, SEARCH_KEEP_M);
                 let pose = ekf.pose();
                 if let Some(p) = counted_to.replace(pose) {
@@ -349,7 +390,8 @@ impl Localiser {
                     // kept, moved into the new frame.
                     let closed = ekf.start_submap();
                     *previous = Some(Box::new(reframed(&closed)));
-                    self.searcher.reframe(&closed.end_pose);
+                    self.worker.reframe(closed.end_pose);
+                    push_restart(&mut self.restarts, &mut self.frame, Some(closed.end_pose));
                     *driven_m = 0.0;
                     *counted_to = Some(ekf.pose());
                     *last = Some(ekf.pose());
@@ -358,23 +400,33 @@ impl Localiser {
                 let due = last
                     .is_none_or(|p| (p.x - pose.x).hypot(p.y - pose.y) >= ATTEMPT_EVERY_M)
                     || *since >= ATTEMPT_EVERY_ROTATIONS;
-                if !due {
+                if !due || self.worker.busy() {
                     return;
                 }
-                *last = Some(pose);
-                *since = 0;
-                self.summary.attempts += 1;
                 let mut local = FrozenSubmap::from_state(ekf.state());
                 if let Some(prev) = previous.as_ref() {
                     local.features.extend(prev.features.iter().copied());
                 }
-                let attempt = self.searcher.attempt(&self.features, &local, &pose);
-                self.on_attempt(attempt, ekf, time_s - first);
+                if self.worker.submit(self.frame, local, pose, time_s) {
+                    *last = Some(pose);
+                    *since = 0;
+                    self.summary.attempts += 1;
+                }
             }
         }
+        self.note_swaps();
+    }
+
+    fn note_swaps(&mut self) {
         self.summary.inserted = self.loaded.inserted;
         self.summary.removed = self.loaded.removed;
         self.summary.refused = self.loaded.refused;
+        let mut ms: Vec<f64> = self.worker.wall_s.iter().map(|s| s * 1e3).collect();
+        if !ms.is_empty() {
+            ms.sort_by(f64::total_cmp);
+            self.summary.search_ms_p50 = ms[ms.len() / 2];
+            self.summary.search_ms_max = ms[ms.len() - 1];
+        }
     }
 
     /// No map feature seen for [`LOST_AFTER_ROTATIONS`]: the fix is dropped, nothing more
@@ -408,7 +460,8 @@ impl Localiser {
         self.loaded.clear();
         self.quiet_rotations = 0;
         self.updates_seen = 0;
-        self.searcher.forget();
+        self.worker.forget();
+        push_restart(&mut self.restarts, &mut self.frame, None);
         self.phase = Phase::Searching {
             last: None,
             since: 0,
@@ -512,6 +565,37 @@ impl Localiser {
         s.score = score::score(online);
         s
     }
+}
+
+/// The search's local frame restarts (`origin`: the new frame's origin in the old one;
+/// `None`: a new search).
+fn push_restart(
+    restarts: &mut VecDeque<(u64, Option<Pose2>)>,
+    frame: &mut u64,
+    origin: Option<Pose2>,
+) {
+    restarts.push_back((*frame, origin));
+    while restarts.len() > MAX_RESTARTS_KEPT {
+        restarts.pop_front();
+    }
+    *frame += 1;
+}
+
+/// A search outcome made in local frame `o.frame`, carried into `current` through the
+/// frame restarts since (a fix's transform composed with each new frame's origin); `None`
+/// when a new search began in between or the restarts are no longer known.
+fn carried(o: Outcome, current: u64, restarts: &VecDeque<(u64, Option<Pose2>)>) -> Option<Attempt> {
+    let mut attempt = o.attempt;
+    for k in o.frame..current {
+        let (_, origin) = restarts.iter().find(|(f, _)| *f == k)?;
+        let origin = (*origin)?;
+        if let Attempt::Fix(v) | Attempt::Candidate(v) = &mut attempt {
+            v.covariance =
+                compose_covariance(&v.transform, &v.covariance, &origin, &Matrix3::zeros());
+            v.transform = slam_graph::se2::compose(&v.transform, &origin);
+        }
+    }
+    Some(attempt)
 }
 
 /// A closed local frame's features in the next frame (the one starting at its end pose):

@@ -14,12 +14,13 @@
 //! A fix is taken only when, at two attempts in a row, exactly one transform verified
 //! (several verified transforms further apart than [`SAME_M`] / [`SAME_RAD`] are places
 //! alike: nothing is taken, and the search waits for the local map to tell them apart) and
-//! the second agrees with the first. The map is also asked whether it repeats itself there
-//! ([`PlaceSearcher::rivals`]): the map's own features around the verified pose are
-//! described and looked up among the map's places; every look-alike place elsewhere is
-//! offered to the verifier too, and if the local map fits one of them nearly as well
-//! ([`RIVAL_SHARE`] of the matches) the places are alike and nothing is taken. A street of
-//! identical blocks is never fixed on until the local map reaches something that tells the
+//! the second agrees with the first. The winner must also clearly beat every other place of
+//! the map that could fit ([`PlaceSearcher::rivals`]): the places the attempt matched by
+//! descriptor, and those where the map looks like the winner's place (the map's own
+//! features around the verified pose, looked up among all its places), each scored by the
+//! local features it explains ([`super::support::MapGrid`]); one explaining
+//! [`RIVAL_SHARE`] of the winner's is a rival, and nothing is taken. A street of identical
+//! blocks is never fixed on until the local map reaches something that tells the
 //! blocks apart. No IO.
 
 use nalgebra::Matrix3;
@@ -28,9 +29,10 @@ use radar_odometry::{PlaceDescriptor, PlaceIndex, PlaceQuery, PlaceSettings};
 use slam_filter::{FrozenSubmap, SubmapFeature};
 use slam_graph::places::{refine, PlaceSearch};
 use slam_graph::se2::{compose, inverse, transform_point};
-use slam_graph::{align, AlignSettings, Refusal};
+use slam_graph::{align, AlignSettings};
 
 use super::known::MapFeatures;
+use super::support::MapGrid;
 
 /// Places of the map every this many metres along its drive.
 pub const PLACE_SPACING_M: f64 = 10.0;
@@ -56,10 +58,19 @@ pub const RIVAL_SHARE: f64 = 0.6;
 /// A place of the map elsewhere whose descriptor is this close to the map's around a
 /// verified pose is a copy of it: no fix there.
 pub const SELF_SIMILAR_DISTANCE: f64 = 0.15;
-/// Look-alike places offered to the verifier at most per check (nearest by descriptor).
-const MAX_RIVAL_CHECKS: usize = 12;
-/// A look-alike place nearer than this to the verified pose (m) is the same place.
+/// Local features within this of the vehicle (m) are scored apart too: near the vehicle a
+/// place the map holds twice fits twice even where the map is bent further out.
+pub const NEAR_M: f64 = 60.0;
+/// A rival's translation is voted within this of its look-alike's guess (m).
+const RIVAL_REACH_M: f64 = 45.0;
+/// Look-alike places of the map scored as rivals at most per check (nearest by
+/// descriptor), besides the places the attempt matched.
+const MAX_RIVAL_CHECKS: usize = 24;
+/// A look-alike place nearer than this to the verified pose (m), and turned less than
+/// [`RIVAL_MIN_TURN_RAD`], is the same place.
 const RIVAL_MIN_SEPARATION_M: f64 = 10.0;
+/// See [`RIVAL_MIN_SEPARATION_M`].
+const RIVAL_MIN_TURN_RAD: f64 = 0.2;
 
 /// A transform of the local frame into the map's, verified.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -96,6 +107,7 @@ pub struct PlaceSearcher {
     settings: PlaceSettings,
     places: Vec<(Pose2, PlaceDescriptor)>,
     index: PlaceIndex,
+    grid: MapGrid,
     pending: Option<Verified>,
     align: AlignSettings,
 }
@@ -138,10 +150,17 @@ impl PlaceSearcher {
                 places.push((Pose2::new(p[0], p[1], 0.0), d));
             }
         }
+        let grid = MapGrid::new(
+            map.features
+                .iter()
+                .filter(|f| f.hits >= min_hits)
+                .map(|f| f.xy),
+        );
         Self {
             settings,
             places,
             index,
+            grid,
             pending: None,
             align: AlignSettings {
                 min_hits,
@@ -200,18 +219,17 @@ impl PlaceSearcher {
         matches.sort_by(|a, b| a.0.total_cmp(&b.0));
         let best_distance = matches.first().map(|m| m.0);
         let mut guesses: Vec<(Pose2, Matrix3<f64>)> = Vec::new();
-        let search = PlaceSearch::default();
-        let loose = Matrix3::from_diagonal(&nalgebra::Vector3::new(
-            search.prior_sigma_m.powi(2),
-            search.prior_sigma_m.powi(2),
-            search.prior_sigma_rad.powi(2),
-        ));
-        for (d, g) in matches.into_iter().filter(|m| m.0 <= MAX_DISTANCE) {
-            let _ = d;
-            if guesses.len() >= MAX_CANDIDATES {
-                break;
+        // Every place that matched by descriptor, verified or not, is a place the winner
+        // must beat.
+        let mut alike: Vec<Pose2> = Vec::new();
+        let loose = loose_prior();
+        for (_, g) in matches.into_iter().filter(|m| m.0 <= MAX_DISTANCE) {
+            if !alike.iter().any(|h| same(h, &g, SAME_M, SAME_RAD)) {
+                alike.push(g);
             }
-            if !guesses.iter().any(|(h, _)| same(h, &g, SAME_M, SAME_RAD)) {
+            if guesses.len() < MAX_CANDIDATES
+                && !guesses.iter().any(|(h, _)| same(h, &g, SAME_M, SAME_RAD))
+            {
                 guesses.push((g, loose));
             }
         }
@@ -245,21 +263,20 @@ impl PlaceSearcher {
             }
             [v] if v.matches >= MIN_FIX_MATCHES => {
                 let v = *v;
-                let rivals = self.rivals(map, local, &b_xy, vehicle, &v);
+                let rivals = self.rivals(map, &b_xy, vehicle, &v, &alike);
                 if rivals > 0 {
                     self.pending = None;
                     return Attempt::Ambiguous(1 + rivals);
                 }
-                let v = &v;
                 let confirmed = self
                     .pending
                     .is_some_and(|p| same(&p.transform, &v.transform, CONFIRM_M, CONFIRM_RAD));
                 if confirmed {
                     self.pending = None;
-                    Attempt::Fix(*v)
+                    Attempt::Fix(v)
                 } else {
-                    self.pending = Some(*v);
-                    Attempt::Candidate(*v)
+                    self.pending = Some(v);
+                    Attempt::Candidate(v)
                 }
             }
             [_] => {
@@ -272,6 +289,16 @@ impl PlaceSearcher {
             }
         }
     }
+}
+
+/// The prior the verifier is given with a place's guess.
+fn loose_prior() -> Matrix3<f64> {
+    let search = PlaceSearch::default();
+    Matrix3::from_diagonal(&nalgebra::Vector3::new(
+        search.prior_sigma_m.powi(2),
+        search.prior_sigma_m.powi(2),
+        search.prior_sigma_rad.powi(2),
+    ))
 }
 
 impl PlaceSearcher {
@@ -287,20 +314,6 @@ impl PlaceSearcher {
         guess: Pose2,
         cov: &Matrix3<f64>,
     ) -> Option<Verified> {
-        self.verify_or_refusal(map, local, b_xy, vehicle, guess, cov)
-            .ok()
-    }
-
-    /// [`Self::verify`], with the verifier's refusal.
-    fn verify_or_refusal(
-        &self,
-        map: &MapFeatures,
-        local: &FrozenSubmap,
-        b_xy: &[[f64; 2]],
-        vehicle: &Pose2,
-        guess: Pose2,
-        cov: &Matrix3<f64>,
-    ) -> Result<Verified, Refusal> {
         let centre = compose(&guess, vehicle);
         let a: Vec<SubmapFeature> = map
             .features
@@ -315,27 +328,116 @@ impl PlaceSearcher {
             .map(|f| f.xy)
             .collect();
         let prior = refine(&a_xy, b_xy, guess, &PlaceSearch::default());
-        let al = align(&a, &local.features, &prior, cov, &self.align)?;
-        Ok(Verified {
+        let al = align(&a, &local.features, &prior, cov, &self.align).ok()?;
+        Some(Verified {
             transform: al.transform,
             covariance: al.covariance,
             matches: al.matches.len(),
         })
     }
 
-    /// Places of the map that look like the one `v` puts the vehicle in (the map's own
-    /// features around that pose, looked up among its places) and that the local map fits
-    /// with at least [`RIVAL_SHARE`] of `v`'s matches: rivals of the fix.
+    /// The map's well-seen features within [`VERIFY_RADIUS_M`] of `centre`.
+    fn map_points_near(&self, map: &MapFeatures, centre: &Pose2) -> Vec<[f64; 2]> {
+        map.features
+            .iter()
+            .filter(|f| f.hits >= self.align.min_hits)
+            .filter(|f| (f.xy[0] - centre.x).hypot(f.xy[1] - centre.y) <= VERIFY_RADIUS_M)
+            .map(|f| f.xy)
+            .collect()
+    }
+
+    /// Places of the map the local map (its well-seen points `b_xy`, the vehicle at
+    /// `vehicle` in it) fits nearly as well as the verified `v`: rivals of the fix.
+    ///
+    /// The places offered are those the attempt matched by descriptor (`alike`, the local
+    /// frame in the map's) and every place of the map that looks like the one `v` puts the
+    /// vehicle in (the map's own features around that pose, compared with all the map's
+    /// places: where the map repeats itself). Each is refined (a vote over feature offsets,
+    /// then nearest-neighbour fits) and scored by the local features it explains
+    /// ([`MapGrid::fit`]), as `v` is; a place elsewhere explaining at least
+    /// [`RIVAL_SHARE`] of what `v` explains is a rival. The verifier is not asked: it
+    /// refuses a place where the map holds a street twice, a metre or two apart, which is
+    /// still a place the local map fits (the wrong fix on `repeated-blocks`).
     pub fn rivals(
         &mut self,
         map: &MapFeatures,
-        local: &FrozenSubmap,
         b_xy: &[[f64; 2]],
         vehicle: &Pose2,
         v: &Verified,
+        alike: &[Pose2],
     ) -> usize {
         let here = compose(&v.transform, vehicle);
-        let to_here = inverse(&here);
+        let Some(mut offered) = self.look_alikes(map, &here) else {
+            // The map itself has a near copy of this place elsewhere: whatever the local
+            // map fits, the place is not told apart (repeated blocks).
+            return 1;
+        };
+        let to_vehicle = inverse(vehicle);
+        offered.extend(alike.iter().map(|g| compose(g, vehicle)));
+        let near = |t: &Pose2| -> Vec<[f64; 2]> {
+            let v = compose(t, vehicle);
+            b_xy.iter()
+                .copied()
+                .filter(|p| {
+                    let q = transform_point(t, *p);
+                    (q[0] - v.x).hypot(q[1] - v.y) <= NEAR_M
+                })
+                .collect()
+        };
+        let (polished, best) = self.grid.fit(b_xy, v.transform);
+        let near_local = near(&polished);
+        let best_near = self.grid.inliers(&near_local, &polished);
+        let here = compose(&polished, vehicle);
+        // A look-alike's pose is known to tens of metres along a street of repeated
+        // blocks: the vote reaches that far.
+        let search = PlaceSearch {
+            prior_sigma_m: RIVAL_REACH_M / 3.0,
+            ..PlaceSearch::default()
+        };
+        let mut rivals: Vec<Pose2> = Vec::new();
+        for there in offered {
+            // A street looks much the same driven either way: the descriptor's heading and
+            // the opposite one are both tried.
+            for turn in [0.0, std::f64::consts::PI] {
+                let there = Pose2::new(there.x, there.y, wrap_angle(there.theta + turn));
+                if same(&there, &here, RIVAL_MIN_SEPARATION_M, RIVAL_MIN_TURN_RAD) {
+                    continue;
+                }
+                let guess = compose(&there, &to_vehicle);
+                let a_xy = self.map_points_near(map, &there);
+                let refined = refine(&a_xy, b_xy, guess, &search);
+                let (t, n) = self.grid.fit(b_xy, refined);
+                let n_near = self.grid.inliers(&near_local, &t);
+                let at = compose(&t, vehicle);
+                tracing::debug!(
+                    x_m = at.x,
+                    y_m = at.y,
+                    heading_rad = at.theta,
+                    explained = n,
+                    best,
+                    near = n_near,
+                    best_near,
+                    "a place of the map alike offered as a rival"
+                );
+                let strong = n as f64 >= RIVAL_SHARE * best as f64
+                    || n_near as f64 >= RIVAL_SHARE * best_near as f64;
+                if strong
+                    && !same(&at, &here, RIVAL_MIN_SEPARATION_M, RIVAL_MIN_TURN_RAD)
+                    && !rivals.iter().any(|x| same(x, &at, SAME_M, SAME_RAD))
+                {
+                    rivals.push(at);
+                }
+            }
+        }
+        rivals.len()
+    }
+
+    /// Vehicle poses in the map where the map looks as it does around `here` (its own
+    /// features there described and compared with every place of the map), nearest by
+    /// descriptor first, at most [`MAX_RIVAL_CHECKS`]; `None` when one is a near copy
+    /// ([`SELF_SIMILAR_DISTANCE`]).
+    fn look_alikes(&self, map: &MapFeatures, here: &Pose2) -> Option<Vec<Pose2>> {
+        let to_here = inverse(here);
         let r = self.settings.max_range_m;
         let points: Vec<[f64; 2]> = map
             .features
@@ -348,18 +450,11 @@ impl PlaceSearcher {
         // cheap); those alike are compared again around shifted origins for where the pose
         // would be there.
         let Ok(described) = PlaceDescriptor::new(points.iter().copied(), &self.settings) else {
-            return 0;
+            return Some(Vec::new());
         };
         let Ok(query) = PlaceQuery::new(&points, &self.settings) else {
-            return 0;
+            return Some(Vec::new());
         };
-        let search = PlaceSearch::default();
-        let loose = Matrix3::from_diagonal(&nalgebra::Vector3::new(
-            search.prior_sigma_m.powi(2),
-            search.prior_sigma_m.powi(2),
-            search.prior_sigma_rad.powi(2),
-        ));
-        let to_vehicle = inverse(vehicle);
         let mut alternatives: Vec<(f64, Pose2)> = Vec::new();
         for (place, d) in &self.places {
             if (place.x - here.x).hypot(place.y - here.y) < RIVAL_MIN_SEPARATION_M
@@ -382,7 +477,7 @@ impl PlaceSearcher {
             // by descriptor stands for them.
             match alternatives
                 .iter_mut()
-                .find(|(_, a)| same(a, &there, RIVAL_MIN_SEPARATION_M, 0.2))
+                .find(|(_, a)| same(a, &there, RIVAL_MIN_SEPARATION_M, RIVAL_MIN_TURN_RAD))
             {
                 Some(a) if a.0 > m.place.distance => *a = (m.place.distance, there),
                 Some(_) => {}
@@ -394,50 +489,10 @@ impl PlaceSearcher {
             .first()
             .is_some_and(|(d, _)| *d <= SELF_SIMILAR_DISTANCE)
         {
-            // The map itself has a near copy of this place elsewhere: whatever the local
-            // map fits, the place is not told apart (repeated blocks).
-            return 1;
+            return None;
         }
         alternatives.truncate(MAX_RIVAL_CHECKS);
-        let mut rivals: Vec<Pose2> = Vec::new();
-        for (_, there) in alternatives {
-            if !rivals.is_empty() {
-                // One rival is enough to wait.
-                break;
-            }
-            let guess = compose(&there, &to_vehicle);
-            let verified = self.verify_or_refusal(map, local, b_xy, vehicle, guess, &loose);
-            tracing::debug!(
-                x_m = there.x,
-                y_m = there.y,
-                outcome = ?verified.as_ref().map(|w| w.matches),
-                best = v.matches,
-                "a look-alike place of the map offered to the verifier"
-            );
-            // Refused because two transforms fit there about equally: the local map fits
-            // that place (twice), a rival all the same.
-            if let Err(Refusal::Ambiguous { best, .. }) = verified {
-                if best as f64 >= RIVAL_SHARE * v.matches as f64
-                    && !rivals.iter().any(|x| same(x, &guess, SAME_M, SAME_RAD))
-                {
-                    rivals.push(guess);
-                }
-                continue;
-            }
-            if let Ok(w) = verified {
-                let far = !same(&w.transform, &v.transform, RIVAL_MIN_SEPARATION_M, 0.2);
-                let strong = w.matches as f64 >= RIVAL_SHARE * v.matches as f64;
-                if far
-                    && strong
-                    && !rivals
-                        .iter()
-                        .any(|x| same(x, &w.transform, SAME_M, SAME_RAD))
-                {
-                    rivals.push(w.transform);
-                }
-            }
-        }
-        rivals.len()
+        Some(alternatives.into_iter().map(|(_, p)| p).collect())
     }
 }
 
