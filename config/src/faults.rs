@@ -31,6 +31,12 @@ pub struct RawFaults {
     pub no_keepalive: bool,
     /// Announce an oversized payload length in message N (>= 1).
     pub oversized_at_message: Option<i64>,
+    /// Start a noise burst this long into the stream (ms > 0, on the azimuths' own
+    /// timestamps from the connection's first azimuth); needs `noise_burst_ms`.
+    pub noise_burst_after_ms: Option<i64>,
+    /// How long the noise burst lasts, ms > 0: every bin of every azimuth random; needs
+    /// `noise_burst_after_ms`.
+    pub noise_burst_ms: Option<i64>,
 }
 
 /// A stall: after `after_messages` messages, send nothing for `duration`.
@@ -39,6 +45,16 @@ pub struct Stall {
     /// Messages sent before the stall.
     pub after_messages: NonZeroU64,
     /// How long nothing is sent.
+    pub duration: Duration,
+}
+
+/// A noise burst: from `after` into the stream, for `duration`, every bin of every azimuth
+/// is random (a swamped receiver), once per connection.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct NoiseBurst {
+    /// Stream time before the burst, from the connection's first azimuth.
+    pub after: Duration,
+    /// How long it lasts, in stream time.
     pub duration: Duration,
 }
 
@@ -59,6 +75,8 @@ pub struct FaultSettings {
     pub no_keepalive: bool,
     /// Announce an oversized payload in this message (1-based).
     pub oversized_at_message: Option<NonZeroU64>,
+    /// A noise burst.
+    pub noise_burst: Option<NoiseBurst>,
 }
 
 impl FaultSettings {
@@ -120,7 +138,9 @@ impl RawFaults {
                 _ => None,
             },
         };
+        let noise_burst = self.check_noise_burst(c);
         FaultSettings {
+            noise_burst,
             drop_after_messages: c.check_opt(
                 "sim.faults.drop_after_messages",
                 self.drop_after_messages,
@@ -152,6 +172,29 @@ impl RawFaults {
     }
 }
 
+impl RawFaults {
+    fn check_noise_burst(&self, c: &mut Checker) -> Option<NoiseBurst> {
+        const AFTER: &str = "sim.faults.noise_burst_after_ms";
+        const LASTS: &str = "sim.faults.noise_burst_ms";
+        let after = c.check_opt(AFTER, self.noise_burst_after_ms, values::duration_from_ms);
+        let duration = c.check_opt(LASTS, self.noise_burst_ms, values::duration_from_ms);
+        match (self.noise_burst_after_ms, self.noise_burst_ms) {
+            (Some(_), None) => {
+                c.fail(LASTS, ValueError::Rule(format!("is required with {AFTER}")));
+                None
+            }
+            (None, Some(_)) => {
+                c.fail(AFTER, ValueError::Rule(format!("is required with {LASTS}")));
+                None
+            }
+            _ => Some(NoiseBurst {
+                after: after?,
+                duration: duration?,
+            }),
+        }
+    }
+}
+
 impl From<&FaultSettings> for RawFaults {
     /// The settings written back out.
     fn from(s: &FaultSettings) -> Self {
@@ -165,6 +208,8 @@ impl From<&FaultSettings> for RawFaults {
             stall_ms: s.stall.map(|st| values::whole_ms(st.duration)),
             no_keepalive: s.no_keepalive,
             oversized_at_message: n(s.oversized_at_message),
+            noise_burst_after_ms: s.noise_burst.map(|b| values::whole_ms(b.after)),
+            noise_burst_ms: s.noise_burst.map(|b| values::whole_ms(b.duration)),
         }
     }
 }

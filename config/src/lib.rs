@@ -54,7 +54,7 @@ use serde::{Deserialize, Serialize};
 
 pub use detector::{DetectorSettings, RawDetector};
 pub use error::{ConfigError, FieldError, FieldErrors, Location};
-pub use faults::{FaultSettings, RawFaults};
+pub use faults::{FaultSettings, NoiseBurst, RawFaults};
 pub use filter::{FilterSettings, RawFilter};
 pub use map::{MapMode, MapSettings, RawMap};
 pub use model::{ModelSettings, RawModel};

@@ -84,6 +84,9 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[sim.faults]\nstall_after_messages = 10", "sim.faults.stall_ms", "is required with sim.faults.stall_after_messages"),
     ("[sim.faults]\nstall_ms = 100", "sim.faults.stall_after_messages", "is required with sim.faults.stall_ms"),
     ("[sim.faults]\noversized_at_message = 0", "sim.faults.oversized_at_message", "got 0"),
+    ("[sim.faults]\nnoise_burst_after_ms = 5", "sim.faults.noise_burst_ms", "is required"),
+    ("[sim.faults]\nnoise_burst_ms = 5", "sim.faults.noise_burst_after_ms", "is required"),
+    ("[sim.faults]\nnoise_burst_after_ms = 5\nnoise_burst_ms = 0", "sim.faults.noise_burst_ms", "0"),
     // [model]
     ("[model]\ncompensation_table = [{ range_m = 1.0, gain_db = 0.0 }, { range_m = 2.0, gain_db = 1.0 }]", "model.compensation_table", "is only used with model.compensation = \"table\""),
     ("[model]\ncompensation = \"table\"", "model.compensation_table", "is required with model.compensation = \"table\""),

@@ -38,6 +38,8 @@ stall_after_messages = 5
 stall_ms = 6
 no_keepalive = true
 oversized_at_message = 7
+noise_burst_after_ms = 8
+noise_burst_ms = 9
 [model]
 spreading = "textbook"
 compensation = "table"

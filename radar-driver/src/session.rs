@@ -43,6 +43,13 @@ use crate::record::Recorder;
 use crate::settings::DriverSettings;
 use crate::shutdown::Shutdown;
 
+/// How long a whole frame the decoder holds back (its last bytes could begin the next
+/// frame's signature) waits for more bytes before it is taken as it is. A streaming radar
+/// sends its next frame within a millisecond; one that has stopped to wait for the client
+/// (its configuration, before the start message) would otherwise wait for the watchdog.
+/// The simulator waits as long for a client's held command.
+pub const HELD_FRAME_WAIT: Duration = Duration::from_millis(50);
+
 impl From<&DecodeError> for DecodeErrorKind {
     fn from(e: &DecodeError) -> Self {
         match e {
@@ -205,14 +212,27 @@ impl SessionState {
         // without ever completing a frame is as dead as a silent one.
         let expiry = tokio::time::sleep(watchdog);
         tokio::pin!(expiry);
+        // The read time of the bytes that completed a held frame (see below).
+        let mut last_read_ns = self.clock.monotonic_ns();
         loop {
             buf.reserve(chunk);
             let before = buf.len();
+            // A whole frame whose last bytes could begin the next frame's signature is held
+            // by the decoder until more bytes tell a cut frame from a whole one; a radar
+            // that sends it and then waits (its configuration, before the start message;
+            // its last azimuth before a pause) would have it held until the watchdog ends
+            // the session. After HELD_FRAME_WAIT without a byte it is taken as it is.
+            let holding = decoder.holds_whole_frame(&buf);
+            let mut take_held = false;
             let read = tokio::select! {
                 biased;
                 () = shutdown.triggered() => return Ok(SessionEnd::Shutdown),
                 () = &mut expiry => None,
                 r = stream.read_buf(&mut buf) => Some(r),
+                () = tokio::time::sleep(HELD_FRAME_WAIT), if holding => {
+                    take_held = true;
+                    Some(Ok(0))
+                }
             };
             let read = match read {
                 // The deadline has passed (and stays passed until a frame decodes): judge the
@@ -241,17 +261,28 @@ impl SessionState {
                     return Err(SessionError::Watchdog(watchdog));
                 }
                 Some(Err(e)) => return Err(SessionError::Read(e)),
-                Some(Ok(0)) => return Err(SessionError::Closed),
+                Some(Ok(0)) if !take_held => return Err(SessionError::Closed),
                 Some(Ok(n)) => n,
             };
-            let read_ns = self.clock.monotonic_ns();
+            // A held frame keeps the time its last bytes were read.
+            let read_ns = if take_held {
+                last_read_ns
+            } else {
+                self.clock.monotonic_ns()
+            };
+            last_read_ns = read_ns;
             self.metrics.add_bytes(n as u64);
             if self.recorder.is_some() {
                 record_pending.extend_from_slice(buf.get(before..).unwrap_or_default());
             }
             let mut frames_this_read = false;
             loop {
-                match decoder.decode(&mut buf) {
+                let decoded = if std::mem::take(&mut take_held) {
+                    decoder.decode_eof(&mut buf)
+                } else {
+                    decoder.decode(&mut buf)
+                };
+                match decoded {
                     Ok(None) => break,
                     Ok(Some(message)) => {
                         errors_in_a_row = 0;

@@ -14,6 +14,7 @@
 //! | `stall = (N, d)` | after message N nothing at all (no keep-alive either) is sent for `d`, once per connection |
 //! | `no_keepalive` | keep-alives are never sent |
 //! | `oversized_at_message = N` | message N's header announces a payload of [`OVERSIZED_PAYLOAD`] bytes (the real payload follows), so a decoder must reject the length before reserving memory and resynchronise |
+//! | `noise_burst = (a, d)` | from `a` into the stream for `d` (on the azimuths' own timestamps, from the connection's first azimuth), every bin of every azimuth is random: a swamped receiver. Frames stay valid |
 //!
 //! [`FaultScope`] limits the faults to the first connections, so a client that reconnects
 //! after a dropped connection then sees a clean stream.
@@ -21,7 +22,9 @@
 use std::num::NonZeroU64;
 use std::time::Duration;
 
-use protocol::{HEADER_LEN, SIGNATURE};
+use protocol::{message_id, HEADER_LEN, SIGNATURE};
+use rand::{RngCore, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
 /// A stall: after `after_messages` messages, send nothing for `duration`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -29,6 +32,15 @@ pub struct Stall {
     /// Messages sent before the stall.
     pub after_messages: NonZeroU64,
     /// How long nothing is sent.
+    pub duration: Duration,
+}
+
+/// A noise burst: `after` into the stream, for `duration`, every bin random.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct NoiseBurst {
+    /// Stream time before the burst, from the connection's first azimuth.
+    pub after: Duration,
+    /// How long it lasts, in stream time.
     pub duration: Duration,
 }
 
@@ -49,6 +61,8 @@ pub struct FaultSettings {
     pub no_keepalive: bool,
     /// Announce an oversized payload in this message (1-based).
     pub oversized_at_message: Option<NonZeroU64>,
+    /// Every bin random for a while.
+    pub noise_burst: Option<NoiseBurst>,
 }
 
 impl FaultSettings {
@@ -73,6 +87,10 @@ impl From<&config::FaultSettings> for FaultSettings {
             }),
             no_keepalive: c.no_keepalive,
             oversized_at_message: c.oversized_at_message,
+            noise_burst: c.noise_burst.map(|b| NoiseBurst {
+                after: b.after,
+                duration: b.duration,
+            }),
         }
     }
 }
@@ -129,6 +147,11 @@ pub struct FaultInjector {
     messages_sent: u64,
     azimuths_seen: u64,
     stalled: bool,
+    /// The stream time of the connection's first azimuth, seconds.
+    first_azimuth_s: Option<f64>,
+    /// Azimuths whose bins the noise burst replaced.
+    noised: u64,
+    rng: ChaCha8Rng,
 }
 
 impl FaultInjector {
@@ -140,6 +163,9 @@ impl FaultInjector {
             messages_sent: 0,
             azimuths_seen: 0,
             stalled: false,
+            first_azimuth_s: None,
+            noised: 0,
+            rng: ChaCha8Rng::seed_from_u64(0x5eed),
         }
     }
 
@@ -164,6 +190,54 @@ impl FaultInjector {
         match self.settings.skip_azimuth_every_n {
             Some(n) if self.active => self.azimuths_seen.is_multiple_of(n.get()),
             _ => false,
+        }
+    }
+
+    /// Azimuths whose bins the noise burst replaced on this connection.
+    pub fn noised_azimuths(&self) -> u64 {
+        self.noised
+    }
+
+    /// Called with each whole FFT frame before the client's shaping (a contour cuts the
+    /// noise as it would the signal): during the noise burst its bins are replaced by
+    /// random bytes. Other frames, and every frame outside the burst, are left as they are.
+    pub fn noise_burst(&mut self, frame: &mut [u8]) {
+        let Some(burst) = self.settings.noise_burst.filter(|_| self.active) else {
+            return;
+        };
+        let fft = matches!(
+            frame.get(17),
+            Some(&message_id::FFT_DATA | &message_id::HIGH_PRECISION_FFT_DATA)
+        );
+        let field = |at: usize| -> Option<[u8; 4]> { frame.get(at..at + 4)?.try_into().ok() };
+        let (Some(seconds), Some(nanos), Some(offset)) = (
+            field(HEADER_LEN + 6),
+            field(HEADER_LEN + 10),
+            frame.get(HEADER_LEN..HEADER_LEN + 2),
+        ) else {
+            return;
+        };
+        if !fft {
+            return;
+        }
+        let offset = usize::from(u16::from_be_bytes([offset[0], offset[1]]));
+        let t =
+            f64::from(u32::from_le_bytes(seconds)) + f64::from(u32::from_le_bytes(nanos)) * 1e-9;
+        let into = t - *self.first_azimuth_s.get_or_insert(t);
+        let start = burst.after.as_secs_f64();
+        if into < start || into >= start + burst.duration.as_secs_f64() {
+            return;
+        }
+        if let Some(bins) = frame.get_mut(HEADER_LEN + offset..) {
+            if self.noised == 0 {
+                tracing::info!(
+                    after_s = start,
+                    lasts_s = burst.duration.as_secs_f64(),
+                    "fault: noise burst, every bin random"
+                );
+            }
+            self.rng.fill_bytes(bins);
+            self.noised += 1;
         }
     }
 
@@ -305,6 +379,57 @@ mod tests {
                 .count(),
             1
         );
+    }
+
+    #[test]
+    fn the_noise_burst_replaces_the_bins_of_the_azimuths_inside_it_only() {
+        let settings = FaultSettings {
+            noise_burst: Some(NoiseBurst {
+                after: Duration::from_millis(1000),
+                duration: Duration::from_millis(500),
+            }),
+            ..FaultSettings::default()
+        };
+        let mut inj = FaultInjector::new(&settings, true);
+        let bins = [3u8; 200];
+        let t0_ns = 1_700_000_000_900_000_000u64;
+        let mut noised = Vec::new();
+        // Azimuths every 100 ms from t0.
+        for k in 0..30u64 {
+            let ns = t0_ns + k * 100_000_000;
+            let stamp =
+                protocol::Timestamp::new((ns / 1_000_000_000) as u32, (ns % 1_000_000_000) as u32)
+                    .expect("stamp");
+            let mut f = bytes::BytesMut::new();
+            protocol::encode_fft_frame(
+                &mut f,
+                protocol::BinWidth::Eight,
+                k as u16,
+                0,
+                stamp,
+                &bins,
+            )
+            .expect("frame");
+            let header = f[..HEADER_LEN + 14].to_vec();
+            inj.noise_burst(&mut f);
+            assert_eq!(
+                f[..HEADER_LEN + 14],
+                header[..],
+                "azimuth {k}: the header is kept"
+            );
+            if f[HEADER_LEN + 14..] != bins[..] {
+                noised.push(k);
+            }
+        }
+        // 1.0 s to 1.5 s after the first azimuth: azimuths 10 to 14.
+        assert_eq!(noised, vec![10, 11, 12, 13, 14]);
+        assert_eq!(inj.noised_azimuths(), 5);
+        // A clean connection, and a frame that is not FFT data, are left alone.
+        let mut clean = FaultInjector::new(&settings, false);
+        let mut keepalive = frame();
+        clean.noise_burst(&mut keepalive);
+        inj.noise_burst(&mut keepalive);
+        assert_eq!(keepalive, frame());
     }
 
     #[test]

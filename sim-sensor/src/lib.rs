@@ -40,6 +40,6 @@ pub mod truth;
 pub mod visits;
 
 pub use error::{ClientError, ReplayError, SceneError, SimError};
-pub use faults::{FaultScope, FaultSettings, Stall};
+pub use faults::{FaultScope, FaultSettings, NoiseBurst, Stall};
 pub use server::{SimHandle, SimServer, SimStats, SimStatsSnapshot};
 pub use settings::{OdometryNoise, Pacing, ShapingScope, SimOptions, SourceSpec};

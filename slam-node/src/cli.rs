@@ -78,6 +78,10 @@ pub struct Args {
     /// nav_msgs/Odometry; the yaw rate becomes the motion model's steering input).
     #[arg(long, requires = "replay_mcap", default_value = "/odom/twist")]
     mcap_odometry_topic: String,
+    /// With --replay-mcap: the largest uncompressed size a chunk may claim, MiB (the daemon
+    /// writes a rotation per chunk, rosbag2 768 KiB); a larger claim ends the replay there.
+    #[arg(long, requires = "replay_mcap", default_value_t = 64, value_parser = clap::value_parser!(u64).range(1..=4096))]
+    mcap_max_chunk_mib: u64,
     #[cfg(feature = "sim")]
     /// With the embedded simulator, model the receiver by [model] compensation (60 dB per
     /// decade by default, as the paper did) instead of the scene's (40): shows the paper's
@@ -244,6 +248,7 @@ pub fn options(args: &Args) -> anyhow::Result<DaemonOptions> {
             .map(|path| slam_node::daemon::McapSource {
                 path,
                 odometry_topic: Some(args.mcap_odometry_topic.clone()),
+                max_chunk_bytes: Some(args.mcap_max_chunk_mib << 20),
             }),
         #[cfg(feature = "sim")]
         keep_configured_compensation: args.configured_compensation,

@@ -9,11 +9,14 @@ use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::Path;
 
-use slam_node::source::mcap::{read_records, McapFileError, RecordsEnd};
+use slam_node::source::mcap::{read_records, ChunkError, ChunkLimits, McapFileError, RecordsEnd};
 
 const MAGIC: &[u8] = b"\x89MCAP0\r\n";
-/// The replay's record limit (256 MiB).
-const LIMIT: usize = 256 << 20;
+/// The replay's limits (records 256 MiB, chunks 64 MiB uncompressed).
+const LIMIT: ChunkLimits = ChunkLimits {
+    max_uncompressed: 64 << 20,
+    max_record: 256 << 20,
+};
 /// The size of the crafted file.
 const FILE_BYTES: usize = 191 * 1024;
 /// What reading any of these files may allocate at its peak: the file's size and change.
@@ -175,4 +178,119 @@ fn a_well_formed_file_is_read_to_its_end() {
         ControlFlow::Continue(())
     });
     assert!(end.is_err(), "{end:?}");
+}
+
+/// A file of `chunk_records` in one zstd chunk whose header claims `claimed` uncompressed
+/// bytes, then a data end record, a footer and the end magic.
+fn zstd_chunk_file(chunk_records: &[u8], claimed: u64) -> (Vec<u8>, u64) {
+    let packed = zstd::bulk::compress(chunk_records, 19).expect("compress");
+    let mut buf = start();
+    let chunk_at = buf.len() as u64;
+    let mut chunk = Vec::new();
+    chunk.extend([0u8; 16]); // message times
+    chunk.extend(claimed.to_le_bytes());
+    chunk.extend(0u32.to_le_bytes()); // no CRC
+    chunk.extend(4u32.to_le_bytes());
+    chunk.extend(b"zstd");
+    chunk.extend((packed.len() as u64).to_le_bytes());
+    chunk.extend(&packed);
+    buf.push(0x06);
+    buf.extend((chunk.len() as u64).to_le_bytes());
+    buf.extend(chunk);
+    buf.push(0x0F); // data end
+    buf.extend(4u64.to_le_bytes());
+    buf.extend(0u32.to_le_bytes());
+    buf.push(0x02); // footer
+    buf.extend(20u64.to_le_bytes());
+    buf.extend([0u8; 20]);
+    buf.extend(MAGIC);
+    (buf, chunk_at)
+}
+
+/// An opcode and a length claimed, with `body` after it (shorter than claimed or not).
+fn record_claiming(opcode: u8, len: u64, body: &[u8]) -> Vec<u8> {
+    let mut r = vec![opcode];
+    r.extend(len.to_le_bytes());
+    r.extend(body);
+    r
+}
+
+/// A compressed chunk of a few dozen bytes whose header claims 200 MiB, its one record
+/// claiming as much: the `mcap` crate's reader sized its buffer by the record's claim and
+/// allocated (and zeroed) 200 MiB before finding the data short. Refused now because zstd
+/// cannot expand those bytes 200 MiB (at most 32,768-fold), before anything is allocated.
+#[test]
+fn a_small_compressed_chunk_claiming_200_mib_is_refused_without_allocating_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let claim = 200u64 << 20;
+    let (bytes, chunk_at) = zstd_chunk_file(&record_claiming(0x05, claim - 9, &[1; 64]), claim);
+    assert!(bytes.len() < 300, "{} bytes", bytes.len());
+    let path = write(dir.path(), "claim.mcap", &bytes);
+    let (result, peak) = read_counted(&path);
+    assert!(peak < 1 << 20, "peak allocation {peak} bytes");
+    let err = result.unwrap_err();
+    let text = radar_driver::ErrorChain(&err).to_string();
+    assert!(
+        text.contains(&format!("chunk record at byte {chunk_at}"))
+            && text.contains("more than zstd can expand to"),
+        "{text}"
+    );
+}
+
+/// A chunk whose claimed size its bytes could expand to, whose one record claims 200 MiB
+/// inside a chunk of 1,000: the old reader allocated the record's claim; now the record is
+/// refused against the chunk's decompressed bytes.
+#[test]
+fn a_record_claiming_more_than_its_chunk_holds_is_refused_without_allocating_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let records = record_claiming(0x05, 200 << 20, &[0; 991]);
+    let (bytes, chunk_at) = zstd_chunk_file(&records, records.len() as u64);
+    let path = write(dir.path(), "record.mcap", &bytes);
+    let (result, peak) = read_counted(&path);
+    assert!(peak < 1 << 20, "peak allocation {peak} bytes");
+    assert!(
+        matches!(
+            result,
+            Err(McapFileError::Chunk { offset, source: ChunkError::Record { at: 0, .. } })
+                if offset == chunk_at
+        ),
+        "{result:?}"
+    );
+}
+
+/// 200 MiB of zeros really compresses to a few KB (inside zstd's ratio): the cap refuses
+/// it before decompressing; a cap above it reads it, growing the output as it comes.
+#[test]
+fn a_chunk_over_the_cap_is_refused_before_decompressing() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let zeros = vec![0u8; 200 << 20];
+    let (bytes, _) = zstd_chunk_file(&zeros, zeros.len() as u64);
+    drop(zeros);
+    assert!(bytes.len() < 10_000, "{} bytes", bytes.len());
+    let path = write(dir.path(), "zeros.mcap", &bytes);
+    let (result, peak) = read_counted(&path);
+    assert!(peak < 1 << 20, "peak allocation {peak} bytes");
+    assert!(
+        matches!(
+            result,
+            Err(McapFileError::Chunk {
+                source: ChunkError::OverCap { .. },
+                ..
+            })
+        ),
+        "{result:?}"
+    );
+    // Under a cap of 256 MiB it is read (records of opcode 0 and length 0), and a reader
+    // that stops at the first record stops there.
+    let limits = ChunkLimits {
+        max_uncompressed: 256 << 20,
+        ..LIMIT
+    };
+    let mut seen = 0u64;
+    let end = read_records(std::fs::File::open(&path).expect("open"), limits, |_, _| {
+        seen += 1;
+        ControlFlow::Break(())
+    })
+    .expect("read");
+    assert_eq!((end, seen), (RecordsEnd::Stopped, 1));
 }

@@ -408,6 +408,13 @@ fn a_chunk_whose_size_disagrees_with_its_data_ends_the_replay_and_says_why() {
             "{}: the bad chunk is reported: {counts:?}",
             file.display()
         );
+        // It names the file and the chunk's offset in it.
+        let error = counts.file_error.clone().unwrap_or_default();
+        assert!(
+            error.contains(&file.display().to_string())
+                && error.contains("the chunk record at byte"),
+            "{error}"
+        );
         assert!(counts.rotations < ROTATIONS, "{counts:?}");
     }
 }

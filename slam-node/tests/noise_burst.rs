@@ -3,7 +3,9 @@
 //! filter's burst guard learned the burst as its norm within about 3 s; then the noise
 //! started features until the map was full (1000), re-observed the reflectors from inside
 //! their gates and missed them until they were retired, and the parked vehicle's heading
-//! ended 38 degrees off for the rest of the run, the map re-made around it.
+//! ended 38 degrees off for the rest of the run, the map re-made around it. The second
+//! test makes the same burst with the simulator's fault injection and runs it through the
+//! whole daemon over loopback.
 
 mod support;
 
@@ -80,5 +82,123 @@ fn six_seconds_of_noise_leave_the_map_and_the_parked_vehicle_as_they_were() {
         features.len() <= 6,
         "{} features for 4 reflectors",
         features.len()
+    );
+}
+
+/// The same burst from the simulator's fault injection (`[sim.faults] noise_burst_after_ms`,
+/// `noise_burst_ms`) through the whole daemon: the embedded simulator on 127.0.0.1:0, the
+/// radar driver reading it over loopback, its odometry port, the pipeline. The simulator
+/// has the fault (before, `--embedded-sim` could not show this case at all); the daemon
+/// keeps the four reflectors, maps no phantoms and keeps the parked vehicle's heading.
+#[test]
+fn the_simulators_noise_burst_over_loopback_leaves_the_daemons_map_and_heading() {
+    use std::sync::atomic::AtomicBool;
+    use std::sync::{Arc, Mutex};
+    use std::time::Duration;
+
+    let mut scene = support::empty_scene(
+        "four-reflectors",
+        sim_sensor::radar::RadarPreset::Paper200,
+        5,
+    );
+    for (x, y) in support::REFLECTORS {
+        support::add_point(&mut scene, x, y, 0.5, 0.3);
+    }
+    let mut sim = sim_sensor::SimOptions::for_tests(scene);
+    sim.start_time_ns = Some(T0_NS);
+    sim.faults.noise_burst = Some(sim_sensor::faults::NoiseBurst {
+        after: Duration::from_secs_f64(BURST.0),
+        duration: Duration::from_secs_f64(BURST.1 - BURST.0),
+    });
+    let dir = tempfile::tempdir().expect("temporary folder");
+    // (stream time after the start, heading in degrees, features, feature positions)
+    type Track = Vec<(f64, f64, usize, Vec<(f64, f64)>)>;
+    let track: Arc<Mutex<Track>> = Arc::default();
+    let callback = {
+        let track = Arc::clone(&track);
+        Box::new(
+            move |s: &slam_node::pipeline::PipelineSummary,
+                  ekf: &slam_node::pipeline::DaemonEkf| {
+                let t = s.last_time_s.map_or(0.0, |t| t - T0_NS as f64 * 1e-9);
+                let at = ekf.features().iter().map(|f| (f.x_m, f.y_m)).collect();
+                track.lock().expect("track").push((
+                    t,
+                    ekf.pose().theta.to_degrees(),
+                    ekf.feature_count(),
+                    at,
+                ));
+            },
+        ) as slam_node::pipeline::run::ProgressFn
+    };
+    let opts = slam_node::daemon::DaemonOptions {
+        config: config::Config::default(),
+        simulator: Some(slam_node::daemon::Simulator {
+            sim: slam_node::daemon::EmbeddedSim::new(sim),
+            recorded: None,
+        }),
+        mcap: None,
+        max_stream_s: Some(20.0),
+        out_dir: dir.path().to_path_buf(),
+        figures: false,
+        progress_every_rotations: 0,
+        stop: Arc::new(AtomicBool::new(false)),
+        keep_configured_compensation: false,
+        spectrum_bearings_deg: Vec::new(),
+        detector: Some(slam_node::detect::DetectorSettings::default()),
+        written: None,
+    };
+    let runtime = tokio::runtime::Runtime::new().expect("runtime");
+    let report = runtime
+        .block_on(async {
+            tokio::time::timeout(
+                Duration::from_secs(120),
+                slam_node::daemon::run_daemon(opts, Some(callback)),
+            )
+            .await
+        })
+        .expect("the daemon ends within 120 s")
+        .expect("the daemon ran");
+    let summary = &report.run.summary;
+    // The burst reached the pipeline (400 azimuths of 6 s at 500 a second are far more).
+    assert!(summary.burst_beams > 1000, "{}", summary.burst_beams);
+    let track = track.lock().expect("track").clone();
+    let in_burst = |t: f64| t > BURST.0 + 1.0 && t < BURST.1;
+    assert!(
+        track.iter().any(|r| in_burst(r.0)) && track.last().is_some_and(|r| r.0 > BURST.1 + 5.0),
+        "rotations during and after the burst: {:?}",
+        track.iter().map(|r| r.0).collect::<Vec<_>>()
+    );
+    let most = track.iter().map(|r| r.2).max().unwrap_or(0);
+    assert!(
+        most <= 8,
+        "the map grew to {most} features for 4 reflectors"
+    );
+    let fewest_in_burst = track.iter().filter(|r| in_burst(r.0)).map(|r| r.2).min();
+    assert!(
+        fewest_in_burst.is_some_and(|n| n >= 3),
+        "{fewest_in_burst:?} features left in the burst"
+    );
+    let worst_heading = track
+        .iter()
+        .filter(|r| r.0 > BURST.0)
+        .map(|r| r.1.abs())
+        .fold(0.0, f64::max);
+    assert!(
+        worst_heading < 2.0,
+        "heading off by up to {worst_heading:.2} degrees"
+    );
+    let last = &track.last().expect("rotations").3;
+    let mapped = support::REFLECTORS
+        .iter()
+        .filter(|&&(x, y)| last.iter().any(|f| (f.0 - x).hypot(f.1 - y) < 1.0))
+        .count();
+    assert!(
+        mapped >= 3 && last.len() <= 6,
+        "{mapped} reflectors mapped of {last:?}"
+    );
+    println!(
+        "burst beams {}; features at most {most}, in the burst at least {fewest_in_burst:?}; heading within {worst_heading:.2} degrees; {} features at the end",
+        summary.burst_beams,
+        last.len()
     );
 }

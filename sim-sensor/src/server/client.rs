@@ -278,6 +278,7 @@ impl Writer {
                         self.stats.azimuths_skipped.fetch_add(1, Ordering::Relaxed);
                         continue;
                     }
+                    self.injector.noise_burst(&mut azimuth[..]);
                     shaping.with(|s| s.apply(&mut azimuth, encoder_size, contoured));
                     std::mem::swap(&mut self.frame, &mut azimuth);
                     let flow = self.write_frame().await?;

@@ -388,6 +388,7 @@ pub fn run_mcap_replay(
     opts.mcap = Some(McapSource {
         path,
         odometry_topic,
+        max_chunk_bytes: None,
     });
     opts.simulator = None;
     let runtime = tokio::runtime::Builder::new_current_thread()

@@ -134,6 +134,8 @@ pub struct McapSource {
     pub path: PathBuf,
     /// The odometry topic; `None`: the daemon's own (`/odom/twist`).
     pub odometry_topic: Option<String>,
+    /// The largest uncompressed size a chunk may claim, bytes; `None`: 64 MiB.
+    pub max_chunk_bytes: Option<u64>,
 }
 
 /// The simulator in this process, with recorded scans to replay or its scene; a build

@@ -6,7 +6,8 @@
 //!
 //! A reader thread streams the file through the `mcap` crate's sans-IO linear reader
 //! ([`records`]: records bounded to 256 MiB and to what the file holds, the file never held
-//! whole) and hands azimuths to the pipeline on a
+//! whole; [`chunk`]: a compressed chunk's claimed size bounded by what its bytes can expand
+//! to and by a cap, 64 MiB unless `--mcap-max-chunk-mib` says otherwise) and hands azimuths to the pipeline on a
 //! bounded channel (back-pressure: nothing is dropped) and odometry on another. A rotation is
 //! handed over once the odometry has reached its last azimuth (or 256 MB of bins later), so the
 //! pipeline meets the same odometry, in the same order, as the run that made the recording:
@@ -40,7 +41,9 @@ use tracing::warn;
 
 use crate::output::ros::OdometryMessage;
 
+mod chunk;
 mod records;
+pub use chunk::{ChunkError, ChunkLimits, DEFAULT_MAX_CHUNK_BYTES, ZSTD_MAX_RATIO};
 pub use records::{read_records, McapFileError, RecordsEnd};
 
 /// The longest record read (a B-scan of a CTS350-X is 1.5 MB).
@@ -60,6 +63,8 @@ pub struct McapReplaySettings {
     pub motion: MotionModel,
     /// Azimuths in flight to the pipeline.
     pub azimuth_capacity: usize,
+    /// The largest uncompressed size a chunk may claim, bytes.
+    pub max_chunk_bytes: u64,
 }
 
 impl McapReplaySettings {
@@ -70,6 +75,7 @@ impl McapReplaySettings {
             odometry_topic: crate::output::recording::TOPIC_ODOMETRY_INPUT.to_string(),
             motion,
             azimuth_capacity: 4096,
+            max_chunk_bytes: DEFAULT_MAX_CHUNK_BYTES,
         }
     }
 }
@@ -178,6 +184,9 @@ pub fn open(
     let mut settings = McapReplaySettings::new(source.path.clone(), motion);
     if let Some(topic) = &source.odometry_topic {
         settings.odometry_topic = topic.clone();
+    }
+    if let Some(cap) = source.max_chunk_bytes {
+        settings.max_chunk_bytes = cap;
     }
     let (azimuths, odometry, reader) = start(settings)?;
     Ok(super::Inputs {
@@ -319,7 +328,11 @@ impl Reader {
     }
 
     fn run(&mut self, file: File) {
-        let read = records::read_records(file, MAX_RECORD_BYTES, |opcode, data| {
+        let limits = ChunkLimits {
+            max_uncompressed: self.settings.max_chunk_bytes,
+            max_record: MAX_RECORD_BYTES as u64,
+        };
+        let read = records::read_records(file, limits, |opcode, data| {
             if self.closed {
                 return ControlFlow::Break(());
             }
@@ -333,7 +346,11 @@ impl Reader {
             ControlFlow::Continue(())
         });
         if let Err(e) = read {
-            let e = radar_driver::ErrorChain(&e).to_string();
+            let e = format!(
+                "{}: {}",
+                self.settings.path.display(),
+                radar_driver::ErrorChain(&e)
+            );
             warn!(error = %e, "the MCAP file ends early or is corrupt: replaying what came before");
             self.counts.file_error = Some(e);
         }

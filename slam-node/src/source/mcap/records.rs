@@ -7,15 +7,18 @@
 //! compression-string length, that claims more than the file holds would cost that much
 //! memory (issue 38, item 8: a 191 KB file took 1.6 GB). Here a request for more bytes than
 //! are left in the file is refused with [`McapFileError::ClaimBeyondFile`] before anything
-//! is allocated, so what the reader buffers from the file is at most the file's size. A
-//! compressed chunk's decompressed records can legitimately be larger than their bytes in
-//! the file; they stay bounded by the record-length limit (`MAX_RECORD_BYTES`).
+//! is allocated, so what the reader buffers from the file is at most the file's size.
+//! Chunks come out of the reader whole and are opened by [`super::chunk`], which bounds a
+//! compressed chunk's claimed uncompressed size by what its bytes can expand to and by an
+//! absolute cap before decompressing.
 
 use std::fs::File;
 use std::io::Read;
 use std::ops::ControlFlow;
 
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+
+use super::chunk::{read_chunk, ChunkLimits};
 
 /// Why reading the file's records stopped before its end.
 #[derive(Debug, thiserror::Error)]
@@ -41,6 +44,16 @@ pub enum McapFileError {
     /// record over the length limit, a decompression failure).
     #[error(transparent)]
     Mcap(#[from] mcap::McapError),
+    /// A chunk was refused: its claimed size is more than its bytes can expand to or over
+    /// the cap, or its data disagrees with its header.
+    #[error("the chunk record at byte {offset}: {source}")]
+    Chunk {
+        /// The chunk record's offset in the file (its opcode).
+        offset: u64,
+        /// Why.
+        #[source]
+        source: super::chunk::ChunkError,
+    },
     /// The file ended, between records, before its footer.
     #[error("the file ends before its footer (cut short)")]
     NoFooter,
@@ -56,18 +69,22 @@ pub enum RecordsEnd {
 }
 
 /// Streams `file`'s records (opcode and body) to `on_record` in file order, records inside
-/// chunks included, until the end of the file, an error in it, or `on_record` breaks.
-/// `record_length_limit` bounds any one record, compressed chunks' decompressed records too.
+/// chunks included (not the chunk records themselves), until the end of the file, an error
+/// in it, or `on_record` breaks. `limits.max_record` bounds any one record, compressed
+/// chunks' decompressed records too; `limits.max_uncompressed` a chunk's uncompressed size.
 pub fn read_records(
     mut file: File,
-    record_length_limit: usize,
+    limits: ChunkLimits,
     mut on_record: impl FnMut(u8, &[u8]) -> ControlFlow<()>,
 ) -> Result<RecordsEnd, McapFileError> {
+    let record_length_limit = usize::try_from(limits.max_record).unwrap_or(usize::MAX);
     let size = file.metadata().map_err(McapFileError::Io)?.len();
     let mut offset = 0u64;
     let mut seen_footer = false;
     let mut reader = LinearReader::new_with_options(
-        LinearReaderOptions::default().with_record_length_limit(record_length_limit),
+        LinearReaderOptions::default()
+            .with_record_length_limit(record_length_limit)
+            .with_emit_chunks(true),
     );
     while let Some(event) = reader.next_event() {
         match event? {
@@ -89,6 +106,15 @@ pub fn read_records(
                 }
                 offset += read as u64;
                 reader.notify_read(read);
+            }
+            LinearReadEvent::Record { opcode, data } if opcode == mcap::records::op::CHUNK => {
+                // The reader asks for exactly what a record needs: the chunk record ends at
+                // `offset`.
+                let start = offset.saturating_sub(9 + data.len() as u64);
+                let flow = read_chunk(data, limits, &mut on_record).map_err(|e| e.at(start))?;
+                if flow.is_break() {
+                    return Ok(RecordsEnd::Stopped);
+                }
             }
             LinearReadEvent::Record { opcode, data } => {
                 seen_footer |= opcode == mcap::records::op::FOOTER;
