@@ -403,7 +403,7 @@ async fn serve_odometry<G: LineStream>(
             }
         }
         line.clear();
-        generator.write_line(j, &trajectory, t_ns, &mut line);
+        generator.write_line(j, trajectory, t_ns, &mut line);
         if !write_bounded(&mut socket, line.as_bytes(), write_timeout, &cancel).await? {
             return Ok(());
         }

@@ -104,10 +104,6 @@ fn drive(with_gyro: bool) -> (f64, f64, Option<slam_node::pipeline::gyro::GyroSu
         }
     }
     let summary = pipeline.finish(&mut events);
-    eprintln!(
-        "rotations {} scan match {:?}",
-        summary.rotations, summary.scan_match
-    );
     assert!(n > 20, "{n} rotations scored");
     let n = f64::from(n);
     ((sq_pos / n).sqrt(), (sq_heading / n).sqrt(), summary.gyro)
@@ -124,8 +120,9 @@ fn a_gyro_foresees_a_swerve_that_radar_odometry_alone_lags() {
     let gyro = gyro.expect("gyro figures");
     assert!(gyro.counts.applied > 1000, "{gyro:?}");
     assert_eq!(gyro.counts.refused, 0);
+    // Measured: 0.504 m and 0.0140 rad alone, 0.415 m and 0.0079 rad with the gyro.
     assert!(
-        heading_gyro < heading_alone && pos_gyro < pos_alone,
+        heading_gyro < 0.75 * heading_alone && pos_gyro < pos_alone,
         "with the gyro {pos_gyro} m {heading_gyro} rad, without {pos_alone} m {heading_alone} rad"
     );
 }
