@@ -17,7 +17,8 @@
 //! binaries run on shipped settings with no file on disk. `examples/sim.toml` writes out
 //! every key with its default and is the reference for what each one means.
 //!
-//! Section by section: [`radar`] (the driver's link), [`odometry`], [`sim`] and
+//! Section by section: [`radar`] (the driver's link), [`odometry`], [`gyro`] (and
+//! `[sim.gyro]`), [`sim`] and
 //! [`faults`] (the simulator), [`model`] (radar model constants), [`detector`], [`filter`]
 //! (the EKF), [`output`] (and [`live`], `[output.zenoh]`), [`submaps`], [`map`] (the saved map). Each module holds its `Raw*` struct (as written, documented
 //! defaults) and its validated `*Settings`, and can be validated alone
@@ -35,6 +36,7 @@ mod error;
 pub mod examples;
 pub mod faults;
 pub mod filter;
+pub mod gyro;
 pub mod live;
 pub mod map;
 pub mod model;
@@ -56,6 +58,7 @@ pub use detector::{DetectorSettings, RawDetector};
 pub use error::{ConfigError, FieldError, FieldErrors, Location};
 pub use faults::{FaultSettings, NoiseBurst, RawFaults};
 pub use filter::{FilterSettings, RawFilter};
+pub use gyro::{GyroSettings, RawGyro};
 pub use map::{MapMode, MapSettings, RawMap};
 pub use model::{ModelSettings, RawModel};
 pub use odometry::{OdometrySettings, RawOdometry};
@@ -84,6 +87,8 @@ pub struct RawConfig {
     pub radar: RawRadar,
     /// `[odometry]`.
     pub odometry: RawOdometry,
+    /// `[gyro]`.
+    pub gyro: RawGyro,
     /// `[sim]` (and `[sim.faults]`).
     pub sim: RawSim,
     /// `[model]`.
@@ -107,6 +112,8 @@ pub struct Config {
     pub radar: RadarSettings,
     /// Odometry source and motion model.
     pub odometry: OdometrySettings,
+    /// The gyro of radar-only driving.
+    pub gyro: GyroSettings,
     /// The simulator.
     pub sim: SimSettings,
     /// The radar model.
@@ -143,9 +150,13 @@ impl RawConfig {
     }
 
     fn check(&self, c: &mut Checker) -> Config {
+        let odometry = self.odometry.check(c);
+        let gyro = self.gyro.check(c);
+        gyro::check_with_odometry(&gyro, &odometry, c);
         Config {
             radar: self.radar.check(c),
-            odometry: self.odometry.check(c),
+            odometry,
+            gyro,
             sim: self.sim.check(c),
             model: self.model.check(c),
             detector: self.detector.check(c),
@@ -175,6 +186,7 @@ impl From<&Config> for RawConfig {
         Self {
             radar: RawRadar::from(&c.radar),
             odometry: RawOdometry::from(&c.odometry),
+            gyro: RawGyro::from(&c.gyro),
             sim: RawSim::from(&c.sim),
             model: RawModel::from(&c.model),
             detector: RawDetector::from(&c.detector),

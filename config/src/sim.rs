@@ -154,6 +154,8 @@ pub struct RawSim {
     pub ground_truth_path: Option<PathBuf>,
     /// `[sim.faults]`: fault injection for tests. Default: no faults.
     pub faults: RawFaults,
+    /// `[sim.gyro]`: the gyro served from the truth (`crate::gyro`).
+    pub gyro: crate::gyro::RawSimGyro,
 }
 
 impl Default for RawSim {
@@ -177,6 +179,7 @@ impl Default for RawSim {
             bias_steer_rad: 0.0,
             ground_truth_path: None,
             faults: RawFaults::default(),
+            gyro: crate::gyro::RawSimGyro::default(),
         }
     }
 }
@@ -220,6 +223,8 @@ pub struct SimSettings {
     pub ground_truth_path: Option<PathBuf>,
     /// Faults.
     pub faults: FaultSettings,
+    /// The simulated gyro.
+    pub gyro: crate::gyro::SimGyroSettings,
 }
 
 impl Default for SimSettings {
@@ -314,6 +319,7 @@ impl RawSim {
                 values::non_empty_path,
             ),
             faults: self.faults.check(c),
+            gyro: self.gyro.check(c),
         }
     }
 }
@@ -358,6 +364,7 @@ impl From<&SimSettings> for RawSim {
             bias_steer_rad: s.bias_steer_rad.get(),
             ground_truth_path: s.ground_truth_path.clone(),
             faults: RawFaults::from(&s.faults),
+            gyro: crate::gyro::RawSimGyro::from(&s.gyro),
         }
     }
 }

@@ -213,6 +213,18 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[detector]\npoint_min_snr_db = -3.0", "detector.point_min_snr_db", "got -3"),
     ("[radar]\nmodel = \"cts 350\"", "radar.model", "must be a radar model's name"),
     ("[radar]\nmodel = \"\"", "radar.model", "must not be empty"),
+    // the gyro of radar-only driving, and the simulator's
+    ("[gyro]\nsource = \"tcp\"", "gyro.source", "only used when the radar drives the filter"),
+    ("[gyro]\naddress = \"127.0.0.1:1\"", "gyro.address", "is only used with gyro.source = \"tcp\""),
+    ("[gyro]\npath = \"g.txt\"", "gyro.path", "is only used with gyro.source = \"file\""),
+    ("[gyro]\nnoise_density_rad_s_per_sqrt_hz = -1.0", "gyro.noise_density_rad_s_per_sqrt_hz", "got -1"),
+    ("[gyro]\nbias_std_rad_s = -1.0", "gyro.bias_std_rad_s", "got -1"),
+    ("[gyro]\nbias_walk_rad_s_per_sqrt_s = -1.0", "gyro.bias_walk_rad_s_per_sqrt_s", "got -1"),
+    ("[gyro]\nmax_yaw_rate_rad_s = 0.0", "gyro.max_yaw_rate_rad_s", "got 0"),
+    ("[sim.gyro]\nbind = \":6319\"", "sim.gyro.bind", "must be an address"),
+    ("[sim.gyro]\nrate_hz = 2000.0", "sim.gyro.rate_hz", "must be in (0, 1000], got 2000"),
+    ("[sim.gyro]\nnoise_density_rad_s_per_sqrt_hz = -1.0", "sim.gyro.noise_density_rad_s_per_sqrt_hz", "got -1"),
+    ("[sim.gyro]\nbias_rad_s = inf", "sim.gyro.bias_rad_s", "must be a finite number, got inf"),
 ];
 
 /// Keys whose every parseable value is valid (booleans and choices; a misspelt choice is a

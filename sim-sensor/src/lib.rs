@@ -25,6 +25,7 @@
 
 pub mod error;
 pub mod faults;
+pub mod gyro;
 pub mod index;
 pub mod odometry;
 pub mod radar;

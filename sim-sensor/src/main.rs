@@ -68,6 +68,12 @@ struct Args {
     /// Serve no odometry.
     #[arg(long)]
     no_odometry: bool,
+    /// Gyro port address (the yaw rate, `[sim.gyro]`; default 127.0.0.1:6319).
+    #[arg(long)]
+    gyro_bind: Option<SocketAddr>,
+    /// Serve no gyro.
+    #[arg(long)]
+    no_gyro: bool,
     /// Replay a recorded data set's polar PNG scans instead of a scene (Oxford, Boreas or
     /// RADIATE layout; a folder of Oxford scans alone works too).
     #[arg(long, conflicts_with_all = ["scene", "replay_raw"])]
@@ -172,6 +178,12 @@ fn build_options(args: &Args) -> Result<SimOptions> {
     }
     if args.no_odometry {
         options.odometry_bind = None;
+    }
+    if let Some(bind) = args.gyro_bind {
+        options.gyro_bind = Some(bind);
+    }
+    if args.no_gyro {
+        options.gyro_bind = None;
     }
     if args.ground_truth.is_some() {
         options.ground_truth_path.clone_from(&args.ground_truth);

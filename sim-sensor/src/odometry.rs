@@ -54,6 +54,7 @@ use tokio_util::sync::CancellationToken;
 use crate::error::SimError;
 use crate::server::world::World;
 use crate::settings::{OdometryNoise, Pacing};
+use crate::trajectory::Trajectory;
 
 /// The header line (without its newline).
 pub const HEADER: &str = "# odometry v1 timestamp_s speed_mps steer_rad";
@@ -92,6 +93,45 @@ impl OdometryRecord {
             self.speed_mps,
             self.steer_rad
         );
+    }
+}
+
+/// What a line port serves: its header and the line of record `j` (the odometry's, the
+/// gyro's, [`crate::gyro`]); the port's pacing, slots and replay are the same for both.
+pub trait LineStream: Clone + Send + Sync + 'static {
+    /// The port's name in the log.
+    const WHAT: &'static str;
+    /// The header line, without its newline.
+    fn header(&self) -> &'static str;
+    /// Time between records, nanoseconds.
+    fn period_ns(&self) -> u64;
+    /// Records in [`REPLAY_ON_CONNECT_S`].
+    fn replay_records(&self) -> u64;
+    /// Scene time of record `j`, nanoseconds after the start.
+    fn offset_ns(&self, j: u64) -> u64 {
+        j.saturating_mul(self.period_ns())
+    }
+    /// Appends record `j`'s line (with its newline), at scene time `t_ns` on `trajectory`.
+    fn write_line(&self, j: u64, trajectory: &Trajectory, t_ns: u64, out: &mut String);
+}
+
+impl LineStream for OdometryGenerator {
+    const WHAT: &'static str = "odometry";
+
+    fn header(&self) -> &'static str {
+        HEADER
+    }
+
+    fn period_ns(&self) -> u64 {
+        self.period_ns
+    }
+
+    fn replay_records(&self) -> u64 {
+        OdometryGenerator::replay_records(self)
+    }
+
+    fn write_line(&self, j: u64, trajectory: &Trajectory, t_ns: u64, out: &mut String) {
+        self.record(j, trajectory.controls_at(t_ns)).write_line(out);
     }
 }
 
@@ -149,12 +189,12 @@ impl OdometryGenerator {
     }
 }
 
-/// The odometry port.
+/// A line port: the odometry's ([`OdometryGenerator`]) or the gyro's.
 #[derive(Debug)]
-pub(crate) struct OdometryServer {
+pub(crate) struct OdometryServer<G = OdometryGenerator> {
     listener: TcpListener,
     world: Arc<World>,
-    generator: OdometryGenerator,
+    generator: G,
     /// The first record not yet written to any client (as fast as possible a client starts
     /// [`REPLAY_ON_CONNECT_S`] before it).
     unsent: Arc<AtomicU64>,
@@ -169,15 +209,27 @@ impl OdometryServer {
         noise: OdometryNoise,
         write_timeout: Duration,
     ) -> Result<Self, SimError> {
+        let seed = world.scene().map_or(0, |s| s.seed());
+        let generator = OdometryGenerator::new(noise, seed, world.start_unix_ns);
+        OdometryServer::bind_with(addr, world, generator, write_timeout).await
+    }
+}
+
+impl<G: LineStream + std::fmt::Debug> OdometryServer<G> {
+    /// A port serving `generator`'s lines.
+    pub(crate) async fn bind_with(
+        addr: SocketAddr,
+        world: Arc<World>,
+        generator: G,
+        write_timeout: Duration,
+    ) -> Result<Self, SimError> {
         let listener = TcpListener::bind(addr)
             .await
             .map_err(|source| SimError::Bind {
-                what: "odometry",
+                what: G::WHAT,
                 addr,
                 source,
             })?;
-        let seed = world.scene().map_or(0, |s| s.seed());
-        let generator = OdometryGenerator::new(noise, seed, world.start_unix_ns);
         Ok(Self {
             listener,
             world,
@@ -213,13 +265,13 @@ impl OdometryServer {
                     };
                     if served.len() >= MAX_ODOMETRY_CLIENTS {
                         if let Some((_, oldest, stop)) = served.pop_front() {
-                            tracing::warn!(%peer, closed = %oldest, max = MAX_ODOMETRY_CLIENTS, "odometry port full: closing its longest-connected client to serve a new one");
+                            tracing::warn!(%peer, closed = %oldest, max = MAX_ODOMETRY_CLIENTS, port = G::WHAT, "port full: closing its longest-connected client to serve a new one");
                             stop.cancel();
                         }
                     }
                     connections += 1;
                     let number = connections;
-                    tracing::info!(%peer, "odometry client connected");
+                    tracing::info!(%peer, port = G::WHAT, "client connected");
                     let stop = cancel.child_token();
                     served.push_back((number, peer, stop.clone()));
                     let (world, generator) = (Arc::clone(&self.world), self.generator.clone());
@@ -228,7 +280,7 @@ impl OdometryServer {
                     clients.spawn(async move {
                         let link = Link { world, generator, unsent, write_timeout, stop };
                         if let Err(error) = link.serve(socket).await {
-                            tracing::info!(%peer, %error, "odometry client gone");
+                            tracing::info!(%peer, %error, port = G::WHAT, "client gone");
                         }
                         number
                     });
@@ -241,15 +293,15 @@ impl OdometryServer {
 }
 
 /// One client's link.
-struct Link {
+struct Link<G> {
     world: Arc<World>,
-    generator: OdometryGenerator,
+    generator: G,
     unsent: Arc<AtomicU64>,
     write_timeout: Duration,
     stop: CancellationToken,
 }
 
-impl Link {
+impl<G: LineStream> Link<G> {
     async fn serve(self, socket: TcpStream) -> std::io::Result<()> {
         serve_odometry(
             socket,
@@ -283,10 +335,10 @@ async fn write_bounded(
     }
 }
 
-async fn serve_odometry(
+async fn serve_odometry<G: LineStream>(
     mut socket: TcpStream,
     world: Arc<World>,
-    generator: OdometryGenerator,
+    generator: G,
     unsent: Arc<AtomicU64>,
     write_timeout: Duration,
     cancel: CancellationToken,
@@ -296,7 +348,7 @@ async fn serve_odometry(
     };
     let trajectory = scene.trajectory();
     let mut line = String::with_capacity(256);
-    line.push_str(HEADER);
+    line.push_str(generator.header());
     line.push('\n');
     if !write_bounded(&mut socket, line.as_bytes(), write_timeout, &cancel).await? {
         return Ok(());
@@ -350,9 +402,8 @@ async fn serve_odometry(
                 }
             }
         }
-        let record = generator.record(j, trajectory.controls_at(t_ns));
         line.clear();
-        record.write_line(&mut line);
+        generator.write_line(j, trajectory, t_ns, &mut line);
         if !write_bounded(&mut socket, line.as_bytes(), write_timeout, &cancel).await? {
             return Ok(());
         }

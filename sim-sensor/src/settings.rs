@@ -92,6 +92,8 @@ pub struct SimOptions {
     pub bind: SocketAddr,
     /// Odometry port; `None` serves no odometry. Only scenes have odometry.
     pub odometry_bind: Option<SocketAddr>,
+    /// Address of the gyro port ([`crate::gyro`]); `None` to not serve a gyro. Scenes only.
+    pub gyro_bind: Option<SocketAddr>,
     /// Clients served at once (3 like a real radar); more are refused and closed.
     pub max_clients: usize,
     /// Real time or as fast as the client reads.
@@ -114,6 +116,8 @@ pub struct SimOptions {
     pub fault_scope: FaultScope,
     /// Odometry rate and noise.
     pub odometry: OdometryNoise,
+    /// The gyro's rate, bias and noise.
+    pub gyro: crate::gyro::GyroNoise,
     /// Write the ground truth here (scenes only).
     pub ground_truth_path: Option<PathBuf>,
     /// Write one ground-truth pose every this many azimuths (1 = every azimuth).
@@ -150,6 +154,7 @@ impl SimOptions {
         Self {
             bind: SocketAddr::from(([127, 0, 0, 1], 6317)),
             odometry_bind: Some(SocketAddr::from(([127, 0, 0, 1], 6318))),
+            gyro_bind: Some(SocketAddr::from(([127, 0, 0, 1], 6319))),
             max_clients: 3,
             pacing: Pacing::Realtime,
             keepalive_interval: Duration::from_secs(1),
@@ -159,6 +164,7 @@ impl SimOptions {
             faults: FaultSettings::default(),
             fault_scope: FaultScope::EveryConnection,
             odometry: OdometryNoise::default(),
+            gyro: crate::gyro::GyroNoise::default(),
             ground_truth_path: None,
             ground_truth_every_n_azimuths: 1,
             start_time_ns: None,
@@ -175,6 +181,7 @@ impl SimOptions {
         let mut options = Self::new(SourceSpec::Scene(Box::new(scene)));
         options.bind = SocketAddr::from(([127, 0, 0, 1], 0));
         options.odometry_bind = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
+        options.gyro_bind = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
         options.pacing = Pacing::AsFastAsPossible;
         options.start_time_ns = Some(1_704_067_200_000_000_000);
         options
@@ -226,6 +233,12 @@ impl SimOptions {
             bias_speed_mps: sim.bias_speed_mps.get(),
             bias_steer_rad: sim.bias_steer_rad.get(),
         };
+        options.gyro_bind = Some(sim.gyro.bind);
+        options.gyro = crate::gyro::GyroNoise {
+            rate_hz: sim.gyro.rate_hz.get(),
+            noise_density_rad_s_per_sqrt_hz: sim.gyro.noise_density_rad_s_per_sqrt_hz.get(),
+            bias_rad_s: sim.gyro.bias_rad_s.get(),
+        };
         options.ground_truth_path.clone_from(&sim.ground_truth_path);
         Ok(options)
     }
@@ -261,6 +274,16 @@ impl SimOptions {
         }
         if !(o.bias_speed_mps.is_finite() && o.bias_steer_rad.is_finite()) {
             return bad("odometry.bias", "must be finite");
+        }
+        let g = &self.gyro;
+        if !(g.rate_hz.is_finite() && g.rate_hz > 0.0 && g.rate_hz <= 1000.0) {
+            return bad("gyro.rate_hz", "must be in (0, 1000]");
+        }
+        if !(g.noise_density_rad_s_per_sqrt_hz.is_finite()
+            && g.noise_density_rad_s_per_sqrt_hz >= 0.0
+            && g.bias_rad_s.is_finite())
+        {
+            return bad("gyro", "noise density must be finite and >= 0, bias finite");
         }
         if self.ground_truth_every_n_azimuths == 0 {
             return bad("ground_truth_every_n_azimuths", "must be >= 1");

@@ -371,3 +371,56 @@ async fn an_odometry_client_that_closes_its_sending_side_still_gets_the_records(
     .await
     .expect("bounded");
 }
+
+/// The gyro port (docs/contracts.md, "Gyro stream"): its header, then a sample every 10 ms
+/// from the start carrying the true yaw rate plus the configured bias (no noise here).
+#[tokio::test]
+async fn gyro_lines_follow_the_contract_and_carry_the_true_yaw_rate_plus_the_bias() {
+    let scene = shipped::load("outdoor-field").expect("scene");
+    let model = sim_sensor::trajectory::motion_model(scene.motion);
+    let mut options = SimOptions::for_tests(scene);
+    options.gyro = sim_sensor::gyro::GyroNoise {
+        rate_hz: 100.0,
+        noise_density_rad_s_per_sqrt_hz: 0.0,
+        bias_rad_s: 0.005,
+    };
+    let handle = SimServer::spawn(options).await.expect("spawn");
+    let gyro = TcpStream::connect(handle.gyro_addr().expect("gyro port"))
+        .await
+        .expect("connect");
+    let mut reader = BufReader::new(gyro);
+    assert_eq!(
+        read_line(&mut reader).await,
+        "# gyro v1 timestamp_s yaw_rate_rad_s\n"
+    );
+    let mut radar = TestClient::connect(handle.local_addr()).await;
+    radar.configuration().await;
+    radar.send(Message::StartFftData).await;
+    let reader_task = tokio::spawn(async move {
+        for _ in 0..6000 {
+            radar.next_fft().await;
+        }
+        radar
+    });
+    let mut samples = Vec::new();
+    while samples.len() < 1100 {
+        let line = read_line(&mut reader).await;
+        assert!(line.len() <= 256 && line.ends_with('\n'));
+        let fields: Vec<&str> = line.trim_end().split(' ').collect();
+        assert_eq!(fields.len(), 2, "{line:?}");
+        let (secs, nanos) = fields[0].split_once('.').expect("decimal timestamp");
+        assert_eq!(nanos.len(), 9);
+        let t_ns = secs.parse::<u64>().expect("secs") * 1_000_000_000
+            + nanos.parse::<u64>().expect("nanos");
+        samples.push((t_ns, fields[1].parse::<f64>().expect("yaw rate")));
+    }
+    let _radar = reader_task.await.expect("radar reader");
+    for (j, (t_ns, w)) in samples.iter().enumerate() {
+        assert_eq!(*t_ns, START_NS + 10_000_000 * j as u64, "sample {j}");
+        // outdoor-field: 1 m/s straight, steer 0.04 from 10 s.
+        let steer = if j < 1000 { 0.0 } else { 0.04 };
+        let want = sim_sensor::gyro::yaw_rate_of(&model, (1.0, steer)) + 0.005;
+        assert!((w - want).abs() < 1e-6, "sample {j}: {w} vs {want}");
+    }
+    handle.shutdown().await.expect("shutdown");
+}

@@ -71,6 +71,12 @@ pub struct FilterSettings {
     /// whose peak slides along with the vehicle (a car body, a hedge's corner) pulls every
     /// pose it is seen from back along the path, and through the poses the scale.
     pub speed_scale_from_landmarks: bool,
+    /// The same for the steering offset `b`: false holds it as a consider parameter in every
+    /// landmark update, so that only the motion measurements learn it. Radar only with a
+    /// gyro (`b` is the gyro's bias) slam-node sets it false: a mapped return that is not a
+    /// true point pulls the heading it is seen from, and through the heading the bias, which
+    /// then turns every later prediction. Default true.
+    pub steer_bias_from_landmarks: bool,
     /// Growth rate of the variance of each feature's u and v (1/s): the paper's Gaussian
     /// change of reflectivity and absorption with viewing angle.
     pub material_variance_per_s: f64,
@@ -250,6 +256,7 @@ impl Default for FilterSettings {
             speed_scale_walk_per_sqrt_s: 1e-4,
             steer_bias_walk_rad_per_sqrt_s: 1e-5,
             speed_scale_from_landmarks: true,
+            steer_bias_from_landmarks: true,
             material_variance_per_s: 1e-4,
             feature_wander_m: 0.0,
             feature_wander_length_m: 2.0,

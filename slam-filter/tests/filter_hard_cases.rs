@@ -1126,3 +1126,24 @@ fn a_speed_scale_held_from_the_landmarks_stays_at_its_prior_and_the_filter_stays
         "b {b}"
     );
 }
+
+/// The same for the steering offset (`steer_bias_from_landmarks` off, as slam-node runs a
+/// gyro's bias): no landmark update moves `b` or shrinks its variance, `k` is still learned,
+/// and the covariance stays healthy.
+#[test]
+fn a_steering_offset_held_from_the_landmarks_stays_at_its_prior_and_the_filter_stays_healthy() {
+    let held = FilterSettings {
+        speed_scale_std: 0.1,
+        steer_bias_std_rad: 0.02,
+        steer_bias_from_landmarks: false,
+        ..settings()
+    };
+    let (error, f) = drive_with_biased_odometry(held);
+    let ([k, b], [sk, sb]) = f.odometry_bias().expect("estimated");
+    eprintln!("final error {error:.3} m; k {k:.4} +- {sk:.4}, b {b:.4} +- {sb:.4}");
+    assert_healthy(&f);
+    assert_eq!(b, 0.0, "no landmark update moves b");
+    assert!(sb >= 0.02, "nor shrinks its variance: {sb}");
+    let k_true = 1.0 / 1.05 - 1.0;
+    assert!((k - k_true).abs() < 4.0 * sk, "k {k} +- {sk}");
+}

@@ -132,6 +132,12 @@ pub struct Args {
     #[cfg(feature = "sim")]
     #[arg(long, requires = "replay_dir", conflicts_with_all = ["no_radar_odometry", "write_odometry"])]
     radar_only: bool,
+    /// With --replay-dir --radar-only: a gyro made from the ground truth's yaw rate, with
+    /// `[sim.gyro]`'s bias, noise and rate (default 0.005 rad/s bias, 1.75e-4
+    /// rad/s/sqrt(Hz), 100 Hz), as a vehicle's MEMS gyro would give it.
+    #[cfg(feature = "sim")]
+    #[arg(long, requires = "radar_only")]
+    gyro_from_truth: bool,
     /// With --replay-dir: also write the odometry made from the ground truth to this file,
     /// in the odometry stream's format (docs/contracts.md), for `[odometry] source = "file"`
     /// (the same samples through another door).
@@ -217,7 +223,7 @@ pub fn options(args: &Args) -> anyhow::Result<DaemonOptions> {
     let simulator = if embedded {
         Some(slam_node::daemon::Simulator {
             sim: embedded_sim(args, &config)?,
-            recorded: recorded(args)?,
+            recorded: recorded(args, &config)?,
         })
     } else {
         None
@@ -316,6 +322,9 @@ fn embedded_sim(
         sim_sensor::SimOptions::from_config(&sim).context("building the simulator")?;
     options.bind = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
     options.odometry_bind = Some(std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
+    // The simulator's gyro is served when the run reads one (`[gyro] source = "tcp"`).
+    options.gyro_bind = (config.gyro.source != config::gyro::GyroSource::None)
+        .then(|| std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
     if args.fast {
         options.pacing = sim_sensor::settings::Pacing::AsFastAsPossible;
     }
@@ -342,7 +351,10 @@ fn replaying(args: &Args) -> bool {
 
 /// The recorded scans to replay, with the odometry's errors.
 #[cfg(feature = "sim")]
-pub(crate) fn recorded(args: &Args) -> anyhow::Result<Option<slam_node::daemon::RecordedReplay>> {
+pub(crate) fn recorded(
+    args: &Args,
+    config: &config::Config,
+) -> anyhow::Result<Option<slam_node::daemon::RecordedReplay>> {
     use slam_node::daemon::replay::OdometryErrors;
     let Some(dir) = &args.replay_dir else {
         return Ok(None);
@@ -382,6 +394,11 @@ pub(crate) fn recorded(args: &Args) -> anyhow::Result<Option<slam_node::daemon::
         errors,
         radar_odometry: !args.no_radar_odometry,
         radar_only: args.radar_only,
+        gyro_from_truth: args.gyro_from_truth.then(|| sim_sensor::gyro::GyroNoise {
+            rate_hz: config.sim.gyro.rate_hz.get(),
+            noise_density_rad_s_per_sqrt_hz: config.sim.gyro.noise_density_rad_s_per_sqrt_hz.get(),
+            bias_rad_s: config.sim.gyro.bias_rad_s.get(),
+        }),
         write_odometry: match &args.write_odometry {
             // An existing FIFO or device would block or swallow the write: refused up front.
             Some(path) if path.exists() && !path.is_file() => anyhow::bail!(

@@ -123,6 +123,7 @@ fn run(
         PipelineInputs {
             azimuths,
             odometry: Some(odometry),
+            gyro: None,
         },
         &output,
         RunControl {

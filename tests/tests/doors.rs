@@ -86,6 +86,7 @@ async fn the_replay_the_vehicle_configuration_and_its_mcap_recording_agree() {
             radar_odometry: true,
             write_odometry: Some(odometry.clone()),
             radar_only: false,
+            gyro_from_truth: None,
         }),
     });
     let replay = run_daemon(opts, None).await.expect("the replay runs");

@@ -80,6 +80,7 @@ fn recorded(dir: PathBuf) -> RecordedReplay {
         radar_odometry: true,
         write_odometry: None,
         radar_only: true,
+        gyro_from_truth: None,
     }
 }
 

@@ -105,6 +105,7 @@ pub struct SimServer;
 pub struct SimHandle {
     local_addr: SocketAddr,
     odometry_addr: Option<SocketAddr>,
+    gyro_addr: Option<SocketAddr>,
     configuration: Configuration,
     start_unix_ns: u64,
     stats: Arc<SimStats>,
@@ -188,6 +189,20 @@ impl SimServer {
             odometry_addr = Some(odo.local_addr());
             tasks.spawn(odo.run(cancel.clone()));
         }
+        let mut gyro_addr = None;
+        if let (Some(bind), Some(scene)) = (options.gyro_bind, world.scene()) {
+            let generator =
+                crate::gyro::GyroGenerator::new(options.gyro, scene.seed(), world.start_unix_ns);
+            let gyro = odometry::OdometryServer::bind_with(
+                bind,
+                Arc::clone(&world),
+                generator,
+                options.write_timeout,
+            )
+            .await?;
+            gyro_addr = Some(gyro.local_addr());
+            tasks.spawn(gyro.run(cancel.clone()));
+        }
         if let (Some(path), Some(_)) = (&options.ground_truth_path, world.scene()) {
             let writer = truth::TruthWriter::create(
                 path,
@@ -213,6 +228,7 @@ impl SimServer {
         Ok(SimHandle {
             local_addr,
             odometry_addr,
+            gyro_addr,
             configuration,
             start_unix_ns,
             stats,
@@ -231,6 +247,11 @@ impl SimHandle {
     /// The odometry port's address (scenes only).
     pub fn odometry_addr(&self) -> Option<SocketAddr> {
         self.odometry_addr
+    }
+
+    /// The gyro port's address (scenes only, when asked for).
+    pub fn gyro_addr(&self) -> Option<SocketAddr> {
+        self.gyro_addr
     }
 
     /// The configuration message every client receives first.

@@ -17,7 +17,7 @@ use crate::observation::{
 };
 use crate::predict::ProcessModel;
 use crate::repeat_look::LookCell;
-use crate::state::{FeatureId, FeatureParams, SPEED_SCALE_INDEX};
+use crate::state::{FeatureId, FeatureParams, SPEED_SCALE_INDEX, STEER_BIAS_INDEX};
 use crate::update::{batched_update_considering, LinearisedObservation, UpdateOutcome};
 
 /// A beam's prediction (step 2) and what the association and update need with it.
@@ -193,7 +193,8 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// One batched update from landmarks (a beam's targets, a new feature's power, relocalisation):
     /// the speed correction `k` is held as a consider parameter when
     /// [`FilterSettings::speed_scale_from_landmarks`](crate::FilterSettings::speed_scale_from_landmarks)
-    /// is off and `k` is estimated.
+    /// is off and `k` is estimated, and the steering offset `b` likewise
+    /// ([`FilterSettings::steer_bias_from_landmarks`](crate::FilterSettings::steer_bias_from_landmarks)).
     pub(super) fn landmark_update(
         &mut self,
         obs: &LinearisedObservation,
@@ -203,7 +204,17 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 .state
                 .covariance_entry(SPEED_SCALE_INDEX, SPEED_SCALE_INDEX)
                 > 0.0;
-        let consider: &[usize] = if hold_k { &[SPEED_SCALE_INDEX] } else { &[] };
+        let hold_b = !self.settings.steer_bias_from_landmarks
+            && self
+                .state
+                .covariance_entry(STEER_BIAS_INDEX, STEER_BIAS_INDEX)
+                > 0.0;
+        let consider: &[usize] = match (hold_k, hold_b) {
+            (true, true) => &[SPEED_SCALE_INDEX, STEER_BIAS_INDEX],
+            (true, false) => &[SPEED_SCALE_INDEX],
+            (false, true) => &[STEER_BIAS_INDEX],
+            (false, false) => &[],
+        };
         batched_update_considering(&mut self.state, obs, consider)
     }
 

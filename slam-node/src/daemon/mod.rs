@@ -303,6 +303,7 @@ pub async fn run_daemon(
         azimuths,
         driver,
         odometry,
+        gyro,
         pipeline,
         motion,
         name,
@@ -321,7 +322,11 @@ pub async fn run_daemon(
         max_stream_s: opts.max_stream_s,
         progress,
     };
-    let inputs = PipelineInputs { azimuths, odometry };
+    let inputs = PipelineInputs {
+        azimuths,
+        odometry,
+        gyro,
+    };
     let thread = std::thread::Builder::new()
         .name("slam-pipeline".into())
         .spawn(move || {

@@ -79,6 +79,9 @@ pub fn summary_text(r: &DaemonReport) -> String {
     if let Some(m) = &s.scan_match {
         put(&RadarOdometry(m));
     }
+    if let Some(g) = &s.gyro {
+        put(&Gyro(g));
+    }
     put(&Spectrum(s));
     put(&Landmarks(s));
     if let Some(sm) = &s.submaps {
@@ -301,6 +304,24 @@ impl fmt::Display for OdometryCorrections<'_> {
             b,
             sb
         )
+    }
+}
+
+/// The gyro of radar-only driving: its samples and the bias the filter estimated.
+struct Gyro<'a>(&'a crate::pipeline::gyro::GyroSummary);
+
+impl fmt::Display for Gyro<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let c = self.0.counts;
+        write!(
+            f,
+            "  gyro: {} samples, {} applied, {} refused, {} dropped",
+            c.received, c.applied, c.refused, c.dropped
+        )?;
+        match self.0.bias_rad_s {
+            Some((b, sb)) => writeln!(f, "; bias estimated {b:+.5} +- {sb:.5} rad/s"),
+            None => writeln!(f),
+        }
     }
 }
 

@@ -88,6 +88,8 @@ pub struct Pipeline {
     summary: PipelineSummary,
     filter_started: bool,
     scan_match: RadarOdometryStage,
+    /// The gyro's samples waiting for the radar's clock (radar only with a gyro).
+    gyro: Option<super::gyro::GyroQueue>,
     /// With truth: each rotation's published pose and the true pose then.
     online: Vec<(PoseSample, Pose2)>,
     /// This thread's CPU clock when the last rotation closed (see `measure_cpu`).
@@ -170,7 +172,9 @@ impl Pipeline {
                 settings.scan_match,
                 settings.radar_drives,
                 settings.motion,
+                settings.gyro.is_some(),
             ),
+            gyro: settings.gyro.map(super::gyro::GyroQueue::new),
             online: Vec::new(),
             cpu_mark: None,
             last_map_save_s: None,
@@ -258,6 +262,29 @@ impl Pipeline {
                 warn!(error = %e, "could not restart the filter at the first odometry sample")
             }
         }
+    }
+
+    /// Takes one gyro sample (queued until the radar reaches its time); without a gyro in
+    /// the settings (not radar only, or no `[gyro]`) it is ignored.
+    pub fn push_gyro(&mut self, sample: crate::source::gyro::GyroSample) {
+        if let Some(q) = self.gyro.as_mut() {
+            q.push(sample);
+        }
+    }
+
+    /// Newest gyro time received; `None` before the first or without a gyro.
+    pub fn gyro_latest_s(&self) -> Option<f64> {
+        self.gyro.as_ref().and_then(|q| q.latest_s())
+    }
+
+    /// Gyro samples received so far (refused ones included).
+    pub fn gyro_received(&self) -> u64 {
+        self.gyro.as_ref().map_or(0, |q| q.counts().received)
+    }
+
+    /// Whether the pipeline uses a gyro.
+    pub fn uses_gyro(&self) -> bool {
+        self.gyro.is_some()
     }
 
     /// Takes one odometry sample (queued until the radar reaches its time).
@@ -404,6 +431,9 @@ impl Pipeline {
     /// One beam through the odometry gate into the filter.
     fn run_beam(&mut self, offered: &OfferedBeam) {
         let beam = &offered.beam;
+        if let Some(q) = self.gyro.as_mut() {
+            super::gyro::apply_until(q, &mut self.ekf, &self.settings.motion, beam.timestamp_s);
+        }
         while let Some(s) = self.gate.next_until(beam.timestamp_s) {
             self.apply_odometry(s);
         }
@@ -822,6 +852,9 @@ impl Pipeline {
         s.learned_gain_db_per_decade = self.front_end.learned_gain_slope();
         s.odometry_corrections = self.ekf.odometry_bias();
         s.scan_match = self.scan_match.enabled().then(|| self.scan_match.counts());
+        s.gyro = self.gyro.as_ref().map(|q| {
+            super::gyro::GyroSummary::new(q.counts(), &self.settings.motion, s.odometry_corrections)
+        });
         if !self.online.is_empty() {
             let (est, tru): (Vec<PoseSample>, Vec<Pose2>) = self.online.iter().copied().unzip();
             s.online = Some(super::submaps::score_trajectory(&est, &tru));

@@ -87,6 +87,9 @@ pub struct SourceFacts {
     /// The source brings no odometry (`--radar-only`): radar odometry drives the filter, as
     /// with `[odometry] source = "none"`.
     pub radar_only: bool,
+    /// The source brings a gyro of its own (`--gyro-from-truth`); `[gyro] source` brings
+    /// one too.
+    pub gyro: bool,
     /// The radar's full range (m), bounding the filter's and the detector's.
     pub max_range_m: Option<f64>,
     /// Bearings (rad) whose predicted and measured spectra are drawn (`--spectrum-bearing`).
@@ -170,6 +173,7 @@ impl SettingsRecipe {
             detector: facts.detector.or(run.detector),
             no_radar_odometry: facts.no_radar_odometry || run.no_radar_odometry,
             radar_only: facts.radar_only || run.radar_only,
+            gyro: facts.gyro || run.gyro,
             spectrum_bearings_rad: if facts.spectrum_bearings_rad.is_empty() {
                 run.spectrum_bearings_rad.clone()
             } else {
@@ -236,7 +240,9 @@ pub fn effective_config(
     profile: &RadarProfile,
     no_radar_odometry: bool,
     radar_only: bool,
+    gyro: bool,
 ) -> Result<(config::Config, Vec<&'static str>), SettingsError> {
+    let gyro = gyro || c.gyro.source != config::gyro::GyroSource::None;
     let mut raw = config::RawConfig::from(c);
     let mut over = Vec::new();
     let w = &written;
@@ -401,6 +407,13 @@ pub fn effective_config(
         o.speed_scale_walk_per_sqrt_s = 0.0;
         o.steer_bias_walk_rad_per_sqrt_s = 0.0;
         o.speed_scale_from_landmarks = false;
+        if gyro {
+            super::gyro::model_in_process_noise(
+                o,
+                &c.gyro,
+                slam_filter::FilterSettings::default().input_noise_correlation_s,
+            );
+        }
         o.stale_after_ms = o.stale_after_ms.max(RADAR_ONLY_STALE_AFTER_MS);
     }
     // With radar odometry, the odometry's corrections are estimated, the speed scale from
@@ -440,6 +453,7 @@ impl PipelineSettings {
             profile,
             facts.no_radar_odometry,
             facts.radar_only,
+            facts.gyro,
         )?;
         let mut s = Self::from_config(&effective)?;
         // A setting with no key of its own: the profile's, unless the configuration was
@@ -456,6 +470,14 @@ impl PipelineSettings {
             // What drives the filter is the radar's motion, whatever model a source's own
             // odometry meant.
             s.motion = super::settings::motion_model(&effective);
+            if facts.gyro || effective.gyro.source != config::gyro::GyroSource::None {
+                s.gyro = Some(super::gyro::GyroUse {
+                    max_yaw_rate_rad_s: effective.gyro.max_yaw_rate_rad_s.get(),
+                });
+                // The gyro's bias is learned from the registrations only (see
+                // `slam_filter::FilterSettings::steer_bias_from_landmarks`).
+                s.filter.steer_bias_from_landmarks = false;
+            }
         }
         let cfar = matches!(
             s.detector.kind,

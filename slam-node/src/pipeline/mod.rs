@@ -12,6 +12,7 @@ pub mod derive;
 pub mod ekf;
 pub mod frontend;
 pub mod gate;
+pub mod gyro;
 pub mod localise;
 pub mod map_save;
 pub mod odometry;

@@ -51,11 +51,14 @@ pub struct RadarOdometryStage {
     last_end_s: Option<f64>,
     /// Driving: the last registration failed, so the next searches for the motion.
     lost: bool,
+    /// Driving with a gyro: the turn is the gyro's, the registration gives the speed.
+    gyro: bool,
 }
 
 impl RadarOdometryStage {
-    /// A stage with `settings`; `drives` when there is no other odometry.
-    pub fn new(settings: ScanMatchSettings, drives: bool, motion: MotionModel) -> Self {
+    /// A stage with `settings`; `drives` when there is no other odometry, with `gyro` when
+    /// a gyro gives the turn (`super::gyro`).
+    pub fn new(settings: ScanMatchSettings, drives: bool, motion: MotionModel, gyro: bool) -> Self {
         Self {
             matcher: ScanMatcher::new(settings),
             counts: ScanMatchCounts {
@@ -66,6 +69,7 @@ impl RadarOdometryStage {
             motion,
             last_end_s: None,
             lost: false,
+            gyro: drives && gyro,
         }
     }
 
@@ -175,7 +179,7 @@ impl RadarOdometryStage {
             }
         }
         if self.drives {
-            drive_sample(ekf, &self.motion, tally, applied.as_ref())
+            drive_sample(ekf, &self.motion, tally, applied.as_ref(), self.gyro)
         } else {
             None
         }
@@ -283,12 +287,14 @@ impl RadarOdometryStage {
 /// of pose over the rotation: that holds the map's corrections of the pose, which are
 /// displacements, not motion, and carried into the next rotation they would repeat.
 /// Corrected back through the filter's odometry bias, so that the process model applies it
-/// as measured.
+/// as measured. With a gyro only the speed is the registration's: the steering stays the
+/// last gyro sample's (the gyro's samples carry the turn, `super::gyro`).
 fn drive_sample(
     ekf: &DaemonEkf,
     motion: &MotionModel,
     tally: Option<slam_filter::motion_tally::MotionTally>,
     applied: Option<&RotationMotion>,
+    gyro: bool,
 ) -> Option<OdometrySample> {
     let now_s = ekf.state().time_s();
     let tally = tally?;
@@ -332,6 +338,10 @@ fn drive_sample(
     Some(OdometrySample {
         timestamp_s: now_s,
         speed_mps: input.speed_mps / (1.0 + k),
-        steer_rad: input.steer_rad - b,
+        steer_rad: if gyro {
+            held.steer_rad
+        } else {
+            input.steer_rad - b
+        },
     })
 }

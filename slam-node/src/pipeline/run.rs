@@ -15,6 +15,7 @@ use super::core::{Pipeline, PipelineError};
 use super::ekf::DaemonEkf;
 use super::summary::PipelineSummary;
 use crate::output::{OutputEvent, OutputHandle};
+use crate::source::gyro::{GyroPoll, GyroSource};
 use slam_filter::OdometrySample;
 
 /// What the pipeline thread reads.
@@ -23,12 +24,15 @@ pub struct PipelineInputs {
     pub azimuths: Receiver<Azimuth>,
     /// Odometry, or `None` when there is none (the filter then refuses to run).
     pub odometry: Option<Box<dyn OdometrySource>>,
+    /// The gyro of radar-only driving, or `None`.
+    pub gyro: Option<Box<dyn GyroSource>>,
 }
 
 impl std::fmt::Debug for PipelineInputs {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("PipelineInputs")
             .field("odometry", &self.odometry.is_some())
+            .field("gyro", &self.gyro.is_some())
             .finish_non_exhaustive()
     }
 }
@@ -103,6 +107,8 @@ pub struct RunReport {
     pub stalls: u64,
     /// Odometry lines the source rejected.
     pub odometry_errors: u64,
+    /// Gyro lines the source rejected.
+    pub gyro_errors: u64,
     /// Output events dropped because the writer was behind.
     pub output_drops: u64,
     /// Wall time of the whole loop.
@@ -202,6 +208,73 @@ fn poll_odometry(
                 warn!(error = %e, count = *errors, "odometry error");
             }
             e.is_recoverable()
+        }
+    }
+}
+
+/// Polls the gyro once; false when it has ended.
+fn poll_gyro(
+    pipeline: &mut Pipeline,
+    source: &mut dyn GyroSource,
+    timeout: Duration,
+    errors: &mut u64,
+) -> bool {
+    match source.poll_next(timeout) {
+        Ok(GyroPoll::Sample(s)) => {
+            pipeline.push_gyro(s);
+            true
+        }
+        Ok(GyroPoll::Pending) => true,
+        Ok(GyroPoll::Ended) => false,
+        Err(e) => {
+            *errors += 1;
+            if *errors <= 10 || errors.is_power_of_two() {
+                warn!(error = %e, count = *errors, "gyro error");
+            }
+            e.is_recoverable()
+        }
+    }
+}
+
+/// The gyro is read at most this far (s) ahead of the azimuth being processed: a file or a
+/// truth-made gyro has every sample at once, and its queue is bounded.
+const GYRO_LEAD_S: f64 = 1.0;
+
+/// Takes what the gyro has up to [`GYRO_LEAD_S`] past `time_s` (without waiting), then,
+/// when `wait` is given, waits that long at most for it to reach `time_s`. Ends the source
+/// when it has ended.
+fn feed_gyro(
+    pipeline: &mut Pipeline,
+    gyro: &mut Option<Box<dyn GyroSource>>,
+    time_s: f64,
+    wait: Option<Duration>,
+    errors: &mut u64,
+) {
+    let Some(src) = gyro.as_mut() else {
+        return;
+    };
+    let deadline = Instant::now() + wait.unwrap_or(Duration::ZERO);
+    for _ in 0..100_000 {
+        let latest = pipeline.gyro_latest_s();
+        if latest.is_some_and(|g| g >= time_s + GYRO_LEAD_S) {
+            return;
+        }
+        let behind = wait.is_some() && latest.is_none_or(|g| g < time_s);
+        let now = Instant::now();
+        let timeout = if behind && now < deadline {
+            (deadline - now).min(Duration::from_millis(20))
+        } else {
+            Duration::ZERO
+        };
+        let received = pipeline.gyro_received();
+        if !poll_gyro(pipeline, src.as_mut(), timeout, errors) {
+            info!("gyro source ended");
+            *gyro = None;
+            return;
+        }
+        let got = pipeline.gyro_received() > received;
+        if !got && (!behind || Instant::now() >= deadline) {
+            return;
         }
     }
 }
@@ -349,6 +422,17 @@ pub fn run_pipeline(
                     break;
                 }
             }
+        }
+        // The gyro, likewise: what has come, then a bounded wait for it to reach this
+        // azimuth (radar only with a gyro).
+        if pipeline.uses_gyro() {
+            feed_gyro(
+                &mut pipeline,
+                &mut inputs.gyro,
+                az.timestamp_s,
+                (!far_ahead).then_some(odometry_wait),
+                &mut report.gyro_errors,
+            );
         }
         let rotations = pipeline.summary().rotations;
         if let Err(e) = pipeline.process_azimuth(&az, &mut events) {

@@ -104,6 +104,9 @@ pub struct PipelineSettings {
     /// Radar odometry drives the filter's prediction (there is no other odometry: `[odometry]
     /// source = "none"` or `--radar-only`).
     pub radar_drives: bool,
+    /// A gyro's yaw rate gives the prediction's turn (radar-only driving with `[gyro]` or
+    /// `--gyro-from-truth`); `None`: the last rotation's turn is held.
+    pub gyro: Option<super::gyro::GyroUse>,
     /// The saved map (`[map]`).
     pub map_save: super::map_save::MapSaveSettings,
     /// Localisation in a saved map (`--map FILE`, `[map] mode = "localise"`).
@@ -346,6 +349,7 @@ impl PipelineSettings {
                 ..ScanMatchSettings::default()
             },
             radar_drives: false,
+            gyro: None,
             localise: None,
         })
     }

@@ -95,6 +95,8 @@ pub struct PipelineSummary {
     pub odometry_corrections: Option<([f64; 2], [f64; 2])>,
     /// What radar odometry did (`[odometry] radar_odometry`); `None` when it is off.
     pub scan_match: Option<ScanMatchCounts>,
+    /// What the gyro did (radar only with a gyro); `None` without one.
+    pub gyro: Option<super::gyro::GyroSummary>,
     /// Observations kept out of the map as extended returns (walls, fences, cars).
     pub extended_returns: u64,
     /// Feature-rotations in which a mapped feature (mapped before the rotation began) was in

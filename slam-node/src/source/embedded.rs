@@ -219,6 +219,7 @@ pub async fn start(
     info!(radar = %handle.local_addr(), odometry = ?handle.odometry_addr(), scene = %scene_name, "embedded simulator started");
     driver_settings.address = handle.local_addr();
     let idle_timeout = sim.odometry_idle_timeout;
+    let gyro_shutdown = odo_shutdown.clone();
     let simulated: Option<Box<dyn OdometrySource>> =
         handle.odometry_addr().filter(|_| !radar_only).map(|a| {
             let mut odometry = TcpOdometrySettings::new(a);
@@ -229,10 +230,28 @@ pub async fn start(
                 odo_shutdown,
             )) as Box<dyn OdometrySource>
         });
+    // A TCP gyro reads the simulator's gyro port (as the odometry reads its odometry port).
+    let gyro = match (&recipe.config.gyro.source, handle.gyro_addr()) {
+        (config::gyro::GyroSource::Tcp { .. }, Some(a)) => {
+            let mut settings = super::gyro::TcpGyroSettings::new(a);
+            settings.idle_timeout = idle_timeout;
+            Some(Box::new(super::gyro::TcpGyro::spawn(
+                &tokio::runtime::Handle::current(),
+                settings,
+                gyro_shutdown,
+            )) as Box<dyn super::gyro::GyroSource>)
+        }
+        _ => super::gyro::open_configured(
+            &recipe.config.gyro,
+            &tokio::runtime::Handle::current(),
+            gyro_shutdown,
+        )?,
+    };
     let (azimuths, driver) = connect(driver_settings, fast)?;
     Ok(Inputs {
         azimuths,
         driver: Some(driver),
+        gyro,
         odometry: odometry.or(simulated),
         pipeline: pipeline.into(),
         motion,

@@ -10,6 +10,7 @@
 #[cfg(feature = "sim")]
 pub mod embedded;
 pub mod figures;
+pub mod gyro;
 pub mod mcap;
 pub mod radar;
 #[cfg(feature = "sim")]
@@ -52,6 +53,9 @@ pub enum SourceError {
     /// The odometry source could not be opened.
     #[error("odometry")]
     Odometry(#[from] radar_driver::OdometryError),
+    /// The gyro source could not be opened.
+    #[error("gyro")]
+    Gyro(#[from] gyro::GyroError),
     /// The embedded simulator must render a scene (replays carry no ground truth).
     #[error("the embedded simulator must run a scene, not a replay")]
     NotAScene,
@@ -78,6 +82,8 @@ pub struct Inputs {
     pub driver: Option<Driver>,
     /// The odometry.
     pub odometry: Option<Box<dyn OdometrySource>>,
+    /// The gyro (radar only, `[gyro]` or `--gyro-from-truth`).
+    pub gyro: Option<Box<dyn gyro::GyroSource>>,
     /// The pipeline, or how to build it on the first azimuth.
     pub pipeline: PipelineStart,
     /// The motion model the odometry means (for the recording and the live output).

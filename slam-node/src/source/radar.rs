@@ -18,6 +18,11 @@ pub fn open(
     odo_shutdown: Shutdown,
 ) -> Result<Inputs, SourceError> {
     let config = &recipe.config;
+    let gyro = super::gyro::open_configured(
+        &config.gyro,
+        &tokio::runtime::Handle::current(),
+        odo_shutdown.clone(),
+    )?;
     let odometry = match odometry {
         Some(o) => Some(o),
         None => radar_driver::odometry::open_configured(
@@ -38,6 +43,7 @@ pub fn open(
         azimuths,
         driver: Some(driver),
         odometry,
+        gyro,
         pipeline: PipelineStart::OnFirstAzimuth(Box::new(move |geometry: &protocol::Geometry| {
             let derived = recipe.for_radar(geometry, SourceFacts::default())?;
             Pipeline::new(derived.settings, None, None)

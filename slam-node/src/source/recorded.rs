@@ -42,6 +42,9 @@ pub struct RecordedReplay {
     /// No odometry: radar odometry drives the filter, and a recording without ground truth
     /// runs unscored (`--radar-only`).
     pub radar_only: bool,
+    /// Radar only: a gyro made from the ground truth with this bias and noise
+    /// (`--gyro-from-truth`).
+    pub gyro_from_truth: Option<sim_sensor::gyro::GyroNoise>,
 }
 
 /// Replays recorded scans through the simulator's server, with odometry from their ground
@@ -94,6 +97,7 @@ pub async fn start(
         }),
         no_radar_odometry: !recorded.radar_odometry,
         radar_only: recorded.radar_only,
+        gyro: recorded.radar_only && recorded.gyro_from_truth.is_some(),
         ..SourceFacts::default()
     };
     let announced = radar_model::profile::Announced {
@@ -153,6 +157,41 @@ pub async fn start(
             .map(|p| (p.x, p.y))
             .collect(),
     };
+    let gyro: Option<Box<dyn super::gyro::GyroSource>> = match (
+        recorded.gyro_from_truth,
+        truth.as_ref(),
+    ) {
+        (Some(noise), Some(t)) if recorded.radar_only => {
+            let times = t.times_s();
+            let (start, end) = (
+                times.first().copied().unwrap_or(0.0),
+                times.last().copied().unwrap_or(0.0),
+            );
+            info!(
+                bias_rad_s = noise.bias_rad_s,
+                noise_density = noise.noise_density_rad_s_per_sqrt_hz,
+                rate_hz = noise.rate_hz,
+                "gyro made from the ground truth"
+            );
+            Some(Box::new(super::gyro::TruthGyro::new(
+                Box::new(t.clone()),
+                start,
+                end,
+                noise,
+                recipe.config.sim.seed,
+            )))
+        }
+        (Some(_), None) => {
+            tracing::warn!("--gyro-from-truth: no ground truth, no gyro");
+            None
+        }
+        _ => {
+            if recipe.config.gyro.source != config::gyro::GyroSource::None {
+                tracing::warn!("[gyro] source is not read in a replay of recorded scans: --gyro-from-truth makes one from the ground truth");
+            }
+            None
+        }
+    };
     let recipe = recipe.clone();
     let pipeline = PipelineStart::OnFirstAzimuth(Box::new(move |g: &protocol::Geometry| {
         let derived = recipe.for_radar(g, facts)?;
@@ -172,6 +211,7 @@ pub async fn start(
     Ok(Inputs {
         azimuths,
         driver: Some(driver),
+        gyro,
         odometry: (!recorded.radar_only).then(|| {
             Box::new(MemoryOdometry::new(samples)) as Box<dyn radar_driver::OdometrySource>
         }),

@@ -290,6 +290,7 @@ pub fn run_queued(
         slam_node::pipeline::PipelineInputs {
             azimuths: rx,
             odometry: Some(odometry),
+            gyro: None,
         },
         &output,
         control,

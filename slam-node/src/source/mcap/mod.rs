@@ -193,6 +193,7 @@ pub fn open(
         azimuths,
         driver: None,
         odometry: Some(Box::new(odometry)),
+        gyro: None,
         pipeline: crate::pipeline::run::PipelineStart::OnFirstAzimuth(Box::new(
             move |geometry: &protocol::Geometry| {
                 let derived =

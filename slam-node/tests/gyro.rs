@@ -1,0 +1,128 @@
+//! Radar-only driving with a gyro: the shipped realistic street (the CTS350-X-like unit,
+//! building fronts, trees, parked and moving cars), the car swerving without warning (a
+//! turn left, then right, then straight again). Without a gyro the prediction holds the
+//! last rotation's turn (none at each onset) and the registration, started there, lags the
+//! turn; with the gyro (biased 0.005 rad/s, noisy, as the simulator serves it) the
+//! prediction foresees it. The heading and position over the drive, against the truth, must
+//! be better with the gyro.
+
+mod support;
+
+use radar_model::geometry::wrap_angle;
+use sim_sensor::gyro::{yaw_rate_of, GyroGenerator, GyroNoise};
+use sim_sensor::schedule::{ControlKey, ControlSchedule, Interpolation};
+use sim_sensor::trajectory::Trajectory;
+use slam_node::pipeline::{Pipeline, SceneTruth, SettingsRecipe};
+use support::SimRadar;
+
+const START_NS: u64 = 1_704_067_200_000_000_000;
+/// Rotations driven (4 Hz): 6 s straight, the swerve from 6 s to 10 s, straight to 14 s.
+const ROTATIONS: u64 = 56;
+
+fn swerving_street() -> sim_sensor::scene::Scene {
+    let mut scene = sim_sensor::scene::shipped::load("urban-street").expect("shipped scene");
+    // Bicycle, 2.7 m, 9 m/s: 0.015 rad of steer turns at 0.05 rad/s.
+    let key = |t_s: f64, steer_rad: f64| ControlKey {
+        t_s,
+        speed_mps: 9.0,
+        steer_rad,
+    };
+    scene.schedule = ControlSchedule::new(
+        vec![
+            key(0.0, 0.0),
+            key(6.0, 0.015),
+            key(8.0, -0.015),
+            key(10.0, 0.0),
+        ],
+        Interpolation::Hold,
+    )
+    .expect("schedule");
+    scene
+}
+
+/// Drives the scene radar only, with or without the gyro; returns the RMS (position,
+/// heading) errors of the published pose against the truth over the rotations from the
+/// swerve on, and the summary's gyro figures.
+fn drive(with_gyro: bool) -> (f64, f64, Option<slam_node::pipeline::gyro::GyroSummary>) {
+    let scene = swerving_street();
+    let mut config = config::Config::from_toml_str("[odometry]\nsource = \"none\"\n").unwrap();
+    config.sim.seed = 1;
+    let mut recipe = SettingsRecipe::from_config(config);
+    // As a run without a configuration file: the profile's and radar-only's values.
+    recipe.written = Some(std::collections::BTreeSet::from([
+        "odometry.source".to_owned()
+    ]));
+    recipe.facts.gyro = with_gyro;
+    let settings = slam_node::source::embedded::embedded_settings(&recipe, &scene, false)
+        .expect("settings")
+        .settings;
+    assert!(settings.radar_drives);
+    assert_eq!(settings.gyro.is_some(), with_gyro);
+    let start_s = START_NS as f64 * 1e-9;
+    let horizon = ROTATIONS as f64 * 0.25 + 2.0;
+    let truth = SceneTruth::new(&scene, start_s, horizon).expect("truth");
+    let mut pipeline =
+        Pipeline::new(settings, Some(start_s), Some(Box::new(truth))).expect("pipeline");
+    let mut radar = SimRadar::new(&scene, None, horizon, START_NS);
+    let trajectory = Trajectory::new(&scene, horizon).expect("trajectory");
+    let gyro = GyroGenerator::new(GyroNoise::default(), 5, START_NS);
+    let mut next_gyro = 0u64;
+    let mut events = Vec::new();
+    let (mut sq_pos, mut sq_heading, mut n) = (0.0, 0.0, 0u32);
+    for k in 0..ROTATIONS * radar.azimuths() {
+        let az = radar.azimuth(k);
+        if with_gyro {
+            // The gyro's samples up to this azimuth, as the daemon's loop feeds them.
+            loop {
+                let t_ns = next_gyro * 10_000_000;
+                let r = gyro.record(
+                    next_gyro,
+                    yaw_rate_of(&trajectory.model(), trajectory.controls_at(t_ns)),
+                );
+                if r.unix_ns as f64 * 1e-9 > az.timestamp_s {
+                    break;
+                }
+                pipeline.push_gyro(slam_node::source::gyro::GyroSample {
+                    timestamp_s: r.unix_ns as f64 * 1e-9,
+                    yaw_rate_rad_s: r.yaw_rate_rad_s,
+                });
+                next_gyro += 1;
+            }
+        }
+        let rotations = pipeline.summary().rotations;
+        pipeline.process_azimuth(&az, &mut events).expect("azimuth");
+        events.clear();
+        let t_s = pipeline.ekf().state().time_s();
+        if pipeline.summary().rotations > rotations && t_s - start_s > 6.0 {
+            let (pose, _) = pipeline.world_pose();
+            let t = trajectory
+                .pose_at(((t_s - start_s) * 1e9).round() as u64)
+                .expect("true pose");
+            sq_pos += (pose.x - t.x).powi(2) + (pose.y - t.y).powi(2);
+            sq_heading += wrap_angle(pose.theta - t.theta).powi(2);
+            n += 1;
+        }
+    }
+    let summary = pipeline.finish(&mut events);
+    assert!(n > 20, "{n} rotations scored");
+    let n = f64::from(n);
+    ((sq_pos / n).sqrt(), (sq_heading / n).sqrt(), summary.gyro)
+}
+
+#[test]
+fn a_gyro_foresees_a_swerve_that_radar_odometry_alone_lags() {
+    let (pos_alone, heading_alone, none) = drive(false);
+    let (pos_gyro, heading_gyro, gyro) = drive(true);
+    eprintln!(
+        "RMS over the swerve, radar only: {pos_alone:.3} m, {heading_alone:.4} rad; with the gyro: {pos_gyro:.3} m, {heading_gyro:.4} rad; {gyro:?}"
+    );
+    assert!(none.is_none());
+    let gyro = gyro.expect("gyro figures");
+    assert!(gyro.counts.applied > 1000, "{gyro:?}");
+    assert_eq!(gyro.counts.refused, 0);
+    // Measured: 0.504 m and 0.0140 rad alone, 0.415 m and 0.0079 rad with the gyro.
+    assert!(
+        heading_gyro < 0.75 * heading_alone && pos_gyro < pos_alone,
+        "with the gyro {pos_gyro} m {heading_gyro} rad, without {pos_alone} m {heading_alone} rad"
+    );
+}
