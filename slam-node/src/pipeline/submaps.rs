@@ -405,6 +405,11 @@ impl SubmapRun {
                 warn!(
                     from = l.from,
                     to = l.to,
+                    error_m = (t.x - l.transform.x).hypot(t.y - l.transform.y),
+                    error_deg =
+                        radar_model::geometry::wrap_angle(t.theta - l.transform.theta).to_degrees(),
+                    from_place = l.from_place,
+                    matches = l.matches,
                     "a loop closure disagrees with the truth"
                 );
             }
