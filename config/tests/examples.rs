@@ -25,6 +25,18 @@ fn every_shipped_example_parses_and_validates() {
         let loaded = Config::load(example_path(name));
         assert!(loaded.is_ok(), "{name}: {}", loaded.unwrap_err());
     }
+    // Every file in the folder, the scene configurations included.
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(&dir).expect("the examples folder") {
+        let path = entry.expect("a folder entry").path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            let loaded = Config::load(&path);
+            assert!(loaded.is_ok(), "{}: {}", path.display(), loaded.unwrap_err());
+            seen += 1;
+        }
+    }
+    assert!(seen >= 8, "only {seen} examples found in {}", dir.display());
 }
 
 #[test]
