@@ -32,7 +32,12 @@ fn every_shipped_example_parses_and_validates() {
         let path = entry.expect("a folder entry").path();
         if path.extension().is_some_and(|e| e == "toml") {
             let loaded = Config::load(&path);
-            assert!(loaded.is_ok(), "{}: {}", path.display(), loaded.unwrap_err());
+            assert!(
+                loaded.is_ok(),
+                "{}: {}",
+                path.display(),
+                loaded.unwrap_err()
+            );
             seen += 1;
         }
     }
