@@ -56,6 +56,8 @@ fn options(args: &Args, place: bool, out: &std::path::Path) -> anyhow::Result<Da
     let mut sim = sim_sensor::SimOptions::from_config(&config.sim).context("the simulator")?;
     sim.bind = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
     sim.odometry_bind = Some(std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
+    // Wheel odometry drives these runs: no gyro port (it would take the fixed default).
+    sim.gyro_bind = None;
     sim.pacing = sim_sensor::Pacing::AsFastAsPossible;
     sim.start_time_ns = Some(
         std::time::SystemTime::now()

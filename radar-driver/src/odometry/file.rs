@@ -5,25 +5,19 @@ use std::io::Read;
 use std::path::Path;
 use std::time::Duration;
 
-use super::{LineSplitter, OdometryError, OdometryPoll, OdometrySource, RecordParser};
-
-const READ_CHUNK: usize = 8192;
+use super::{LineReader, OdometryError, OdometryPoll, OdometrySource, RecordParser};
 
 /// Reads a file incrementally: memory stays at one read chunk plus one line.
 #[derive(Debug)]
 pub struct FileOdometry<R = File> {
-    reader: R,
-    splitter: LineSplitter,
+    lines: LineReader<R>,
     parser: RecordParser,
-    line_no: u64,
-    eof: bool,
-    failed: bool,
 }
 
 impl FileOdometry<File> {
-    /// Opens `path`.
+    /// Opens `path`, a regular file (a FIFO or a device is refused without blocking).
     pub fn open(path: &Path) -> Result<Self, OdometryError> {
-        let file = File::open(path).map_err(|source| OdometryError::Open {
+        let file = super::open_regular(path).map_err(|source| OdometryError::Open {
             path: path.to_owned(),
             source,
         })?;
@@ -35,53 +29,29 @@ impl<R: Read> FileOdometry<R> {
     /// Reads from any byte source (a file, a test buffer).
     pub fn from_reader(reader: R) -> Self {
         Self {
-            reader,
-            splitter: LineSplitter::new(),
+            lines: LineReader::new(reader),
             parser: RecordParser::new(),
-            line_no: 0,
-            eof: false,
-            failed: false,
         }
     }
 
     /// Lines read so far.
     pub fn lines_read(&self) -> u64 {
-        self.line_no
+        self.lines.lines_read()
     }
 
     fn next(&mut self) -> Result<OdometryPoll, OdometryError> {
         loop {
-            if let Some(line) = self.splitter.next_line() {
-                self.line_no += 1;
-                let parsed = line.and_then(|l| self.parser.parse(&l));
-                match parsed {
-                    Ok(Some(record)) => return Ok(OdometryPoll::Record(record)),
-                    Ok(None) => continue,
-                    Err(source) => {
-                        return Err(OdometryError::Line {
-                            line: self.line_no,
-                            source,
-                        })
-                    }
-                }
-            }
-            if self.eof || self.failed {
+            let Some((line_no, line)) = self.lines.next_line().map_err(OdometryError::Read)? else {
                 return Ok(OdometryPoll::Ended);
-            }
-            let mut chunk = [0u8; READ_CHUNK];
-            match self.reader.read(&mut chunk) {
-                Ok(0) => {
-                    self.eof = true;
-                    // A last line without a newline still counts.
-                    if self.splitter.pending_bytes() > 0 {
-                        self.splitter.push(b"\n");
-                    }
-                }
-                Ok(n) => self.splitter.push(chunk.get(..n).unwrap_or_default()),
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                Err(e) => {
-                    self.failed = true;
-                    return Err(OdometryError::Read(e));
+            };
+            match line.and_then(|l| self.parser.parse(&l)) {
+                Ok(Some(record)) => return Ok(OdometryPoll::Record(record)),
+                Ok(None) => {}
+                Err(source) => {
+                    return Err(OdometryError::Line {
+                        line: line_no,
+                        source,
+                    })
                 }
             }
         }

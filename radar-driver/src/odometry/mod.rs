@@ -6,6 +6,7 @@
 
 mod file;
 mod format;
+mod lines;
 mod tcp;
 
 pub use file::FileOdometry;
@@ -13,6 +14,7 @@ pub use format::{
     parse_line, Line, LineError, LineSplitter, OdometryRecord, RecordParser, MAX_LINE_BYTES,
     ODOMETRY_HEADER,
 };
+pub use lines::{open_regular, LineReader};
 pub use tcp::{OdometryStats, OdometryStatsSnapshot, TcpOdometry, TcpOdometrySettings};
 
 use std::path::PathBuf;

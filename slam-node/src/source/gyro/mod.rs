@@ -17,7 +17,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use radar_driver::odometry::LineSplitter;
+use radar_driver::odometry::{open_regular, LineReader};
 
 pub use format::{GyroLineError, GyroParser, GyroSample, GYRO_HEADER};
 pub use tcp::{TcpGyro, TcpGyroSettings};
@@ -93,22 +93,17 @@ pub fn open_configured(
     })
 }
 
-const READ_CHUNK: usize = 8192;
-
 /// Reads a gyro file incrementally: memory stays at one read chunk plus one line.
 #[derive(Debug)]
 pub struct FileGyro<R = File> {
-    reader: R,
-    splitter: LineSplitter,
+    lines: LineReader<R>,
     parser: GyroParser,
-    line_no: u64,
-    eof: bool,
 }
 
 impl FileGyro<File> {
-    /// Opens `path`.
+    /// Opens `path`, a regular file (a FIFO or a device is refused without blocking).
     pub fn open(path: &Path) -> Result<Self, GyroError> {
-        let file = File::open(path).map_err(|source| GyroError::Open {
+        let file = open_regular(path).map_err(|source| GyroError::Open {
             path: path.to_owned(),
             source,
         })?;
@@ -120,49 +115,27 @@ impl<R: Read> FileGyro<R> {
     /// Reads from any byte source (a file, a test buffer).
     pub fn from_reader(reader: R) -> Self {
         Self {
-            reader,
-            splitter: LineSplitter::new(),
+            lines: LineReader::new(reader),
             parser: GyroParser::new(),
-            line_no: 0,
-            eof: false,
         }
     }
 
     fn next(&mut self) -> Result<GyroPoll, GyroError> {
         loop {
-            if let Some(line) = self.splitter.next_line() {
-                self.line_no += 1;
-                let parsed = line
-                    .map_err(GyroLineError::from)
-                    .and_then(|l| self.parser.parse(&l));
-                match parsed {
-                    Ok(Some(sample)) => return Ok(GyroPoll::Sample(sample)),
-                    Ok(None) => continue,
-                    Err(source) => {
-                        return Err(GyroError::Line {
-                            line: self.line_no,
-                            source,
-                        })
-                    }
-                }
-            }
-            if self.eof {
+            let Some((line_no, line)) = self.lines.next_line().map_err(GyroError::Read)? else {
                 return Ok(GyroPoll::Ended);
-            }
-            let mut chunk = [0u8; READ_CHUNK];
-            match self.reader.read(&mut chunk) {
-                Ok(0) => {
-                    self.eof = true;
-                    // A last line without a newline still counts.
-                    if self.splitter.pending_bytes() > 0 {
-                        self.splitter.push(b"\n");
-                    }
-                }
-                Ok(n) => self.splitter.push(chunk.get(..n).unwrap_or_default()),
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                Err(e) => {
-                    self.eof = true;
-                    return Err(GyroError::Read(e));
+            };
+            match line
+                .map_err(GyroLineError::from)
+                .and_then(|l| self.parser.parse(&l))
+            {
+                Ok(Some(sample)) => return Ok(GyroPoll::Sample(sample)),
+                Ok(None) => {}
+                Err(source) => {
+                    return Err(GyroError::Line {
+                        line: line_no,
+                        source,
+                    })
                 }
             }
         }
