@@ -128,6 +128,11 @@ pub struct RawOdometry {
     pub radar_odometry_sigma_m: f64,
     /// Standard deviation of one registration's rotation, rad > 0. Default 0.003.
     pub radar_odometry_sigma_rad: f64,
+    /// Radar only (`source = "none"`): the registration is composed onto the pose at the
+    /// previous rotation, as odometry drives a pose, instead of fused as an update with a
+    /// prediction that repeats the last rotation's motion. Default false. See slam-node's
+    /// README, "Radar only".
+    pub radar_odometry_compose: bool,
 }
 
 impl Default for RawOdometry {
@@ -155,6 +160,7 @@ impl Default for RawOdometry {
             radar_odometry: false,
             radar_odometry_sigma_m: 0.05,
             radar_odometry_sigma_rad: 0.003,
+            radar_odometry_compose: false,
         }
     }
 }
@@ -233,6 +239,8 @@ pub struct OdometrySettings {
     pub radar_odometry_sigma_m: PositiveF64,
     /// One registration's rotation standard deviation, rad.
     pub radar_odometry_sigma_rad: PositiveF64,
+    /// Radar only: registrations composed onto the pose, not fused as updates.
+    pub radar_odometry_compose: bool,
 }
 
 impl Default for OdometrySettings {
@@ -409,6 +417,7 @@ impl RawOdometry {
                 "odometry.radar_odometry_sigma_rad",
                 PositiveF64::new(self.radar_odometry_sigma_rad),
             ),
+            radar_odometry_compose: self.radar_odometry_compose,
         }
     }
 }
@@ -457,6 +466,7 @@ impl From<&OdometrySettings> for RawOdometry {
             radar_odometry: s.radar_odometry,
             radar_odometry_sigma_m: s.radar_odometry_sigma_m.get(),
             radar_odometry_sigma_rad: s.radar_odometry_sigma_rad.get(),
+            radar_odometry_compose: s.radar_odometry_compose,
         }
     }
 }

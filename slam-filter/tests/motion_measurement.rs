@@ -238,3 +238,48 @@ fn an_absurd_or_non_finite_measurement_is_refused_and_changes_nothing() {
     );
     assert_healthy(&f);
 }
+
+/// Composed (radar odometry *is* the odometry): the pose becomes the mark composed with the
+/// measurement whatever the prediction said, the mark does not move, and the pose's
+/// covariance is the mark's carried through the composition plus the measurement's:
+/// symmetric, positive definite, and its heading variance the sum of the two. A slowing
+/// vehicle (the prediction 0.6 m long over the interval) moves nothing sideways.
+#[test]
+fn a_composed_motion_sets_the_pose_and_leaves_the_mark() {
+    let mut f = filter(FilterSettings::default());
+    f.apply_odometry(OdometrySample {
+        timestamp_s: T0,
+        speed_mps: 10.0,
+        steer_rad: 0.0,
+    })
+    .unwrap();
+    f.predict_to(T0 + 1.0).unwrap();
+    f.mark_motion();
+    let mark = f.state().clone_pose_mean();
+    let mark_cov = f.state().pose_covariance();
+    f.predict_to(T0 + 1.25).unwrap();
+    // The vehicle slowed: it moved 1.9 m, not the 2.5 m predicted, and turned a little.
+    let measured = Pose2::new(1.9, 0.02, 0.01);
+    let cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.0025, 0.0025, 9e-6));
+    let outcome = f.compose_motion_since_mark(measured, &cov).unwrap();
+    assert!(
+        matches!(outcome, MotionOutcome::Applied { nis } if nis > 10.0),
+        "{outcome:?}"
+    );
+    let pose = f.pose();
+    let (s, c) = mark.theta.sin_cos();
+    assert!((pose.x - (mark.x + c * 1.9 - s * 0.02)).abs() < 1e-12);
+    assert!((pose.y - (mark.y + s * 1.9 + c * 0.02)).abs() < 1e-12);
+    assert!((pose.theta - wrap_angle(mark.theta + 0.01)).abs() < 1e-12);
+    let after = f.state().clone_pose_mean();
+    assert_eq!(after, mark, "the mark does not move");
+    let p = f.state().pose_covariance();
+    assert!((p - p.transpose()).abs().max() < 1e-15);
+    assert!(p.cholesky().is_some(), "{p}");
+    assert!((p[(2, 2)] - (mark_cov[(2, 2)] + 9e-6)).abs() < 1e-12, "{p}");
+    // Bad input changes nothing.
+    assert!(f
+        .compose_motion_since_mark(Pose2::new(f64::NAN, 0.0, 0.0), &cov)
+        .is_err());
+    assert_eq!(f.pose(), pose);
+}

@@ -119,6 +119,14 @@ pub enum Refusal {
         /// And in heading (rad).
         sigma_rad: f64,
     },
+    /// A closure from a place descriptor puts the new frame farther from where the chain
+    /// of submaps puts it than any drift of the odometry could explain.
+    Implausible {
+        /// How far from the chain's position (m).
+        distance_m: f64,
+        /// And heading (rad).
+        heading_rad: f64,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]

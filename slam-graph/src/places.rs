@@ -44,6 +44,19 @@ pub struct PlaceSearch {
     pub prior_sigma_m: f64,
     /// And of the heading (rad).
     pub prior_sigma_rad: f64,
+    /// A verified closure from a descriptor is refused when it puts the new submap's frame
+    /// farther from where the chain of submaps puts it than this (m) plus
+    /// [`Self::drift_per_m`] of the distance driven between the two plus three standard
+    /// deviations of the chain's relative position: no odometry drifts so far, and a place
+    /// that matches there is another place that looks the same (a grid city's blocks).
+    pub drift_floor_m: f64,
+    /// The share of the distance driven between the two submaps the chain may have
+    /// drifted by (see [`Self::drift_floor_m`]).
+    pub drift_per_m: f64,
+    /// The same for the heading (rad) ...
+    pub heading_drift_floor_rad: f64,
+    /// ... plus this per metre driven between the two (rad/m).
+    pub heading_drift_per_m: f64,
 }
 
 impl Default for PlaceSearch {
@@ -57,6 +70,10 @@ impl Default for PlaceSearch {
             min_travel_m: 200.0,
             prior_sigma_m: 2.0,
             prior_sigma_rad: 0.05,
+            drift_floor_m: 20.0,
+            drift_per_m: 0.1,
+            heading_drift_floor_rad: 0.35,
+            heading_drift_per_m: 0.001,
         }
     }
 }

@@ -96,4 +96,91 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         self.stats.motion_updates += 1;
         Ok(MotionOutcome::Applied { nis })
     }
+
+    /// Sets the pose to the pose at the last mark composed with `measured` (the pose at
+    /// the state's time in the mark's frame, with covariance `cov`), as odometry drives a
+    /// pose: for when the measurement *is* the odometry (radar odometry on the radar alone),
+    /// not a second opinion of it. The pose's covariance becomes the mark's, carried through
+    /// the composition, plus the measurement's; its correlations with the rest of the state
+    /// are the mark's, carried the same way. What the pose learned since the mark from the
+    /// map is kept only as far as it reached the mark through their correlation.
+    ///
+    /// Unlike [`Self::observe_motion_since_mark`] it cannot move the mark or the map: a
+    /// measurement of the motion since the mark says nothing about where the mark is. (Fed
+    /// as an update against a prediction that only repeats the last rotation's motion, the
+    /// innovation of a slowing vehicle moved the whole trajectory sideways through the
+    /// prediction's correlations: metres in a rotation on the realistic city.)
+    ///
+    /// Returns [`MotionOutcome::NoMark`] without a mark, and an error for a non-finite
+    /// measurement, changing nothing either way.
+    pub fn compose_motion_since_mark(
+        &mut self,
+        measured: Pose2,
+        cov: &Matrix3<f64>,
+    ) -> Result<MotionOutcome, FilterError> {
+        if ![measured.x, measured.y, measured.theta]
+            .iter()
+            .chain(cov.iter())
+            .all(|v| v.is_finite())
+        {
+            return Err(FilterError::NonFiniteInput("measured motion"));
+        }
+        if self.state.tally.is_none() {
+            return Ok(MotionOutcome::NoMark);
+        }
+        let mark = self.state.clone_pose_mean();
+        // The measurement against the filter's own motion since the mark (reported only).
+        let (predicted, jacobian) = relative_pose(&mark, &self.pose());
+        let nu = DVector::from_vec(vec![
+            measured.x - predicted.x,
+            measured.y - predicted.y,
+            wrap_angle(measured.theta - predicted.theta),
+        ]);
+        let columns = [0, 1, 2, CLONE_INDEX, CLONE_INDEX + 1, CLONE_INDEX + 2];
+        let h = DMatrix::from_fn(3, 6, |r, k| jacobian[(r, k)]);
+        let innovation_cov = &h * self.state.covariance_block(&columns) * h.transpose()
+            + DMatrix::from_fn(3, 3, |r, k| cov[(r, k)]);
+        let nis = (0.5 * (&innovation_cov + innovation_cov.transpose()))
+            .cholesky()
+            .map_or(f64::NAN, |ch| nu.dot(&ch.solve(&nu)));
+        let (s, c) = mark.theta.sin_cos();
+        // d(mark + measured) / d(mark) and / d(measured).
+        let j_mark = Matrix3::new(
+            1.0,
+            0.0,
+            -s * measured.x - c * measured.y,
+            0.0,
+            1.0,
+            c * measured.x - s * measured.y,
+            0.0,
+            0.0,
+            1.0,
+        );
+        let j_measured = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        let n = self.state.dim();
+        let st = &mut self.state;
+        // Every column but the pose's own: P[pose, j] = J_mark P[mark, j].
+        for j in 3..n {
+            let column = Vector3::from_fn(|r, _| st.covariance_entry(CLONE_INDEX + r, j));
+            let carried = j_mark * column;
+            for r in 0..3 {
+                st.cov[(r, j)] = carried[r];
+                st.cov[(j, r)] = carried[r];
+            }
+        }
+        let p_mark = Matrix3::from_fn(|r, k| st.covariance_entry(CLONE_INDEX + r, CLONE_INDEX + k));
+        let sym = 0.5 * (cov + cov.transpose());
+        let p_pose =
+            j_mark * p_mark * j_mark.transpose() + j_measured * sym * j_measured.transpose();
+        for r in 0..3 {
+            for k in 0..3 {
+                st.cov[(r, k)] = 0.5 * (p_pose[(r, k)] + p_pose[(k, r)]);
+            }
+        }
+        st.mean[0] = mark.x + c * measured.x - s * measured.y;
+        st.mean[1] = mark.y + s * measured.x + c * measured.y;
+        st.mean[2] = wrap_angle(mark.theta + measured.theta);
+        self.stats.motion_updates += 1;
+        Ok(MotionOutcome::Applied { nis })
+    }
 }

@@ -338,7 +338,7 @@ impl fmt::Display for RadarOdometry<'_> {
         };
         writeln!(
             f,
-            "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated; {} retried from other headings (few pairs: a turn's onset)",
+            "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated; {} retried from other headings (through a turn, or few pairs)",
             m.tried, m.failed, m.applied, m.gated, m.turned
         )?;
         if m.drives {

@@ -173,7 +173,8 @@ impl Pipeline {
                 settings.radar_drives,
                 settings.motion,
                 settings.gyro.is_some(),
-            ),
+            )
+            .composing(settings.radar_compose),
             gyro: settings.gyro.map(super::gyro::GyroQueue::new),
             online: Vec::new(),
             cpu_mark: None,

@@ -53,6 +53,8 @@ pub struct RadarOdometryStage {
     lost: bool,
     /// Driving with a gyro: the turn is the gyro's, the registration gives the speed.
     gyro: bool,
+    /// Driving: registrations composed onto the pose at the mark, not fused as updates.
+    compose: bool,
 }
 
 impl RadarOdometryStage {
@@ -70,7 +72,16 @@ impl RadarOdometryStage {
             last_end_s: None,
             lost: false,
             gyro: drives && gyro,
+            compose: false,
         }
+    }
+
+    /// Driving, each registration is composed onto the pose at the previous rotation
+    /// ([`slam_filter::Ekf::compose_motion_since_mark`]) instead of fused as an update with
+    /// the prediction ([`slam_filter::Ekf::observe_motion_since_mark`]).
+    pub fn composing(mut self, compose: bool) -> Self {
+        self.compose = self.drives && compose;
+        self
     }
 
     /// Whether it runs.
@@ -156,7 +167,14 @@ impl RadarOdometryStage {
             } else {
                 GATE_CHI2
             };
-            match ekf.observe_motion_since_mark(m.motion, &m.covariance, gate) {
+            // Driving, the registration is the motion: composed onto the mark, not fused
+            // with a prediction that only repeats the last rotation's motion.
+            let result = if self.compose {
+                ekf.compose_motion_since_mark(m.motion, &m.covariance)
+            } else {
+                ekf.observe_motion_since_mark(m.motion, &m.covariance, gate)
+            };
+            match result {
                 Ok(outcome) => {
                     if let MotionOutcome::Applied { .. } = outcome {
                         applied = Some(*m);
@@ -242,6 +260,8 @@ impl RadarOdometryStage {
             ]);
         }
         debug!(
+            since_s = tally.since_s,
+            until_s = now_s,
             truth_x = truth.map(|t| t[0]),
             truth_y = truth.map(|t| t[1]),
             truth_theta = truth.map(|t| t[2]),

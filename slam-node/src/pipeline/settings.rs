@@ -104,6 +104,10 @@ pub struct PipelineSettings {
     /// Radar odometry drives the filter's prediction (there is no other odometry: `[odometry]
     /// source = "none"` or `--radar-only`).
     pub radar_drives: bool,
+    /// Driving, each registration is composed onto the pose at the previous rotation
+    /// ([`slam_filter::Ekf::compose_motion_since_mark`]) instead of fused as an update
+    /// (`[odometry] radar_odometry_compose`).
+    pub radar_compose: bool,
     /// A gyro's yaw rate gives the prediction's turn (radar-only driving with `[gyro]` or
     /// `--gyro-from-truth`); `None`: the last rotation's turn is held.
     pub gyro: Option<super::gyro::GyroUse>,
@@ -349,6 +353,7 @@ impl PipelineSettings {
                 ..ScanMatchSettings::default()
             },
             radar_drives: false,
+            radar_compose: c.odometry.radar_odometry_compose,
             gyro: None,
             localise: None,
         })
