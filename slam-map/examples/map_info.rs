@@ -35,10 +35,12 @@ fn main() -> ExitCode {
         p.name, p.azimuths, p.encoder_size, p.range_bins, p.bin_size_m
     );
     println!(
-        "{} submaps, {} features, {} loop closures, {} descriptors; {} bytes ({:.1} per feature)",
+        "{} submaps in {} drives, {} features, {} loop closures, {} joins, {} descriptors; {} bytes ({:.1} per feature)",
         map.submaps.len(),
+        map.drive_starts.len() + 1,
         features,
         map.loops.len(),
+        map.joins.len(),
         map.submaps
             .iter()
             .filter(|s| s.descriptor.is_some())
@@ -62,7 +64,7 @@ fn main() -> ExitCode {
                 println!(
                     "graph: {} nodes, {} edges; solved again, the frames move {:.2e} m at most (chi2 {:.3})",
                     sol.nodes.len(),
-                    map.submaps.len() + map.loops.len(),
+                    map.pose_graph().edges().len(),
                     moved,
                     sol.chi2
                 );
