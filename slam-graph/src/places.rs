@@ -175,6 +175,11 @@ fn vote_translation(
 }
 
 impl Places {
+    /// Submaps described so far.
+    pub(crate) fn described(&self) -> usize {
+        self.descriptors.len()
+    }
+
     /// Describes the newest submap `k` (the last of `submaps`); its query, when it has
     /// enough points.
     /// `points` are the newest submap's place points (see [`place_points`], or its scan).
@@ -210,6 +215,7 @@ impl Places {
         min_hits: u64,
         settings: &PlaceSearch,
         refine_by_features: bool,
+        chained: impl Fn(usize) -> bool,
     ) -> Vec<PlaceCandidate> {
         let k = submaps.len().saturating_sub(1);
         while self.indexed < k && eligible(self.indexed) {
@@ -256,10 +262,14 @@ impl Places {
             // The place may lie in the matched submap's features or its neighbours': offer
             // each (those far enough behind), with the transform carried along the chain.
             let mut offers: Vec<(usize, Pose2)> = vec![(i, t)];
-            if let Some(prev) = i.checked_sub(1).and_then(|j| submaps.get(j)) {
+            if let Some(prev) = i
+                .checked_sub(1)
+                .filter(|_| chained(i))
+                .and_then(|j| submaps.get(j))
+            {
                 offers.push((i - 1, compose(&prev.end_pose, &t)));
             }
-            if i + 1 < k && eligible(i + 1) {
+            if i + 1 < k && eligible(i + 1) && chained(i + 1) {
                 offers.push((i + 1, compose(&inverse(&submaps[i].end_pose), &t)));
             }
             for (j, prior) in offers {
