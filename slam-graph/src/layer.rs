@@ -552,11 +552,13 @@ impl GlobalMap {
         let candidates = self.places.candidates(
             &self.submaps,
             &query,
-            eligible,
+            &crate::places::SubmapOrder {
+                eligible: &eligible,
+                chained: &chained,
+            },
             s.align.min_hits,
             &s.place,
             !by_scan,
-            chained,
         );
         for c in candidates {
             if verified.iter().any(|v| v.0 == c.index) {

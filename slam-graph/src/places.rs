@@ -174,6 +174,15 @@ fn vote_translation(
         .max_by(|p, q| p.1.cmp(&q.1).then(q.2.total_cmp(&p.2)))
 }
 
+/// Which earlier submaps a new one may be matched with, and which are chained to their
+/// predecessor (a later drive's first submap is not).
+pub(crate) struct SubmapOrder<'a> {
+    /// Submap `i` is far enough behind (or of another drive).
+    pub eligible: &'a dyn Fn(usize) -> bool,
+    /// Submap `j`'s frame is where submap `j - 1` ended.
+    pub chained: &'a dyn Fn(usize) -> bool,
+}
+
 impl Places {
     /// Submaps described so far.
     pub(crate) fn described(&self) -> usize {
@@ -211,12 +220,13 @@ impl Places {
         &mut self,
         submaps: &[Arc<FrozenSubmap>],
         query: &PlaceQuery,
-        eligible: impl Fn(usize) -> bool,
+        order: &SubmapOrder<'_>,
         min_hits: u64,
         settings: &PlaceSearch,
         refine_by_features: bool,
-        chained: impl Fn(usize) -> bool,
     ) -> Vec<PlaceCandidate> {
+        let eligible = order.eligible;
+        let chained = order.chained;
         let k = submaps.len().saturating_sub(1);
         while self.indexed < k && eligible(self.indexed) {
             if let Some(Some(d)) = self.descriptors.get(self.indexed) {

@@ -125,7 +125,32 @@ impl MapFeatures {
         let Some(k) = self.nearest_submap([pose.x, pose.y]) else {
             return Matrix3::zeros();
         };
-        let (frame, frame_cov) = self.frames[k];
+        self.shared_covariance(k, pose, &self.frames[k].1)
+    }
+
+    /// Where `pose` (in the map's frame, with the filter's covariance `cov` against the
+    /// map's features near it) is in the nearest submap's frame: `(submap, pose in its
+    /// frame, covariance there)`. The covariance adds the mapping vehicle's uncertainty
+    /// along the submap's stretch (shared by the features there), not the frame's own.
+    pub fn in_nearest_submap(
+        &self,
+        pose: &Pose2,
+        cov: &Matrix3<f64>,
+    ) -> Option<(usize, Pose2, Matrix3<f64>)> {
+        let k = self.nearest_submap([pose.x, pose.y])?;
+        let frame = self.frames[k].0;
+        let world = cov + self.shared_covariance(k, pose, &Matrix3::zeros());
+        let back = inverse(&frame);
+        let rel = slam_graph::se2::compose(&back, pose);
+        let rel_cov = compose_covariance(&back, &Matrix3::zeros(), pose, &world);
+        Some((k, rel, 0.5 * (rel_cov + rel_cov.transpose())))
+    }
+
+    /// The error the features near `pose` in submap `k` share: the frame's (`frame_cov`)
+    /// and the mapping vehicle's along the stretch, carried to `pose`.
+    fn shared_covariance(&self, k: usize, pose: &Pose2, frame_cov: &Matrix3<f64>) -> Matrix3<f64> {
+        let frame = self.frames[k].0;
+        let frame_cov = *frame_cov;
         let (end, end_cov) = self.end_local[k];
         let local = slam_graph::se2::compose(&inverse(&frame), pose);
         // Where along the stretch (0 at the frame, 1 at the end) the vehicle is.
