@@ -457,10 +457,12 @@ impl SubmapRun {
                     truth(map.submaps().get(i - 1)?.end_s)
                 };
                 if let (Some(a), Some(b)) = (t(l.from), t(l.to)) {
-                    if closure_agrees(&slam_graph::se2::between(&a, &b), l) {
+                    let truth = slam_graph::se2::between(&a, &b);
+                    if closure_agrees(&truth, l) {
                         self.summary.loops_true += 1;
                     } else {
                         self.summary.loops_false += 1;
+                        warn_false_closure(&truth, l);
                     }
                 }
             }
@@ -482,16 +484,7 @@ impl SubmapRun {
                 self.summary.loops_true += 1;
             } else {
                 self.summary.loops_false += 1;
-                warn!(
-                    from = l.from,
-                    to = l.to,
-                    error_m = (t.x - l.transform.x).hypot(t.y - l.transform.y),
-                    error_deg =
-                        radar_model::geometry::wrap_angle(t.theta - l.transform.theta).to_degrees(),
-                    from_place = l.from_place,
-                    matches = l.matches,
-                    "a loop closure disagrees with the truth"
-                );
+                warn_false_closure(&t, l);
             }
         }
     }
@@ -574,6 +567,19 @@ impl SubmapRun {
             joins: &self.joins,
         }
     }
+}
+
+/// Logs a closure that disagrees with its true transform `t`.
+fn warn_false_closure(t: &Pose2, l: &LoopClosure) {
+    warn!(
+        from = l.from,
+        to = l.to,
+        error_m = (t.x - l.transform.x).hypot(t.y - l.transform.y),
+        error_deg = radar_model::geometry::wrap_angle(t.theta - l.transform.theta).to_degrees(),
+        from_place = l.from_place,
+        matches = l.matches,
+        "a loop closure disagrees with the truth"
+    );
 }
 
 /// Whether a closure's transform agrees with the true one `t` (within 1 m and 2 degrees).
