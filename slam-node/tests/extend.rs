@@ -218,3 +218,39 @@ fn an_extend_run_that_never_localises_saves_nothing() {
     assert!(!merged.exists(), "a map was saved without a fix\n{t}");
     assert_eq!(published(&out), 0, "{t}");
 }
+
+#[test]
+fn with_a_prior_pose_mapping_starts_after_a_few_tracked_rotations() {
+    let dir = tempfile::tempdir().unwrap();
+    let first = dir.path().join("first");
+    let run = slam_node(&format!("[sim]\nseed = 1\n\n{SUBMAPS}"), &first, "20", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let saved_file = first.join("map.slmap");
+    let config = format!(
+        "[sim]\nseed = 2\n\n{SUBMAPS}\n[map]\nmode = \"extend\"\ninitial_pose = [0.3, -0.2, 0.01]\n"
+    );
+    let out = dir.path().join("prior");
+    let run = slam_node(
+        &config,
+        &out,
+        "30",
+        &["--map", saved_file.to_str().unwrap()],
+    );
+    let t = text(&run);
+    assert!(run.status.success(), "{t}");
+    assert!(t.contains("started from the prior pose"), "{t}");
+    // 8 rotations at 2.5 Hz after the start.
+    let after: f64 = t
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("extend: mapping from "))
+        .and_then(|l| l.split(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no extend line\n{t}"));
+    assert!(after < 5.0, "mapping started after {after} s\n{t}");
+    let saved = Map::load(&saved_file).unwrap();
+    let merged = Map::load(&out.join("map.slmap")).unwrap();
+    holds_the_saved_map(&saved, &merged);
+    // The new drive starts near the true start (the origin), 3 m in at most.
+    let start = merged.submaps[saved.submaps.len()].frame;
+    assert!(start.x.hypot(start.y) < 4.0, "{start:?}");
+}
