@@ -131,6 +131,16 @@ fn a_second_run_extends_the_first_ones_map_and_a_third_the_merged_one() {
         .and_then(|n| n.trim().parse().ok())
         .unwrap();
     assert!(published(&out) > 0 && published(&out) < rotations, "{t}");
+    // Feature ids stay unique in the merged map (the new drive numbers past the saved).
+    let mut ids: Vec<u64> = merged
+        .submaps
+        .iter()
+        .flat_map(|s| s.features.iter().map(|f| f.id))
+        .collect();
+    let all = ids.len();
+    ids.sort_unstable();
+    ids.dedup();
+    assert_eq!(ids.len(), all, "repeated feature ids in the merged map");
     // The merged map's graph solves to its frames.
     let sol = merged
         .pose_graph()

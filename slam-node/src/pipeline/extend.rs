@@ -217,6 +217,14 @@ impl Extension {
         if let Some(held) = ekf.held_odometry() {
             fresh.apply_odometry(held)?;
         }
+        // The new drive's features are numbered past the saved map's: ids stay unique.
+        let next = map
+            .submaps
+            .iter()
+            .flat_map(|s| s.features.iter().map(|f| f.id))
+            .max()
+            .map_or(0, |m| m.saturating_add(1));
+        fresh.number_features_from(next);
         let sd = |v: f64| v.max(0.0).sqrt();
         self.summary.joined_to = Some(from);
         self.summary.join = Some([transform.x, transform.y, transform.theta]);
