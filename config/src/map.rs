@@ -26,6 +26,17 @@ pub enum MapMode {
     /// Load the map given with `--map FILE` and track the vehicle in it without adding
     /// features; the published pose is in the map's frame.
     Localise,
+    /// Load the map given with `--map FILE`, localise in it as `Localise` does, then map:
+    /// new submaps in the map's frame, joined to the map's graph, loops closed to its
+    /// submaps; the map saved (`save`, `path`) is the merged one. Needs `[submaps]`.
+    Extend,
+}
+
+impl MapMode {
+    /// Whether the run reads a map (`--map FILE`).
+    pub fn reads_a_map(self) -> bool {
+        matches!(self, MapMode::Localise | MapMode::Extend)
+    }
 }
 
 /// `[map]` as written in the file.
@@ -39,11 +50,12 @@ pub struct RawMap {
     /// Also write it every this many seconds of the run's clock, at least 1 (0: only at the
     /// end). Default 0.
     pub save_every_s: f64,
-    /// `"map"` (map from nothing, the default) or `"localise"` (track in the map given with
-    /// `--map FILE`; nothing is saved).
+    /// `"map"` (map from nothing, the default), `"localise"` (track in the map given with
+    /// `--map FILE`; nothing is saved) or `"extend"` (localise in it, then map on in its
+    /// frame; the merged map is saved).
     pub mode: MapMode,
-    /// Localising: the map file to localise in (slam-node's `--map FILE` sets it; a relative
-    /// path is taken from the working directory).
+    /// Localising or extending: the map file to localise in (slam-node's `--map FILE` sets
+    /// it; a relative path is taken from the working directory).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub file: Option<PathBuf>,
     /// Localising: where the vehicle starts in the map's frame, `[x m, y m, heading rad]`.
@@ -220,6 +232,17 @@ mod tests {
         .unwrap();
         assert_eq!(every.save_every_s, Some(30.0));
         assert_eq!(RawMap::from(&every).validate().unwrap(), every);
+    }
+
+    #[test]
+    fn extend_mode_is_read_from_its_name() {
+        let raw: RawMap = toml::from_str("mode = \"extend\"").unwrap();
+        let s = raw.validate().unwrap();
+        assert_eq!(s.mode, MapMode::Extend);
+        assert!(s.mode.reads_a_map() && MapMode::Localise.reads_a_map());
+        assert!(!MapMode::Map.reads_a_map());
+        assert_eq!(RawMap::from(&s).validate().unwrap(), s);
+        assert!(toml::from_str::<RawMap>("mode = \"extnd\"").is_err());
     }
 
     #[test]

@@ -551,6 +551,11 @@ impl SlamState {
         Some(self.block2(feature_index(slot)))
     }
 
+    /// Numbers the features added from now on from `first` at least (never backwards).
+    pub fn number_features_from(&mut self, first: u64) {
+        self.next_id = self.next_id.max(first);
+    }
+
     /// Appends a feature. `mean` is `[x, y, u, v]`, `cross` its 4 x n covariance with the
     /// existing state, `block` its own 4x4 covariance (its lower triangle is used). Existing
     /// indices are unchanged; the cost is one O(n^2) copy into the larger matrix.

@@ -30,6 +30,9 @@ pub enum EdgeKind {
     Chain,
     /// A loop closure: the later submap's frame in the earlier one's, from matched features.
     Loop,
+    /// A join: a later drive's first submap frame in an earlier drive's submap, from the
+    /// localisation fix that started the drive's mapping (extend mode).
+    Join,
 }
 
 /// A relative measurement of node `to`'s frame in node `from`'s.

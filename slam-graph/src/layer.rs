@@ -188,7 +188,7 @@ pub struct GlobalStats {
 }
 
 /// Centre and radius of points (a submap's features, or its scan), in its frame.
-fn disc(points: &[[f64; 2]]) -> ([f64; 2], f64) {
+pub(crate) fn disc(points: &[[f64; 2]]) -> ([f64; 2], f64) {
     let n = points.len().max(1) as f64;
     let (sx, sy) = points
         .iter()
@@ -204,19 +204,25 @@ fn disc(points: &[[f64; 2]]) -> ([f64; 2], f64) {
 /// The global layer, synchronous.
 #[derive(Debug, Clone)]
 pub struct GlobalMap {
-    settings: GlobalSettings,
-    submaps: Vec<Arc<FrozenSubmap>>,
+    pub(crate) settings: GlobalSettings,
+    pub(crate) submaps: Vec<Arc<FrozenSubmap>>,
     /// Each submap's scan as the scan verifier pairs against (`None`: verified by features).
-    scans: Vec<Option<Arc<ScanReference>>>,
-    discs: Vec<([f64; 2], f64)>,
+    pub(crate) scans: Vec<Option<Arc<ScanReference>>>,
+    pub(crate) discs: Vec<([f64; 2], f64)>,
     /// Distance (m) from the first frame to each frame along the chain of switch poses.
-    travel: Vec<f64>,
-    graph: PoseGraph,
-    covariances: Vec<Matrix3<f64>>,
-    loops: Vec<LoopClosure>,
-    version: u64,
-    stats: GlobalStats,
-    places: Places,
+    pub(crate) travel: Vec<f64>,
+    pub(crate) graph: PoseGraph,
+    pub(crate) covariances: Vec<Matrix3<f64>>,
+    pub(crate) loops: Vec<LoopClosure>,
+    pub(crate) version: u64,
+    pub(crate) stats: GlobalStats,
+    pub(crate) places: Places,
+    /// The drive each frame belongs to (0: the first; later drives come from
+    /// [`GlobalMap::resume`]): no chain edge joins two drives, and loop closures between
+    /// drives need no travel in between.
+    pub(crate) drive: Vec<usize>,
+    /// The joins of later drives to earlier ones (see [`crate::resume`]).
+    pub(crate) joins: Vec<LoopClosure>,
 }
 
 impl GlobalMap {
@@ -234,7 +240,34 @@ impl GlobalMap {
             version: 0,
             stats: GlobalStats::default(),
             places: Places::default(),
+            drive: vec![0],
+            joins: Vec::new(),
         }
+    }
+
+    /// The joins of later drives to earlier ones (empty unless resumed).
+    pub fn joins(&self) -> &[LoopClosure] {
+        &self.joins
+    }
+
+    /// The drive each submap frame belongs to (the frame after the last submap included).
+    pub fn drives(&self) -> &[usize] {
+        &self.drive
+    }
+
+    /// The first frame of the drive frame `k` belongs to.
+    pub(crate) fn drive_start(&self, k: usize) -> usize {
+        let d = self.drive.get(k).copied().unwrap_or(0);
+        let mut start = k.min(self.drive.len().saturating_sub(1));
+        while start > 0 && self.drive[start - 1] == d {
+            start -= 1;
+        }
+        start
+    }
+
+    /// Whether frames `i` and `k` belong to different drives.
+    fn other_drive(&self, i: usize, k: usize) -> bool {
+        self.drive.get(i) != self.drive.get(k)
     }
 
     /// The submaps joined so far.
@@ -342,6 +375,8 @@ impl GlobalMap {
         let last = self.travel.last().copied().unwrap_or(0.0);
         self.travel
             .push(last + submap.end_pose.x.hypot(submap.end_pose.y));
+        let d = self.drive.get(k).copied().unwrap_or(0);
+        self.drive.push(d);
         self.submaps.push(submap);
         self.stats.submaps = self.submaps.len();
         if self.settings.loop_closure {
@@ -385,9 +420,12 @@ impl GlobalMap {
         let by_scan = self.scans.get(k).is_some_and(Option::is_some);
         // (earlier submap, prior, its covariance, how near)
         let mut offered: Vec<(usize, Pose2, Matrix3<f64>, f64)> = Vec::new();
-        for i in 0..k.saturating_sub(s.skip_recent) {
-            // Frame i + 1 is where submap i ended.
-            if self.travel[k] - self.travel[i + 1] < s.min_loop_travel_m {
+        for i in 0..k {
+            // Frame i + 1 is where submap i ended. A submap of an earlier drive is a
+            // candidate however recent.
+            let too_near = i >= k.saturating_sub(s.skip_recent)
+                || self.travel[k] - self.travel[i + 1] < s.min_loop_travel_m;
+            if too_near && !self.other_drive(i, k) {
                 continue;
             }
             let (z, cov) = self.relative(i, k);
@@ -532,12 +570,20 @@ impl GlobalMap {
         };
         let travel = &self.travel;
         let last = k.saturating_sub(s.skip_recent);
-        let eligible = |i: usize| i < last && travel[k] - travel[i + 1] >= s.place.min_travel_m;
+        let drive = &self.drive;
+        let eligible = |i: usize| {
+            drive.get(i) != drive.get(k)
+                || (i < last && travel[k] - travel[i + 1] >= s.place.min_travel_m)
+        };
+        let chained = |j: usize| j > 0 && drive.get(j) == drive.get(j - 1);
         let by_scan = self.scans.get(k).is_some_and(Option::is_some);
         let candidates = self.places.candidates(
             &self.submaps,
             &query,
-            eligible,
+            &crate::places::SubmapOrder {
+                eligible: &eligible,
+                chained: &chained,
+            },
             s.align.min_hits,
             &s.place,
             !by_scan,
@@ -572,12 +618,30 @@ impl GlobalMap {
         Ok(a)
     }
 
+    /// Place descriptors made so far.
+    pub(crate) fn places_described(&self) -> usize {
+        self.places.described()
+    }
+
+    /// [`Self::place_points`] for the resumed layer.
+    pub(crate) fn saved_place_points(&self, k: usize) -> Vec<[f64; 2]> {
+        self.place_points(k)
+    }
+
     /// The points submap `k`'s place is described by: its scan when it has one, else its
     /// features and its predecessor's.
     fn place_points(&self, k: usize) -> Vec<[f64; 2]> {
         match self.scans.get(k) {
             Some(Some(scan)) => scan.points().to_vec(),
-            _ => place_points(&self.submaps, k, self.settings.align.min_hits),
+            _ => {
+                // A drive's first submap has no predecessor in its frame.
+                let start = self.drive_start(k);
+                place_points(
+                    &self.submaps[start..],
+                    k - start,
+                    self.settings.align.min_hits,
+                )
+            }
         }
     }
 
@@ -696,12 +760,19 @@ const QUEUE: usize = 256;
 impl GlobalLayer {
     /// Starts the layer's thread.
     pub fn spawn(settings: GlobalSettings) -> std::io::Result<Self> {
+        Self::spawn_with(GlobalMap::new(settings))
+    }
+
+    /// Starts the layer's thread on `map` (a layer resumed from a saved graph,
+    /// [`GlobalMap::resume`]: the thread first describes the saved submaps' places).
+    pub fn spawn_with(map: GlobalMap) -> std::io::Result<Self> {
         let (tx, rx) = bounded::<ToLayer>(QUEUE);
         let (sol_tx, sol_rx) = bounded(QUEUE);
         let thread = std::thread::Builder::new()
             .name("global-layer".into())
             .spawn(move || {
-                let mut map = GlobalMap::new(settings);
+                let mut map = map;
+                map.describe_saved_places();
                 while let Ok(ToLayer::Submap(s, scan)) = rx.recv() {
                     let report = map.add_submap_with_scan(s, scan);
                     let solution = Arc::new(map.solution(report.elapsed_ms));

@@ -8,6 +8,8 @@
 //!   many features, with their reflectivity and absorption.
 //! - [`places`]: loop-closure candidates from place descriptors (radar-odometry's
 //!   [`radar_odometry::PlaceDescriptor`]), for returns the pose uncertainty does not reach.
+//! - [`resume`]: a layer that goes on from a saved graph, a new drive joined to it (extend
+//!   mode).
 //! - [`revisits`]: closures scored over every true revisit of a ground truth (recall and
 //!   precision).
 //! - [`layer`]: [`GlobalMap`] (synchronous, deterministic) and [`GlobalLayer`] (the same on a
@@ -20,6 +22,7 @@ pub mod correlate;
 pub mod graph;
 pub mod layer;
 pub mod places;
+pub mod resume;
 pub mod revisits;
 pub mod scans;
 pub mod se2;
@@ -30,5 +33,6 @@ pub use layer::{
     AddReport, GlobalLayer, GlobalMap, GlobalSettings, GlobalSolution, GlobalStats, LoopClosure,
 };
 pub use places::{PlaceCandidate, PlaceSearch};
+pub use resume::{ResumeError, SavedGraph};
 pub use revisits::{score_path_revisits, score_revisits, PathSample, RevisitRule, RevisitScore};
 pub use scans::{align_scans, reference_scan, ScanAccumulator, ScanAlignSettings, ScanReference};

@@ -191,7 +191,21 @@ fn vote_translation(
         .max_by(|p, q| p.1.cmp(&q.1).then(q.2.total_cmp(&p.2)))
 }
 
+/// Which earlier submaps a new one may be matched with, and which are chained to their
+/// predecessor (a later drive's first submap is not).
+pub(crate) struct SubmapOrder<'a> {
+    /// Submap `i` is far enough behind (or of another drive).
+    pub eligible: &'a dyn Fn(usize) -> bool,
+    /// Submap `j`'s frame is where submap `j - 1` ended.
+    pub chained: &'a dyn Fn(usize) -> bool,
+}
+
 impl Places {
+    /// Submaps described so far.
+    pub(crate) fn described(&self) -> usize {
+        self.descriptors.len()
+    }
+
     /// Describes the newest submap `k` (the last of `submaps`); its query, when it has
     /// enough points.
     /// `points` are the newest submap's place points (see [`place_points`], or its scan).
@@ -223,11 +237,13 @@ impl Places {
         &mut self,
         submaps: &[Arc<FrozenSubmap>],
         query: &PlaceQuery,
-        eligible: impl Fn(usize) -> bool,
+        order: &SubmapOrder<'_>,
         min_hits: u64,
         settings: &PlaceSearch,
         refine_by_features: bool,
     ) -> Vec<PlaceCandidate> {
+        let eligible = order.eligible;
+        let chained = order.chained;
         let k = submaps.len().saturating_sub(1);
         while self.indexed < k && eligible(self.indexed) {
             if let Some(Some(d)) = self.descriptors.get(self.indexed) {
@@ -273,10 +289,14 @@ impl Places {
             // The place may lie in the matched submap's features or its neighbours': offer
             // each (those far enough behind), with the transform carried along the chain.
             let mut offers: Vec<(usize, Pose2)> = vec![(i, t)];
-            if let Some(prev) = i.checked_sub(1).and_then(|j| submaps.get(j)) {
+            if let Some(prev) = i
+                .checked_sub(1)
+                .filter(|_| chained(i))
+                .and_then(|j| submaps.get(j))
+            {
                 offers.push((i - 1, compose(&prev.end_pose, &t)));
             }
-            if i + 1 < k && eligible(i + 1) {
+            if i + 1 < k && eligible(i + 1) && chained(i + 1) {
                 offers.push((i + 1, compose(&inverse(&submaps[i].end_pose), &t)));
             }
             for (j, prior) in offers {

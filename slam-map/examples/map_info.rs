@@ -1,5 +1,8 @@
 //! Loads a map file and prints what it holds, its size per feature, and whether it suits a
 //! radar profile: `cargo run -p slam-map --example map_info -- out/map.slmap [profile]`.
+//! With `--against SAVED.slmap` (an extended map against the map it extended) it also
+//! prints how far the saved submaps' frames moved, against their saved uncertainty, and
+//! whether their features are unchanged.
 //! Exit 1 with the reason when the file does not load or the profile's geometry differs.
 
 use std::path::PathBuf;
@@ -10,9 +13,23 @@ use slam_map::Map;
 fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
     let Some(path) = args.next().map(PathBuf::from) else {
-        eprintln!("usage: map_info FILE [PROFILE]");
+        eprintln!("usage: map_info FILE [PROFILE] [--against SAVED]");
         return ExitCode::FAILURE;
     };
+    let mut rest: Vec<String> = args.collect();
+    let against = match rest.iter().position(|a| a == "--against") {
+        Some(i) if i + 1 < rest.len() => {
+            let p = PathBuf::from(rest.remove(i + 1));
+            rest.remove(i);
+            Some(p)
+        }
+        Some(_) => {
+            eprintln!("--against needs a map file");
+            return ExitCode::FAILURE;
+        }
+        None => None,
+    };
+    let mut args = rest.into_iter();
     let map = match Map::load(&path) {
         Ok(m) => m,
         Err(e) => {
@@ -35,10 +52,12 @@ fn main() -> ExitCode {
         p.name, p.azimuths, p.encoder_size, p.range_bins, p.bin_size_m
     );
     println!(
-        "{} submaps, {} features, {} loop closures, {} descriptors; {} bytes ({:.1} per feature)",
+        "{} submaps in {} drives, {} features, {} loop closures, {} joins, {} descriptors; {} bytes ({:.1} per feature)",
         map.submaps.len(),
+        map.drive_starts.len() + 1,
         features,
         map.loops.len(),
+        map.joins.len(),
         map.submaps
             .iter()
             .filter(|s| s.descriptor.is_some())
@@ -62,13 +81,23 @@ fn main() -> ExitCode {
                 println!(
                     "graph: {} nodes, {} edges; solved again, the frames move {:.2e} m at most (chi2 {:.3})",
                     sol.nodes.len(),
-                    map.submaps.len() + map.loops.len(),
+                    map.pose_graph().edges().len(),
                     moved,
                     sol.chi2
                 );
             }
             Err(e) => println!("graph: the saved graph does not solve: {e}"),
         }
+    }
+    if let Some(saved_path) = against {
+        let saved = match Map::load(&saved_path) {
+            Ok(m) => m,
+            Err(e) => {
+                eprintln!("{e}");
+                return ExitCode::FAILURE;
+            }
+        };
+        compare(&saved, &map);
     }
     if let Some(name) = args.next() {
         let Some(profile) = radar_model::profile::by_name(&name) else {
@@ -88,4 +117,35 @@ fn main() -> ExitCode {
         }
     }
     ExitCode::SUCCESS
+}
+
+/// How the saved map's submaps moved in `merged` (the map that extended it).
+fn compare(saved: &Map, merged: &Map) {
+    let n = saved.submaps.len().min(merged.submaps.len());
+    let (mut worst, mut worst_ratio, mut sum, mut outside) = (0.0f64, 0.0f64, 0.0, 0);
+    let mut same_features = true;
+    for (a, b) in saved.submaps.iter().zip(&merged.submaps).skip(1) {
+        let moved = (a.frame.x - b.frame.x).hypot(a.frame.y - b.frame.y);
+        let sigma = (a.frame_cov[0] + a.frame_cov[3]).max(0.0).sqrt();
+        let ratio = moved / sigma.max(1e-12);
+        worst = worst.max(moved);
+        worst_ratio = worst_ratio.max(ratio);
+        sum += moved;
+        if ratio > 3.0 {
+            outside += 1;
+        }
+        same_features &= a.features == b.features;
+    }
+    println!(
+        "against the saved map ({} submaps): frames moved mean {:.3} m, max {:.3} m; at most {:.2} of their saved sigma, {} beyond 3 sigma; features {}; {} new submaps, {} new loop closures, {} new joins",
+        saved.submaps.len(),
+        sum / (n.max(2) - 1) as f64,
+        worst,
+        worst_ratio,
+        outside,
+        if same_features { "unchanged" } else { "CHANGED" },
+        merged.submaps.len().saturating_sub(saved.submaps.len()),
+        merged.loops.len().saturating_sub(saved.loops.len()),
+        merged.joins.len().saturating_sub(saved.joins.len())
+    );
 }

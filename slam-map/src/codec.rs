@@ -6,7 +6,8 @@
 //! | 8 | 4 | format version, u32 little-endian ([`FORMAT_VERSION`]) |
 //! | 12 | 4 | CRC32 (IEEE 802.3, as zlib's) of the payload, u32 little-endian |
 //! | 16 | 8 | payload length in bytes, u64 little-endian |
-//! | 24 | length | payload: the [`Map`] in postcard's format (version 1 wire format) |
+//! | 24 | length | payload: the [`Map`] in postcard's format (version 1 wire format); a
+//! version 1 file holds the map without its drives and joins |
 //!
 //! The magic and the version (the first 12 bytes) keep their place in every version; the
 //! rest of the header is this version's. A reader checks, in this order: the magic, the
@@ -22,7 +23,7 @@ use std::io::{self, Read, Write};
 
 use crate::error::{FormatError, WriteError};
 pub use crate::format::{FORMAT_VERSION, HEADER_LEN, MAGIC};
-use crate::model::Map;
+use crate::model::{Map, MapV1};
 use crate::validate::validate;
 
 /// What a reader accepts.
@@ -46,6 +47,7 @@ impl Default for Limits {
 /// The header's fields after the magic and the version were accepted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Header {
+    pub version: u32,
     pub crc: u32,
     pub payload_len: u64,
 }
@@ -109,7 +111,11 @@ pub(crate) fn read_header<R: Read>(r: &mut R, limits: &Limits) -> Result<Header,
             max: limits.max_payload_bytes,
         });
     }
-    Ok(Header { crc, payload_len })
+    Ok(Header {
+        version,
+        crc,
+        payload_len,
+    })
 }
 
 /// Bytes reserved up front for a payload whose length has not been checked against the
@@ -145,8 +151,13 @@ pub(crate) fn read_payload<R: Read>(
             computed,
         });
     }
-    let (map, rest) =
-        postcard::take_from_bytes::<Map>(&payload).map_err(FormatError::Undecodable)?;
+    let (map, rest) = if header.version == 1 {
+        postcard::take_from_bytes::<MapV1>(&payload)
+            .map(|(m, rest)| (Map::from(m), rest))
+            .map_err(FormatError::Undecodable)?
+    } else {
+        postcard::take_from_bytes::<Map>(&payload).map_err(FormatError::Undecodable)?
+    };
     if !rest.is_empty() {
         return Err(FormatError::Invalid(format!(
             "{} bytes of the payload follow the map",

@@ -68,6 +68,37 @@ fn finite_feature(f: &MapFeature) -> bool {
         .all(|v| v.is_finite())
 }
 
+/// The drives of a map made by more than one run (extend mode): where each later drive's
+/// submaps start, and the joins that tie each to the map before it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Drives {
+    /// The first submap of every drive after the first.
+    pub starts: Vec<usize>,
+    /// The joins (`from`: an earlier drive's submap, `to`: a later drive's first).
+    pub joins: Vec<LoopClosure>,
+}
+
+/// `l` as saved, when it names two submaps of `n` and is finite.
+fn edge(l: &LoopClosure, n: usize) -> Option<LoopEdge> {
+    let ok = l.from < n
+        && l.to < n
+        && l.from != l.to
+        && [l.transform.x, l.transform.y, l.transform.theta]
+            .iter()
+            .chain(l.covariance.iter())
+            .all(|v| v.is_finite());
+    if !ok {
+        return None;
+    }
+    Some(LoopEdge {
+        from: u32::try_from(l.from).ok()?,
+        to: u32::try_from(l.to).ok()?,
+        transform: l.transform.into(),
+        covariance: pack3(&l.covariance),
+        matches: u32::try_from(l.matches).unwrap_or(u32::MAX),
+    })
+}
+
 impl Map {
     /// A map of `submaps` (each with its frame in the world and the frame's covariance, in
     /// the order they were closed) and the loop closures between them. Features and loop
@@ -77,6 +108,18 @@ impl Map {
         meta: MapMeta,
         submaps: impl IntoIterator<Item = (&'a FrozenSubmap, Pose2, Matrix3<f64>)>,
         loops: &[LoopClosure],
+    ) -> Result<(Map, BuildReport), WriteError> {
+        Map::from_drives(meta, submaps, loops, &Drives::default())
+    }
+
+    /// [`Self::from_parts`] for a map of several drives: `drives` says where each later
+    /// drive starts and how it is joined to the earlier ones (a join that does not name two
+    /// submaps of the map, or is not finite, is left out and counted with the loops).
+    pub fn from_drives<'a>(
+        meta: MapMeta,
+        submaps: impl IntoIterator<Item = (&'a FrozenSubmap, Pose2, Matrix3<f64>)>,
+        loops: &[LoopClosure],
+        drives: &Drives,
     ) -> Result<(Map, BuildReport), WriteError> {
         let mut report = BuildReport::default();
         let submaps: Vec<MapSubmap> = submaps
@@ -100,28 +143,23 @@ impl Map {
             })
             .collect();
         let n = submaps.len();
-        let loops: Vec<LoopEdge> = loops
-            .iter()
-            .filter_map(|l| {
-                let ok = l.from < n
-                    && l.to < n
-                    && l.from != l.to
-                    && [l.transform.x, l.transform.y, l.transform.theta]
-                        .iter()
-                        .chain(l.covariance.iter())
-                        .all(|v| v.is_finite());
-                if !ok {
-                    report.dropped_loops += 1;
-                    return None;
-                }
-                Some(LoopEdge {
-                    from: u32::try_from(l.from).ok()?,
-                    to: u32::try_from(l.to).ok()?,
-                    transform: l.transform.into(),
-                    covariance: pack3(&l.covariance),
-                    matches: u32::try_from(l.matches).unwrap_or(u32::MAX),
+        let mut edges = |ls: &[LoopClosure]| -> Vec<LoopEdge> {
+            ls.iter()
+                .filter_map(|l| {
+                    let e = edge(l, n);
+                    if e.is_none() {
+                        report.dropped_loops += 1;
+                    }
+                    e
                 })
-            })
+                .collect()
+        };
+        let loops = edges(loops);
+        let joins = edges(&drives.joins);
+        let drive_starts: Vec<u32> = drives
+            .starts
+            .iter()
+            .filter_map(|&s| u32::try_from(s).ok())
             .collect();
         let map = Map {
             created_unix_s: meta.created_unix_s,
@@ -129,6 +167,8 @@ impl Map {
             profile: meta.profile,
             submaps,
             loops,
+            drive_starts,
+            joins,
         };
         validate(&map).map_err(WriteError::Invalid)?;
         Ok((map, report))
@@ -155,7 +195,8 @@ impl Map {
     }
 
     /// The global graph: a node per submap frame and one for where the last submap ended,
-    /// the chain edges (each submap's end pose) and the loop closures, as the global layer
+    /// the chain edges (each submap's end pose, but none into a later drive's first
+    /// submap), the loop closures and the joins, as the global layer
     /// built it (a chain edge whose covariance is not positive definite is taken as
     /// unknown, [`UNKNOWN_CHAIN_COVARIANCE`]). Its nodes hold the saved frames; solving it
     /// again reproduces them.
@@ -168,6 +209,9 @@ impl Map {
             g.add_node(compose(&last.frame.into(), &last.end_pose.into()));
         }
         for (k, s) in self.submaps.iter().enumerate() {
+            if k + 1 < self.submaps.len() && !self.chained(k + 1) {
+                continue;
+            }
             g.add_edge(Edge {
                 from: k,
                 to: k + 1,
@@ -185,7 +229,40 @@ impl Map {
                 kind: EdgeKind::Loop,
             });
         }
+        for j in &self.joins {
+            g.add_edge(Edge {
+                from: j.from as usize,
+                to: j.to as usize,
+                z: j.transform.into(),
+                covariance: unpack3(&j.covariance),
+                kind: EdgeKind::Join,
+            });
+        }
         g
+    }
+
+    /// The loop closures as the global layer keeps them.
+    pub fn loop_closures(&self) -> Vec<LoopClosure> {
+        self.loops.iter().map(closure).collect()
+    }
+
+    /// The joins as the global layer keeps them.
+    pub fn join_closures(&self) -> Vec<LoopClosure> {
+        self.joins.iter().map(closure).collect()
+    }
+}
+
+fn closure(l: &LoopEdge) -> LoopClosure {
+    LoopClosure {
+        from: l.from as usize,
+        to: l.to as usize,
+        transform: l.transform.into(),
+        covariance: unpack3(&l.covariance),
+        matches: l.matches as usize,
+        nis: 0.0,
+        dof: 0,
+        rival_matches: 0,
+        from_place: false,
     }
 }
 

@@ -4,8 +4,8 @@
 /// not taken for a map) and the CR LF pair catches a transfer that rewrote line endings.
 pub const MAGIC: [u8; 8] = [0x89, b'S', b'L', b'M', b'A', b'P', b'\r', b'\n'];
 
-/// The format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+/// The format version this build writes (it reads every version up to it).
+pub const FORMAT_VERSION: u32 = 2;
 
 /// Bytes before the payload.
 pub const HEADER_LEN: usize = 24;

@@ -187,9 +187,55 @@ pub struct Map {
     pub submaps: Vec<MapSubmap>,
     /// The loop closures of the graph.
     pub loops: Vec<LoopEdge>,
+    /// The first submap of every drive after the first (format version 2; strictly
+    /// increasing, each in `1..submaps.len()`): a drive's first submap has no chain edge
+    /// from the submap before it (another drive's last), only its joins and loop closures.
+    pub drive_starts: Vec<u32>,
+    /// Joins (format version 2): where a later drive's first submap was found in the map
+    /// when that drive localised in it (extend mode), as an edge from an earlier submap
+    /// (`from`) to the drive's first submap (`to`), with the fix's covariance.
+    pub joins: Vec<LoopEdge>,
+}
+
+/// A map in format version 1 (no drives, no joins): read, never written.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct MapV1 {
+    pub created_unix_s: u64,
+    pub source: String,
+    pub profile: MapProfile,
+    pub submaps: Vec<MapSubmap>,
+    pub loops: Vec<LoopEdge>,
+}
+
+impl From<MapV1> for Map {
+    fn from(m: MapV1) -> Self {
+        Map {
+            created_unix_s: m.created_unix_s,
+            source: m.source,
+            profile: m.profile,
+            submaps: m.submaps,
+            loops: m.loops,
+            drive_starts: Vec::new(),
+            joins: Vec::new(),
+        }
+    }
 }
 
 impl Map {
+    /// Whether submap `k`'s frame is chained from submap `k - 1`'s end (false for submap 0
+    /// and for the first submap of every later drive).
+    pub fn chained(&self, k: usize) -> bool {
+        k > 0 && !self.drive_starts.iter().any(|&s| s as usize == k)
+    }
+
+    /// The drive submap `k` belongs to (0: the first drive).
+    pub fn drive_of(&self, k: usize) -> usize {
+        self.drive_starts
+            .iter()
+            .filter(|&&s| s as usize <= k)
+            .count()
+    }
+
     /// Features over all submaps.
     pub fn feature_count(&self) -> usize {
         self.submaps.iter().map(|s| s.features.len()).sum()

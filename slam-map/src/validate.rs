@@ -94,5 +94,41 @@ pub fn validate(map: &Map) -> Result<(), String> {
             ));
         }
     }
+    let mut previous = 0u32;
+    for (d, &start) in map.drive_starts.iter().enumerate() {
+        if start as usize >= n || start <= previous {
+            return Err(format!(
+                "drive {} starts at submap {start}: the drives' first submaps must increase, each in 1..{n}",
+                d + 1
+            ));
+        }
+        previous = start;
+    }
+    for (e, j) in map.joins.iter().enumerate() {
+        let (from, to) = (j.from as usize, j.to as usize);
+        if from >= n || to >= n || map.drive_of(from) >= map.drive_of(to) {
+            return Err(format!(
+                "join {e} joins submaps {from} and {to} of {n}: it must lead from an earlier drive to a later one"
+            ));
+        }
+        if !(pose_finite(&j.transform) && finite(&j.covariance)) {
+            return Err(format!(
+                "join {e}: its transform or covariance is not finite"
+            ));
+        }
+    }
+    // Every later drive is tied to an earlier one, or its frames float free of the map's.
+    for d in 1..=map.drive_starts.len() {
+        let tied = map.joins.iter().chain(&map.loops).any(|l| {
+            let (a, b) = (map.drive_of(l.from as usize), map.drive_of(l.to as usize));
+            (a == d && b < d) || (b == d && a < d)
+        });
+        if !tied {
+            return Err(format!(
+                "drive {d} (from submap {}) has no join or loop closure to an earlier drive",
+                map.drive_starts[d - 1]
+            ));
+        }
+    }
     Ok(())
 }

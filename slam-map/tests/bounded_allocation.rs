@@ -11,11 +11,13 @@ fn a_collection_declaring_two_to_the_sixty_elements_allocates_little_and_fails()
         profile: MapProfile::from(&radar_model::profile::CTS350X),
         submaps: Vec::new(),
         loops: Vec::new(),
+        drive_starts: Vec::new(),
+        joins: Vec::new(),
     };
     let mut payload = postcard::to_allocvec(&empty).unwrap();
-    // The last two bytes are the submaps' and the loops' lengths (0, 0).
-    assert_eq!(&payload[payload.len() - 2..], &[0, 0]);
-    payload.truncate(payload.len() - 2);
+    // The last four bytes are the submaps', loops', drive starts' and joins' lengths.
+    assert_eq!(&payload[payload.len() - 4..], &[0, 0, 0, 0]);
+    payload.truncate(payload.len() - 4);
     // 2^60 as a LEB128 varint, then a few bytes of "submap".
     let mut n: u64 = 1 << 60;
     while n >= 0x80 {

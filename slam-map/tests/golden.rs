@@ -1,14 +1,15 @@
 //! The encoding of a fixed map, pinned: a change to the schema (a field added, removed,
 //! retyped or reordered in `model.rs`) changes these bytes and must come with a new
-//! format version and an update of `docs/map-format.md`.
+//! format version and an update of `docs/map-format.md`. Files of earlier versions still
+//! read (`tests/data/sample-v1.slmap`, the same map written by the version 1 build).
 
 mod common;
 
 use slam_map::{Limits, Map, FORMAT_VERSION, MAGIC};
 
-/// Length and CRC32 of the whole file of `common::sample_map(2)` in format version 1.
-const GOLDEN_LEN: usize = 1152;
-const GOLDEN_CRC: u32 = 0x37a4_762a;
+/// Length and CRC32 of the whole file of `common::sample_map(2)` in format version 2.
+const GOLDEN_LEN: usize = 1154;
+const GOLDEN_CRC: u32 = 0x8bb6_1dfd;
 
 #[test]
 fn the_encoding_of_a_fixed_map_is_unchanged() {
@@ -20,11 +21,101 @@ fn the_encoding_of_a_fixed_map_is_unchanged() {
         (bytes.len() - 24) as u64
     );
     println!("len {} crc {:#010x}", bytes.len(), crc32fast::hash(&bytes));
-    assert_eq!(FORMAT_VERSION, 1, "a new version needs its own golden file");
+    assert_eq!(FORMAT_VERSION, 2, "a new version needs its own golden file");
     assert_eq!(bytes.len(), GOLDEN_LEN);
     assert_eq!(crc32fast::hash(&bytes), GOLDEN_CRC);
     assert_eq!(
         Map::from_bytes(&bytes, &Limits::default()).unwrap(),
         common::sample_map(2)
     );
+}
+
+#[test]
+fn a_version_1_file_reads_as_the_same_map_of_one_drive() {
+    let v1 = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/sample-v1.slmap"
+    ))
+    .unwrap();
+    assert_eq!(&v1[8..12], &1u32.to_le_bytes());
+    assert_eq!(v1.len(), 1152);
+    assert_eq!(
+        crc32fast::hash(&v1),
+        0x37a4_762a,
+        "the version 1 golden file"
+    );
+    let map = Map::from_bytes(&v1, &Limits::default()).unwrap();
+    assert_eq!(map, common::sample_map(2));
+    assert!(map.drive_starts.is_empty() && map.joins.is_empty());
+}
+
+#[test]
+fn a_map_of_two_drives_round_trips_and_its_graph_has_no_chain_edge_between_them() {
+    let m = common::two_drive_map(2);
+    let bytes = m.to_bytes().unwrap();
+    assert_eq!(Map::from_bytes(&bytes, &Limits::default()).unwrap(), m);
+    assert!(m.chained(1) && !m.chained(2) && !m.chained(0));
+    assert_eq!((m.drive_of(1), m.drive_of(2)), (0, 1));
+    let g = m.pose_graph();
+    // 3 submaps and the end: chain 0->1 and 2->3 (none 1->2), the loop, the join.
+    assert_eq!(g.nodes().len(), 4);
+    let pairs: Vec<(usize, usize, slam_graph::EdgeKind)> =
+        g.edges().iter().map(|e| (e.from, e.to, e.kind)).collect();
+    use slam_graph::EdgeKind::{Chain, Join, Loop};
+    assert_eq!(
+        pairs,
+        vec![(0, 1, Chain), (2, 3, Chain), (0, 2, Loop), (0, 2, Join)]
+    );
+}
+
+#[test]
+fn drives_and_joins_that_break_the_rules_are_refused() {
+    let cases: Vec<(Map, &str)> = vec![
+        (
+            {
+                let mut m = common::two_drive_map(2);
+                m.drive_starts = vec![0];
+                m
+            },
+            "drive 1 starts at submap 0",
+        ),
+        (
+            {
+                let mut m = common::two_drive_map(2);
+                m.drive_starts = vec![3];
+                m
+            },
+            "drive 1 starts at submap 3",
+        ),
+        (
+            {
+                let mut m = common::two_drive_map(2);
+                m.joins[0].from = 2;
+                m.joins[0].to = 1;
+                m
+            },
+            "join 0 joins submaps 2 and 1",
+        ),
+        (
+            {
+                let mut m = common::two_drive_map(2);
+                m.joins.clear();
+                m.loops.clear();
+                m
+            },
+            "drive 1 (from submap 2) has no join or loop closure",
+        ),
+        (
+            {
+                let mut m = common::two_drive_map(2);
+                m.joins[0].covariance[0] = f64::NAN;
+                m
+            },
+            "join 0: its transform or covariance is not finite",
+        ),
+    ];
+    for (m, why) in cases {
+        let e = m.to_bytes().unwrap_err().to_string();
+        assert!(e.contains(why), "{why:?} not in {e:?}");
+    }
 }

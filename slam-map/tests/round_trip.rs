@@ -303,6 +303,8 @@ fn map() -> impl Strategy<Value = Map> {
                     },
                     submaps,
                     loops,
+                    drive_starts: Vec::new(),
+                    joins: Vec::new(),
                 }
             },
         )

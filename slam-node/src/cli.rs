@@ -36,7 +36,8 @@ pub struct Args {
     #[arg(long)]
     out: Option<PathBuf>,
     /// Localise in this saved map (slam-map's `.slmap`, written by an earlier run) instead
-    /// of mapping from nothing: needs `[map] mode = "localise"`; sets `[map] file`.
+    /// of mapping from nothing: needs `[map] mode = "localise"` (track in it) or `"extend"`
+    /// (localise, then map on and save the merged map); sets `[map] file`.
     #[arg(long, value_name = "FILE")]
     map: Option<PathBuf>,
     /// Do not draw SVG figures.

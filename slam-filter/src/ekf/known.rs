@@ -60,6 +60,13 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     pub fn remove_feature(&mut self, id: FeatureId) -> Result<(), FilterError> {
         self.state.remove(id)
     }
+
+    /// Numbers the features mapped from now on from `first` at least (a run extending a
+    /// saved map numbers its features past the map's, so that ids stay unique in the
+    /// merged map). Never numbers backwards.
+    pub fn number_features_from(&mut self, first: u64) {
+        self.state.number_features_from(first);
+    }
 }
 
 #[cfg(test)]
@@ -88,6 +95,17 @@ mod tests {
             RangeBearingModel,
         )
         .unwrap()
+    }
+
+    #[test]
+    fn features_are_numbered_from_where_they_are_told_and_never_backwards() {
+        let mut ekf = filter(1.0, false);
+        let i = nalgebra::Matrix2::identity();
+        ekf.number_features_from(1000);
+        let a = ekf.insert_known_feature([5.0, 0.0], &i, [0.0, 0.0], &i, 0.0);
+        ekf.number_features_from(10);
+        let b = ekf.insert_known_feature([9.0, 0.0], &i, [0.0, 0.0], &i, 0.0);
+        assert_eq!((a.unwrap().0, b.unwrap().0), (1000, 1001));
     }
 
     #[test]

@@ -69,5 +69,27 @@ pub fn sample_map(per_submap: usize) -> Map {
             covariance: [0.01, 0.0, 0.0, 0.01, 0.0, 1e-5],
             matches: 14,
         }],
+        drive_starts: Vec::new(),
+        joins: Vec::new(),
     }
+}
+
+/// [`sample_map`] with a second drive: its third submap starts a drive joined to the first
+/// submap (the fix of extend mode), with no chain edge from the second.
+#[allow(dead_code)] // not every test binary uses it
+pub fn two_drive_map(per_submap: usize) -> Map {
+    let mut m = sample_map(per_submap);
+    m.drive_starts = vec![2];
+    m.joins = vec![LoopEdge {
+        from: 0,
+        to: 2,
+        transform: Pose {
+            x: 200.0,
+            y: -6.0,
+            theta: 0.2,
+        },
+        covariance: [0.02, 0.001, 0.0, 0.03, 0.0, 2e-5],
+        matches: 9,
+    }];
+    m
 }

@@ -1,8 +1,10 @@
-//! The summary lines of a run that localised in a saved map.
+//! The summary lines of a run that localised in a saved map, and of one that extended it.
 
 use std::fmt;
 
+use crate::pipeline::extend::ExtendSummary;
 use crate::pipeline::localise::LocaliseSummary;
+use crate::pipeline::submaps::SubmapSummary;
 
 /// Localisation in a saved map: the map, the fix, and the published poses against the
 /// truth when it is known.
@@ -61,6 +63,53 @@ impl fmt::Display for Localisation<'_> {
                 s.consistency,
                 s.first_error_m,
                 s.first_heading_rad.to_degrees()
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// Extending a saved map: when mapping started, the join, and what the new drive added.
+pub(super) struct Extension<'a>(pub &'a ExtendSummary, pub Option<&'a SubmapSummary>);
+
+impl fmt::Display for Extension<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let x = self.0;
+        let (Some(t), Some(k), Some(j), Some(sd)) =
+            (x.mapping_after_s, x.joined_to, x.join, x.join_sigma)
+        else {
+            return writeln!(
+                f,
+                "  extend: NOT EXTENDED{} ({} saved submaps, {} loop closures, {} drives); no map saved",
+                x.error
+                    .as_ref()
+                    .map_or(String::new(), |e| format!(": {e}")),
+                x.saved_submaps,
+                x.saved_loops,
+                x.saved_drives
+            );
+        };
+        writeln!(
+            f,
+            "  extend: mapping from {t:.1} s in the map's frame, joined to saved submap {k} at ({:.2} m, {:.2} m, {:.2} deg) +- ({:.3} m, {:.3} m, {:.3} deg); saved map {} submaps, {} loop closures, {} drives",
+            j[0],
+            j[1],
+            j[2].to_degrees(),
+            sd[0],
+            sd[1],
+            sd[2].to_degrees(),
+            x.saved_submaps,
+            x.saved_loops,
+            x.saved_drives
+        )?;
+        if let Some(sm) = self.1 {
+            writeln!(
+                f,
+                "  extend: {} new submaps; loop closures from new submaps to saved ones {}, in all {} (saved {})",
+                sm.submaps.saturating_sub(x.saved_submaps),
+                sm.loops_to_saved,
+                sm.loop_closures,
+                x.saved_loops
             )?;
         }
         Ok(())

@@ -60,12 +60,15 @@ pub enum DaemonError {
     /// The map to localise in could not be read (the message names the file and why).
     #[error(transparent)]
     Map(Box<slam_map::LoadError>),
-    /// `[map] mode = "localise"` without a map.
-    #[error("[map] mode = \"localise\" needs a map to localise in: --map FILE (or [map] file)")]
+    /// `[map] mode = "localise"` or `"extend"` without a map.
+    #[error("[map] mode = \"localise\" or \"extend\" needs a map to localise in: --map FILE (or [map] file)")]
     NoMap,
-    /// A map given without `[map] mode = "localise"`.
-    #[error("map file {0}: a map is read only with [map] mode = \"localise\"")]
+    /// A map given without `[map] mode = "localise"` or `"extend"`.
+    #[error("map file {0}: a map is read only with [map] mode = \"localise\" or \"extend\"")]
     MapNotUsed(PathBuf),
+    /// `[map] mode = "extend"` without submaps.
+    #[error("map file {0}: [map] mode = \"extend\" maps in submaps joined to the map's graph: set [submaps] enabled = true")]
+    ExtendNeedsSubmaps(PathBuf),
 }
 
 impl DaemonError {
@@ -233,8 +236,11 @@ fn localise_settings(
     match (c.map.mode, &c.map.file) {
         (config::MapMode::Map, None) => Ok(None),
         (config::MapMode::Map, Some(p)) => Err(DaemonError::MapNotUsed(p.clone())),
-        (config::MapMode::Localise, None) => Err(DaemonError::NoMap),
-        (config::MapMode::Localise, Some(p)) => {
+        (config::MapMode::Localise | config::MapMode::Extend, None) => Err(DaemonError::NoMap),
+        (config::MapMode::Extend, Some(p)) if !c.submaps.enabled => {
+            Err(DaemonError::ExtendNeedsSubmaps(p.clone()))
+        }
+        (config::MapMode::Localise | config::MapMode::Extend, Some(p)) => {
             let map = slam_map::Map::load(p).map_err(|e| DaemonError::Map(Box::new(e)))?;
             Ok(Some(crate::pipeline::localise::LocaliseSettings::new(
                 p.clone(),

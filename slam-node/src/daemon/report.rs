@@ -98,6 +98,9 @@ pub fn summary_text(r: &DaemonReport) -> String {
     if let Some(l) = &s.localise {
         put(&super::localise_report::Localisation(l));
     }
+    if let Some(x) = &s.extend {
+        put(&super::localise_report::Extension(x, s.submaps.as_ref()));
+    }
     if let Some(c) = &r.mcap_replay {
         put(&McapReplay(c));
     }
@@ -747,8 +750,18 @@ impl fmt::Display for SavedMapLine<'_> {
         });
         writeln!(
             f,
-            "  saved map: {} submaps, {} features, {} loop closures; {} bytes{per_km} ({} saves, each built in {:.1} ms at most on the pipeline thread)",
-            c.submaps, c.features, c.loops, bytes, r.writer.saved_maps, c.max_build_ms
+            "  saved map: {} submaps, {} features, {} loop closures{}; {} bytes{per_km} ({} saves, each built in {:.1} ms at most on the pipeline thread)",
+            c.submaps,
+            c.features,
+            c.loops,
+            if c.drives > 1 {
+                format!(", {} drives, {} joins", c.drives, c.joins)
+            } else {
+                String::new()
+            },
+            bytes,
+            r.writer.saved_maps,
+            c.max_build_ms
         )
     }
 }

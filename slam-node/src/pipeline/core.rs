@@ -12,6 +12,7 @@
 //! | truth | [`TruthObserver`] (optional) | scores against ground truth, changes nothing |
 //! | localisation | [`Localiser`] (optional) | a saved map's features in the filter, the search for the fix, what is published |
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::Matrix3;
@@ -96,8 +97,12 @@ pub struct Pipeline {
     cpu_mark: Option<std::time::Duration>,
     /// The run's clock at the last periodic saved map (`[map] save_every_s`).
     last_map_save_s: Option<f64>,
-    /// Localisation in a saved map (`[map] mode = "localise"`).
+    /// Localisation in a saved map (`[map] mode = "localise"` or `"extend"`).
     localise: Option<Localiser>,
+    /// Extending the saved map once localised (`[map] mode = "extend"`).
+    extend: Option<super::extend::Extension>,
+    /// Extending: the published poses (`online`) before mapping started.
+    online_before_mapping: Option<usize>,
     /// Stream time of the last warning about a burst of targets.
     burst_warned_s: f64,
 }
@@ -135,8 +140,19 @@ impl Pipeline {
             Pose2::new(x, y, wrap_angle(theta)),
             start_time_s.unwrap_or(0.0),
         )?;
+        let extend = match settings.localise.as_ref().filter(|l| l.extend) {
+            Some(l) => {
+                let options = settings
+                    .submaps
+                    .ok_or_else(|| LocaliseError::ExtendNeedsSubmaps(l.path.clone()))?;
+                Some(super::extend::Extension::new(options, Arc::clone(&l.map)))
+            }
+            None => None,
+        };
+        // Extending, the submaps start at the fix.
         let submaps = settings
             .submaps
+            .filter(|_| extend.is_none())
             .map(SubmapRun::new)
             .transpose()
             .map_err(PipelineError::GlobalLayer)?;
@@ -150,6 +166,8 @@ impl Pipeline {
         };
         Ok(Self {
             localise,
+            extend,
+            online_before_mapping: None,
             submaps,
             front_end: FrontEnd::new(settings.front_end()),
             gate: OdometryGate::new(
@@ -686,17 +704,38 @@ impl Pipeline {
     /// The pose published this rotation: the filter's in the world; localising, the
     /// localiser's in the map's frame once it has a fix (after its rotation's work).
     fn pose_to_publish(&mut self) -> Option<(Pose2, Matrix3<f64>)> {
+        if self.extend.as_ref().is_some_and(|x| x.mapping()) {
+            return Some(self.world_pose());
+        }
         let Some(l) = self.localise.as_mut() else {
             return Some(self.world_pose());
         };
         let t = self.ekf.state().time_s();
         l.end_rotation(&mut self.ekf, t);
-        l.published(&self.ekf)
+        let published = l.published(&self.ekf);
+        if let Some(x) = self.extend.as_mut().filter(|x| x.due(l)) {
+            let since = t - self.summary.first_time_s.unwrap_or(t);
+            if let Some(run) = x.start(l, &mut self.ekf, &self.settings, since) {
+                self.submaps = Some(run);
+                // This rotation's pose is published and scored as localisation's.
+                self.online_before_mapping = Some(self.online.len() + 1);
+            }
+        }
+        published
+    }
+
+    /// Extending before mapping started: nothing to save (the saved map is not rewritten
+    /// with the search's local map).
+    fn nothing_to_save(&self) -> bool {
+        self.extend.as_ref().is_some_and(|x| !x.mapping())
     }
 
     /// Every `[map] save_every_s` of the run's clock, and when asked (SIGUSR1): the saved
     /// map as it stands.
     fn save_map_if_due(&mut self, events: &mut Vec<OutputEvent>) {
+        if self.nothing_to_save() {
+            return;
+        }
         if saved_map::take_save_request() {
             info!("saving the map, as asked");
             self.last_map_save_s = Some(self.ekf.state().time_s());
@@ -835,7 +874,9 @@ impl Pipeline {
         let map = self.map_snapshot();
         let map_size = map.features.len();
         events.push(OutputEvent::Map(map));
-        if self.settings.map_save.enabled {
+        if self.settings.map_save.enabled && self.nothing_to_save() {
+            warn!("extend mode: not localised in the map long enough to map, so no map is saved (the map given is unchanged)");
+        } else if self.settings.map_save.enabled {
             self.push_saved_map(final_loops.as_deref(), events);
         }
         if let Some(t) = trajectory {
@@ -861,7 +902,9 @@ impl Pipeline {
             s.online = Some(super::submaps::score_trajectory(&est, &tru));
         }
         s.odometry_out_of_order = self.gate.out_of_order();
-        s.localise = self.localise.as_ref().map(|l| l.summary(&self.online));
+        let localised = &self.online[..self.online_before_mapping.unwrap_or(self.online.len())];
+        s.localise = self.localise.as_ref().map(|l| l.summary(localised));
+        s.extend = self.extend.as_ref().map(|x| x.summary().clone());
         if let Some(truth) = self.truth.as_ref() {
             let features = match self.submaps.as_ref() {
                 Some(sm) => sm.world_features(&self.ekf),

@@ -10,6 +10,7 @@ pub mod core;
 pub mod counts;
 pub mod derive;
 pub mod ekf;
+pub mod extend;
 pub mod frontend;
 pub mod gate;
 pub mod gyro;

@@ -43,6 +43,10 @@ pub struct SavedMapCounts {
     pub features: usize,
     /// Loop closures.
     pub loops: usize,
+    /// Drives (more than one when the run extended a saved map) and their joins.
+    pub drives: usize,
+    /// Joins.
+    pub joins: usize,
     /// Features left out for a value that is not finite.
     pub dropped_features: usize,
     /// The longest time building a saved map took on the pipeline thread over the run (ms;
@@ -104,7 +108,11 @@ pub fn build(
                     let (f, c) = frame(k);
                     (s, f, c)
                 });
-            Map::from_parts(meta, parts, loops.unwrap_or(p.loops))
+            let drives = slam_map::Drives {
+                starts: p.drive_starts.to_vec(),
+                joins: p.joins.to_vec(),
+            };
+            Map::from_drives(meta, parts, loops.unwrap_or(p.loops), &drives)
         }
         None => Map::from_parts(meta, std::iter::once((&current, origin.0, origin.1)), &[]),
     };
@@ -121,6 +129,8 @@ pub fn build(
                 submaps: map.submaps.len(),
                 features: map.feature_count(),
                 loops: map.loops.len(),
+                drives: map.drive_starts.len() + 1,
+                joins: map.joins.len(),
                 dropped_features: report.dropped_features,
                 max_build_ms: 0.0,
             };

@@ -51,6 +51,8 @@ pub struct SubmapSummary {
     /// Closures over every true revisit (within 10 m, at least 300 m of driving apart),
     /// when the truth is known.
     pub revisits: Option<slam_graph::RevisitScore>,
+    /// Extending a saved map: the closures from this run's submaps to the saved ones.
+    pub loops_to_saved: usize,
 }
 
 /// A whole trajectory against the truth.
@@ -150,6 +152,27 @@ pub struct SubmapRun {
     loops: Vec<LoopClosure>,
     /// The current submap's scan (radar odometry's clouds), handed over with it.
     scan: ScanAccumulator,
+    /// The first submap of this run: 0, or the saved map's submap count when the run
+    /// extends a saved map ([`SubmapRun::resumed`]).
+    first_new: usize,
+    /// The first submap of every drive after the first (the saved map's, then this run's).
+    drive_starts: Vec<usize>,
+    /// The joins of later drives to earlier ones (the saved map's, then this run's).
+    joins: Vec<LoopClosure>,
+}
+
+/// A saved map to go on from, as [`SubmapRun::resumed`] takes it.
+#[derive(Debug)]
+pub struct Resumed {
+    /// The global layer holding the saved graph and the new drive's first frame
+    /// ([`slam_graph::GlobalMap::resume`]).
+    pub layer: slam_graph::GlobalMap,
+    /// The saved submaps.
+    pub frozen: Vec<Arc<FrozenSubmap>>,
+    /// Their frames and covariances, then the new drive's first frame and its covariance.
+    pub frames: Vec<(Pose2, Matrix3<f64>)>,
+    /// The saved map's drive starts, then this run's (the saved submap count).
+    pub drive_starts: Vec<usize>,
 }
 
 /// `cov` of a pose in a frame, re-expressed with the frame at `frame` (covariance
@@ -186,7 +209,45 @@ impl SubmapRun {
                 submaps: 1,
                 ..SubmapSummary::default()
             },
+            first_new: 0,
+            drive_starts: Vec::new(),
+            joins: Vec::new(),
         })
+    }
+
+    /// The stage going on from a saved map: its submaps frozen, the current submap the new
+    /// drive's first, at the frame the join placed; the global layer's thread starts on
+    /// the resumed layer.
+    pub fn resumed(options: SubmapOptions, r: Resumed) -> std::io::Result<Self> {
+        let first_new = r.frozen.len();
+        let joins = r.layer.joins().to_vec();
+        let loops = r.layer.loops().to_vec();
+        let (frames, frame_covs): (Vec<Pose2>, Vec<Matrix3<f64>>) = r.frames.into_iter().unzip();
+        Ok(Self {
+            layer: Some(GlobalLayer::spawn_with(r.layer)?),
+            options,
+            frozen: r.frozen,
+            frames,
+            frame_covs,
+            version: 0,
+            driven_m: 0.0,
+            last_local: None,
+            history: Vec::new(),
+            loops,
+            scan: ScanAccumulator::new(&options.global.scans),
+            summary: SubmapSummary {
+                submaps: first_new + 1,
+                ..SubmapSummary::default()
+            },
+            first_new,
+            drive_starts: r.drive_starts,
+            joins,
+        })
+    }
+
+    /// The first submap of this run (0 unless it extends a saved map).
+    pub fn first_new(&self) -> usize {
+        self.first_new
     }
 
     /// The index of the current submap.
@@ -250,7 +311,8 @@ impl SubmapRun {
 
     /// Frames from `from` on, from their predecessors and the switch poses.
     fn rechain(&mut self, from: usize) {
-        for k in from..self.frames.len() {
+        // A drive's first frame is placed by its join, not chained from the frame before.
+        for k in from.max(self.first_new + 1)..self.frames.len() {
             let Some(s) = self.frozen.get(k - 1) else {
                 break;
             };
@@ -383,6 +445,29 @@ impl SubmapRun {
         let Some(map) = map else {
             return;
         };
+        if self.first_new > 0 {
+            // Extending: the saved submaps' times are another run's clock, so only this
+            // run's own closures are scored against the truth.
+            let n = self.first_new;
+            for l in map.loops().iter().filter(|l| l.from >= n) {
+                let t = |i: usize| -> Option<Pose2> {
+                    if i == n {
+                        return trajectory.first().and_then(|p| truth(p.timestamp_s));
+                    }
+                    truth(map.submaps().get(i - 1)?.end_s)
+                };
+                if let (Some(a), Some(b)) = (t(l.from), t(l.to)) {
+                    let truth = slam_graph::se2::between(&a, &b);
+                    if closure_agrees(&truth, l) {
+                        self.summary.loops_true += 1;
+                    } else {
+                        self.summary.loops_false += 1;
+                        warn_false_closure(&truth, l);
+                    }
+                }
+            }
+            return;
+        }
         let frame_truth = |i: usize| -> Option<Pose2> {
             if i == 0 {
                 return Some(Pose2::new(0.0, 0.0, 0.0));
@@ -395,23 +480,11 @@ impl SubmapRun {
                 continue;
             };
             let t = slam_graph::se2::between(&a, &b);
-            let ok = (t.x - l.transform.x).hypot(t.y - l.transform.y) <= 1.0
-                && radar_model::geometry::wrap_angle(t.theta - l.transform.theta).abs()
-                    <= 2f64.to_radians();
-            if ok {
+            if closure_agrees(&t, l) {
                 self.summary.loops_true += 1;
             } else {
                 self.summary.loops_false += 1;
-                warn!(
-                    from = l.from,
-                    to = l.to,
-                    error_m = (t.x - l.transform.x).hypot(t.y - l.transform.y),
-                    error_deg =
-                        radar_model::geometry::wrap_angle(t.theta - l.transform.theta).to_degrees(),
-                    from_place = l.from_place,
-                    matches = l.matches,
-                    "a loop closure disagrees with the truth"
-                );
+                warn_false_closure(&t, l);
             }
         }
     }
@@ -440,6 +513,12 @@ impl SubmapRun {
             self.install(&sol.frames, &sol.covariances);
             self.summary.loop_closures = m.loops().len();
             self.summary.global = *m.stats();
+            let n = self.first_new;
+            self.summary.loops_to_saved = m
+                .loops()
+                .iter()
+                .filter(|l| n > 0 && l.from < n && l.to >= n)
+                .count();
         } else if !self.frozen.is_empty() {
             warn!("the global layer's thread ended early: the trajectory uses the chained frames");
         }
@@ -484,8 +563,29 @@ impl SubmapRun {
             frames: &self.frames,
             frame_covs: &self.frame_covs,
             loops: &self.loops,
+            drive_starts: &self.drive_starts,
+            joins: &self.joins,
         }
     }
+}
+
+/// Logs a closure that disagrees with its true transform `t`.
+fn warn_false_closure(t: &Pose2, l: &LoopClosure) {
+    warn!(
+        from = l.from,
+        to = l.to,
+        error_m = (t.x - l.transform.x).hypot(t.y - l.transform.y),
+        error_deg = radar_model::geometry::wrap_angle(t.theta - l.transform.theta).to_degrees(),
+        from_place = l.from_place,
+        matches = l.matches,
+        "a loop closure disagrees with the truth"
+    );
+}
+
+/// Whether a closure's transform agrees with the true one `t` (within 1 m and 2 degrees).
+fn closure_agrees(t: &Pose2, l: &LoopClosure) -> bool {
+    (t.x - l.transform.x).hypot(t.y - l.transform.y) <= 1.0
+        && radar_model::geometry::wrap_angle(t.theta - l.transform.theta).abs() <= 2f64.to_radians()
 }
 
 /// What [`SubmapRun::parts`] lends.
@@ -499,6 +599,10 @@ pub struct SubmapParts<'a> {
     pub frame_covs: &'a [Matrix3<f64>],
     /// Loop closures accepted so far.
     pub loops: &'a [LoopClosure],
+    /// The first submap of every drive after the first.
+    pub drive_starts: &'a [usize],
+    /// The joins of later drives to earlier ones.
+    pub joins: &'a [LoopClosure],
 }
 
 /// The closures over every true revisit: frame `i`'s true origin is the vehicle's true

@@ -63,6 +63,8 @@ pub struct PipelineSummary {
     pub saved_map: Option<super::saved_map::SavedMapCounts>,
     /// Localisation in a saved map, when the run localised.
     pub localise: Option<super::localise::LocaliseSummary>,
+    /// Extending a saved map, when the run extended one.
+    pub extend: Option<super::extend::ExtendSummary>,
     /// Stream time of the first azimuth on the radar's current clock (since its last jump).
     pub first_time_s: Option<f64>,
     /// Last azimuth's time.

@@ -125,7 +125,32 @@ impl MapFeatures {
         let Some(k) = self.nearest_submap([pose.x, pose.y]) else {
             return Matrix3::zeros();
         };
-        let (frame, frame_cov) = self.frames[k];
+        self.shared_covariance(k, pose, &self.frames[k].1)
+    }
+
+    /// Where `pose` (in the map's frame, with the filter's covariance `cov` against the
+    /// map's features near it) is in the nearest submap's frame: `(submap, pose in its
+    /// frame, covariance there)`. The covariance adds the mapping vehicle's uncertainty
+    /// along the submap's stretch (shared by the features there), not the frame's own.
+    pub fn in_nearest_submap(
+        &self,
+        pose: &Pose2,
+        cov: &Matrix3<f64>,
+    ) -> Option<(usize, Pose2, Matrix3<f64>)> {
+        let k = self.nearest_submap([pose.x, pose.y])?;
+        let frame = self.frames[k].0;
+        let world = cov + self.shared_covariance(k, pose, &Matrix3::zeros());
+        let back = inverse(&frame);
+        let rel = slam_graph::se2::compose(&back, pose);
+        let rel_cov = compose_covariance(&back, &Matrix3::zeros(), pose, &world);
+        Some((k, rel, 0.5 * (rel_cov + rel_cov.transpose())))
+    }
+
+    /// The error the features near `pose` in submap `k` share: the frame's (`frame_cov`)
+    /// and the mapping vehicle's along the stretch, carried to `pose`.
+    fn shared_covariance(&self, k: usize, pose: &Pose2, frame_cov: &Matrix3<f64>) -> Matrix3<f64> {
+        let frame = self.frames[k].0;
+        let frame_cov = *frame_cov;
         let (end, end_cov) = self.end_local[k];
         let local = slam_graph::se2::compose(&inverse(&frame), pose);
         // Where along the stretch (0 at the frame, 1 at the end) the vehicle is.
@@ -290,6 +315,89 @@ mod tests {
         assert!((segment_distance([0.0, 0.0], [10.0, 0.0], [5.0, 3.0]) - 3.0).abs() < 1e-12);
         assert!((segment_distance([0.0, 0.0], [10.0, 0.0], [13.0, 4.0]) - 5.0).abs() < 1e-12);
         assert!((segment_distance([1.0, 1.0], [1.0, 1.0], [4.0, 5.0]) - 5.0).abs() < 1e-12);
+    }
+
+    /// Two submaps along +x, the second's frame turned by `turn`; `end_cov` on each.
+    fn two_submaps(turn: f64, end_var: f64) -> Map {
+        let feature = |x: f64| slam_map::MapFeature {
+            id: x as u64,
+            xy: [x, 5.0],
+            xy_cov: [0.01, 0.0, 0.01],
+            uv: [0.0, 0.0],
+            uv_cov: [0.1, 0.0, 0.1],
+            hits: 5,
+        };
+        let submap = |frame: slam_map::Pose| slam_map::MapSubmap {
+            frame,
+            frame_cov: [0.04, 0.0, 0.0, 0.04, 0.0, 1e-4],
+            end_pose: slam_map::Pose {
+                x: 50.0,
+                y: 0.0,
+                theta: 0.0,
+            },
+            end_cov: [end_var, 0.0, 0.0, end_var, 0.0, end_var * 1e-2],
+            end_s: 1.0,
+            loss_db: 0.0,
+            features: (0..5).map(|i| feature(10.0 * f64::from(i))).collect(),
+            descriptor: None,
+        };
+        Map {
+            created_unix_s: 0,
+            source: String::new(),
+            profile: slam_map::MapProfile::from(&radar_model::profile::CTS350X),
+            submaps: vec![
+                submap(slam_map::Pose::ORIGIN),
+                submap(slam_map::Pose {
+                    x: 50.0,
+                    y: 0.0,
+                    theta: turn,
+                }),
+            ],
+            loops: Vec::new(),
+            drive_starts: Vec::new(),
+            joins: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_pose_in_the_nearest_submap_is_the_pose_seen_from_its_frame_with_its_covariance() {
+        let cov = Matrix3::new(0.09, 0.02, 0.001, 0.02, 0.04, -0.002, 0.001, -0.002, 4e-4);
+        let pose = Pose2::new(70.0, 8.0, 0.3);
+        for (turn, end_var) in [(0.0, 0.0), (0.4, 0.0), (0.4, 0.25)] {
+            let features = MapFeatures::new(&two_submaps(turn, end_var));
+            let (k, rel, rel_cov) = features.in_nearest_submap(&pose, &cov).unwrap();
+            assert_eq!(k, 1);
+            let frame = features.frames[1].0;
+            let back = slam_graph::se2::compose(&frame, &rel);
+            assert!((back.x - pose.x).hypot(back.y - pose.y) < 1e-9);
+            assert!((back.theta - pose.theta).abs() < 1e-12);
+            assert!((rel_cov - rel_cov.transpose()).norm() < 1e-15);
+            assert!(rel_cov.cholesky().is_some());
+            // The filter's covariance turned into the frame, checked against the numeric
+            // Jacobian of the pose seen from the frame; the mapper's stretch only adds.
+            let h = 1e-6;
+            let mut j = Matrix3::zeros();
+            for c in 0..3 {
+                let mut d = [0.0; 3];
+                d[c] = h;
+                let moved = Pose2::new(pose.x + d[0], pose.y + d[1], pose.theta + d[2]);
+                let r = slam_graph::se2::compose(&inverse(&frame), &moved);
+                j[(0, c)] = (r.x - rel.x) / h;
+                j[(1, c)] = (r.y - rel.y) / h;
+                j[(2, c)] = (r.theta - rel.theta) / h;
+            }
+            let turned = j * cov * j.transpose();
+            let extra = rel_cov - turned;
+            if end_var == 0.0 {
+                assert!(extra.norm() < 1e-8, "{extra}");
+            } else {
+                let e = nalgebra::SymmetricEigen::new(0.5 * (extra + extra.transpose()));
+                assert!(
+                    e.eigenvalues.min() > -1e-9 && e.eigenvalues.max() > 1e-3,
+                    "{extra}"
+                );
+            }
+        }
     }
 
     #[test]

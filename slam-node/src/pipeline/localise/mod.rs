@@ -75,6 +75,9 @@ pub struct LocaliseSettings {
     pub map: Arc<Map>,
     /// The prior pose in the map's frame and its standard deviations, when given.
     pub prior: Option<([f64; 3], [f64; 3])>,
+    /// Extend mode (`[map] mode = "extend"`): once localised, map on in the map's frame
+    /// ([`crate::pipeline::extend`]).
+    pub extend: bool,
 }
 
 impl LocaliseSettings {
@@ -84,15 +87,19 @@ impl LocaliseSettings {
             path,
             map,
             prior: c.initial_pose.map(|p| (p, c.initial_sigma)),
+            extend: c.mode == config::MapMode::Extend,
         }
     }
 
     /// What localising changes in the pipeline's settings: no submaps (the map's are the
     /// submaps), nothing saved, the filter started at the prior (or at the origin of a
-    /// frame of its own to search from).
+    /// frame of its own to search from). Extending, the submaps and the saved map stay as
+    /// configured: the pipeline starts them at the fix.
     pub fn apply(&self, s: &mut PipelineSettings) {
-        s.submaps = None;
-        s.map_save.enabled = false;
+        if !self.extend {
+            s.submaps = None;
+            s.map_save.enabled = false;
+        }
         let (pose, std) = self.prior.unwrap_or(([0.0; 3], [0.0; 3]));
         s.initial_pose = pose;
         s.initial_pose_std = std;
@@ -116,6 +123,9 @@ pub enum LocaliseError {
     /// The place search's thread could not start.
     #[error("the place search's thread could not start: {0}")]
     Thread(#[source] std::io::Error),
+    /// Extend mode without submaps to map in.
+    #[error("map file {0}: extending a map needs submaps ([submaps] enabled = true)")]
+    ExtendNeedsSubmaps(PathBuf),
 }
 
 /// What localisation did over a run.
@@ -195,6 +205,8 @@ pub struct Localiser {
     phase: Phase,
     first_rotation_s: Option<f64>,
     rotations: u64,
+    /// The rotation count when the last fix was taken.
+    fix_rotation: u64,
     summary: LocaliseSummary,
 }
 
@@ -297,6 +309,7 @@ impl Localiser {
             },
             first_rotation_s: None,
             rotations: 0,
+            fix_rotation: 0,
             summary,
         })
     }
@@ -330,6 +343,20 @@ impl Localiser {
             ekf.apply_odometry(held)?;
         }
         Ok(ekf)
+    }
+
+    /// The map's features and frames in the map's frame.
+    pub fn map_features(&self) -> &MapFeatures {
+        &self.features
+    }
+
+    /// Rotations tracked since the last fix (0 while searching).
+    pub fn tracked_rotations(&self) -> u64 {
+        if self.has_fix() {
+            self.rotations - self.fix_rotation
+        } else {
+            0
+        }
     }
 
     /// Whether a pose in the map's frame is published.
@@ -494,6 +521,7 @@ impl Localiser {
                         self.updates_seen = ekf.stats().updates;
                         self.quiet_rotations = 0;
                         self.summary.fixes += 1;
+                        self.fix_rotation = self.rotations;
                         if self.summary.time_to_fix_s.is_none() {
                             self.summary.time_to_fix_s = Some(since_start_s);
                             self.summary.rotations_to_fix = self.rotations;
