@@ -23,7 +23,7 @@
 //!   (a CTS350-X B-scan is 1.5 MB), so a larger chunk is a hostile or unusual file.
 //!
 //! Decompression ([`super::decompress`]) grows its output by what comes out, a block at a
-//! time, never by the claim; it checks the stop request (Ctrl-C, SIGTERM) between blocks and
+//! time, never by the claim; it checks the stop request (Ctrl-C) between blocks and
 //! stops at one byte over the claim. A chunk whose data disagrees with its claim (more or
 //! fewer bytes, a CRC that does not match, a frame that does not decode, a record running
 //! past the chunk's end) is an error naming the chunk's byte offset in the file. The whole

@@ -19,7 +19,7 @@
 //! schema encoding is not `ros2msg` or whose schema is unknown, a message encoding other than
 //! `cdr`, a payload that does not decode, a B-scan whose image does not match its rows, radar
 //! data before any configuration. A truncated or corrupt file ends the replay where it breaks
-//! (everything before is used) and is reported. The run's stop request (Ctrl-C, SIGTERM) ends
+//! (everything before is used) and is reported. The run's stop request (Ctrl-C) ends
 //! the reading at the next record, read of the file or block of a chunk's decompression.
 
 use std::collections::{HashMap, VecDeque};
@@ -70,7 +70,7 @@ pub struct McapReplaySettings {
     pub azimuth_capacity: usize,
     /// The largest uncompressed size a chunk may claim, bytes.
     pub max_chunk_bytes: u64,
-    /// The run's stop request (Ctrl-C, SIGTERM): reading ends at the next record, read of
+    /// The run's stop request (Ctrl-C): reading ends at the next record, read of
     /// the file or block of a chunk's decompression once it is set.
     pub stop: Arc<AtomicBool>,
 }

@@ -12,7 +12,7 @@
 //! compressed chunk's claimed uncompressed size by what its bytes can expand to and by an
 //! absolute cap before decompressing.
 //!
-//! A stop request (the daemon's Ctrl-C/SIGTERM flag) is honoured between records, between
+//! A stop request (the daemon's Ctrl-C flag) is honoured between records, between
 //! reads of the file (at most [`READ_BYTES`] each, so a 256 MiB record on slow storage does
 //! not hold it up) and between blocks of a chunk's decompression.
 
