@@ -20,8 +20,53 @@ async fn read_line(reader: &mut BufReader<TcpStream>) -> String {
         .await
         .expect("a line in time")
         .expect("read");
-    assert!(n > 0, "odometry stream ended");
+    assert!(n > 0, "the line stream ended");
     line
+}
+
+/// The first `count` records of the line stream at `address` (odometry or gyro, format of
+/// docs/contracts.md) while a radar client drives the scene (as fast as possible, the
+/// stream follows it): the header is `header`, each line at most 256 bytes ending in a
+/// newline, fields separated by single spaces, the timestamp with nine decimals. Each
+/// record: its time, ns, and its other fields.
+async fn contract_lines(
+    handle: &SimHandle,
+    address: std::net::SocketAddr,
+    header: &str,
+    count: usize,
+) -> Vec<(u64, Vec<f64>)> {
+    let fields = header.split(' ').count() - 3;
+    let stream = TcpStream::connect(address).await.expect("connect");
+    let mut reader = BufReader::new(stream);
+    assert_eq!(read_line(&mut reader).await, format!("{header}\n"));
+    // Drive the radar so the world moves: 12 s of scene time at 500 azimuths a second.
+    let mut radar = TestClient::connect(handle.local_addr()).await;
+    radar.configuration().await;
+    radar.send(Message::StartFftData).await;
+    let reader_task = tokio::spawn(async move {
+        for _ in 0..6000 {
+            radar.next_fft().await;
+        }
+        radar
+    });
+    let mut records = Vec::new();
+    while records.len() < count {
+        let line = read_line(&mut reader).await;
+        assert!(line.len() <= 256 && line.ends_with('\n'));
+        let parts: Vec<&str> = line.trim_end().split(' ').collect();
+        assert_eq!(parts.len(), fields, "{line:?}");
+        let (secs, nanos) = parts[0].split_once('.').expect("decimal timestamp");
+        assert_eq!(nanos.len(), 9);
+        let t_ns = secs.parse::<u64>().expect("secs") * 1_000_000_000
+            + nanos.parse::<u64>().expect("nanos");
+        let values = parts[1..]
+            .iter()
+            .map(|f| f.parse::<f64>().expect("a number"))
+            .collect();
+        records.push((t_ns, values));
+    }
+    let _radar = reader_task.await.expect("radar reader");
+    records
 }
 
 #[tokio::test]
@@ -36,42 +81,18 @@ async fn odometry_lines_follow_the_contract_and_carry_the_true_controls_without_
         bias_steer_rad: 0.0,
     };
     let handle = SimServer::spawn(options).await.expect("spawn");
-    let odometry = TcpStream::connect(handle.odometry_addr().expect("odometry port"))
-        .await
-        .expect("connect");
-    let mut reader = BufReader::new(odometry);
-    assert_eq!(
-        read_line(&mut reader).await,
-        "# odometry v1 timestamp_s speed_mps steer_rad\n"
-    );
-
-    // Drive the radar so the world moves (as fast as possible, odometry follows it).
-    let mut radar = TestClient::connect(handle.local_addr()).await;
-    radar.configuration().await;
-    radar.send(Message::StartFftData).await;
-    let reader_task = tokio::spawn(async move {
-        // 12 s of scene time at 500 azimuths a second.
-        for _ in 0..6000 {
-            radar.next_fft().await;
-        }
-        radar
-    });
-    let mut records = Vec::new();
-    while records.len() < 220 {
-        let line = read_line(&mut reader).await;
-        assert!(line.len() <= 256 && line.ends_with('\n'));
-        let fields: Vec<&str> = line.trim_end().split(' ').collect();
-        assert_eq!(fields.len(), 3, "{line:?}");
-        let (secs, nanos) = fields[0].split_once('.').expect("decimal timestamp");
-        assert_eq!(nanos.len(), 9);
-        let t_ns = secs.parse::<u64>().expect("secs") * 1_000_000_000
-            + nanos.parse::<u64>().expect("nanos");
-        let v: f64 = fields[1].parse().expect("speed");
-        let a: f64 = fields[2].parse().expect("steer");
-        records.push((t_ns, v, a));
-    }
-    let _radar = reader_task.await.expect("radar reader");
-    for (j, (t_ns, v, a)) in records.iter().enumerate() {
+    let address = handle.odometry_addr().expect("odometry port");
+    let records = contract_lines(
+        &handle,
+        address,
+        "# odometry v1 timestamp_s speed_mps steer_rad",
+        220,
+    )
+    .await;
+    for (j, (t_ns, fields)) in records.iter().enumerate() {
+        let [v, a] = fields[..] else {
+            panic!("record {j}: {fields:?}")
+        };
         assert_eq!(
             *t_ns,
             START_NS + 50_000_000 * j as u64,
@@ -80,7 +101,7 @@ async fn odometry_lines_follow_the_contract_and_carry_the_true_controls_without_
         let t_s = j as f64 * 0.05;
         // outdoor-field: 1 m/s straight, steer 0.04 from 10 s.
         let (ev, ea) = if t_s < 10.0 { (1.0, 0.0) } else { (1.0, 0.04) };
-        assert_eq!((*v, *a), (ev, ea), "record {j} at {t_s} s");
+        assert_eq!((v, a), (ev, ea), "record {j} at {t_s} s");
     }
     handle.shutdown().await.expect("shutdown");
 }
@@ -385,37 +406,18 @@ async fn gyro_lines_follow_the_contract_and_carry_the_true_yaw_rate_plus_the_bia
         bias_rad_s: 0.005,
     };
     let handle = SimServer::spawn(options).await.expect("spawn");
-    let gyro = TcpStream::connect(handle.gyro_addr().expect("gyro port"))
-        .await
-        .expect("connect");
-    let mut reader = BufReader::new(gyro);
-    assert_eq!(
-        read_line(&mut reader).await,
-        "# gyro v1 timestamp_s yaw_rate_rad_s\n"
-    );
-    let mut radar = TestClient::connect(handle.local_addr()).await;
-    radar.configuration().await;
-    radar.send(Message::StartFftData).await;
-    let reader_task = tokio::spawn(async move {
-        for _ in 0..6000 {
-            radar.next_fft().await;
-        }
-        radar
-    });
-    let mut samples = Vec::new();
-    while samples.len() < 1100 {
-        let line = read_line(&mut reader).await;
-        assert!(line.len() <= 256 && line.ends_with('\n'));
-        let fields: Vec<&str> = line.trim_end().split(' ').collect();
-        assert_eq!(fields.len(), 2, "{line:?}");
-        let (secs, nanos) = fields[0].split_once('.').expect("decimal timestamp");
-        assert_eq!(nanos.len(), 9);
-        let t_ns = secs.parse::<u64>().expect("secs") * 1_000_000_000
-            + nanos.parse::<u64>().expect("nanos");
-        samples.push((t_ns, fields[1].parse::<f64>().expect("yaw rate")));
-    }
-    let _radar = reader_task.await.expect("radar reader");
-    for (j, (t_ns, w)) in samples.iter().enumerate() {
+    let address = handle.gyro_addr().expect("gyro port");
+    let samples = contract_lines(
+        &handle,
+        address,
+        "# gyro v1 timestamp_s yaw_rate_rad_s",
+        1100,
+    )
+    .await;
+    for (j, (t_ns, fields)) in samples.iter().enumerate() {
+        let [w] = fields[..] else {
+            panic!("sample {j}: {fields:?}")
+        };
         assert_eq!(*t_ns, START_NS + 10_000_000 * j as u64, "sample {j}");
         // outdoor-field: 1 m/s straight, steer 0.04 from 10 s.
         let steer = if j < 1000 { 0.0 } else { 0.04 };

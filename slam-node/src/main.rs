@@ -121,6 +121,16 @@ fn run(args: cli::Args) -> anyhow::Result<()> {
                 .map_or(String::new(), |e| format!(" ({e})"))
         );
     }
+    // A file cut short or corrupt was replayed up to the damage only: the summary above
+    // says what was used; the status says the run did not get through the file.
+    if let Some(e) = report
+        .mcap_replay
+        .as_ref()
+        .and_then(|c| c.file_error.as_ref())
+        .filter(|_| !stop_requested)
+    {
+        anyhow::bail!("{doing}: replayed up to where the file is damaged: {e}");
+    }
     Ok(())
 }
 

@@ -235,6 +235,65 @@ fn a_run_recorded_with_mcap_replays_through_the_binary_with_nothing_refused() {
     assert!(tum.lines().count() > 3, "{tum}");
 }
 
+/// A recording with a corrupt chunk (a byte of its compressed data changed) replays up to
+/// the chunk, prints its summary, and ends with status 1 and a message naming the file and
+/// the chunk's byte offset: the run did not get through the file.
+#[test]
+fn a_corrupt_chunk_makes_the_replay_exit_non_zero_naming_the_file_and_the_chunk() {
+    let dir = tempfile::tempdir().unwrap();
+    let recorded = slam_node()
+        .args([
+            "--fast",
+            "--duration",
+            "3",
+            "--no-figures",
+            "--progress-every",
+            "0",
+        ])
+        .args(["--mcap", "run.mcap", "--out"])
+        .arg(dir.path().join("live"))
+        .output()
+        .unwrap();
+    assert!(recorded.status.success());
+    let mut bytes = std::fs::read(dir.path().join("live").join("run.mcap")).unwrap();
+    // The third chunk record (opcode 0x06): a byte in the middle of its compressed data.
+    let (mut pos, mut seen, mut chunk_at) = (8usize, 0, None);
+    while pos + 9 <= bytes.len() && bytes[pos] != 0x02 {
+        let len = u64::from_le_bytes(bytes[pos + 1..pos + 9].try_into().unwrap()) as usize;
+        if bytes[pos] == 0x06 {
+            seen += 1;
+            if seen == 3 {
+                chunk_at = Some(pos);
+                bytes[pos + 9 + len / 2] ^= 0x55;
+                break;
+            }
+        }
+        pos += 9 + len;
+    }
+    let chunk_at = chunk_at.expect("a third chunk");
+    let bad = dir.path().join("bad.mcap");
+    std::fs::write(&bad, &bytes).unwrap();
+    let out = slam_node()
+        .arg("--replay-mcap")
+        .arg(&bad)
+        .args(["--no-figures", "--progress-every", "0", "--out"])
+        .arg(dir.path().join("replayed"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        text.contains("MCAP replay: "),
+        "the summary is printed: {text}"
+    );
+    assert!(
+        err.contains(&bad.display().to_string())
+            && err.contains(&format!("the chunk record at byte {chunk_at}")),
+        "{err}"
+    );
+}
+
 /// Sends SIGINT (Ctrl-C) to `child` with the system's `kill`.
 #[cfg(unix)]
 fn interrupt(child: &std::process::Child) {

@@ -8,6 +8,7 @@
 use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::Path;
+use std::sync::atomic::AtomicBool;
 
 use slam_node::source::mcap::{read_records, ChunkError, ChunkLimits, McapFileError, RecordsEnd};
 
@@ -17,6 +18,8 @@ const LIMIT: ChunkLimits = ChunkLimits {
     max_uncompressed: 64 << 20,
     max_record: 256 << 20,
 };
+/// No stop request.
+static NO_STOP: AtomicBool = AtomicBool::new(false);
 /// The size of the crafted file.
 const FILE_BYTES: usize = 191 * 1024;
 /// What reading any of these files may allocate at its peak: the file's size and change.
@@ -59,7 +62,9 @@ fn read_counted(path: &Path) -> (Result<RecordsEnd, McapFileError>, u64) {
     let file = std::fs::File::open(path).expect("open");
     let mut result = None;
     let info = allocation_counter::measure(|| {
-        result = Some(read_records(file, LIMIT, |_, _| ControlFlow::Continue(())));
+        result = Some(read_records(file, LIMIT, &NO_STOP, |_, _| {
+            ControlFlow::Continue(())
+        }));
     });
     (result.expect("ran"), info.bytes_max)
 }
@@ -161,7 +166,7 @@ fn a_well_formed_file_is_read_to_its_end() {
     drop(w);
     let file = std::fs::File::open(&path).expect("open");
     let mut messages = 0;
-    let end = read_records(file, LIMIT, |opcode, data| {
+    let end = read_records(file, LIMIT, &NO_STOP, |opcode, data| {
         if opcode == mcap::records::op::MESSAGE {
             messages += 1;
             assert_eq!(data.len(), 22 + 1000);
@@ -174,9 +179,12 @@ fn a_well_formed_file_is_read_to_its_end() {
     // Cut short at the half: an error, the messages before it read.
     let bytes = std::fs::read(&path).expect("read");
     let cut = write(dir.path(), "cut.mcap", &bytes[..bytes.len() / 2]);
-    let end = read_records(std::fs::File::open(&cut).expect("open"), LIMIT, |_, _| {
-        ControlFlow::Continue(())
-    });
+    let end = read_records(
+        std::fs::File::open(&cut).expect("open"),
+        LIMIT,
+        &NO_STOP,
+        |_, _| ControlFlow::Continue(()),
+    );
     assert!(end.is_err(), "{end:?}");
 }
 
@@ -287,10 +295,15 @@ fn a_chunk_over_the_cap_is_refused_before_decompressing() {
         ..LIMIT
     };
     let mut seen = 0u64;
-    let end = read_records(std::fs::File::open(&path).expect("open"), limits, |_, _| {
-        seen += 1;
-        ControlFlow::Break(())
-    })
+    let end = read_records(
+        std::fs::File::open(&path).expect("open"),
+        limits,
+        &NO_STOP,
+        |_, _| {
+            seen += 1;
+            ControlFlow::Break(())
+        },
+    )
     .expect("read");
     assert_eq!((end, seen), (RecordsEnd::Stopped, 1));
 }

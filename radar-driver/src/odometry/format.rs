@@ -85,8 +85,26 @@ pub enum Line {
     Record(OdometryRecord),
 }
 
-/// Parses one line (without its `\n`).
-pub fn parse_line(line: &[u8]) -> Result<Line, LineError> {
+/// What one line of a line format of `docs/contracts.md` holds before its fields are read
+/// as numbers: the shared checks of [`split_line`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fields<'a, const N: usize> {
+    /// The format's header.
+    Header,
+    /// A blank line (skipped).
+    Blank,
+    /// A record's `N` fields, the first a timestamp with at most nine decimals.
+    Record([&'a str; N]),
+}
+
+/// The checks every line format of `docs/contracts.md` (odometry, gyro) shares: at most
+/// [`MAX_LINE_BYTES`], ASCII, a trailing `\r` tolerated, blank lines, `#` lines that must be
+/// `header`, exactly `N` fields separated by single spaces, a timestamp first with at most
+/// [`MAX_TIMESTAMP_DECIMALS`] decimals.
+pub fn split_line<'a, const N: usize>(
+    line: &'a [u8],
+    header: &str,
+) -> Result<Fields<'a, N>, LineError> {
     if line.len() > MAX_LINE_BYTES {
         return Err(LineError::TooLong { len: line.len() });
     }
@@ -96,34 +114,51 @@ pub fn parse_line(line: &[u8]) -> Result<Line, LineError> {
     let text = std::str::from_utf8(line).map_err(|_| LineError::NotAscii)?;
     let text = text.strip_suffix('\r').unwrap_or(text);
     if text.is_empty() {
-        return Ok(Line::Blank);
+        return Ok(Fields::Blank);
     }
     if text.starts_with('#') {
-        return if text == ODOMETRY_HEADER {
-            Ok(Line::Header)
+        return if text == header {
+            Ok(Fields::Header)
         } else {
             Err(LineError::BadHeader(text.to_owned()))
         };
     }
-    let fields: Vec<&str> = text.split(' ').collect();
-    let [t, v, s] = fields.as_slice() else {
-        return Err(LineError::FieldCount {
-            found: fields.len(),
-        });
-    };
-    if let Some((_, decimals)) = t.split_once('.') {
-        if decimals.len() > MAX_TIMESTAMP_DECIMALS {
+    let mut fields = [""; N];
+    let mut found = 0;
+    for field in text.split(' ') {
+        if let Some(slot) = fields.get_mut(found) {
+            *slot = field;
+        }
+        found += 1;
+    }
+    if found != N {
+        return Err(LineError::FieldCount { found });
+    }
+    if let Some(t) = fields.first() {
+        if t.split_once('.')
+            .is_some_and(|(_, decimals)| decimals.len() > MAX_TIMESTAMP_DECIMALS)
+        {
             return Err(LineError::TooManyDecimals((*t).to_owned()));
         }
     }
-    Ok(Line::Record(OdometryRecord {
-        timestamp_s: number("timestamp_s", t)?,
-        speed_mps: number("speed_mps", v)?,
-        steer_rad: number("steer_rad", s)?,
-    }))
+    Ok(Fields::Record(fields))
 }
 
-fn number(field: &'static str, text: &str) -> Result<f64, LineError> {
+/// Parses one line (without its `\n`).
+pub fn parse_line(line: &[u8]) -> Result<Line, LineError> {
+    Ok(match split_line(line, ODOMETRY_HEADER)? {
+        Fields::Header => Line::Header,
+        Fields::Blank => Line::Blank,
+        Fields::Record([t, v, s]) => Line::Record(OdometryRecord {
+            timestamp_s: decimal("timestamp_s", t)?,
+            speed_mps: decimal("speed_mps", v)?,
+            steer_rad: decimal("steer_rad", s)?,
+        }),
+    })
+}
+
+/// A field that must be a finite plain decimal number (`field` names it in the error).
+pub fn decimal(field: &'static str, text: &str) -> Result<f64, LineError> {
     // Plain decimals only: Rust's parser would also take "inf", "NaN" and "1e5".
     let plain = !text.is_empty()
         && text
@@ -211,7 +246,7 @@ impl LineSplitter {
     }
 }
 
-/// Turns lines into records, enforcing the header rule.
+/// Turns lines into odometry records, enforcing the header rule.
 #[derive(Debug, Default)]
 pub struct RecordParser {
     seen_header: bool,
@@ -239,6 +274,20 @@ impl RecordParser {
             Line::Record(_) if !self.seen_header => Err(LineError::MissingHeader),
             Line::Record(r) => Ok(Some(r)),
         }
+    }
+}
+
+impl super::LineParser for RecordParser {
+    type Record = OdometryRecord;
+    type Error = LineError;
+    const NAME: &'static str = "odometry";
+
+    fn parse(&mut self, line: &[u8]) -> Result<Option<OdometryRecord>, LineError> {
+        RecordParser::parse(self, line)
+    }
+
+    fn reset(&mut self) {
+        RecordParser::reset(self);
     }
 }
 

@@ -2,17 +2,25 @@
 //! `docs/contracts.md` over TCP ([`TcpOdometry`]) or from a file ([`FileOdometry`]), behind
 //! the [`OdometrySource`] seam so the daemon and tests can substitute their own.
 //!
-//! The seam is synchronous: the filter runs on its own thread without async.
+//! The seam is synchronous: the filter runs on its own thread without async. The line
+//! format's shared checks ([`split_line`], [`decimal`]), the line files' reader
+//! ([`LineReader`]) and the TCP line-stream client ([`LineStreamClient`], generic over a
+//! [`LineParser`]) serve slam-node's gyro stream as well.
 
 mod file;
 mod format;
+mod line_stream;
 mod lines;
 mod tcp;
 
 pub use file::FileOdometry;
 pub use format::{
-    parse_line, Line, LineError, LineSplitter, OdometryRecord, RecordParser, MAX_LINE_BYTES,
-    ODOMETRY_HEADER,
+    decimal, parse_line, split_line, Fields, Line, LineError, LineSplitter, OdometryRecord,
+    RecordParser, MAX_LINE_BYTES, MAX_TIMESTAMP_DECIMALS, ODOMETRY_HEADER,
+};
+pub use line_stream::{
+    BadLine, LineItem, LineParser, LineStreamClient, LineStreamSettings, LineStreamStats,
+    LineStreamStatsSnapshot,
 };
 pub use lines::{open_regular, LineReader};
 pub use tcp::{OdometryStats, OdometryStatsSnapshot, TcpOdometry, TcpOdometrySettings};

@@ -261,7 +261,7 @@ async fn open_source(
     odo_shutdown: radar_driver::Shutdown,
 ) -> Result<(Inputs, Option<zenoh_odometry::SharedStats>), DaemonError> {
     if let Some(mcap) = &opts.mcap {
-        return Ok((crate::source::mcap::open(recipe, mcap)?, None));
+        return Ok((crate::source::mcap::open(recipe, mcap, &opts.stop)?, None));
     }
     let motion = crate::pipeline::settings::motion_model(&opts.config);
     let (zenoh, stats) = match zenoh_odometry_source(&opts.config, node, motion)? {

@@ -774,7 +774,7 @@ impl fmt::Display for McapReplay<'_> {
         let c = self.0;
         writeln!(
             f,
-            "  MCAP replay: {} messages, {} configurations, {} rotations, {} azimuths, {} odometry samples; {} on other topics; refused {} (unknown schema {}, wrong encoding {}, malformed {}, before a configuration {}){}",
+            "  MCAP replay: {} messages, {} configurations, {} rotations, {} azimuths, {} odometry samples; {} on other topics; refused {} (unknown schema {}, wrong encoding {}, malformed {}, before a configuration {}){}{}",
             c.messages,
             c.configurations,
             c.rotations,
@@ -788,7 +788,12 @@ impl fmt::Display for McapReplay<'_> {
             c.before_configuration,
             c.file_error
                 .as_ref()
-                .map_or(String::new(), |e| format!("; the file ended early: {e}"))
+                .map_or(String::new(), |e| format!("; replayed up to where the file is cut or corrupt: {e}")),
+            if c.stopped {
+                "; stopped on request before the file's end"
+            } else {
+                ""
+            }
         )
     }
 }

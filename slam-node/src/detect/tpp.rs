@@ -33,6 +33,11 @@ pub struct TppSettings {
     pub smooth_half_width_bins: usize,
     /// Weight of the previous scan in the recursive time smoothing (0 = none).
     pub time_smoothing: f64,
+    /// A scan more than this far below a bin's smoothed level replaces the level instead of
+    /// being averaged into it, dB (infinity: never): a one-scan spike (a corrupted bin,
+    /// 50-80 dB over the noise) is not carried into the next rotation, whose second look
+    /// would confirm it as a feature.
+    pub drop_reset_db: f64,
     /// Scans over which the per-bin minimum is tracked.
     pub min_window_scans: u32,
     /// Half width of the range neighbourhood over which the noise minimum is taken, bins.
@@ -54,6 +59,7 @@ impl TppSettings {
         Self {
             smooth_half_width_bins: 1,
             time_smoothing: 0.3,
+            drop_reset_db: 45.0,
             min_window_scans: 8,
             noise_neighbourhood_bins: 4,
             snr_threshold_db: 20.0,
@@ -163,6 +169,7 @@ impl Tpp {
             };
         }
         let a_s = s.time_smoothing.clamp(0.0, 0.999) as f32;
+        let drop_reset = s.drop_reset_db as f32;
         // Time smoothing and the windowed minimum (current and candidate), in one pass.
         for (((sm, m), c), &x) in state
             .smoothed
@@ -171,7 +178,12 @@ impl Tpp {
             .zip(state.candidate.iter_mut())
             .zip(&self.scratch)
         {
-            let v = a_s * *sm + (1.0 - a_s) * x as f32;
+            let x = x as f32;
+            let v = if x < *sm - drop_reset {
+                x
+            } else {
+                a_s * *sm + (1.0 - a_s) * x
+            };
             *sm = v;
             *m = m.min(v);
             *c = c.min(v);
@@ -468,5 +480,38 @@ mod tests {
             tpp.process(0, &p, None, &mut d, &mut snr);
         }
         assert!(d[60]);
+    }
+
+    /// A one-scan spike (an inverted byte: 50-80 dB over the noise) is detected in its scan;
+    /// carried by the time smoothing it was detected again the next rotation, a second look
+    /// that confirms a feature (`tests/garbage_frames.rs`). Dropping back more than
+    /// `drop_reset_db` below the smoothed level resets it: detected once only.
+    #[test]
+    fn a_one_scan_spike_is_not_carried_into_the_next_scan() {
+        let spike = |settings: TppSettings| {
+            let mut tpp = Tpp::new(settings, 1);
+            let (mut d, mut snr) = (Vec::new(), Vec::new());
+            let mut seen = Vec::new();
+            for scan in 0..20u64 {
+                // A floor of +-10 dB, the spread of a Rayleigh floor in dB.
+                let mut p: Vec<f64> = noisy_floor(scan, 200).iter().map(|v| 5.0 * v).collect();
+                if scan == 12 {
+                    p[100] = 80.0;
+                }
+                tpp.process(0, &p, None, &mut d, &mut snr);
+                if scan >= 12 {
+                    seen.push(d[99..=101].iter().any(|&x| x));
+                }
+            }
+            seen
+        };
+        let carried = spike(TppSettings {
+            drop_reset_db: f64::INFINITY,
+            ..TppSettings::paper()
+        });
+        assert_eq!(&carried[..2], &[true, true], "the mechanism: {carried:?}");
+        let reset = spike(TppSettings::paper());
+        assert!(reset[0], "{reset:?}");
+        assert!(reset[1..].iter().all(|&x| !x), "{reset:?}");
     }
 }

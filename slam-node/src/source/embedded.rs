@@ -233,7 +233,7 @@ pub async fn start(
     // A TCP gyro reads the simulator's gyro port (as the odometry reads its odometry port).
     let gyro = match (&recipe.config.gyro.source, handle.gyro_addr()) {
         (config::gyro::GyroSource::Tcp { .. }, Some(a)) => {
-            let mut settings = super::gyro::TcpGyroSettings::new(a);
+            let mut settings = super::gyro::tcp_gyro_settings(a);
             settings.idle_timeout = idle_timeout;
             Some(Box::new(super::gyro::TcpGyro::spawn(
                 &tokio::runtime::Handle::current(),

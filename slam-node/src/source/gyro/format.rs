@@ -1,5 +1,6 @@
 //! The gyro line format of `docs/contracts.md`, parsed without IO: the odometry stream's
-//! rules (`radar_driver::odometry`) with two fields.
+//! rules with two fields, checked by the odometry's own
+//! [`radar_driver::odometry::split_line`] and [`radar_driver::odometry::decimal`].
 //!
 //! ```text
 //! # gyro v1 timestamp_s yaw_rate_rad_s
@@ -12,12 +13,11 @@
 //! which never holds more than one line) or that do not parse are errors that cost that
 //! line only. The yaw rate is counter-clockwise positive (the vehicle turning left), rad/s.
 
-pub use radar_driver::odometry::MAX_LINE_BYTES;
+use radar_driver::odometry::{decimal, split_line, Fields, LineError};
+pub use radar_driver::odometry::{MAX_LINE_BYTES, MAX_TIMESTAMP_DECIMALS};
 
 /// The header line, without its newline.
 pub const GYRO_HEADER: &str = "# gyro v1 timestamp_s yaw_rate_rad_s";
-/// Most decimals accepted in a timestamp (nanoseconds).
-pub const MAX_TIMESTAMP_DECIMALS: usize = 9;
 
 /// One gyro sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -72,14 +72,18 @@ pub enum GyroLineError {
     TooManyDecimals(String),
 }
 
-impl From<radar_driver::odometry::LineError> for GyroLineError {
-    /// The splitter's only error: an over-long line.
-    fn from(e: radar_driver::odometry::LineError) -> Self {
+impl From<LineError> for GyroLineError {
+    /// The odometry's shared line checks' errors, as the gyro's (whose messages name the
+    /// gyro's header and field count).
+    fn from(e: LineError) -> Self {
         match e {
-            radar_driver::odometry::LineError::TooLong { len } => GyroLineError::TooLong { len },
-            _ => GyroLineError::TooLong {
-                len: MAX_LINE_BYTES + 1,
-            },
+            LineError::TooLong { len } => GyroLineError::TooLong { len },
+            LineError::NotAscii => GyroLineError::NotAscii,
+            LineError::MissingHeader => GyroLineError::MissingHeader,
+            LineError::BadHeader(text) => GyroLineError::BadHeader(text),
+            LineError::FieldCount { found } => GyroLineError::FieldCount { found },
+            LineError::BadNumber { field, text } => GyroLineError::BadNumber { field, text },
+            LineError::TooManyDecimals(text) => GyroLineError::TooManyDecimals(text),
         }
     }
 }
@@ -97,54 +101,14 @@ pub enum GyroLine {
 
 /// Parses one line (without its `\n`).
 pub fn parse_gyro_line(line: &[u8]) -> Result<GyroLine, GyroLineError> {
-    if line.len() > MAX_LINE_BYTES {
-        return Err(GyroLineError::TooLong { len: line.len() });
-    }
-    if !line.is_ascii() {
-        return Err(GyroLineError::NotAscii);
-    }
-    let text = std::str::from_utf8(line).map_err(|_| GyroLineError::NotAscii)?;
-    let text = text.strip_suffix('\r').unwrap_or(text);
-    if text.is_empty() {
-        return Ok(GyroLine::Blank);
-    }
-    if text.starts_with('#') {
-        return if text == GYRO_HEADER {
-            Ok(GyroLine::Header)
-        } else {
-            Err(GyroLineError::BadHeader(text.to_owned()))
-        };
-    }
-    let fields: Vec<&str> = text.split(' ').collect();
-    let [t, w] = fields.as_slice() else {
-        return Err(GyroLineError::FieldCount {
-            found: fields.len(),
-        });
-    };
-    if let Some((_, decimals)) = t.split_once('.') {
-        if decimals.len() > MAX_TIMESTAMP_DECIMALS {
-            return Err(GyroLineError::TooManyDecimals((*t).to_owned()));
-        }
-    }
-    Ok(GyroLine::Sample(GyroSample {
-        timestamp_s: number("timestamp_s", t)?,
-        yaw_rate_rad_s: number("yaw_rate_rad_s", w)?,
-    }))
-}
-
-fn number(field: &'static str, text: &str) -> Result<f64, GyroLineError> {
-    // Plain decimals only: Rust's parser would also take "inf", "NaN" and "1e5".
-    let plain = !text.is_empty()
-        && text
-            .bytes()
-            .all(|b| b.is_ascii_digit() || b == b'.' || b == b'-' || b == b'+');
-    match text.parse::<f64>() {
-        Ok(x) if plain && x.is_finite() => Ok(x),
-        _ => Err(GyroLineError::BadNumber {
-            field,
-            text: text.to_owned(),
+    Ok(match split_line(line, GYRO_HEADER)? {
+        Fields::Header => GyroLine::Header,
+        Fields::Blank => GyroLine::Blank,
+        Fields::Record([t, w]) => GyroLine::Sample(GyroSample {
+            timestamp_s: decimal("timestamp_s", t)?,
+            yaw_rate_rad_s: decimal("yaw_rate_rad_s", w)?,
         }),
-    }
+    })
 }
 
 /// Turns lines into samples, enforcing the header rule.
@@ -175,6 +139,20 @@ impl GyroParser {
             GyroLine::Sample(_) if !self.seen_header => Err(GyroLineError::MissingHeader),
             GyroLine::Sample(s) => Ok(Some(s)),
         }
+    }
+}
+
+impl radar_driver::odometry::LineParser for GyroParser {
+    type Record = GyroSample;
+    type Error = GyroLineError;
+    const NAME: &'static str = "gyro";
+
+    fn parse(&mut self, line: &[u8]) -> Result<Option<GyroSample>, GyroLineError> {
+        GyroParser::parse(self, line)
+    }
+
+    fn reset(&mut self) {
+        GyroParser::reset(self);
     }
 }
 

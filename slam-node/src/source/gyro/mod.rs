@@ -20,7 +20,7 @@ use std::time::Duration;
 use radar_driver::odometry::{open_regular, LineReader};
 
 pub use format::{GyroLineError, GyroParser, GyroSample, GYRO_HEADER};
-pub use tcp::{TcpGyro, TcpGyroSettings};
+pub use tcp::{tcp_gyro_settings, TcpGyro, TcpGyroSettings, GYRO_CAPACITY};
 #[cfg(feature = "sim")]
 pub use truth::TruthGyro;
 
@@ -86,7 +86,7 @@ pub fn open_configured(
         config::gyro::GyroSource::None => None,
         config::gyro::GyroSource::Tcp { address } => Some(Box::new(TcpGyro::spawn(
             runtime,
-            TcpGyroSettings::new(*address),
+            tcp_gyro_settings(*address),
             shutdown,
         ))),
         config::gyro::GyroSource::File { path } => Some(Box::new(FileGyro::open(path)?)),

@@ -1,180 +1,58 @@
-//! The gyro over TCP: a tokio task keeps the connection (reconnecting with backoff, as the
-//! odometry's does) and hands samples to the synchronous [`GyroSource`] side through a
-//! bounded channel.
+//! The gyro over TCP: radar-driver's line-stream client
+//! ([`radar_driver::odometry::LineStreamClient`], the odometry's connection, idle timeout
+//! and reconnection) with the gyro's parser, behind the synchronous [`GyroSource`] seam.
 
 use std::net::SocketAddr;
 use std::time::Duration;
 
-use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, Sender, TryRecvError, TrySendError};
-use radar_driver::backoff::{Backoff, BackoffPolicy};
-use radar_driver::liveness::{bytes_waiting, resume_grace};
-use radar_driver::odometry::LineSplitter;
-use radar_driver::socket::{connect, SocketOptions};
+use crossbeam_channel::RecvTimeoutError;
+use radar_driver::odometry::{LineStreamClient, LineStreamSettings};
 use radar_driver::Shutdown;
-use tokio::io::AsyncReadExt;
 use tokio::runtime::Handle;
-use tokio::task::JoinHandle;
 
-use super::{GyroError, GyroLineError, GyroParser, GyroPoll, GyroSample, GyroSource};
+use super::{GyroError, GyroParser, GyroPoll, GyroSource};
 
 /// Where and how to read the gyro stream.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TcpGyroSettings {
-    /// The gyro server.
-    pub address: SocketAddr,
-    /// Socket options and connect timeout.
-    pub socket: SocketOptions,
-    /// Reconnection delays.
-    pub backoff: BackoffPolicy,
-    /// Nothing received for this long is a dead link: reconnect.
-    pub idle_timeout: Duration,
-    /// Samples (and line errors) buffered for the reader; beyond it the newest is dropped.
-    pub capacity: usize,
-}
+pub type TcpGyroSettings = LineStreamSettings;
 
-impl TcpGyroSettings {
-    /// Defaults for `address`: the odometry's socket options, 7 s idle timeout, 4096
-    /// samples buffered (40 s at 100 Hz).
-    pub fn new(address: SocketAddr) -> Self {
-        Self {
-            address,
-            socket: SocketOptions {
-                recv_buffer_bytes: None,
-                ..SocketOptions::default()
-            },
-            backoff: BackoffPolicy::default(),
-            idle_timeout: Duration::from_secs(7),
-            capacity: 4096,
-        }
+/// Samples buffered by default: 40 s at 100 Hz.
+pub const GYRO_CAPACITY: usize = 4096;
+
+/// The gyro's defaults for `address`: the odometry's socket options and 7 s idle timeout,
+/// [`GYRO_CAPACITY`] samples buffered.
+pub fn tcp_gyro_settings(address: SocketAddr) -> TcpGyroSettings {
+    LineStreamSettings {
+        capacity: GYRO_CAPACITY,
+        ..LineStreamSettings::new(address)
     }
 }
-
-type Item = Result<GyroSample, GyroError>;
 
 /// The reading end of a TCP gyro stream.
 #[derive(Debug)]
 pub struct TcpGyro {
-    rx: Receiver<Item>,
-    task: JoinHandle<()>,
+    client: LineStreamClient<GyroParser>,
 }
 
 impl TcpGyro {
     /// Starts the connection task on `runtime`; it runs until `shutdown` fires or this value
     /// is dropped.
     pub fn spawn(runtime: &Handle, settings: TcpGyroSettings, shutdown: Shutdown) -> Self {
-        let (tx, rx) = bounded(settings.capacity.max(1));
-        let task = runtime.spawn(run(settings, tx, shutdown));
-        Self { rx, task }
-    }
-}
-
-impl Drop for TcpGyro {
-    fn drop(&mut self) {
-        self.task.abort();
+        Self {
+            client: LineStreamClient::spawn(runtime, settings, GyroParser::new(), shutdown),
+        }
     }
 }
 
 impl GyroSource for TcpGyro {
     fn poll_next(&mut self, timeout: Duration) -> Result<GyroPoll, GyroError> {
-        let got = if timeout.is_zero() {
-            self.rx.try_recv().map_err(|e| match e {
-                TryRecvError::Empty => RecvTimeoutError::Timeout,
-                TryRecvError::Disconnected => RecvTimeoutError::Disconnected,
-            })
-        } else {
-            self.rx.recv_timeout(timeout)
-        };
-        match got {
-            Ok(Ok(s)) => Ok(GyroPoll::Sample(s)),
-            Ok(Err(e)) => Err(e),
+        match self.client.recv(timeout) {
+            Ok(Ok(sample)) => Ok(GyroPoll::Sample(sample)),
+            Ok(Err(bad)) => Err(GyroError::Line {
+                line: bad.line,
+                source: bad.error,
+            }),
             Err(RecvTimeoutError::Timeout) => Ok(GyroPoll::Pending),
             Err(RecvTimeoutError::Disconnected) => Ok(GyroPoll::Ended),
-        }
-    }
-}
-
-/// Offers an item; false when the reader is gone. A full channel drops the item.
-fn offer(tx: &Sender<Item>, item: Item) -> bool {
-    !matches!(tx.try_send(item), Err(TrySendError::Disconnected(_)))
-}
-
-async fn run(settings: TcpGyroSettings, tx: Sender<Item>, mut shutdown: Shutdown) {
-    let mut backoff = Backoff::new(settings.backoff);
-    let mut splitter = LineSplitter::new();
-    let mut parser = GyroParser::new();
-    loop {
-        let connected = tokio::select! {
-            c = connect(settings.address, &settings.socket) => c,
-            () = shutdown.triggered() => return,
-        };
-        let mut stream = match connected {
-            Ok(s) => s,
-            Err(e) => {
-                let delay = backoff.next_delay();
-                tracing::warn!(address = %settings.address, attempt = backoff.attempt(), ?delay, error = %e, "gyro connection failed; retrying");
-                tokio::select! {
-                    () = tokio::time::sleep(delay) => continue,
-                    () = shutdown.triggered() => return,
-                }
-            }
-        };
-        tracing::info!(address = %settings.address, "gyro connected");
-        backoff.reset();
-        splitter.reset();
-        parser.reset();
-        let mut line_no = 0u64;
-        let mut buf = vec![0u8; 4096];
-        let idle = settings.idle_timeout;
-        let mut idle_deadline = tokio::time::Instant::now() + idle;
-        let end = loop {
-            let read = tokio::select! {
-                r = tokio::time::timeout_at(idle_deadline, stream.read(&mut buf)) => r,
-                () = shutdown.triggered() => return,
-            };
-            let read = match read {
-                Err(_) if bytes_waiting(&stream) => Ok(stream.read(&mut buf).await),
-                Err(elapsed) => match resume_grace(idle_deadline, idle) {
-                    Some(grace) => {
-                        idle_deadline = tokio::time::Instant::now() + grace;
-                        continue;
-                    }
-                    None => Err(elapsed),
-                },
-                ok => ok,
-            };
-            let n = match read {
-                Ok(Ok(0)) => break "closed by the server".to_owned(),
-                Ok(Ok(n)) => {
-                    idle_deadline = tokio::time::Instant::now() + idle;
-                    n
-                }
-                Ok(Err(e)) => break format!("read failed: {e}"),
-                Err(_) => break format!("nothing received for {idle:?}"),
-            };
-            splitter.push(buf.get(..n).unwrap_or_default());
-            while let Some(line) = splitter.next_line() {
-                line_no += 1;
-                let item = match line
-                    .map_err(GyroLineError::from)
-                    .and_then(|l| parser.parse(&l))
-                {
-                    Ok(Some(sample)) => Ok(sample),
-                    Ok(None) => continue,
-                    Err(source) => Err(GyroError::Line {
-                        line: line_no,
-                        source,
-                    }),
-                };
-                if !offer(&tx, item) {
-                    return; // The reader is gone.
-                }
-            }
-        };
-        let delay = backoff.next_delay();
-        tracing::warn!(address = %settings.address, reason = %end, ?delay, "gyro link lost; reconnecting");
-        tokio::select! {
-            () = tokio::time::sleep(delay) => {}
-            () = shutdown.triggered() => return,
         }
     }
 }
@@ -206,7 +84,7 @@ mod tests {
             tokio::time::sleep(Duration::from_secs(5)).await;
         });
         let (trigger, shutdown) = radar_driver::shutdown_pair();
-        let mut gyro = TcpGyro::spawn(rt.handle(), TcpGyroSettings::new(addr), shutdown);
+        let mut gyro = TcpGyro::spawn(rt.handle(), tcp_gyro_settings(addr), shutdown);
         let (mut samples, mut errors) = (Vec::new(), 0);
         let deadline = std::time::Instant::now() + Duration::from_secs(5);
         while samples.len() < 2 && std::time::Instant::now() < deadline {

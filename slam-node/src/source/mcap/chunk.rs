@@ -1,7 +1,8 @@
 //! One MCAP chunk record opened: its header parsed with every length checked against the
 //! bytes present, its claimed uncompressed size bounded before anything is allocated for
-//! it, its records decompressed (zstd, or none) and handed on one by one. No IO: the chunk
-//! record is already in memory (bounded by the file, [`super::records`]).
+//! it, its records decompressed (zstd, lz4 or none) in bounded blocks that a stop request
+//! interrupts, and handed on one by one. No IO: the chunk record is already in memory
+//! (bounded by the file, [`super::records`]).
 //!
 //! A compressed chunk's header claims its uncompressed size, and the `mcap` crate's reader
 //! sized its buffers by the claims (the chunk's, and each record's inside it) before a byte
@@ -10,31 +11,33 @@
 //!
 //! - **the format could have produced it** from the compressed bytes present. zstd's largest
 //!   block is 128 KiB and its cheapest is an RLE block of 4 bytes (3 of header, 1 repeated
-//!   byte), so no zstd data expands more than 32,768-fold ([`ZSTD_MAX_RATIO`]; 200 MiB of
-//!   zeros at `zstd -19` is 6,460 bytes, 32,464-fold). An uncompressed chunk's records are
-//!   exactly its bytes.
+//!   byte), so no zstd data expands more than 32,768-fold
+//!   ([`super::decompress::ZSTD_MAX_RATIO`]; 200 MiB of zeros at `zstd -19` is 6,460 bytes,
+//!   32,464-fold). An lz4 frame (the MCAP specification's `lz4`) adds at most 255 bytes of
+//!   output per byte of a match's length, so it expands less than 256-fold
+//!   ([`super::decompress::LZ4_MAX_RATIO`]; 200 MiB of zeros is 823,211 bytes from `lz4_flex`,
+//!   254.8-fold). An uncompressed chunk's records
+//!   are exactly its bytes.
 //! - **it is under the absolute cap** ([`ChunkLimits::max_uncompressed`], 64 MiB by default,
 //!   `--mcap-max-chunk-mib`): rosbag2 closes chunks at 768 KiB and the daemon at one rotation
 //!   (a CTS350-X B-scan is 1.5 MB), so a larger chunk is a hostile or unusual file.
 //!
-//! Decompression then grows its output with what actually comes out, never with the claim,
-//! and stops at one byte over the claim: a chunk whose data disagrees with its claim (more
-//! or fewer bytes, a CRC that does not match, a record running past the chunk's end) is an
-//! error naming the chunk's byte offset in the file.
+//! Decompression ([`super::decompress`]) grows its output by what comes out, a block at a
+//! time, never by the claim; it checks the stop request (Ctrl-C) between blocks and
+//! stops at one byte over the claim. A chunk whose data disagrees with its claim (more or
+//! fewer bytes, a CRC that does not match, a frame that does not decode, a record running
+//! past the chunk's end) is an error naming the chunk's byte offset in the file. The whole
+//! chunk is decompressed and its CRC checked before any of its records is handed on: a
+//! corrupt chunk gives none of its records to the pipeline.
 
-use std::io::Read;
 use std::ops::ControlFlow;
+use std::sync::atomic::AtomicBool;
 
+use super::decompress::{decompress, Compression};
 use super::records::McapFileError;
-
-/// How far zstd data can expand: a 128 KiB RLE block from 4 bytes.
-pub const ZSTD_MAX_RATIO: u64 = 32_768;
 
 /// The default absolute cap on a chunk's uncompressed size.
 pub const DEFAULT_MAX_CHUNK_BYTES: u64 = 64 << 20;
-
-/// Decompressed output grown at most this much between checks of the claim.
-const PIECE_BYTES: u64 = 4 << 20;
 
 /// Bounds on one chunk.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -86,11 +89,19 @@ pub enum ChunkError {
         cap: u64,
     },
     /// A compression this reader does not decompress.
-    #[error("its compression {0:?} is not supported (zstd or none)")]
+    #[error("its compression {0:?} is not supported (zstd, lz4 or none)")]
     Unsupported(String),
     /// The compressed data did not decompress.
-    #[error("its data does not decompress")]
-    Decompress(#[source] std::io::Error),
+    #[error("its {compression} data does not decompress after {after} bytes")]
+    Decompress {
+        /// The compression.
+        compression: &'static str,
+        /// Bytes decompressed before the failure.
+        after: u64,
+        /// The decoder's complaint.
+        #[source]
+        source: std::io::Error,
+    },
     /// The data decompressed to a size other than the claimed one.
     #[error("its data decompresses to {got} bytes where it claims {claimed}")]
     SizeMismatch {
@@ -178,25 +189,21 @@ fn parse(record: &[u8]) -> Result<Header<'_>, ChunkError> {
 fn check_claim(
     claimed: u64,
     compressed: u64,
-    compression: &str,
+    compression: Compression,
     cap: u64,
 ) -> Result<(), ChunkError> {
-    let max = match compression {
-        "" => compressed,
-        "zstd" => compressed.saturating_mul(ZSTD_MAX_RATIO),
-        other => return Err(ChunkError::Unsupported(other.to_string())),
-    };
-    if compression.is_empty() && claimed != compressed {
+    if compression == Compression::None && claimed != compressed {
         return Err(ChunkError::SizeMismatch {
             got: compressed,
             claimed,
         });
     }
+    let max = compression.max_expansion(compressed);
     if claimed > max {
         return Err(ChunkError::BeyondRatio {
             claimed,
             compressed,
-            compression: compression.to_string(),
+            compression: compression.name().to_string(),
             max,
         });
     }
@@ -206,52 +213,28 @@ fn check_claim(
     Ok(())
 }
 
-/// Decompresses zstd `data` claiming `claimed` bytes, the output grown with what comes out.
-fn decompress_zstd(data: &[u8], claimed: u64) -> Result<Vec<u8>, ChunkError> {
-    let mut decoder =
-        zstd::stream::read::Decoder::with_buffer(data).map_err(ChunkError::Decompress)?;
-    let mut out = Vec::new();
-    loop {
-        // One byte past the claim is enough to know the claim is a lie.
-        let room = (claimed + 1).saturating_sub(out.len() as u64);
-        let read = (&mut decoder)
-            .take(room.min(PIECE_BYTES))
-            .read_to_end(&mut out)
-            .map_err(ChunkError::Decompress)?;
-        if read == 0 || out.len() as u64 > claimed {
-            break;
-        }
-    }
-    if out.len() as u64 != claimed {
-        return Err(ChunkError::SizeMismatch {
-            got: out.len() as u64,
-            claimed,
-        });
-    }
-    Ok(out)
-}
-
 /// Hands the records of the chunk record `record` (its body, after opcode and length) to
-/// `on_record` in order; `Ok(Break)` when `on_record` broke.
+/// `on_record` in order; `Ok(Break)` when `on_record` broke or `stop` was set during
+/// decompression (checked every [`super::decompress::BLOCK_BYTES`] of output).
 pub fn read_chunk(
     record: &[u8],
     limits: ChunkLimits,
+    stop: &AtomicBool,
     on_record: &mut impl FnMut(u8, &[u8]) -> ControlFlow<()>,
 ) -> Result<ControlFlow<()>, ChunkError> {
     let header = parse(record)?;
+    let compression = Compression::parse(header.compression)?;
     check_claim(
         header.uncompressed_size,
         header.data.len() as u64,
-        header.compression,
+        compression,
         limits.max_uncompressed,
     )?;
-    let decompressed;
-    let records = if header.compression.is_empty() {
-        header.data
-    } else {
-        decompressed = decompress_zstd(header.data, header.uncompressed_size)?;
-        &decompressed[..]
+    let Some(records) = decompress(compression, header.data, header.uncompressed_size, stop)?
+    else {
+        return Ok(ControlFlow::Break(()));
     };
+    let records = &records[..];
     if header.crc != 0 {
         let calculated = crc32fast::hash(records);
         if calculated != header.crc {
@@ -330,21 +313,34 @@ mod tests {
 
     fn collect(c: &[u8]) -> Result<Vec<(u8, Vec<u8>)>, ChunkError> {
         let mut seen = Vec::new();
-        let _ = read_chunk(c, ChunkLimits::default(), &mut |op, d| {
-            seen.push((op, d.to_vec()));
-            ControlFlow::Continue(())
-        })?;
+        let _ = read_chunk(
+            c,
+            ChunkLimits::default(),
+            &AtomicBool::new(false),
+            &mut |op, d| {
+                seen.push((op, d.to_vec()));
+                ControlFlow::Continue(())
+            },
+        )?;
         Ok(seen)
     }
 
+    fn lz4(data: &[u8]) -> Vec<u8> {
+        use std::io::Write;
+        let mut e = lz4_flex::frame::FrameEncoder::new(Vec::new());
+        e.write_all(data).expect("compress");
+        e.finish().expect("finish")
+    }
+
     #[test]
-    fn zstd_and_uncompressed_chunks_give_their_records() {
+    fn zstd_lz4_and_uncompressed_chunks_give_their_records() {
         let mut records = record(5, &[1, 2, 3]);
         records.extend(record(4, &[9; 100]));
         let crc = crc32fast::hash(&records);
         let packed = zstd::bulk::compress(&records, 1).expect("compress");
         for c in [
             chunk(records.len() as u64, crc, "zstd", &packed),
+            chunk(records.len() as u64, crc, "lz4", &lz4(&records)),
             chunk(records.len() as u64, 0, "", &records),
         ] {
             let seen = collect(&c).expect("read");
@@ -371,10 +367,39 @@ mod tests {
         // A wrong CRC, an unknown compression, an uncompressed chunk whose sizes differ.
         let e = collect(&chunk(n, 1, "zstd", &packed)).unwrap_err();
         assert!(matches!(e, ChunkError::Crc { .. }), "{e:?}");
-        let e = collect(&chunk(n, 0, "lz4", &packed)).unwrap_err();
+        let e = collect(&chunk(n, 0, "lz5", &packed)).unwrap_err();
         assert!(matches!(e, ChunkError::Unsupported(_)), "{e:?}");
         let e = collect(&chunk(n + 1, 0, "", &records)).unwrap_err();
         assert!(matches!(e, ChunkError::SizeMismatch { .. }), "{e:?}");
+        // lz4: more than it can expand to (256-fold), a wrong CRC, a frame that is not one.
+        let packed = lz4(&records);
+        let e = collect(&chunk(packed.len() as u64 * 257, 0, "lz4", &packed)).unwrap_err();
+        assert!(
+            matches!(&e, ChunkError::BeyondRatio { compression, .. } if compression == "lz4"),
+            "{e:?}"
+        );
+        let e = collect(&chunk(n, 1, "lz4", &packed)).unwrap_err();
+        assert!(matches!(e, ChunkError::Crc { .. }), "{e:?}");
+        let e = collect(&chunk(n, 0, "lz4", &[0x5a; 200])).unwrap_err();
+        assert!(matches!(e, ChunkError::Decompress { .. }), "{e:?}");
+    }
+
+    #[test]
+    fn a_stop_request_before_a_compressed_chunk_hands_on_none_of_its_records() {
+        let records = record(5, &[1; 1000]);
+        let packed = zstd::bulk::compress(&records, 1).expect("compress");
+        let mut seen = 0;
+        let flow = read_chunk(
+            &chunk(records.len() as u64, 0, "zstd", &packed),
+            ChunkLimits::default(),
+            &AtomicBool::new(true),
+            &mut |_, _| {
+                seen += 1;
+                ControlFlow::Continue(())
+            },
+        )
+        .expect("no error");
+        assert_eq!((flow, seen), (ControlFlow::Break(()), 0));
     }
 
     #[test]

@@ -7,7 +7,8 @@
 //! A reader thread streams the file through the `mcap` crate's sans-IO linear reader
 //! ([`records`]: records bounded to 256 MiB and to what the file holds, the file never held
 //! whole; [`chunk`]: a compressed chunk's claimed size bounded by what its bytes can expand
-//! to and by a cap, 64 MiB unless `--mcap-max-chunk-mib` says otherwise) and hands azimuths to the pipeline on a
+//! to and by a cap, 64 MiB unless `--mcap-max-chunk-mib` says otherwise; [`decompress`]: zstd
+//! and lz4 chunks decompressed in 1 MiB blocks) and hands azimuths to the pipeline on a
 //! bounded channel (back-pressure: nothing is dropped) and odometry on another. A rotation is
 //! handed over once the odometry has reached its last azimuth (or 256 MB of bins later), so the
 //! pipeline meets the same odometry, in the same order, as the run that made the recording:
@@ -18,12 +19,14 @@
 //! schema encoding is not `ros2msg` or whose schema is unknown, a message encoding other than
 //! `cdr`, a payload that does not decode, a B-scan whose image does not match its rows, radar
 //! data before any configuration. A truncated or corrupt file ends the replay where it breaks
-//! (everything before is used) and is reported.
+//! (everything before is used) and is reported. The run's stop request (Ctrl-C) ends
+//! the reading at the next record, read of the file or block of a chunk's decompression.
 
 use std::collections::{HashMap, VecDeque};
 use std::fs::File;
 use std::ops::ControlFlow;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -42,8 +45,10 @@ use tracing::warn;
 use crate::output::ros::OdometryMessage;
 
 mod chunk;
+mod decompress;
 mod records;
-pub use chunk::{ChunkError, ChunkLimits, DEFAULT_MAX_CHUNK_BYTES, ZSTD_MAX_RATIO};
+pub use chunk::{ChunkError, ChunkLimits, DEFAULT_MAX_CHUNK_BYTES};
+pub use decompress::{Compression, BLOCK_BYTES, LZ4_MAX_RATIO, ZSTD_MAX_RATIO};
 pub use records::{read_records, McapFileError, RecordsEnd};
 
 /// The longest record read (a B-scan of a CTS350-X is 1.5 MB).
@@ -53,7 +58,7 @@ const MAX_RECORD_BYTES: usize = 256 << 20;
 const MAX_PENDING_BYTES: usize = 256 << 20;
 
 /// What to replay.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct McapReplaySettings {
     /// The MCAP file.
     pub path: PathBuf,
@@ -65,6 +70,9 @@ pub struct McapReplaySettings {
     pub azimuth_capacity: usize,
     /// The largest uncompressed size a chunk may claim, bytes.
     pub max_chunk_bytes: u64,
+    /// The run's stop request (Ctrl-C): reading ends at the next record, read of
+    /// the file or block of a chunk's decompression once it is set.
+    pub stop: Arc<AtomicBool>,
 }
 
 impl McapReplaySettings {
@@ -76,6 +84,7 @@ impl McapReplaySettings {
             motion,
             azimuth_capacity: 4096,
             max_chunk_bytes: DEFAULT_MAX_CHUNK_BYTES,
+            stop: Arc::new(AtomicBool::new(false)),
         }
     }
 }
@@ -129,6 +138,8 @@ pub struct McapReplayCounts {
     pub before_configuration: u64,
     /// Why reading stopped before the end, if it did (truncated or corrupt file).
     pub file_error: Option<String>,
+    /// Reading ended early on the run's stop request.
+    pub stopped: bool,
 }
 
 impl McapReplayCounts {
@@ -175,13 +186,16 @@ impl super::Running for McapReplayHandle {
 /// The daemon's inputs from an MCAP recording: the recorded radar's azimuths, numbered by
 /// the radar driver's numbering, and the recorded odometry topic (`odometry_topic`, the
 /// daemon's own by default) under `recipe`'s motion model; the pipeline is built on the
-/// first azimuth, whose geometry chooses the recorded radar's profile.
+/// first azimuth, whose geometry chooses the recorded radar's profile. Reading ends early
+/// once `stop` (the run's stop request) is set.
 pub fn open(
     recipe: crate::pipeline::SettingsRecipe,
     source: &super::McapSource,
+    stop: &Arc<AtomicBool>,
 ) -> Result<super::Inputs, super::SourceError> {
     let motion = crate::pipeline::settings::motion_model(&recipe.config);
     let mut settings = McapReplaySettings::new(source.path.clone(), motion);
+    settings.stop = Arc::clone(stop);
     if let Some(topic) = &source.odometry_topic {
         settings.odometry_topic = topic.clone();
     }
@@ -333,7 +347,8 @@ impl Reader {
             max_uncompressed: self.settings.max_chunk_bytes,
             max_record: MAX_RECORD_BYTES as u64,
         };
-        let read = records::read_records(file, limits, |opcode, data| {
+        let stop = Arc::clone(&self.settings.stop);
+        let read = records::read_records(file, limits, &stop, |opcode, data| {
             if self.closed {
                 return ControlFlow::Break(());
             }
@@ -346,6 +361,11 @@ impl Reader {
             }
             ControlFlow::Continue(())
         });
+        if stop.load(Ordering::Relaxed) {
+            // The run is ending: what is held back is not handed on.
+            self.counts.stopped = true;
+            return;
+        }
         if let Err(e) = read {
             let e = format!(
                 "{}: {}",

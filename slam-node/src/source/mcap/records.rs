@@ -11,14 +11,22 @@
 //! Chunks come out of the reader whole and are opened by [`super::chunk`], which bounds a
 //! compressed chunk's claimed uncompressed size by what its bytes can expand to and by an
 //! absolute cap before decompressing.
+//!
+//! A stop request (the daemon's Ctrl-C flag) is honoured between records, between
+//! reads of the file (at most [`READ_BYTES`] each, so a 256 MiB record on slow storage does
+//! not hold it up) and between blocks of a chunk's decompression.
 
 use std::fs::File;
 use std::io::Read;
 use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
 use super::chunk::{read_chunk, ChunkLimits};
+
+/// The most read from the file at once, between checks of the stop request.
+pub const READ_BYTES: usize = 4 << 20;
 
 /// Why reading the file's records stopped before its end.
 #[derive(Debug, thiserror::Error)]
@@ -64,19 +72,28 @@ pub enum McapFileError {
 pub enum RecordsEnd {
     /// Every record was read, up to the file's end magic.
     Complete,
-    /// The caller asked to stop.
+    /// The caller asked to stop (`on_record` broke, or the stop flag was set).
     Stopped,
 }
 
 /// Streams `file`'s records (opcode and body) to `on_record` in file order, records inside
 /// chunks included (not the chunk records themselves), until the end of the file, an error
-/// in it, or `on_record` breaks. `limits.max_record` bounds any one record, compressed
-/// chunks' decompressed records too; `limits.max_uncompressed` a chunk's uncompressed size.
+/// in it, `on_record` breaks or `stop` is set. `limits.max_record` bounds any one record,
+/// compressed chunks' decompressed records too; `limits.max_uncompressed` a chunk's
+/// uncompressed size.
 pub fn read_records(
     mut file: File,
     limits: ChunkLimits,
+    stop: &AtomicBool,
     mut on_record: impl FnMut(u8, &[u8]) -> ControlFlow<()>,
 ) -> Result<RecordsEnd, McapFileError> {
+    let mut on_record = |opcode, data: &[u8]| {
+        if stop.load(Ordering::Relaxed) {
+            ControlFlow::Break(())
+        } else {
+            on_record(opcode, data)
+        }
+    };
     let record_length_limit = usize::try_from(limits.max_record).unwrap_or(usize::MAX);
     let size = file.metadata().map_err(McapFileError::Io)?.len();
     let mut offset = 0u64;
@@ -87,6 +104,9 @@ pub fn read_records(
             .with_emit_chunks(true),
     );
     while let Some(event) = reader.next_event() {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(RecordsEnd::Stopped);
+        }
         match event? {
             LinearReadEvent::ReadRequest(need) => {
                 let left = size.saturating_sub(offset);
@@ -100,7 +120,10 @@ pub fn read_records(
                         left,
                     });
                 }
-                let read = file.read(reader.insert(need)).map_err(McapFileError::Io)?;
+                // A short read is asked for again (the reader asks for what is still missing).
+                let read = file
+                    .read(reader.insert(need.min(READ_BYTES)))
+                    .map_err(McapFileError::Io)?;
                 if read == 0 {
                     break; // the file shrank while being read: its end
                 }
@@ -111,7 +134,8 @@ pub fn read_records(
                 // The reader asks for exactly what a record needs: the chunk record ends at
                 // `offset`.
                 let start = offset.saturating_sub(9 + data.len() as u64);
-                let flow = read_chunk(data, limits, &mut on_record).map_err(|e| e.at(start))?;
+                let flow =
+                    read_chunk(data, limits, stop, &mut on_record).map_err(|e| e.at(start))?;
                 if flow.is_break() {
                     return Ok(RecordsEnd::Stopped);
                 }
