@@ -242,6 +242,7 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "odometry.source",
     "odometry.motion_model",
     "odometry.radar_odometry",
+    "odometry.radar_odometry_compose",
     "odometry.speed_scale_from_landmarks",
     "detector.points_only",
     "detector.extended_reobserve",
