@@ -55,32 +55,17 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         cov: &Matrix3<f64>,
         gate_chi2: f64,
     ) -> Result<MotionOutcome, FilterError> {
-        if ![measured.x, measured.y, measured.theta]
-            .iter()
-            .chain(cov.iter())
-            .all(|v| v.is_finite())
-        {
-            return Err(FilterError::NonFiniteInput("measured motion"));
-        }
-        if self.state.tally.is_none() {
+        let Some(MotionInnovation {
+            columns,
+            h,
+            nu,
+            nis,
+        }) = self.motion_innovation(&measured, cov)?
+        else {
             return Ok(MotionOutcome::NoMark);
-        }
-        let (predicted, jacobian) = relative_pose(&self.state.clone_pose_mean(), &self.pose());
-        let nu = Vector3::new(
-            measured.x - predicted.x,
-            measured.y - predicted.y,
-            wrap_angle(measured.theta - predicted.theta),
-        );
-        let columns = [0, 1, 2, CLONE_INDEX, CLONE_INDEX + 1, CLONE_INDEX + 2];
+        };
         // The gate first, on S = H P H^T + R (3 x 3); then the filter's one batched update.
-        let p = self.state.covariance_block(&columns);
-        let h = DMatrix::from_fn(3, 6, |r, c| jacobian[(r, c)]);
-        let s = &h * p * h.transpose() + DMatrix::from_fn(3, 3, |r, c| cov[(r, c)]);
-        let chol = (0.5 * (&s + s.transpose()))
-            .cholesky()
-            .ok_or(FilterError::InnovationNotPositiveDefinite { dim: 3 })?;
-        let nu_d = DVector::from_column_slice(nu.as_slice());
-        let nis = nu_d.dot(&chol.solve(&nu_d));
+        let nis = nis.ok_or(FilterError::InnovationNotPositiveDefinite { dim: 3 })?;
         if !nis.is_finite() || nis > gate_chi2 {
             return Ok(MotionOutcome::Gated { nis });
         }
@@ -89,7 +74,7 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             &LinearisedObservation {
                 columns: columns.to_vec(),
                 jacobian: h,
-                innovation: nu_d,
+                innovation: nu,
                 noise: DMatrix::from_fn(3, 3, |r, c| 0.5 * (cov[(r, c)] + cov[(c, r)])),
             },
         )?;
@@ -118,31 +103,12 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         measured: Pose2,
         cov: &Matrix3<f64>,
     ) -> Result<MotionOutcome, FilterError> {
-        if ![measured.x, measured.y, measured.theta]
-            .iter()
-            .chain(cov.iter())
-            .all(|v| v.is_finite())
-        {
-            return Err(FilterError::NonFiniteInput("measured motion"));
-        }
-        if self.state.tally.is_none() {
-            return Ok(MotionOutcome::NoMark);
-        }
-        let mark = self.state.clone_pose_mean();
         // The measurement against the filter's own motion since the mark (reported only).
-        let (predicted, jacobian) = relative_pose(&mark, &self.pose());
-        let nu = DVector::from_vec(vec![
-            measured.x - predicted.x,
-            measured.y - predicted.y,
-            wrap_angle(measured.theta - predicted.theta),
-        ]);
-        let columns = [0, 1, 2, CLONE_INDEX, CLONE_INDEX + 1, CLONE_INDEX + 2];
-        let h = DMatrix::from_fn(3, 6, |r, k| jacobian[(r, k)]);
-        let innovation_cov = &h * self.state.covariance_block(&columns) * h.transpose()
-            + DMatrix::from_fn(3, 3, |r, k| cov[(r, k)]);
-        let nis = (0.5 * (&innovation_cov + innovation_cov.transpose()))
-            .cholesky()
-            .map_or(f64::NAN, |ch| nu.dot(&ch.solve(&nu)));
+        let Some(innovation) = self.motion_innovation(&measured, cov)? else {
+            return Ok(MotionOutcome::NoMark);
+        };
+        let nis = innovation.nis.unwrap_or(f64::NAN);
+        let mark = self.state.clone_pose_mean();
         let (s, c) = mark.theta.sin_cos();
         // d(mark + measured) / d(mark) and / d(measured).
         let j_mark = Matrix3::new(
@@ -183,4 +149,54 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         self.stats.motion_updates += 1;
         Ok(MotionOutcome::Applied { nis })
     }
+
+    /// A measurement of the motion since the mark against the filter's own: `None` without
+    /// a mark; an error for a non-finite measurement.
+    fn motion_innovation(
+        &self,
+        measured: &Pose2,
+        cov: &Matrix3<f64>,
+    ) -> Result<Option<MotionInnovation>, FilterError> {
+        if ![measured.x, measured.y, measured.theta]
+            .iter()
+            .chain(cov.iter())
+            .all(|v| v.is_finite())
+        {
+            return Err(FilterError::NonFiniteInput("measured motion"));
+        }
+        if self.state.tally.is_none() {
+            return Ok(None);
+        }
+        let (predicted, jacobian) = relative_pose(&self.state.clone_pose_mean(), &self.pose());
+        let nu = DVector::from_vec(vec![
+            measured.x - predicted.x,
+            measured.y - predicted.y,
+            wrap_angle(measured.theta - predicted.theta),
+        ]);
+        let columns = [0, 1, 2, CLONE_INDEX, CLONE_INDEX + 1, CLONE_INDEX + 2];
+        let h = DMatrix::from_fn(3, 6, |r, c| jacobian[(r, c)]);
+        let s = &h * self.state.covariance_block(&columns) * h.transpose()
+            + DMatrix::from_fn(3, 3, |r, c| cov[(r, c)]);
+        let nis = (0.5 * (&s + s.transpose()))
+            .cholesky()
+            .map(|ch| nu.dot(&ch.solve(&nu)));
+        Ok(Some(MotionInnovation {
+            columns,
+            h,
+            nu,
+            nis,
+        }))
+    }
+}
+
+/// A motion measurement against the filter's motion since the mark.
+struct MotionInnovation {
+    /// The pose's and the clone's elements of the state.
+    columns: [usize; 6],
+    /// The measurement's Jacobian in those columns.
+    h: DMatrix<f64>,
+    /// The innovation `[x, y, heading]`.
+    nu: DVector<f64>,
+    /// Its normalised square; `None` when its covariance is not positive definite.
+    nis: Option<f64>,
 }
