@@ -38,12 +38,15 @@ fn main() -> ExitCode {
         }
     };
     let bytes = std::fs::metadata(&path).map_or(0, |m| m.len());
+    // The file's own version (the u32 after the 8-byte magic; the load above checked it),
+    // not this build's: a version 1 file reads as version 1.
+    let version = file_version(&path).map_or_else(|| "unknown".to_owned(), |v| v.to_string());
     let features = map.feature_count();
     let p = &map.profile;
     println!(
         "{}: format version {}, written {} s after the epoch by {:?}",
         path.display(),
-        slam_map::FORMAT_VERSION,
+        version,
         map.created_unix_s,
         map.source
     );
@@ -148,4 +151,12 @@ fn compare(saved: &Map, merged: &Map) {
         merged.loops.len().saturating_sub(saved.loops.len()),
         merged.joins.len().saturating_sub(saved.joins.len())
     );
+}
+
+/// The format version written in `path`'s header (bytes 8 to 12, little-endian).
+fn file_version(path: &std::path::Path) -> Option<u32> {
+    use std::io::Read;
+    let mut head = [0u8; 12];
+    std::fs::File::open(path).ok()?.read_exact(&mut head).ok()?;
+    Some(u32::from_le_bytes([head[8], head[9], head[10], head[11]]))
 }
