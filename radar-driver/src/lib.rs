@@ -77,5 +77,5 @@ pub use odometry::{
 pub use protocol::{BinWidth, Geometry};
 pub use ratelimit::RateLimiter;
 pub use settings::{DriverSettings, DEFAULT_MAX_HELD_BYTES};
-pub use shutdown::{shutdown_pair, Shutdown, ShutdownTrigger};
+pub use shutdown::{shutdown_pair, stop_signal, Shutdown, ShutdownTrigger, StopSignal};
 pub use stream::{AzimuthStream, RotationStream, StreamSink, Streams};

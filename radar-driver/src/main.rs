@@ -175,9 +175,12 @@ async fn run(args: Args) -> anyhow::Result<()> {
         }
     };
     tokio::pin!(deadline);
+    // Created once: a stop request between two turns of the loop is not missed.
+    let stop = radar_driver::stop_signal();
+    tokio::pin!(stop);
     loop {
         tokio::select! {
-            _ = tokio::signal::ctrl_c() => break,
+            _ = &mut stop => break,
             () = &mut deadline => break,
             changed = configuration.changed() => {
                 if changed.is_err() {

@@ -96,3 +96,48 @@ mod tests {
         );
     }
 }
+
+/// Which request ended a process: see [`stop_signal`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopSignal {
+    /// SIGINT: Ctrl-C at a terminal.
+    CtrlC,
+    /// SIGTERM: what `kill`, systemd and container runtimes send.
+    Term,
+}
+
+impl std::fmt::Display for StopSignal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            StopSignal::CtrlC => "Ctrl-C",
+            StopSignal::Term => "SIGTERM",
+        })
+    }
+}
+
+/// Resolves at the first request to stop the process: Ctrl-C, or on Unix SIGTERM, so that
+/// a daemon stopped by its service manager ends as it does at a terminal (outputs written,
+/// summary printed) instead of being killed mid-write. Installs the handlers when first
+/// polled; if neither can be installed it never resolves (the default action then stands).
+pub async fn stop_signal() -> StopSignal {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{signal, SignalKind};
+        if let Ok(mut term) = signal(SignalKind::terminate()) {
+            return tokio::select! {
+                r = tokio::signal::ctrl_c() => match r {
+                    Ok(()) => StopSignal::CtrlC,
+                    Err(_) => {
+                        term.recv().await;
+                        StopSignal::Term
+                    }
+                },
+                _ = term.recv() => StopSignal::Term,
+            };
+        }
+    }
+    match tokio::signal::ctrl_c().await {
+        Ok(()) => StopSignal::CtrlC,
+        Err(_) => std::future::pending().await,
+    }
+}

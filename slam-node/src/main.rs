@@ -60,11 +60,12 @@ fn run(args: cli::Args) -> anyhow::Result<()> {
         .build()
         .context("starting the tokio runtime")?;
     let result = runtime.block_on(async move {
+        // Ctrl-C and SIGTERM (what `kill`, systemd and container runtimes send) end the run
+        // the same way: the pipeline drains, the outputs are written and the summary printed.
         tokio::spawn(async move {
-            if tokio::signal::ctrl_c().await.is_ok() {
-                eprintln!("slam-node: stopping (Ctrl-C)");
-                stop.store(true, Ordering::Relaxed);
-            }
+            let why = radar_driver::stop_signal().await;
+            eprintln!("slam-node: stopping ({why})");
+            stop.store(true, Ordering::Relaxed);
         });
         // SIGUSR1: save the map now ([map] path), the run goes on.
         #[cfg(unix)]
@@ -84,7 +85,7 @@ fn run(args: cli::Args) -> anyhow::Result<()> {
     if result.as_ref().is_err_and(|e| e.is_stopped_before_start()) {
         // Ctrl-C during the scene's build: do not wait for the abandoned build.
         runtime.shutdown_background();
-        anyhow::bail!("stopped (Ctrl-C) while building the scene, before the run began");
+        anyhow::bail!("stopped (Ctrl-C or SIGTERM) while building the scene, before the run began");
     }
     // The simulator's ground-truth writer may still be flushing on the blocking pool.
     runtime.shutdown_timeout(std::time::Duration::from_secs(2));

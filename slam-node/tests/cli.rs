@@ -577,3 +577,61 @@ fn a_fifo_for_a_recording_or_the_written_odometry_is_refused_at_once() {
         assert!(err.contains("not a regular file"), "{args:?}: {err}");
     }
 }
+
+#[cfg(unix)]
+#[test]
+fn sigterm_ends_a_run_like_ctrl_c_with_its_outputs_and_summary() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    // A real-time run of 60 s: SIGTERM (what systemd, `kill` and container runtimes send)
+    // used to end the process at once with status 143, no summary and no trajectory.
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = slam_node()
+        .args(["--duration", "60", "--no-figures", "--progress-every", "1"])
+        .arg("--out")
+        .arg(dir.path())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut log = String::new();
+    let deadline = Instant::now() + Duration::from_secs(60);
+    // Two progress lines: the run is under way and the handler is in place.
+    let mut progress = 0;
+    while progress < 2 {
+        let mut line = String::new();
+        if stderr.read_line(&mut line).unwrap() == 0 || Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("the run ended or stalled before its progress lines:\n{log}");
+        }
+        progress += usize::from(line.contains("ms/rotation"));
+        log.push_str(&line);
+    }
+    let status = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let sent = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if sent.elapsed() > Duration::from_secs(20) {
+            let _ = child.kill();
+            panic!("still running 20 s after SIGTERM");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let mut rest = String::new();
+    let _ = std::io::Read::read_to_string(&mut stderr, &mut rest);
+    log.push_str(&rest);
+    let mut summary = String::new();
+    let _ = std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut summary);
+    assert!(status.success(), "{status:?}\n{log}");
+    assert!(log.contains("stopping (SIGTERM)"), "{log}");
+    assert!(summary.contains("pose error"), "no summary:\n{summary}");
+    let trajectory = tum_poses(&dir.path().join("trajectory.tum"));
+    assert!(trajectory.len() > 2, "{} poses written", trajectory.len());
+}

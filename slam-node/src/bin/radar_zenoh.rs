@@ -117,10 +117,9 @@ fn run(args: Args) -> anyhow::Result<()> {
     let stop = Arc::new(AtomicBool::new(false));
     let ctrl_c = Arc::clone(&stop);
     runtime.spawn(async move {
-        if tokio::signal::ctrl_c().await.is_ok() {
-            eprintln!("radar-zenoh: stopping (Ctrl-C)");
-            ctrl_c.store(true, Ordering::Relaxed);
-        }
+        let why = radar_driver::stop_signal().await;
+        eprintln!("radar-zenoh: stopping ({why})");
+        ctrl_c.store(true, Ordering::Relaxed);
     });
     eprintln!(
         "radar-zenoh: connecting to the radar at {}",
