@@ -548,6 +548,18 @@ impl fmt::Display for Timing<'_> {
                 s.cpu_ms_percentile(99.0),
                 s.cpu_rotations
             )?;
+            let tenths = s.cpu_ms_by_tenth();
+            if tenths.len() == 10 {
+                let each: Vec<String> = tenths
+                    .iter()
+                    .map(|[p50, p99]| format!("{p50:.1}/{p99:.1}"))
+                    .collect();
+                writeln!(
+                    f,
+                    "  the same by tenth of the run, p50/p99 ms (first to last): {}",
+                    each.join(" ")
+                )?;
+            }
         }
         Ok(())
     }

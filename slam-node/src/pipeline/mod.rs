@@ -28,6 +28,7 @@ pub mod spectrum;
 pub mod stats;
 pub mod submaps;
 pub mod summary;
+pub mod thinned;
 pub mod truth;
 
 pub use self::core::{Pipeline, PipelineError};

@@ -137,6 +137,10 @@ pub struct PipelineSummary {
     pub cpu_rotations: u64,
     #[serde(skip)]
     recent_cpu_ms: VecDeque<f64>,
+    /// Every rotation's CPU time over the whole run, thinned evenly to a bound, so the
+    /// first and last tenths of a run of any length can be compared.
+    #[serde(skip)]
+    cpu_over_run: super::thinned::Thinned,
 }
 
 impl PipelineSummary {
@@ -204,6 +208,17 @@ impl PipelineSummary {
         self.cpu_ms += ms;
         self.cpu_rotations += 1;
         keep_recent(&mut self.recent_cpu_ms, ms);
+        self.cpu_over_run.push(ms);
+    }
+
+    /// The CPU time per rotation's median and 99th percentile (ms) in each tenth of the run,
+    /// in order (a tenth without a measured rotation is left out).
+    pub fn cpu_ms_by_tenth(&self) -> Vec<[f64; 2]> {
+        self.cpu_over_run
+            .percentiles_by_share(10, &[50.0, 99.0])
+            .into_iter()
+            .filter_map(|p| Some([*p.first()?, *p.get(1)?]))
+            .collect()
     }
 
     /// Mean CPU time per measured rotation, ms (`None`: none measured).
