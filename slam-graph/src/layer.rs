@@ -301,6 +301,25 @@ impl GlobalMap {
         }
     }
 
+    /// Submap `k`'s scan as the scan verifier pairs against, when it has one.
+    pub fn scan(&self, k: usize) -> Option<&[[f64; 2]]> {
+        self.scans.get(k)?.as_deref().map(ScanReference::points)
+    }
+
+    /// Keeps the scan of the submap just added (when scans are on and it has enough
+    /// points to verify with) and the disc loop-closure candidates are found by: the scan's,
+    /// or the features'.
+    pub(crate) fn push_scan(&mut self, submap: &FrozenSubmap, scan: Option<Vec<[f64; 2]>>) {
+        let scan = scan
+            .filter(|p| self.settings.scans.enabled && p.len() >= self.settings.scans.min_pairs)
+            .map(|p| Arc::new(reference_scan(p, &self.settings.scans)));
+        let feature_points: Vec<[f64; 2]> = submap.features.iter().map(|f| f.xy).collect();
+        self.discs.push(disc(
+            scan.as_ref().map_or(&feature_points[..], |c| c.points()),
+        ));
+        self.scans.push(scan);
+    }
+
     /// Joins a frozen submap: a node for its frame (and one for the frame after it: the
     /// next submap starts where this one ended), its chain edge, verified loop closures,
     /// and a solve.
@@ -364,14 +383,7 @@ impl GlobalMap {
             covariance: submap.end_cov,
             kind: EdgeKind::Chain,
         });
-        let scan = scan
-            .filter(|p| self.settings.scans.enabled && p.len() >= self.settings.scans.min_pairs)
-            .map(|p| Arc::new(reference_scan(p, &self.settings.scans)));
-        let feature_points: Vec<[f64; 2]> = submap.features.iter().map(|f| f.xy).collect();
-        self.discs.push(disc(
-            scan.as_ref().map_or(&feature_points[..], |c| c.points()),
-        ));
-        self.scans.push(scan);
+        self.push_scan(&submap, scan);
         let last = self.travel.last().copied().unwrap_or(0.0);
         self.travel
             .push(last + submap.end_pose.x.hypot(submap.end_pose.y));

@@ -6,9 +6,9 @@
 //! submaps to the verifier whatever the travel since (they belong to another drive).
 //!
 //! The saved nodes are free in the solve, held by their saved edges (node 0 stays the
-//! world): new loop closures can move them, within what their edges allow. The saved
-//! submaps have no scans (the map file keeps none): a closure between a new submap and a
-//! saved one is verified by features.
+//! world): new loop closures can move them, within what their edges allow. A saved submap
+//! whose scan the map kept (format version 3) is verified and described by it as during
+//! the run that made it; one without (older maps) by its features.
 
 use std::sync::Arc;
 
@@ -35,6 +35,8 @@ pub struct SavedGraph {
     pub loops: Vec<LoopClosure>,
     /// The joins of their later drives.
     pub joins: Vec<LoopClosure>,
+    /// Each submap's scan in its frame, where the map kept one (missing entries: none).
+    pub scans: Vec<Option<Vec<[f64; 2]>>>,
 }
 
 /// Why a saved graph cannot be gone on from.
@@ -160,9 +162,8 @@ impl GlobalMap {
         for (k, s) in saved.submaps.iter().enumerate() {
             map.graph.add_node(saved.frames[k]);
             map.covariances.push(saved.covariances[k]);
-            let points: Vec<[f64; 2]> = s.features.iter().map(|f| f.xy).collect();
-            map.discs.push(crate::layer::disc(&points));
-            map.scans.push(None);
+            let scan = saved.scans.get(k).cloned().flatten();
+            map.push_scan(s, scan);
             let last = map.travel.last().copied().unwrap_or(0.0);
             map.travel.push(last + s.end_pose.x.hypot(s.end_pose.y));
         }

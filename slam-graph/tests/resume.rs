@@ -84,6 +84,7 @@ fn saved(first: &GlobalMap) -> SavedGraph {
         drives: vec![0; n],
         loops: first.loops().to_vec(),
         joins: Vec::new(),
+        scans: Vec::new(),
     }
 }
 
@@ -203,4 +204,57 @@ fn a_saved_graph_that_does_not_hold_together_is_refused() {
         join(0, Pose2::new(0.0, 0.0, 0.0)),
     );
     assert!(matches!(e.unwrap_err(), ResumeError::Lengths { .. }));
+}
+
+#[test]
+fn saved_scans_come_back_with_their_submaps_and_a_map_without_them_has_none() {
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let posts: Vec<[f64; 2]> = (0..200)
+        .map(|_| [rng.gen_range(-40.0..140.0), rng.gen_range(-40.0..140.0)])
+        .collect();
+    // Two long walls, a point every 0.25 m: each submap's scan, in its frame.
+    let walls: Vec<[f64; 2]> = (0..800)
+        .flat_map(|i| {
+            let t = -50.0 + 0.25 * f64::from(i);
+            [[t, -20.0], [t, 30.0]]
+        })
+        .collect();
+    let frames = true_frames();
+    let mut first = GlobalMap::new(GlobalSettings::default());
+    for (k, s) in drive(&posts, &frames[..4], 0.0, &mut rng)
+        .into_iter()
+        .enumerate()
+    {
+        let inv = inverse(&frames[k]);
+        let scan = walls.iter().map(|p| transform_point(&inv, *p)).collect();
+        first.add_submap_with_scan(s, Some(scan));
+    }
+    let n = first.submaps().len();
+    assert!((0..n).all(|k| first.scan(k).is_some()));
+    let mut kept = saved(&first);
+    kept.scans = (0..n).map(|k| first.scan(k).map(<[_]>::to_vec)).collect();
+    kept.scans[1] = None;
+    let resumed = GlobalMap::resume(
+        GlobalSettings::default(),
+        kept.clone(),
+        join(0, Pose2::new(0.0, 0.0, 0.0)),
+    )
+    .unwrap();
+    for k in 0..n {
+        assert_eq!(
+            resumed.scan(k),
+            kept.scans[k].as_deref(),
+            "saved submap {k}'s scan"
+        );
+    }
+    // An older map (no scans): the saved submaps are verified by their features.
+    let mut none = kept;
+    none.scans.clear();
+    let resumed = GlobalMap::resume(
+        GlobalSettings::default(),
+        none,
+        join(0, Pose2::new(0.0, 0.0, 0.0)),
+    )
+    .unwrap();
+    assert!((0..n).all(|k| resumed.scan(k).is_none()));
 }

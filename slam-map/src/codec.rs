@@ -23,7 +23,7 @@ use std::io::{self, Read, Write};
 
 use crate::error::{FormatError, WriteError};
 pub use crate::format::{FORMAT_VERSION, HEADER_LEN, MAGIC};
-use crate::model::{Map, MapV1};
+use crate::model::{Map, MapV1, MapV2};
 use crate::validate::validate;
 
 /// What a reader accepts.
@@ -153,6 +153,10 @@ pub(crate) fn read_payload<R: Read>(
     }
     let (map, rest) = if header.version == 1 {
         postcard::take_from_bytes::<MapV1>(&payload)
+            .map(|(m, rest)| (Map::from(m), rest))
+            .map_err(FormatError::Undecodable)?
+    } else if header.version == 2 {
+        postcard::take_from_bytes::<MapV2>(&payload)
             .map(|(m, rest)| (Map::from(m), rest))
             .map_err(FormatError::Undecodable)?
     } else {

@@ -9,7 +9,7 @@ use slam_graph::{Edge, EdgeKind, GlobalMap, LoopClosure, PoseGraph};
 
 use crate::error::WriteError;
 use crate::model::{
-    pack2, pack3, unpack2, unpack3, LoopEdge, Map, MapFeature, MapProfile, MapSubmap, Pose,
+    pack2, pack3, unpack2, unpack3, LoopEdge, Map, MapFeature, MapProfile, MapScan, MapSubmap, Pose,
 };
 use crate::validate::validate;
 
@@ -169,9 +169,48 @@ impl Map {
             loops,
             drive_starts,
             joins,
+            scans: Vec::new(),
         };
         validate(&map).map_err(WriteError::Invalid)?;
         Ok((map, report))
+    }
+
+    /// The map with the submaps' scans (`(submap, points in its frame)`, in increasing
+    /// submap order): stored as 32-bit floats (a millimetre at 10 km); points that are not
+    /// finite are left out and a scan beyond [`crate::MAX_SCAN_POINTS`] is thinned evenly
+    /// to it. A scan naming a submap the map does not hold, or out of order, refuses the
+    /// map.
+    pub fn with_scans<'a>(
+        mut self,
+        scans: impl IntoIterator<Item = (usize, &'a [[f64; 2]])>,
+    ) -> Result<Map, WriteError> {
+        self.scans = scans
+            .into_iter()
+            .filter(|(_, p)| !p.is_empty())
+            .map(|(k, points)| {
+                let step = points.len().div_ceil(crate::MAX_SCAN_POINTS).max(1);
+                MapScan {
+                    submap: u32::try_from(k).unwrap_or(u32::MAX),
+                    points: points
+                        .iter()
+                        .step_by(step)
+                        .map(|p| [p[0] as f32, p[1] as f32])
+                        .filter(|p| p[0].is_finite() && p[1].is_finite())
+                        .collect(),
+                }
+            })
+            .collect();
+        validate(&self).map_err(WriteError::Invalid)?;
+        Ok(self)
+    }
+
+    /// Submap `k`'s scan in 64-bit points, when it kept one.
+    pub fn scan_points(&self, k: usize) -> Option<Vec<[f64; 2]>> {
+        self.scan_of(k).map(|p| {
+            p.iter()
+                .map(|q| [f64::from(q[0]), f64::from(q[1])])
+                .collect()
+        })
     }
 
     /// The global layer's map: every submap it joined, placed by its current solution, and
@@ -186,7 +225,9 @@ impl Map {
             .iter()
             .zip(sol.frames.iter().zip(&sol.covariances))
             .map(|(s, (f, c))| (s.as_ref(), *f, *c));
-        Map::from_parts(meta, parts, global.loops())
+        let (map, report) = Map::from_parts(meta, parts, global.loops())?;
+        let scans = (0..global.submaps().len()).filter_map(|k| global.scan(k).map(|p| (k, p)));
+        Ok((map.with_scans(scans)?, report))
     }
 
     /// The submaps as the filter froze them (for the loop-closure verifier).

@@ -5,7 +5,10 @@
 pub const MAGIC: [u8; 8] = [0x89, b'S', b'L', b'M', b'A', b'P', b'\r', b'\n'];
 
 /// The format version this build writes (it reads every version up to it).
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 
 /// Bytes before the payload.
 pub const HEADER_LEN: usize = 24;
+
+/// Points a submap's scan holds at most (format version 3): 8 bytes each.
+pub const MAX_SCAN_POINTS: usize = 1 << 16;

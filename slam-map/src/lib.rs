@@ -32,5 +32,6 @@ pub mod validate;
 pub use codec::{Limits, DEFAULT_MAX_PAYLOAD_BYTES, FORMAT_VERSION, HEADER_LEN, MAGIC};
 pub use convert::{BuildReport, Drives, MapMeta};
 pub use error::{FormatError, LoadError, SaveError, WriteError};
-pub use model::{LoopEdge, Map, MapFeature, MapProfile, MapSubmap, PlaceDescriptor, Pose};
+pub use format::MAX_SCAN_POINTS;
+pub use model::{LoopEdge, Map, MapFeature, MapProfile, MapScan, MapSubmap, PlaceDescriptor, Pose};
 pub use profile::ProfileMismatch;

@@ -174,6 +174,20 @@ pub struct LoopEdge {
     pub matches: u32,
 }
 
+/// A submap's scan (format version 3): the radar's returns that the run registered (walls,
+/// fences, cars and poles alike), gathered over the submap's rotations in its frame and
+/// thinned to one point per cell seen in at least two rotations (slam-graph's
+/// `ScanAccumulator`). Loop closure verifies a closure to this submap by registering
+/// scans, and describes its place from it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MapScan {
+    /// The submap (index into [`Map::submaps`]; the scans are in increasing submap order,
+    /// one at most per submap).
+    pub submap: u32,
+    /// The points in the submap's frame (m), at most [`crate::MAX_SCAN_POINTS`].
+    pub points: Vec<[f32; 2]>,
+}
+
 /// A saved map.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Map {
@@ -195,6 +209,35 @@ pub struct Map {
     /// when that drive localised in it (extend mode), as an edge from an earlier submap
     /// (`from`) to the drive's first submap (`to`), with the fix's covariance.
     pub joins: Vec<LoopEdge>,
+    /// The submaps' scans (format version 3), for the submaps that kept one.
+    pub scans: Vec<MapScan>,
+}
+
+/// A map in format version 2 (no scans): read, never written.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct MapV2 {
+    pub created_unix_s: u64,
+    pub source: String,
+    pub profile: MapProfile,
+    pub submaps: Vec<MapSubmap>,
+    pub loops: Vec<LoopEdge>,
+    pub drive_starts: Vec<u32>,
+    pub joins: Vec<LoopEdge>,
+}
+
+impl From<MapV2> for Map {
+    fn from(m: MapV2) -> Self {
+        Map {
+            created_unix_s: m.created_unix_s,
+            source: m.source,
+            profile: m.profile,
+            submaps: m.submaps,
+            loops: m.loops,
+            drive_starts: m.drive_starts,
+            joins: m.joins,
+            scans: Vec::new(),
+        }
+    }
 }
 
 /// A map in format version 1 (no drives, no joins): read, never written.
@@ -217,6 +260,7 @@ impl From<MapV1> for Map {
             loops: m.loops,
             drive_starts: Vec::new(),
             joins: Vec::new(),
+            scans: Vec::new(),
         }
     }
 }
@@ -234,6 +278,20 @@ impl Map {
             .iter()
             .filter(|&&s| s as usize <= k)
             .count()
+    }
+
+    /// Submap `k`'s scan, when it kept one.
+    pub fn scan_of(&self, k: usize) -> Option<&[[f32; 2]]> {
+        let k = u32::try_from(k).ok()?;
+        self.scans
+            .binary_search_by_key(&k, |s| s.submap)
+            .ok()
+            .map(|i| &self.scans[i].points[..])
+    }
+
+    /// Scan points over all submaps.
+    pub fn scan_point_count(&self) -> usize {
+        self.scans.iter().map(|s| s.points.len()).sum()
     }
 
     /// Features over all submaps.

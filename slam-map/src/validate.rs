@@ -1,6 +1,7 @@
 //! The format's rules beyond its encoding, checked on every map written and read: a map
 //! that breaks one is refused with the first broken rule and where it is.
 
+use crate::format::MAX_SCAN_POINTS;
 use crate::model::{Map, Pose};
 
 /// The longest `source` note (bytes).
@@ -114,6 +115,27 @@ pub fn validate(map: &Map) -> Result<(), String> {
         if !(pose_finite(&j.transform) && finite(&j.covariance)) {
             return Err(format!(
                 "join {e}: its transform or covariance is not finite"
+            ));
+        }
+    }
+    let mut after = None;
+    for (e, scan) in map.scans.iter().enumerate() {
+        let k = scan.submap;
+        if k as usize >= n || after.is_some_and(|a| k <= a) {
+            return Err(format!(
+                "scan {e} belongs to submap {k}: the scans' submaps must increase, each in 0..{n}"
+            ));
+        }
+        after = Some(k);
+        if scan.points.len() > MAX_SCAN_POINTS {
+            return Err(format!(
+                "scan {e} (submap {k}) holds {} points, more than {MAX_SCAN_POINTS}",
+                scan.points.len()
+            ));
+        }
+        if !scan.points.iter().flatten().all(|v| v.is_finite()) {
+            return Err(format!(
+                "scan {e} (submap {k}) holds a point that is not finite"
             ));
         }
     }

@@ -13,12 +13,54 @@ fn a_collection_declaring_two_to_the_sixty_elements_allocates_little_and_fails()
         loops: Vec::new(),
         drive_starts: Vec::new(),
         joins: Vec::new(),
+        scans: Vec::new(),
     };
     let mut payload = postcard::to_allocvec(&empty).unwrap();
-    // The last four bytes are the submaps', loops', drive starts' and joins' lengths.
-    assert_eq!(&payload[payload.len() - 4..], &[0, 0, 0, 0]);
-    payload.truncate(payload.len() - 4);
+    // The last five bytes are the submaps', loops', drive starts', joins' and scans'
+    // lengths.
+    assert_eq!(&payload[payload.len() - 5..], &[0, 0, 0, 0, 0]);
+    payload.truncate(payload.len() - 5);
     // 2^60 as a LEB128 varint, then a few bytes of "submap".
+    let mut n: u64 = 1 << 60;
+    while n >= 0x80 {
+        payload.push((n as u8) | 0x80);
+        n >>= 7;
+    }
+    payload.push(n as u8);
+    payload.extend_from_slice(&[0u8; 64]);
+    let mut file = MAGIC.to_vec();
+    file.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    file.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
+    file.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+    file.extend_from_slice(&payload);
+    let mut result = None;
+    let info = allocation_counter::measure(|| {
+        result = Some(Map::from_bytes(&file, &Limits::default()));
+    });
+    assert!(
+        matches!(result, Some(Err(FormatError::Undecodable(_)))),
+        "{result:?}"
+    );
+    println!("peak bytes allocated: {}", info.bytes_max);
+    assert!(info.bytes_max < 4 << 20, "{} bytes", info.bytes_max);
+}
+
+#[test]
+fn a_scan_declaring_two_to_the_sixty_points_allocates_little_and_fails() {
+    let empty = Map {
+        created_unix_s: 0,
+        source: String::new(),
+        profile: MapProfile::from(&radar_model::profile::CTS350X),
+        submaps: Vec::new(),
+        loops: Vec::new(),
+        drive_starts: Vec::new(),
+        joins: Vec::new(),
+        scans: Vec::new(),
+    };
+    let mut payload = postcard::to_allocvec(&empty).unwrap();
+    // One scan, of submap 0, whose points claim 2^60 entries.
+    payload.truncate(payload.len() - 1);
+    payload.extend_from_slice(&[1, 0]);
     let mut n: u64 = 1 << 60;
     while n >= 0x80 {
         payload.push((n as u8) | 0x80);

@@ -1,19 +1,21 @@
 //! The encoding of a fixed map, pinned: a change to the schema (a field added, removed,
 //! retyped or reordered in `model.rs`) changes these bytes and must come with a new
 //! format version and an update of `docs/map-format.md`. Files of earlier versions still
-//! read (`tests/data/sample-v1.slmap`, the same map written by the version 1 build).
+//! read (`tests/data/sample-v1.slmap` and `sample-v2.slmap`, the same map written by the
+//! version 1 and version 2 builds).
 
 mod common;
 
 use slam_map::{Limits, Map, FORMAT_VERSION, MAGIC};
 
-/// Length and CRC32 of the whole file of `common::sample_map(2)` in format version 2.
-const GOLDEN_LEN: usize = 1154;
-const GOLDEN_CRC: u32 = 0x8bb6_1dfd;
+/// Length and CRC32 of the whole file of `common::sample_map_with_scans(2)` in format
+/// version 3.
+const GOLDEN_LEN: usize = 1191;
+const GOLDEN_CRC: u32 = 0x1621_0851;
 
 #[test]
 fn the_encoding_of_a_fixed_map_is_unchanged() {
-    let bytes = common::sample_map(2).to_bytes().unwrap();
+    let bytes = common::sample_map_with_scans(2).to_bytes().unwrap();
     assert_eq!(&bytes[..8], &MAGIC);
     assert_eq!(&bytes[8..12], &FORMAT_VERSION.to_le_bytes());
     assert_eq!(
@@ -21,13 +23,75 @@ fn the_encoding_of_a_fixed_map_is_unchanged() {
         (bytes.len() - 24) as u64
     );
     println!("len {} crc {:#010x}", bytes.len(), crc32fast::hash(&bytes));
-    assert_eq!(FORMAT_VERSION, 2, "a new version needs its own golden file");
+    assert_eq!(FORMAT_VERSION, 3, "a new version needs its own golden file");
     assert_eq!(bytes.len(), GOLDEN_LEN);
     assert_eq!(crc32fast::hash(&bytes), GOLDEN_CRC);
+    let map = Map::from_bytes(&bytes, &Limits::default()).unwrap();
+    assert_eq!(map, common::sample_map_with_scans(2));
+    assert_eq!(map.scan_of(0).map(<[_]>::len), Some(3));
+    assert_eq!(map.scan_of(1), None);
+    assert_eq!(map.scan_of(2), Some(&[[0.25f32, 80.0]][..]));
+}
+
+#[test]
+fn a_version_2_file_reads_as_the_same_map_without_scans() {
+    let v2 = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/sample-v2.slmap"
+    ))
+    .unwrap();
+    assert_eq!(&v2[8..12], &2u32.to_le_bytes());
+    assert_eq!(v2.len(), 1154);
     assert_eq!(
-        Map::from_bytes(&bytes, &Limits::default()).unwrap(),
-        common::sample_map(2)
+        crc32fast::hash(&v2),
+        0x8bb6_1dfd,
+        "the version 2 golden file"
     );
+    let map = Map::from_bytes(&v2, &Limits::default()).unwrap();
+    assert_eq!(map, common::sample_map(2));
+    assert!(map.scans.is_empty());
+}
+
+#[test]
+fn scans_that_break_the_rules_are_refused() {
+    let cases: Vec<(Map, &str)> = vec![
+        (
+            {
+                let mut m = common::sample_map_with_scans(2);
+                m.scans[1].submap = 3;
+                m
+            },
+            "scan 1 belongs to submap 3",
+        ),
+        (
+            {
+                let mut m = common::sample_map_with_scans(2);
+                m.scans[1].submap = 0;
+                m
+            },
+            "scan 1 belongs to submap 0: the scans' submaps must increase",
+        ),
+        (
+            {
+                let mut m = common::sample_map_with_scans(2);
+                m.scans[0].points[1][0] = f32::NAN;
+                m
+            },
+            "scan 0 (submap 0) holds a point that is not finite",
+        ),
+        (
+            {
+                let mut m = common::sample_map_with_scans(2);
+                m.scans[0].points = vec![[0.0, 0.0]; slam_map::MAX_SCAN_POINTS + 1];
+                m
+            },
+            "more than 65536",
+        ),
+    ];
+    for (m, why) in cases {
+        let e = m.to_bytes().unwrap_err().to_string();
+        assert!(e.contains(why), "{why:?} not in {e:?}");
+    }
 }
 
 #[test]

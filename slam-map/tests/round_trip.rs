@@ -305,6 +305,7 @@ fn map() -> impl Strategy<Value = Map> {
                     loops,
                     drive_starts: Vec::new(),
                     joins: Vec::new(),
+                    scans: Vec::new(),
                 }
             },
         )

@@ -73,6 +73,14 @@ fn holds_the_saved_map(saved: &Map, merged: &Map) {
             );
         }
     }
+    for scan in &saved.scans {
+        assert_eq!(
+            merged.scan_of(scan.submap as usize),
+            Some(&scan.points[..]),
+            "saved submap {}'s scan",
+            scan.submap
+        );
+    }
     assert!(merged.submaps.len() > n, "no new submap");
     assert_eq!(merged.loops[..saved.loops.len()], saved.loops[..]);
     assert_eq!(merged.joins[..saved.joins.len()], saved.joins[..]);
@@ -263,4 +271,43 @@ fn with_a_prior_pose_mapping_starts_after_a_few_tracked_rotations() {
     // The new drive starts near the true start (the origin), 3 m in at most.
     let start = merged.submaps[saved.submaps.len()].frame;
     assert!(start.x.hypot(start.y) < 4.0, "{start:?}");
+}
+
+#[test]
+fn the_saved_scans_are_carried_into_the_merged_map_and_the_new_submaps_add_theirs() {
+    // Radar odometry on: each submap keeps its scan (loop closure by scans).
+    let with_scans = format!("{SUBMAPS}\n[odometry]\nradar_odometry = true\n");
+    let dir = tempfile::tempdir().unwrap();
+    let first = dir.path().join("first");
+    let run = slam_node(
+        &format!("[sim]\nseed = 1\n\n{with_scans}"),
+        &first,
+        "20",
+        &[],
+    );
+    assert!(run.status.success(), "{}", text(&run));
+    let saved = Map::load(&first.join("map.slmap")).unwrap();
+    let n = saved.submaps.len();
+    assert!(
+        !saved.scans.is_empty() && saved.scans.iter().all(|s| (s.submap as usize) < n),
+        "{} scans for {n} submaps",
+        saved.scans.len()
+    );
+    assert!(text(&run).contains("the scans of"), "{}", text(&run));
+    let config = format!("[sim]\nseed = 2\n\n{with_scans}\n[map]\nmode = \"extend\"\n");
+    let out = dir.path().join("second");
+    let run = slam_node(
+        &config,
+        &out,
+        "30",
+        &["--map", first.join("map.slmap").to_str().unwrap()],
+    );
+    let t = text(&run);
+    assert!(run.status.success(), "{t}");
+    let merged = Map::load(&out.join("map.slmap")).unwrap();
+    holds_the_saved_map(&saved, &merged);
+    assert!(
+        merged.scans.iter().any(|s| s.submap as usize >= n),
+        "no scan of a new submap\n{t}"
+    );
 }

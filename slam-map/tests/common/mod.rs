@@ -71,7 +71,25 @@ pub fn sample_map(per_submap: usize) -> Map {
         }],
         drive_starts: Vec::new(),
         joins: Vec::new(),
+        scans: Vec::new(),
     }
+}
+
+/// [`sample_map`] with scans of its first and third submaps (format version 3).
+#[allow(dead_code)] // not every test binary uses it
+pub fn sample_map_with_scans(per_submap: usize) -> Map {
+    let mut m = sample_map(per_submap);
+    m.scans = vec![
+        slam_map::MapScan {
+            submap: 0,
+            points: vec![[1.5, -2.25], [30.0, 4.0], [-12.125, 0.5]],
+        },
+        slam_map::MapScan {
+            submap: 2,
+            points: vec![[0.25, 80.0]],
+        },
+    ];
+    m
 }
 
 /// [`sample_map`] with a second drive: its third submap starts a drive joined to the first

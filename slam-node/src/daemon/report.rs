@@ -762,7 +762,7 @@ impl fmt::Display for SavedMapLine<'_> {
         });
         writeln!(
             f,
-            "  saved map: {} submaps, {} features, {} loop closures{}; {} bytes{per_km} ({} saves, each built in {:.1} ms at most on the pipeline thread)",
+            "  saved map: {} submaps, {} features, {} loop closures{}; {} bytes{per_km} ({} saves, each built in {:.1} ms at most on the pipeline thread){}",
             c.submaps,
             c.features,
             c.loops,
@@ -773,7 +773,15 @@ impl fmt::Display for SavedMapLine<'_> {
             },
             bytes,
             r.writer.saved_maps,
-            c.max_build_ms
+            c.max_build_ms,
+            if c.scans > 0 {
+                format!(
+                    "; the scans of {} submaps kept, {} points",
+                    c.scans, c.scan_points
+                )
+            } else {
+                String::new()
+            }
         )
     }
 }

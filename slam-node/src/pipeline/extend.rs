@@ -183,6 +183,7 @@ impl Extension {
             drives: (0..n).map(|k| map.drive_of(k)).collect(),
             loops: map.loop_closures(),
             joins: map.join_closures(),
+            scans: (0..n).map(|k| map.scan_points(k)).collect(),
         };
         let layer = GlobalMap::resume(self.options.global, saved, join)?;
         let sol = layer.solution(0.0);
@@ -201,6 +202,7 @@ impl Extension {
                 frozen,
                 frames,
                 drive_starts,
+                scans: (0..n).map(|k| map.scan_points(k).map(Arc::new)).collect(),
             },
         )
         .map_err(ExtendError::Thread)?;

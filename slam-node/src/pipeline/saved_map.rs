@@ -47,6 +47,10 @@ pub struct SavedMapCounts {
     pub drives: usize,
     /// Joins.
     pub joins: usize,
+    /// Submaps whose scan the map keeps, and the scans' points.
+    pub scans: usize,
+    /// Scan points.
+    pub scan_points: usize,
     /// Features left out for a value that is not finite.
     pub dropped_features: usize,
     /// The longest time building a saved map took on the pipeline thread over the run (ms;
@@ -112,7 +116,16 @@ pub fn build(
                 starts: p.drive_starts.to_vec(),
                 joins: p.joins.to_vec(),
             };
-            Map::from_drives(meta, parts, loops.unwrap_or(p.loops), &drives)
+            Map::from_drives(meta, parts, loops.unwrap_or(p.loops), &drives).and_then(
+                |(map, report)| {
+                    let scans = p
+                        .scans
+                        .iter()
+                        .enumerate()
+                        .filter_map(|(k, s)| s.as_deref().map(|v| (k, &v[..])));
+                    Ok((map.with_scans(scans)?, report))
+                },
+            )
         }
         None => Map::from_parts(meta, std::iter::once((&current, origin.0, origin.1)), &[]),
     };
@@ -131,6 +144,8 @@ pub fn build(
                 loops: map.loops.len(),
                 drives: map.drive_starts.len() + 1,
                 joins: map.joins.len(),
+                scans: map.scans.len(),
+                scan_points: map.scan_point_count(),
                 dropped_features: report.dropped_features,
                 max_build_ms: 0.0,
             };

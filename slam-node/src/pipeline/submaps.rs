@@ -159,6 +159,9 @@ pub struct SubmapRun {
     drive_starts: Vec<usize>,
     /// The joins of later drives to earlier ones (the saved map's, then this run's).
     joins: Vec<LoopClosure>,
+    /// Each frozen submap's scan as handed to the global layer (`None`: it kept none), for
+    /// the saved map.
+    scans: Vec<Option<Arc<Vec<[f64; 2]>>>>,
 }
 
 /// A saved map to go on from, as [`SubmapRun::resumed`] takes it.
@@ -173,6 +176,8 @@ pub struct Resumed {
     pub frames: Vec<(Pose2, Matrix3<f64>)>,
     /// The saved map's drive starts, then this run's (the saved submap count).
     pub drive_starts: Vec<usize>,
+    /// The saved submaps' scans, where the map kept them.
+    pub scans: Vec<Option<Arc<Vec<[f64; 2]>>>>,
 }
 
 /// `cov` of a pose in a frame, re-expressed with the frame at `frame` (covariance
@@ -212,6 +217,7 @@ impl SubmapRun {
             first_new: 0,
             drive_starts: Vec::new(),
             joins: Vec::new(),
+            scans: Vec::new(),
         })
     }
 
@@ -242,6 +248,7 @@ impl SubmapRun {
             first_new,
             drive_starts: r.drive_starts,
             joins,
+            scans: r.scans,
         })
     }
 
@@ -376,8 +383,9 @@ impl SubmapRun {
         self.frame_covs.push(c);
         let scan = self.scan.take();
         let scan_points = scan.len();
+        let scan = (self.options.global.scans.enabled && !scan.is_empty()).then_some(scan);
+        self.scans.push(scan.clone().map(Arc::new));
         if let Some(layer) = self.layer.as_mut() {
-            let scan = (self.options.global.scans.enabled && !scan.is_empty()).then_some(scan);
             layer.submit_with_scan(Arc::clone(&frozen), scan);
         }
         info!(
@@ -565,6 +573,7 @@ impl SubmapRun {
             loops: &self.loops,
             drive_starts: &self.drive_starts,
             joins: &self.joins,
+            scans: &self.scans,
         }
     }
 }
@@ -603,6 +612,8 @@ pub struct SubmapParts<'a> {
     pub drive_starts: &'a [usize],
     /// The joins of later drives to earlier ones.
     pub joins: &'a [LoopClosure],
+    /// Each frozen submap's scan, where it kept one.
+    pub scans: &'a [Option<Arc<Vec<[f64; 2]>>>],
 }
 
 /// The closures over every true revisit: frame `i`'s true origin is the vehicle's true

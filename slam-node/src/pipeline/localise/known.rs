@@ -356,6 +356,7 @@ mod tests {
             loops: Vec::new(),
             drive_starts: Vec::new(),
             joins: Vec::new(),
+            scans: Vec::new(),
         }
     }
 
