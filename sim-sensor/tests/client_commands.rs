@@ -4,8 +4,9 @@
 //! `ShapingScope::Connection` that client's only; a contour whose last bytes could start a
 //! frame signature (`00 01`) takes effect though the client sends nothing after it; a
 //! malformed update is refused and costs nothing else; a contoured stream (21) and a
-//! non-contoured one (140) differ exactly there. Navtech's tester itself is not on this
-//! machine: these are its three failing checks, tested directly.
+//! non-contoured one (140) differ exactly there; an empty blanking update clears the radar's
+//! blanking. Navtech's tester itself (not in the repository) scores 21 of 21 against the
+//! simulator (README, "Navtech's protocol tester"); these test its checks directly.
 
 mod common;
 
@@ -199,6 +200,49 @@ async fn a_client_that_closes_its_sending_side_after_asking_still_gets_the_data(
         // Before: the configuration and what was in flight, then the connection closed.
         let got = azimuths(&mut client, 2000, encoder).await;
         assert!(got.iter().all(|&(_, n)| n == bins));
+    })
+    .await
+    .expect("bounded");
+}
+
+#[tokio::test]
+async fn an_empty_blanking_update_clears_the_radars_blanking_for_later_connections() {
+    // Navtech's tester blanks 0-90 and 180-270 degrees and never clears it: the radar keeps
+    // it, so a second run against the same simulator sees zero-bin azimuths in its
+    // full-length checks. A blanking update with no sectors clears it (sim-sensor README).
+    tokio::time::timeout(BOUND, async {
+        let (handle, mut setter, encoder, bins) = connected().await;
+        setter
+            .send(Message::SectorBlankingUpdate(SectorBlanking {
+                sectors: vec![
+                    BlankingSector::from_degrees(0.0, 90.0),
+                    BlankingSector::from_degrees(180.0, 270.0),
+                ],
+            }))
+            .await;
+        setter.send(Message::StartNonContourFftData).await;
+        let blanked = azimuths(&mut setter, 400, encoder).await;
+        assert!(blanked.iter().any(|&(_, n)| n == 0), "{blanked:?}");
+        drop(setter);
+
+        let mut clearer = TestClient::connect(handle.local_addr()).await;
+        clearer.configuration().await;
+        clearer
+            .send(Message::SectorBlankingUpdate(SectorBlanking {
+                sectors: vec![],
+            }))
+            .await;
+        // The update is taken when it arrives; the start after it proves it was read.
+        clearer.send(Message::StartNonContourFftData).await;
+        azimuths(&mut clearer, 1, encoder).await;
+        drop(clearer);
+
+        let mut next = TestClient::connect(handle.local_addr()).await;
+        next.configuration().await;
+        next.send(Message::StartNonContourFftData).await;
+        let got = azimuths(&mut next, 400, encoder).await;
+        assert!(got.iter().all(|&(_, n)| n == bins), "{got:?}");
+        assert!(got.iter().any(|&(d, _)| d < 90.0) && got.iter().any(|&(d, _)| d >= 180.0));
     })
     .await
     .expect("bounded");
