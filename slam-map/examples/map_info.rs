@@ -68,6 +68,14 @@ fn main() -> ExitCode {
         bytes,
         bytes as f64 / features.max(1) as f64
     );
+    if !map.scans.is_empty() {
+        println!(
+            "scans: {} submaps, {} points ({} bytes)",
+            map.scans.len(),
+            map.scan_point_count(),
+            8 * map.scan_point_count()
+        );
+    }
     // The saved graph solved again from the saved frames: they should barely move.
     if map.submaps.len() > 1 {
         match map
