@@ -33,6 +33,15 @@ pub struct FilterSettings {
     pub repeat_look_range_m: f64,
     /// See [`Self::repeat_look_range_m`] (rad): one azimuth step is the natural cell.
     pub repeat_look_bearing_rad: f64,
+    /// The largest factor a repeated look's noise variance is multiplied by: the k-th look of
+    /// a run is used with `min(k, repeat_look_max_factor)` times its variance (at least 1;
+    /// infinity gives the uncapped `ln k` growth). Not every error of a look repeats (the
+    /// receiver's noise is new each rotation), and a parked vehicle's odometry moves the
+    /// pose every rotation, which only new information holds: uncapped, a vehicle parked for
+    /// hours follows its odometry's noise and drags the map with it (the heading wanders by
+    /// several standard deviations while its variance stays put). Default 32 (13 s of looks
+    /// at 2.5 rotations a second, then a steady 1/32 of a fresh look's information each).
+    pub repeat_look_max_factor: f64,
     /// Standard deviation of an observed range (m).
     pub range_std_m: f64,
     /// Standard deviation of an observed bearing (rad). The paper: 1 degree.
@@ -245,6 +254,7 @@ impl Default for FilterSettings {
             first_estimate_jacobians: true,
             repeat_look_range_m: 0.25,
             repeat_look_bearing_rad: 1.8_f64.to_radians(),
+            repeat_look_max_factor: 32.0,
             range_std_m: 0.25,
             bearing_std_rad: 1.0_f64.to_radians(),
             power_std_db: 2.4,
@@ -459,6 +469,12 @@ impl FilterSettings {
         positive("feature_wander_length_m", self.feature_wander_length_m)?;
         non_negative("repeat_look_range_m", self.repeat_look_range_m)?;
         non_negative("repeat_look_bearing_rad", self.repeat_look_bearing_rad)?;
+        if self.repeat_look_max_factor.is_nan() || self.repeat_look_max_factor < 1.0 {
+            return Err(SettingsError::BelowOne {
+                name: "repeat_look_max_factor",
+                value: self.repeat_look_max_factor,
+            });
+        }
         positive("max_predict_step_s", self.max_predict_step_s)?;
         positive("max_predict_gap_s", self.max_predict_gap_s)?;
         positive("gap_speed_mps", self.gap_speed_mps)?;
@@ -569,5 +585,27 @@ mod tests {
             s.validate(),
             Err(SettingsError::SharesExceedOne { .. })
         ));
+    }
+
+    #[test]
+    fn a_repeat_look_cap_below_one_or_nan_is_rejected_and_infinity_accepted() {
+        for bad in [0.5, f64::NAN, -1.0] {
+            let s = FilterSettings {
+                repeat_look_max_factor: bad,
+                ..FilterSettings::default()
+            };
+            assert!(matches!(
+                s.validate(),
+                Err(SettingsError::BelowOne {
+                    name: "repeat_look_max_factor",
+                    ..
+                })
+            ));
+        }
+        let s = FilterSettings {
+            repeat_look_max_factor: f64::INFINITY,
+            ..FilterSettings::default()
+        };
+        assert_eq!(s.validate(), Ok(()));
     }
 }
