@@ -28,6 +28,10 @@ pub struct RawOutput {
     pub pictures: bool,
     /// Show progress while running. Default true.
     pub progress: bool,
+    /// Write `spectra.jsonl` (each spectrum the filter predicted beside the measured one,
+    /// 0.11 MB a minute on the shipped field, more with a longer range). Default true; false on a vehicle that runs for days, whose
+    /// disk it would otherwise fill.
+    pub spectra: bool,
     /// Record the run as an MCAP file (ROS 2 messages, CDR), relative to `directory`,
     /// ending in `.mcap`. Default: none.
     pub mcap: Option<PathBuf>,
@@ -48,6 +52,7 @@ impl Default for RawOutput {
             diagnostics: "diagnostics.csv".into(),
             pictures: true,
             progress: true,
+            spectra: true,
             mcap: None,
             zenoh: RawZenoh::default(),
             foxglove: RawFoxglove::default(),
@@ -71,6 +76,8 @@ pub struct OutputSettings {
     pub pictures: bool,
     /// Show progress.
     pub progress: bool,
+    /// Write `spectra.jsonl`.
+    pub spectra: bool,
     /// MCAP recording file name, if the run is recorded.
     pub mcap: Option<PathBuf>,
     /// Live topics over Zenoh.
@@ -163,6 +170,7 @@ impl RawOutput {
             diagnostics: c.check("output.diagnostics", relative_file(&self.diagnostics)),
             pictures: self.pictures,
             progress: self.progress,
+            spectra: self.spectra,
             mcap: c.check_opt("output.mcap", self.mcap.as_deref(), mcap_file),
             zenoh: self.zenoh.check(c, "output.zenoh"),
             foxglove: self.foxglove.check(c, "output.foxglove"),
@@ -183,6 +191,7 @@ impl From<&OutputSettings> for RawOutput {
             diagnostics: s.diagnostics.clone(),
             pictures: s.pictures,
             progress: s.progress,
+            spectra: s.spectra,
             mcap: s.mcap.clone(),
             zenoh: RawZenoh::from(&s.zenoh),
             foxglove: RawFoxglove::from(&s.foxglove),

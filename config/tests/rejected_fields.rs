@@ -258,6 +258,7 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "filter.repeat_look_decorrelation",
     "output.pictures",
     "output.progress",
+    "output.spectra",
     "output.zenoh.enabled",
     "output.zenoh.mode",
     "output.zenoh.multicast_scouting",

@@ -635,3 +635,36 @@ fn sigterm_ends_a_run_like_ctrl_c_with_its_outputs_and_summary() {
     let trajectory = tum_poses(&dir.path().join("trajectory.tum"));
     assert!(trajectory.len() > 2, "{} poses written", trajectory.len());
 }
+
+#[test]
+fn output_spectra_false_writes_no_spectra_file() {
+    // A vehicle running for days turns the spectra log off: it grows with every rotation.
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("run.toml");
+    std::fs::write(&config, "[output]\nspectra = false\n").unwrap();
+    let run = slam_node()
+        .arg("--config")
+        .arg(&config)
+        .args([
+            "--embedded-sim",
+            "--fast",
+            "--duration",
+            "4",
+            "--no-figures",
+        ])
+        .args(["--progress-every", "0", "--out"])
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let out = dir.path().join("out");
+    assert!(out.join("trajectory.tum").exists());
+    assert!(!out.join("spectra.jsonl").exists());
+    let outputs = text.lines().find(|l| l.contains("outputs in")).unwrap();
+    assert!(!outputs.contains("spectra"), "{outputs}");
+}

@@ -430,6 +430,7 @@ fn output_files(
     let o = &opts.config.output;
     OutputFiles {
         figures: opts.figures,
+        spectra: o.spectra,
         trajectory: o.trajectory.clone(),
         map: o.map.clone(),
         diagnostics: o.diagnostics.clone(),

@@ -32,6 +32,9 @@ pub struct RecordingFile {
     pub motion: MotionModel,
 }
 
+/// The spectra file's name inside the output folder.
+pub const SPECTRA_FILE: &str = "spectra.jsonl";
+
 /// Where and what to write.
 #[derive(Debug, Clone)]
 pub struct OutputFiles {
@@ -41,6 +44,8 @@ pub struct OutputFiles {
     pub figures: bool,
     /// At most this many spectrum figures.
     pub spectrum_figures: usize,
+    /// Write `spectra.jsonl` (the figures are drawn either way).
+    pub spectra: bool,
     /// Channel capacity, events.
     pub capacity: usize,
     /// Trajectory file name inside `dir` (TUM).
@@ -67,6 +72,7 @@ impl OutputFiles {
             dir,
             figures: true,
             spectrum_figures: 12,
+            spectra: true,
             capacity: 8192,
             trajectory: "trajectory.tum".into(),
             map: "map.json".into(),
@@ -169,8 +175,11 @@ impl OutputHandle {
         if is_csv(&diag_path) {
             writeln!(diag, "{}", super::csv::DIAGNOSTICS_HEADER).map_err(io_err(&diag_path))?;
         }
-        let spec_path = files.dir.join("spectra.jsonl");
-        let spec = create(&spec_path)?;
+        let spec = if files.spectra {
+            Some(create(&files.dir.join(SPECTRA_FILE))?)
+        } else {
+            None
+        };
         let recorder = match &files.recording {
             Some(r) => {
                 if let Some(parent) = r.path.parent().filter(|p| !p.as_os_str().is_empty()) {
@@ -337,7 +346,7 @@ fn run(
     rx: Receiver<OutputEvent>,
     mut traj: TumWriter<BufWriter<File>>,
     mut diag: BufWriter<File>,
-    mut spec: BufWriter<File>,
+    mut spec: Option<BufWriter<File>>,
     mut recorder: Option<McapRecorder<BufWriter<File>>>,
 ) -> Result<WriterSummary, WriterError> {
     let mut summary = WriterSummary {
@@ -345,10 +354,12 @@ fn run(
             files.dir.join(&files.trajectory),
             files.dir.join(&files.map),
             files.dir.join(&files.diagnostics),
-            files.dir.join("spectra.jsonl"),
         ],
         ..WriterSummary::default()
     };
+    if spec.is_some() {
+        summary.files.push(files.dir.join(SPECTRA_FILE));
+    }
     let mut poses: Vec<PoseSample> = Vec::new();
     let mut ground_truth: Option<TumWriter<BufWriter<File>>> = None;
     // The pose of the rotation being closed (a Pose comes just before its Rotation).
@@ -358,7 +369,7 @@ fn run(
     let mut truth = TruthOverlay::default();
     let map_path = files.dir.join(&files.map);
     let diag_path = files.dir.join(&files.diagnostics);
-    let spec_path = files.dir.join("spectra.jsonl");
+    let spec_path = files.dir.join(SPECTRA_FILE);
     let traj_path = files.dir.join(&files.trajectory);
     let diag_csv = is_csv(&diag_path);
     let map_csv = is_csv(&map_path);
@@ -421,10 +432,12 @@ fn run(
                 summary.maps += 1;
             }
             OutputEvent::Spectrum(s) => {
-                serde_json::to_writer(&mut spec, &s)
-                    .map_err(std::io::Error::other)
-                    .and_then(|()| writeln!(spec))
-                    .map_err(io_err(&spec_path))?;
+                if let Some(spec) = spec.as_mut() {
+                    serde_json::to_writer(&mut *spec, &s)
+                        .map_err(std::io::Error::other)
+                        .and_then(|()| writeln!(spec))
+                        .map_err(io_err(&spec_path))?;
+                }
                 if files.figures && (summary.spectra as usize) < files.spectrum_figures {
                     let p = files.dir.join(format!(
                         "spectrum_r{}_b{:.0}.svg",
@@ -487,7 +500,9 @@ fn run(
         w.flush().map_err(io_err(&truth_path))?;
     }
     diag.flush().map_err(io_err(&diag_path))?;
-    spec.flush().map_err(io_err(&spec_path))?;
+    if let Some(spec) = spec.as_mut() {
+        spec.flush().map_err(io_err(&spec_path))?;
+    }
     // The trajectory in the Boreas benchmark's odometry format (a row per rotation: the time
     // in microseconds and the upper 3x4 of T_vk_v0, z up), for its evaluator as it is.
     if !poses.is_empty() {
