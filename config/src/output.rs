@@ -28,9 +28,9 @@ pub struct RawOutput {
     pub pictures: bool,
     /// Show progress while running. Default true.
     pub progress: bool,
-    /// Write `spectra.jsonl` (each spectrum the filter predicted beside the measured one,
-    /// 0.11 MB a minute on the shipped field, more with a longer range). Default true; false on a vehicle that runs for days, whose
-    /// disk it would otherwise fill.
+    /// Write `spectra.jsonl` (each spectrum the filter predicted beside the measured one:
+    /// 0.11 MB a minute on the shipped field, more with a longer range). Default true;
+    /// false on a vehicle that runs for days, whose disk it would otherwise fill.
     pub spectra: bool,
     /// Record the run as an MCAP file (ROS 2 messages, CDR), relative to `directory`,
     /// ending in `.mcap`. Default: none.
