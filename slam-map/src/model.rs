@@ -252,7 +252,7 @@ pub(crate) struct MapV1 {
 
 impl From<MapV1> for Map {
     fn from(m: MapV1) -> Self {
-        Map {
+        Map::from(MapV2 {
             created_unix_s: m.created_unix_s,
             source: m.source,
             profile: m.profile,
@@ -260,8 +260,7 @@ impl From<MapV1> for Map {
             loops: m.loops,
             drive_starts: Vec::new(),
             joins: Vec::new(),
-            scans: Vec::new(),
-        }
+        })
     }
 }
 
