@@ -101,6 +101,10 @@ pub struct RawFilter {
     /// resolution cell and one beam width) as correlated: the k-th look of such a run is
     /// used with k times its noise variance. Default true.
     pub repeat_look_decorrelation: bool,
+    /// The k-th repeated look is used with `min(k, repeat_look_max_factor)` times its noise
+    /// variance: without a cap a vehicle parked for hours is held ever more loosely to its
+    /// map (slam-node/README.md, "Hours"). At least 1 (`inf`: no cap). Default 32.
+    pub repeat_look_max_factor: f64,
 }
 
 impl Default for RawFilter {
@@ -130,6 +134,7 @@ impl Default for RawFilter {
             use_power_in_observation: true,
             first_estimate_jacobians: true,
             repeat_look_decorrelation: true,
+            repeat_look_max_factor: 32.0,
         }
     }
 }
@@ -190,6 +195,8 @@ pub struct FilterSettings {
     pub first_estimate_jacobians: bool,
     /// Repeated looks from one viewpoint counted as correlated.
     pub repeat_look_decorrelation: bool,
+    /// The cap on a repeated look's variance factor, at least 1 (may be infinite).
+    pub repeat_look_max_factor: f64,
 }
 
 impl Default for FilterSettings {
@@ -305,7 +312,22 @@ impl RawFilter {
             use_power_in_observation: self.use_power_in_observation,
             first_estimate_jacobians: self.first_estimate_jacobians,
             repeat_look_decorrelation: self.repeat_look_decorrelation,
+            repeat_look_max_factor: c.check(
+                "filter.repeat_look_max_factor",
+                at_least_one(self.repeat_look_max_factor),
+            ),
         }
+    }
+}
+
+/// A variance factor: at least 1, infinity allowed (no cap).
+fn at_least_one(v: f64) -> Result<f64, ValueError> {
+    if v >= 1.0 {
+        Ok(v)
+    } else {
+        Err(ValueError::Rule(format!(
+            "must be at least 1 (inf: no cap), got {v}"
+        )))
     }
 }
 
@@ -342,6 +364,7 @@ impl From<&FilterSettings> for RawFilter {
             use_power_in_observation: s.use_power_in_observation,
             first_estimate_jacobians: s.first_estimate_jacobians,
             repeat_look_decorrelation: s.repeat_look_decorrelation,
+            repeat_look_max_factor: s.repeat_look_max_factor,
         }
     }
 }

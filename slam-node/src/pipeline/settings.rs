@@ -274,6 +274,7 @@ impl PipelineSettings {
             } else {
                 0.0
             },
+            repeat_look_max_factor: f.repeat_look_max_factor,
             range_std_m: c.model.sigma_range_m.get(),
             bearing_std_rad: c.model.sigma_bearing_rad(),
             power_std_db: c.model.sigma_power_db.get(),
