@@ -16,13 +16,15 @@ import numpy as np
 
 
 def tum(path):
+    """A TUM file's rows as (time, x, y, heading) in an array; comments and blank lines skipped."""
     rows = []
     with open(path) as f:
         for line in f:
             if line.startswith("#") or not line.strip():
                 continue
-            v = line.split()
-            rows.append((float(v[0]), float(v[1]), float(v[2])))
+            v = [float(x) for x in line.split()]
+            qz, qw = v[6], v[7]
+            rows.append((v[0], v[1], v[2], 2.0 * math.atan2(qz, qw)))
     return np.array(rows)
 
 

@@ -25,17 +25,9 @@ import sys
 
 import numpy as np
 
+from ate_aligned import tum  # the TUM reader beside this script
 
-def tum(path):
-    rows = []
-    with open(path) as f:
-        for line in f:
-            if line.startswith("#") or not line.strip():
-                continue
-            v = [float(x) for x in line.split()]
-            qz, qw = v[6], v[7]
-            rows.append((v[0], v[1], v[2], 2.0 * math.atan2(qz, qw)))
-    return np.array(rows)
+
 
 
 def run(folder):

@@ -6,6 +6,7 @@
 //! Navtech azimuth angle is a bearing. The radar sits at the vehicle's origin.
 
 use crate::error::{finite, ModelError};
+use nalgebra::Matrix3;
 use std::f64::consts::PI;
 
 /// Below this range (m) a feature is "at the sensor": its bearing is undefined.
@@ -41,6 +42,36 @@ impl Pose2 {
             -s * dx + c * dy,
             wrap_angle(other.theta - self.theta),
         )
+    }
+
+    /// `other` (a pose in this pose's frame) in this pose's parent frame (`self other`),
+    /// its heading wrapped: the inverse of [`Self::between`].
+    pub fn compose(&self, other: &Pose2) -> Pose2 {
+        let (s, c) = self.theta.sin_cos();
+        Pose2::new(
+            self.x + c * other.x - s * other.y,
+            self.y + s * other.x + c * other.y,
+            wrap_angle(self.theta + other.theta),
+        )
+    }
+
+    /// The Jacobians of [`Self::compose`] with respect to this pose and to `other` (rows and
+    /// columns x, y, theta).
+    pub fn compose_jacobians(&self, other: &Pose2) -> (Matrix3<f64>, Matrix3<f64>) {
+        let (s, c) = self.theta.sin_cos();
+        let j_self = Matrix3::new(
+            1.0,
+            0.0,
+            -s * other.x - c * other.y,
+            0.0,
+            1.0,
+            c * other.x - s * other.y,
+            0.0,
+            0.0,
+            1.0,
+        );
+        let j_other = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        (j_self, j_other)
     }
 
     /// World position of a point seen at range `range_m` and bearing `bearing_rad`
@@ -310,6 +341,31 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn compose_undoes_between_and_its_jacobians_match_finite_differences() {
+        let a = Pose2::new(1.0, 2.0, 3.0);
+        let b = Pose2::new(-4.0, 0.5, -2.9);
+        let back = a.compose(&a.between(&b));
+        assert!((back.x - b.x).abs() < 1e-12 && (back.y - b.y).abs() < 1e-12);
+        assert!(wrap_angle(back.theta - b.theta).abs() < 1e-12);
+        let (ja, jb) = a.compose_jacobians(&b);
+        let v = |p: Pose2| [p.x, p.y, p.theta];
+        let h = 1e-6;
+        for k in 0..3 {
+            let nudge = |p: &Pose2, d: f64| {
+                let mut q = v(*p);
+                q[k] += d;
+                Pose2::new(q[0], q[1], q[2])
+            };
+            let (fa, ra) = (v(nudge(&a, h).compose(&b)), v(nudge(&a, -h).compose(&b)));
+            let (fb, rb) = (v(a.compose(&nudge(&b, h))), v(a.compose(&nudge(&b, -h))));
+            for r in 0..3 {
+                assert!((wrap_angle(fa[r] - ra[r]) / (2.0 * h) - ja[(r, k)]).abs() < 1e-7);
+                assert!((wrap_angle(fb[r] - rb[r]) / (2.0 * h) - jb[(r, k)]).abs() < 1e-7);
+            }
+        }
+    }
 
     #[test]
     fn wrap_angle_maps_into_the_half_open_interval() {

@@ -13,8 +13,7 @@ pub fn rotation(theta: f64) -> Matrix2<f64> {
 
 /// `b` (given in `a`'s frame) expressed in `a`'s parent frame.
 pub fn compose(a: &Pose2, b: &Pose2) -> Pose2 {
-    let t = rotation(a.theta) * Vector2::new(b.x, b.y);
-    Pose2::new(a.x + t.x, a.y + t.y, wrap_angle(a.theta + b.theta))
+    a.compose(b)
 }
 
 /// The inverse transform: `a`'s parent expressed in `a`'s frame.
@@ -34,22 +33,10 @@ pub fn transform_point(a: &Pose2, p: [f64; 2]) -> [f64; 2] {
     [a.x + t.x, a.y + t.y]
 }
 
-/// Jacobians of `compose(a, b)` with respect to `a` and to `b` (rows and columns x, y, theta).
+/// Jacobians of `compose(a, b)` with respect to `a` and to `b` (rows and columns x, y, theta):
+/// [`Pose2::compose_jacobians`].
 pub fn compose_jacobians(a: &Pose2, b: &Pose2) -> (Matrix3<f64>, Matrix3<f64>) {
-    let (s, c) = a.theta.sin_cos();
-    let ja = Matrix3::new(
-        1.0,
-        0.0,
-        -s * b.x - c * b.y,
-        0.0,
-        1.0,
-        c * b.x - s * b.y,
-        0.0,
-        0.0,
-        1.0,
-    );
-    let jb = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
-    (ja, jb)
+    a.compose_jacobians(b)
 }
 
 /// Covariance of `compose(a, b)` for independent `a` (covariance `ca`) and `b` (`cb`).

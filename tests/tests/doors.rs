@@ -98,8 +98,11 @@ async fn the_replay_the_vehicle_configuration_and_its_mcap_recording_agree() {
         dir: dir.clone(),
         format: None,
     });
+    // Every port on 127.0.0.1:0 or none: `SimOptions::new` defaults to the radar's fixed
+    // ports (6317-6319), which a test must never take.
     server.bind = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
     server.odometry_bind = None;
+    server.gyro_bind = None;
     server.pacing = Pacing::AsFastAsPossible;
     let handle = SimServer::spawn(server).await.expect("the simulator");
     let text = format!(

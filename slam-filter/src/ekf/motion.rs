@@ -109,20 +109,8 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         };
         let nis = innovation.nis.unwrap_or(f64::NAN);
         let mark = self.state.clone_pose_mean();
-        let (s, c) = mark.theta.sin_cos();
         // d(mark + measured) / d(mark) and / d(measured).
-        let j_mark = Matrix3::new(
-            1.0,
-            0.0,
-            -s * measured.x - c * measured.y,
-            0.0,
-            1.0,
-            c * measured.x - s * measured.y,
-            0.0,
-            0.0,
-            1.0,
-        );
-        let j_measured = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        let (j_mark, j_measured) = mark.compose_jacobians(&measured);
         let n = self.state.dim();
         let st = &mut self.state;
         // Every column but the pose's own: P[pose, j] = J_mark P[mark, j].
@@ -143,9 +131,10 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
                 st.cov[(r, k)] = 0.5 * (p_pose[(r, k)] + p_pose[(k, r)]);
             }
         }
-        st.mean[0] = mark.x + c * measured.x - s * measured.y;
-        st.mean[1] = mark.y + s * measured.x + c * measured.y;
-        st.mean[2] = wrap_angle(mark.theta + measured.theta);
+        let pose = mark.compose(&measured);
+        st.mean[0] = pose.x;
+        st.mean[1] = pose.y;
+        st.mean[2] = pose.theta;
         self.stats.motion_updates += 1;
         Ok(MotionOutcome::Applied { nis })
     }

@@ -176,6 +176,10 @@ impl Extension {
         let n = map.submaps.len();
         let frozen: Vec<Arc<slam_filter::FrozenSubmap>> =
             map.frozen_submaps().into_iter().map(Arc::new).collect();
+        // The saved scans, read from the file's 32-bit points once: the layer's copy and
+        // the stage's (for the merged map) share them.
+        let scans: Vec<Option<Arc<Vec<[f64; 2]>>>> =
+            (0..n).map(|k| map.scan_points(k).map(Arc::new)).collect();
         let saved = SavedGraph {
             submaps: frozen.clone(),
             frames: map.submaps.iter().map(|s| s.frame_pose()).collect(),
@@ -183,7 +187,7 @@ impl Extension {
             drives: (0..n).map(|k| map.drive_of(k)).collect(),
             loops: map.loop_closures(),
             joins: map.join_closures(),
-            scans: (0..n).map(|k| map.scan_points(k)).collect(),
+            scans: scans.iter().map(|s| s.as_deref().cloned()).collect(),
         };
         let layer = GlobalMap::resume(self.options.global, saved, join)?;
         let sol = layer.solution(0.0);
@@ -202,7 +206,7 @@ impl Extension {
                 frozen,
                 frames,
                 drive_starts,
-                scans: (0..n).map(|k| map.scan_points(k).map(Arc::new)).collect(),
+                scans,
             },
         )
         .map_err(ExtendError::Thread)?;
