@@ -59,7 +59,7 @@ pub use error::{ConfigError, FieldError, FieldErrors, Location};
 pub use faults::{FaultSettings, NoiseBurst, RawFaults};
 pub use filter::{FilterSettings, RawFilter};
 pub use gyro::{GyroSettings, RawGyro};
-pub use map::{MapMode, MapSettings, RawMap};
+pub use map::{LocaliseWith, MapMode, MapSettings, RawMap};
 pub use model::{ModelSettings, RawModel};
 pub use odometry::{OdometrySettings, RawOdometry};
 pub use output::{OutputSettings, RawOutput};

@@ -39,6 +39,21 @@ impl MapMode {
     }
 }
 
+/// What localisation registers the vehicle against (`[map] localise_with`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LocaliseWith {
+    /// The map's radar scans (every wall and front the mapping drive saw in two rotations
+    /// or more): the search describes and verifies the last stretch's scan, tracking
+    /// registers each rotation's cloud. Needs radar odometry (`[scan_match] enabled`, or
+    /// `[odometry] source = "none"`) and a map with scans (version 3); without either the
+    /// run falls back to `Features` with a warning. The default.
+    #[default]
+    Scans,
+    /// The map's point features, tracked as known landmarks in the filter.
+    Features,
+}
+
 /// `[map]` as written in the file.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
@@ -66,6 +81,9 @@ pub struct RawMap {
     /// The prior's standard deviations `[x m, y m, heading rad]`, each > 0. Default
     /// `[1.0, 1.0, 0.03]`.
     pub initial_sigma: [f64; 3],
+    /// Localising: `"scans"` (the map's radar scans, the default) or `"features"` (its
+    /// point features). Extend mode localises with features.
+    pub localise_with: LocaliseWith,
 }
 
 impl Default for RawMap {
@@ -78,6 +96,7 @@ impl Default for RawMap {
             file: None,
             initial_pose: None,
             initial_sigma: DEFAULT_INITIAL_SIGMA,
+            localise_with: LocaliseWith::Scans,
         }
     }
 }
@@ -99,6 +118,8 @@ pub struct MapSettings {
     pub initial_pose: Option<[f64; 3]>,
     /// Its standard deviations, each finite and > 0.
     pub initial_sigma: [f64; 3],
+    /// What localisation registers against.
+    pub localise_with: LocaliseWith,
 }
 
 impl Default for MapSettings {
@@ -177,6 +198,7 @@ impl RawMap {
             file: c.check("map.file", map_file(self.file.as_ref())),
             initial_pose: c.check("map.initial_pose", prior_pose(self.initial_pose)),
             initial_sigma: c.check("map.initial_sigma", prior_sigma(self.initial_sigma)),
+            localise_with: self.localise_with,
         }
     }
 }
@@ -191,6 +213,7 @@ impl From<&MapSettings> for RawMap {
             file: s.file.clone(),
             initial_pose: s.initial_pose,
             initial_sigma: s.initial_sigma,
+            localise_with: s.localise_with,
         }
     }
 }

@@ -711,7 +711,7 @@ impl Pipeline {
             return Some(self.world_pose());
         };
         let t = self.ekf.state().time_s();
-        l.end_rotation(&mut self.ekf, t);
+        l.end_rotation(&mut self.ekf, t, self.scan_match.last_cloud());
         let published = l.published(&self.ekf);
         if let Some(x) = self.extend.as_mut().filter(|x| x.due(l)) {
             let since = t - self.summary.first_time_s.unwrap_or(t);

@@ -20,6 +20,9 @@
 //! checked here against the run's.
 
 pub mod known;
+pub mod scan_map;
+pub mod scan_search;
+pub mod scan_track;
 pub mod score;
 pub mod search;
 pub mod support;
@@ -44,9 +47,12 @@ use super::gate::worth_logging;
 use super::settings::PipelineSettings;
 use super::DaemonEkf;
 use known::{Loaded, MapFeatures, SwapRule};
+use scan_map::ScanMap;
+use scan_search::{KeptCloud, ScanSearcher};
+use scan_track::{ScanTracker, TrackSettings, Update};
 pub use score::LocaliseScore;
 use search::{Attempt, PlaceSearcher};
-use worker::{Outcome, SearchWorker};
+use worker::{Outcome, Query, Search, SearchWorker};
 
 /// Features of the map held in the filter at most while tracking.
 pub const MAX_LOADED: usize = 100;
@@ -65,6 +71,11 @@ const LOST_AFTER_ROTATIONS: u32 = 12;
 const MIN_HITS: u64 = 3;
 /// Local frame restarts remembered to carry a late search outcome into the current frame.
 const MAX_RESTARTS_KEPT: usize = 8;
+/// By scans: the local scan a search attempt describes is made of the clouds of the last
+/// this many metres of driving, at most [`KEEP_ROTATIONS`] of them.
+const KEEP_M: f64 = 60.0;
+/// See [`KEEP_M`].
+const KEEP_ROTATIONS: usize = 80;
 
 /// The map a run localises in, and how it starts.
 #[derive(Debug, Clone, PartialEq)]
@@ -78,6 +89,9 @@ pub struct LocaliseSettings {
     /// Extend mode (`[map] mode = "extend"`): once localised, map on in the map's frame
     /// ([`crate::pipeline::extend`]).
     pub extend: bool,
+    /// Localise against the map's scans (`[map] localise_with = "scans"`; extend mode
+    /// uses features).
+    pub scans: bool,
 }
 
 impl LocaliseSettings {
@@ -88,6 +102,8 @@ impl LocaliseSettings {
             map,
             prior: c.initial_pose.map(|p| (p, c.initial_sigma)),
             extend: c.mode == config::MapMode::Extend,
+            scans: c.localise_with == config::LocaliseWith::Scans
+                && c.mode != config::MapMode::Extend,
         }
     }
 
@@ -161,6 +177,17 @@ pub struct LocaliseSummary {
     pub fixes: u64,
     /// Fixes lost (no map feature seen for a while while tracking).
     pub lost: u64,
+    /// What the run localised against: `"scans"` or `"features"`.
+    pub by: &'static str,
+    /// Scan points of the map (by scans).
+    pub map_scan_points: usize,
+    /// By scans, while tracking: rotations whose registration against the map was fused,
+    /// found none, or was outside the gate.
+    pub track_fused: u64,
+    /// See `track_fused`.
+    pub track_unregistered: u64,
+    /// See `track_fused`.
+    pub track_gated: u64,
     /// Search attempts' wall time on the search's thread (ms): median and largest.
     pub search_ms_p50: f64,
     /// Largest.
@@ -208,6 +235,54 @@ pub struct Localiser {
     /// The rotation count when the last fix was taken.
     fix_rotation: u64,
     summary: LocaliseSummary,
+    /// Localising by scans.
+    scans: Option<ByScans>,
+}
+
+/// Localisation by the map's scans: the map, the last stretch's clouds, the tracker.
+struct ByScans {
+    map: Arc<ScanMap>,
+    kept: VecDeque<KeptCloud>,
+    settings: TrackSettings,
+    tracker: Option<ScanTracker>,
+    /// While tracking: driven in the current local frame (m), and the pose it was counted
+    /// to (the local frame restarts every [`SEARCH_WINDOW_M`], as while searching).
+    driven_m: f64,
+    counted_to: Option<Pose2>,
+}
+
+impl ByScans {
+    /// Keeps this rotation's cloud (the vehicle at `pose` in the local frame), dropping
+    /// those beyond [`KEEP_M`] of driving or [`KEEP_ROTATIONS`].
+    fn keep(&mut self, pose: Pose2, cloud: &[[f64; 2]]) {
+        self.kept.push_back((pose, Arc::new(cloud.to_vec())));
+        while self.kept.len() > KEEP_ROTATIONS {
+            self.kept.pop_front();
+        }
+        loop {
+            let driven: f64 = self
+                .kept
+                .iter()
+                .zip(self.kept.iter().skip(1))
+                .map(|((a, _), (b, _))| (a.x - b.x).hypot(a.y - b.y))
+                .sum();
+            if driven <= KEEP_M || self.kept.len() <= 2 {
+                break;
+            }
+            self.kept.pop_front();
+        }
+    }
+
+    /// The local frame restarted at `origin` (in the old one).
+    fn reframe(&mut self, origin: &Pose2) {
+        let back = slam_graph::se2::inverse(origin);
+        for (pose, _) in self.kept.iter_mut() {
+            *pose = slam_graph::se2::compose(&back, pose);
+        }
+        if let Some(t) = self.tracker.as_mut() {
+            t.reframe(origin);
+        }
+    }
 }
 
 impl std::fmt::Debug for Localiser {
@@ -245,14 +320,42 @@ impl Localiser {
                 map.profile.name
             ),
         }
-        if map.feature_count() == 0 {
+        let features = Arc::new(MapFeatures::new(map));
+        let scan_map = if l.scans {
+            let built = if s.scan_match.enabled {
+                ScanMap::new(map, &features)
+            } else {
+                warn!(
+                    file = %l.path.display(),
+                    "localising by scans needs radar odometry ([scan_match] enabled, or [odometry] source = \"none\"): localising by the map's features instead"
+                );
+                None
+            };
+            if built.is_none() && s.scan_match.enabled {
+                warn!(
+                    file = %l.path.display(),
+                    "the map holds no scans (a map written before version 3, or with [submaps] scans off): localising by its features instead"
+                );
+            }
+            built.map(Arc::new)
+        } else {
+            None
+        };
+        if scan_map.is_none() && map.feature_count() == 0 {
             return Err(LocaliseError::Empty(l.path.clone()));
         }
-        let features = Arc::new(MapFeatures::new(map));
-        let searcher = PlaceSearcher::new(&features, MIN_HITS);
-        let places = searcher.places();
-        let worker =
-            SearchWorker::spawn(searcher, Arc::clone(&features)).map_err(LocaliseError::Thread)?;
+        let (search, places) = match scan_map.as_ref() {
+            Some(m) => (
+                Search::Scans(ScanSearcher::new(Arc::clone(m))),
+                m.places.len(),
+            ),
+            None => {
+                let searcher = PlaceSearcher::new(&features, MIN_HITS);
+                let places = searcher.places();
+                (Search::Features(searcher, Arc::clone(&features)), places)
+            }
+        };
+        let worker = SearchWorker::spawn(search).map_err(LocaliseError::Thread)?;
         let tracking = FilterSettings {
             add_features: false,
             retire_unseen_after_s: 0.0,
@@ -267,12 +370,20 @@ impl Localiser {
             map_features: map.feature_count(),
             places,
             prior: l.prior.is_some(),
+            by: if scan_map.is_some() {
+                "scans"
+            } else {
+                "features"
+            },
+            map_scan_points: scan_map.as_ref().map_or(0, |m| m.len()),
             ..LocaliseSummary::default()
         };
         info!(
             file = %l.path.display(),
             submaps = map.submaps.len(),
             features = map.feature_count(),
+            scan_points = summary.map_scan_points,
+            by = summary.by,
             places,
             prior = l.prior.is_some(),
             "localising in a saved map"
@@ -311,13 +422,37 @@ impl Localiser {
             rotations: 0,
             fix_rotation: 0,
             summary,
+            scans: scan_map.map(|map| ByScans {
+                map,
+                kept: VecDeque::new(),
+                settings: TrackSettings::default(),
+                tracker: None,
+                driven_m: 0.0,
+                counted_to: None,
+            }),
         })
     }
 
     /// With a prior, the filter the pipeline built (at the prior) becomes the tracking
     /// filter: it maps nothing and retires nothing.
     pub fn begin(&mut self, ekf: &mut DaemonEkf) -> Result<(), FilterError> {
-        if matches!(self.phase, Phase::Tracking) {
+        if !matches!(self.phase, Phase::Tracking) {
+            return Ok(());
+        }
+        if let Some(b) = self.scans.as_mut() {
+            // By scans the filter maps on in its frame (here the map's, at the prior); the
+            // tracker follows its motion.
+            b.tracker = Some(ScanTracker::new(
+                b.settings,
+                ekf.pose(),
+                ekf.pose_covariance(),
+                ekf.pose(),
+            ));
+            self.summary.time_to_fix_s = Some(0.0);
+            self.summary.fixes = 1;
+            return Ok(());
+        }
+        {
             *ekf = self.tracking_filter(ekf, ekf.pose(), ekf.pose_covariance())?;
             self.summary.time_to_fix_s = Some(0.0);
             self.summary.fixes = 1;
@@ -366,10 +501,16 @@ impl Localiser {
 
     /// Once a rotation, after the filter's updates: swaps the map's features while
     /// tracking; while searching, trims the local map and now and then looks for the fix.
-    pub fn end_rotation(&mut self, ekf: &mut DaemonEkf, time_s: f64) {
+    pub fn end_rotation(&mut self, ekf: &mut DaemonEkf, time_s: f64, cloud: Option<&[[f64; 2]]>) {
         self.rotations += 1;
         let first = *self.first_rotation_s.get_or_insert(time_s);
+        if let (Some(b), Some(c)) = (self.scans.as_mut(), cloud) {
+            b.keep(ekf.pose(), c);
+        }
         match &mut self.phase {
+            Phase::Tracking if self.scans.is_some() => {
+                self.track_scans(ekf, cloud, time_s - first);
+            }
             Phase::Tracking => {
                 self.loaded
                     .swap(ekf, &self.features, &self.rule, ekf.state().time_s(), false);
@@ -416,6 +557,9 @@ impl Localiser {
                     // frame stays that of one window; the previous window's features are
                     // kept, moved into the new frame.
                     let closed = ekf.start_submap();
+                    if let Some(b) = self.scans.as_mut() {
+                        b.reframe(&closed.end_pose);
+                    }
                     *previous = Some(Box::new(reframed(&closed)));
                     self.worker.reframe(closed.end_pose);
                     push_restart(&mut self.restarts, &mut self.frame, Some(closed.end_pose));
@@ -430,11 +574,18 @@ impl Localiser {
                 if !due || self.worker.busy() {
                     return;
                 }
-                let mut local = FrozenSubmap::from_state(ekf.state());
-                if let Some(prev) = previous.as_ref() {
-                    local.features.extend(prev.features.iter().copied());
-                }
-                if self.worker.submit(self.frame, local, pose, time_s) {
+                let query = match self.scans.as_ref() {
+                    Some(b) if b.kept.len() < 2 => return,
+                    Some(b) => Query::Scans(b.kept.iter().cloned().collect()),
+                    None => {
+                        let mut local = FrozenSubmap::from_state(ekf.state());
+                        if let Some(prev) = previous.as_ref() {
+                            local.features.extend(prev.features.iter().copied());
+                        }
+                        Query::Features(local)
+                    }
+                };
+                if self.worker.submit(self.frame, query, pose, time_s) {
                     *last = Some(pose);
                     *since = 0;
                     self.summary.attempts += 1;
@@ -442,6 +593,67 @@ impl Localiser {
             }
         }
         self.note_swaps();
+    }
+
+    /// Tracking by scans, once a rotation: the tracker predicts by the local filter's
+    /// motion and registers the rotation's cloud against the map; the local filter's map
+    /// stays bounded (trimmed, its frame restarted every [`SEARCH_WINDOW_M`]).
+    fn track_scans(&mut self, ekf: &mut DaemonEkf, cloud: Option<&[[f64; 2]]>, since_start_s: f64) {
+        let Some(b) = self.scans.as_mut() else {
+            return;
+        };
+        let Some(t) = b.tracker.as_mut() else {
+            return;
+        };
+        t.predict(&ekf.pose());
+        let update = match cloud {
+            Some(c) => t.update(&b.map, c),
+            None => t.skip(),
+        };
+        if let Update::Gated { d2 } = update {
+            tracing::debug!(
+                d2,
+                "a registration against the map's scans outside the gate"
+            );
+        }
+        self.summary.published += 1;
+        self.summary.track_fused = t.fused;
+        self.summary.track_unregistered = t.unregistered;
+        self.summary.track_gated = t.gated;
+        let lost = t.lost();
+        trim_local_map(ekf, SEARCH_KEEP_M);
+        let pose = ekf.pose();
+        if let Some(p) = b.counted_to.replace(pose) {
+            b.driven_m += (pose.x - p.x).hypot(pose.y - p.y);
+        }
+        if b.driven_m >= SEARCH_WINDOW_M {
+            let closed = ekf.start_submap();
+            b.reframe(&closed.end_pose);
+            b.driven_m = 0.0;
+            b.counted_to = Some(ekf.pose());
+            self.worker.reframe(closed.end_pose);
+            push_restart(&mut self.restarts, &mut self.frame, Some(closed.end_pose));
+        }
+        if lost {
+            self.summary.lost += 1;
+            warn!(
+                file = %self.path.display(),
+                after_s = since_start_s,
+                "localisation lost: the rotations no longer register against the map's scans (off the map, or a wrong fix); no pose is published, searching again"
+            );
+            if let Some(b) = self.scans.as_mut() {
+                b.tracker = None;
+            }
+            self.worker.forget();
+            push_restart(&mut self.restarts, &mut self.frame, None);
+            self.phase = Phase::Searching {
+                last: None,
+                since: 0,
+                driven_m: 0.0,
+                counted_to: None,
+                previous: None,
+            };
+        }
     }
 
     fn note_swaps(&mut self) {
@@ -506,8 +718,15 @@ impl Localiser {
                 let pose = slam_graph::se2::compose(&v.transform, &local);
                 let cov =
                     compose_covariance(&v.transform, &v.covariance, &local, &ekf.pose_covariance());
-                match self.tracking_filter(ekf, pose, cov) {
-                    Ok(new) => {
+                let started = match self.scans.as_mut() {
+                    Some(b) => {
+                        // By scans the local filter maps on; the tracker starts at the fix.
+                        b.tracker = Some(ScanTracker::new(b.settings, pose, cov, local));
+                        b.driven_m = 0.0;
+                        b.counted_to = None;
+                        Ok(())
+                    }
+                    None => self.tracking_filter(ekf, pose, cov).map(|new| {
                         *ekf = new;
                         self.loaded.clear();
                         self.loaded.swap(
@@ -517,6 +736,10 @@ impl Localiser {
                             ekf.state().time_s(),
                             true,
                         );
+                    }),
+                };
+                match started {
+                    Ok(()) => {
                         self.phase = Phase::Tracking;
                         self.updates_seen = ekf.stats().updates;
                         self.quiet_rotations = 0;
@@ -581,6 +804,11 @@ impl Localiser {
     pub fn published(&self, ekf: &DaemonEkf) -> Option<(Pose2, Matrix3<f64>)> {
         if !self.has_fix() {
             return None;
+        }
+        if let Some(b) = self.scans.as_ref() {
+            // By scans: the tracker's pose and its covariance against the map (the map's own
+            // error against the world is the map's, reported with it, not added here).
+            return b.tracker.as_ref().map(ScanTracker::estimate);
         }
         let pose = ekf.pose();
         let cov = ekf.pose_covariance() + self.features.frame_covariance_at(&pose);

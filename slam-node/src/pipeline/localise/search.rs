@@ -113,7 +113,7 @@ pub struct PlaceSearcher {
 }
 
 /// Points along the drive of the map: each submap's frame to its end, every `spacing` m.
-fn drive_points(map: &MapFeatures, spacing: f64) -> Vec<[f64; 2]> {
+pub fn drive_points(map: &MapFeatures, spacing: f64) -> Vec<[f64; 2]> {
     let mut out = Vec::new();
     for ((frame, _), end) in map.frames.iter().zip(&map.ends) {
         let (a, b) = ([frame.x, frame.y], [end.x, end.y]);

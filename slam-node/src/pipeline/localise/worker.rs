@@ -23,6 +23,7 @@ use slam_filter::FrozenSubmap;
 use tracing::warn;
 
 use super::known::MapFeatures;
+use super::scan_search::{local_scan, KeptCloud, ScanSearcher};
 use super::search::{Attempt, PlaceSearcher};
 
 /// The stream ahead of the wall clock by more than this (s) since a request: not a
@@ -31,10 +32,58 @@ const AHEAD_S: f64 = 1.0;
 /// Waiting for an outcome gives up after this (a worker gone wrong never hangs the run).
 const WAIT_AT_MOST: Duration = Duration::from_secs(60);
 
+/// What an attempt searches with.
+#[derive(Debug)]
+pub enum Query {
+    /// The local map's features (the feature search).
+    Features(FrozenSubmap),
+    /// The last stretch's clouds with the local filter's poses (the scan search).
+    Scans(Vec<KeptCloud>),
+}
+
+/// The search the thread runs.
+#[derive(Debug)]
+pub enum Search {
+    /// Over the map's features.
+    Features(PlaceSearcher, Arc<MapFeatures>),
+    /// Over the map's scans.
+    Scans(ScanSearcher),
+}
+
+impl Search {
+    fn attempt(&mut self, query: &Query, vehicle: &Pose2) -> Attempt {
+        match (self, query) {
+            (Search::Features(searcher, map), Query::Features(local)) => {
+                searcher.attempt(map, local, vehicle)
+            }
+            (Search::Scans(searcher), Query::Scans(clouds)) => {
+                let local = local_scan(clouds, vehicle, searcher.scan_settings());
+                searcher.attempt(&local, vehicle)
+            }
+            // A query of the other kind: nothing to search with.
+            _ => Attempt::TooFewFeatures,
+        }
+    }
+
+    fn reframe(&mut self, origin: &Pose2) {
+        match self {
+            Search::Features(s, _) => s.reframe(origin),
+            Search::Scans(s) => s.reframe(origin),
+        }
+    }
+
+    fn forget(&mut self) {
+        match self {
+            Search::Features(s, _) => s.forget(),
+            Search::Scans(s) => s.forget(),
+        }
+    }
+}
+
 enum Request {
     Attempt {
         frame: u64,
-        local: Box<FrozenSubmap>,
+        query: Box<Query>,
         vehicle: Pose2,
     },
     /// The local frame restarted at `origin` (in the old one).
@@ -80,23 +129,23 @@ impl std::fmt::Debug for SearchWorker {
 
 impl SearchWorker {
     /// Starts the thread with the map's places.
-    pub fn spawn(searcher: PlaceSearcher, map: Arc<MapFeatures>) -> std::io::Result<Self> {
+    pub fn spawn(search: Search) -> std::io::Result<Self> {
         // Requests are few (one attempt in flight, and the frame changes in between).
         let (tx, rx) = bounded::<Request>(16);
         let (out_tx, out_rx) = bounded::<Outcome>(4);
         let thread = std::thread::Builder::new()
             .name("place-search".into())
             .spawn(move || {
-                let mut searcher = searcher;
+                let mut search = search;
                 for request in rx {
                     match request {
                         Request::Attempt {
                             frame,
-                            local,
+                            query,
                             vehicle,
                         } => {
                             let start = Instant::now();
-                            let attempt = searcher.attempt(&map, &local, &vehicle);
+                            let attempt = search.attempt(&query, &vehicle);
                             let outcome = Outcome {
                                 frame,
                                 attempt,
@@ -106,8 +155,8 @@ impl SearchWorker {
                                 return;
                             }
                         }
-                        Request::Reframe(origin) => searcher.reframe(&origin),
-                        Request::Forget => searcher.forget(),
+                        Request::Reframe(origin) => search.reframe(&origin),
+                        Request::Forget => search.forget(),
                     }
                 }
             })?;
@@ -140,19 +189,13 @@ impl SearchWorker {
 
     /// Sends an attempt made in local frame `frame` at stream time `stream_s`; `false` when
     /// one is in flight or the thread is gone.
-    pub fn submit(
-        &mut self,
-        frame: u64,
-        local: FrozenSubmap,
-        vehicle: Pose2,
-        stream_s: f64,
-    ) -> bool {
+    pub fn submit(&mut self, frame: u64, query: Query, vehicle: Pose2, stream_s: f64) -> bool {
         if self.busy() {
             return false;
         }
         let sent = self.send(Request::Attempt {
             frame,
-            local: Box::new(local),
+            query: Box::new(query),
             vehicle,
         });
         if sent {

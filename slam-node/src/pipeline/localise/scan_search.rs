@@ -1,0 +1,349 @@
+//! Finding where the vehicle is in the map's scans without a prior.
+//!
+//! The query is the **local scan**: the radar odometry's clouds of the last stretch of
+//! driving, placed by the local filter's poses in the vehicle's frame and thinned as the
+//! map's scans are (one point per metre cell seen in at least two rotations,
+//! [`slam_graph::ScanAccumulator`]). An attempt:
+//!
+//! 1. describes the local scan around shifted origins and compares it with the
+//!    [`NEIGHBOURS`] nearest map places by ring key ([`super::scan_map::ScanMap`]); each
+//!    close match gives a guess of the vehicle's pose in the map, to within a few metres
+//!    and a descriptor sector, and is tried both ways round (a street looks much the same
+//!    driven either way);
+//! 2. scores each guess by correlative scan matching (slam-graph's `correlate`: every
+//!    shift and heading of a window around the guess, the local scan's points laid on the
+//!    map's score grid); the best must reach [`MIN_SCORE`] and beat every guess elsewhere
+//!    by [`MIN_MARGIN`];
+//! 3. verifies the winner as loop closure verifies two submaps' scans
+//!    ([`slam_graph::align_scans`]: ICP, a large share of the local scan on the map's
+//!    surfaces, a small residual, every direction pinned, no second basin nearly as good),
+//!    then scores the map's own look-alikes of the verified place (the map's scan there
+//!    described and looked up among its places, both ways round): one within
+//!    [`MIN_MARGIN`] of the winner is a rival, and nothing is taken;
+//! 4. fixes only when the same transform of the local frame into the map's verifies at two
+//!    attempts in a row.
+//!
+//! The outcome speaks of the local frame ([`super::search::Verified`]), as the feature
+//! search's does, so the caller treats both alike. No IO.
+
+use std::sync::Arc;
+
+use nalgebra::{Matrix3, Vector3};
+use radar_model::geometry::{wrap_angle, Pose2};
+use radar_odometry::{PlaceIndex, PlaceQuery};
+use slam_graph::correlate::{correlate, Peak, ScoreGrid, Window};
+use slam_graph::se2::{compose, inverse};
+use slam_graph::{align_scans, reference_scan, AlignSettings, ScanAccumulator, ScanAlignSettings};
+
+use super::scan_map::ScanMap;
+use super::search::{Attempt, Verified, SAME_M, SAME_RAD};
+
+/// Map places compared in full per attempt (nearest by ring key).
+const NEIGHBOURS: usize = 40;
+/// Descriptor matches verified per attempt at most (best first).
+const MAX_CANDIDATES: usize = 20;
+/// Matches further than this descriptor distance are not verified.
+const MAX_DISTANCE: f64 = 0.6;
+/// Map points within this of a guess (m) are the verifier's reference.
+const VERIFY_RADIUS_M: f64 = 100.0;
+/// The correlative search's window around a descriptor's guess: half-widths (m, rad). A
+/// guess is within a shift step and a place spacing along the street, and a sector (6
+/// degrees) in heading.
+const GUESS_HALF_M: f64 = 10.0;
+const GUESS_HALF_RAD: f64 = 0.12;
+/// Around a look-alike place of the map (m).
+const RIVAL_HALF_M: f64 = 8.0;
+/// The score grids' cells at most (a 100 m radius at 1 m cells is 40,000).
+const MAX_SCORE_CELLS: usize = 1 << 20;
+/// A fix needs the second verification within this of the first (m, rad).
+const CONFIRM_M: f64 = 1.0;
+const CONFIRM_RAD: f64 = 0.03;
+/// The correlative score (the mean kernel value under the local scan's points, in [0, 1])
+/// a place must reach: a city's scans are dense (a wall every few metres), so the local
+/// scan laid anywhere in a street scores 0.55-0.70; laid on its own place, 0.80-0.83
+/// (`realistic-city-return`, measured over 60 attempts).
+pub const MIN_SCORE: f64 = 0.7;
+/// A place elsewhere scoring within this of the winner is a rival: nothing is taken.
+pub const MIN_MARGIN: f64 = 0.1;
+/// Look-alike places tried as rivals at most (nearest by descriptor).
+const MAX_RIVAL_CHECKS: usize = 16;
+/// A rival is a pose further than this from the winner's (m), or turned more than
+/// [`RIVAL_MIN_TURN_RAD`].
+const RIVAL_MIN_SEPARATION_M: f64 = 10.0;
+const RIVAL_MIN_TURN_RAD: f64 = 0.2;
+/// Fewest local scan points for an attempt.
+pub const MIN_LOCAL_POINTS: usize = 800;
+
+/// One rotation's cloud kept for the local scan: the vehicle's pose in the local frame
+/// then, and the cloud in the vehicle's frame.
+pub type KeptCloud = (Pose2, Arc<Vec<[f64; 2]>>);
+
+/// The local scan around `vehicle` (in the local frame), in the vehicle's frame: every
+/// kept cloud placed and thinned as the map's scans are.
+pub fn local_scan(clouds: &[KeptCloud], vehicle: &Pose2, s: &ScanAlignSettings) -> Vec<[f64; 2]> {
+    let to_vehicle = inverse(vehicle);
+    let mut acc = ScanAccumulator::new(s);
+    for (pose, cloud) in clouds {
+        acc.add(&compose(&to_vehicle, pose), cloud);
+    }
+    acc.take()
+}
+
+/// The scan search's state: the map and a pending candidate.
+#[derive(Debug)]
+pub struct ScanSearcher {
+    map: Arc<ScanMap>,
+    index: PlaceIndex,
+    scan: ScanAlignSettings,
+    align: AlignSettings,
+    pending: Option<Verified>,
+}
+
+fn same(a: &Pose2, b: &Pose2, m: f64, rad: f64) -> bool {
+    (a.x - b.x).hypot(a.y - b.y) <= m && wrap_angle(a.theta - b.theta).abs() <= rad
+}
+
+impl ScanSearcher {
+    /// A search over `map`'s places.
+    pub fn new(map: Arc<ScanMap>) -> Self {
+        Self {
+            index: map.index(),
+            map,
+            scan: ScanAlignSettings::default(),
+            align: AlignSettings::default(),
+            pending: None,
+        }
+    }
+
+    /// The scan settings the local scan is thinned with.
+    pub fn scan_settings(&self) -> &ScanAlignSettings {
+        &self.scan
+    }
+
+    /// The local frame restarted at `origin` (in the old one).
+    pub fn reframe(&mut self, origin: &Pose2) {
+        if let Some(p) = self.pending.as_mut() {
+            p.transform = compose(&p.transform, origin);
+        }
+    }
+
+    /// Forgets a pending candidate.
+    pub fn forget(&mut self) {
+        self.pending = None;
+    }
+
+    /// The best transform of `sample` (local scan points in the vehicle's frame) onto the
+    /// map's scans in a window around `guess` (the vehicle in the map): the correlative
+    /// search's peak and its score (the mean kernel value under the points, in [0, 1]).
+    fn correlate_at(
+        &self,
+        guess: &Pose2,
+        sample: &[[f64; 2]],
+        half_m: f64,
+        half_rad: f64,
+    ) -> Option<Peak> {
+        let points = self.map.near([guess.x, guess.y], VERIFY_RADIUS_M);
+        let grid = ScoreGrid::new(
+            &points,
+            self.scan.search_cell_m,
+            self.scan.search_sigma_m,
+            MAX_SCORE_CELLS,
+        )?;
+        let window = Window {
+            half_m,
+            half_rad,
+            step_rad: self.scan.search_step_rad,
+        };
+        correlate(
+            &grid,
+            sample,
+            guess,
+            &window,
+            self.scan.rival_separation_m,
+            0,
+        )
+        .map(|(best, _)| best)
+    }
+
+    /// One attempt with the local scan `local` (in the vehicle's frame), the vehicle at
+    /// `vehicle` in the local frame.
+    pub fn attempt(&mut self, local: &[[f64; 2]], vehicle: &Pose2) -> Attempt {
+        if local.len() < MIN_LOCAL_POINTS {
+            return Attempt::TooFewFeatures;
+        }
+        let Ok(query) = PlaceQuery::new(local, &self.map.settings) else {
+            return Attempt::TooFewFeatures;
+        };
+        let map = Arc::clone(&self.map);
+        // Vehicle poses in the map the descriptors suggest, nearest first.
+        let mut matches: Vec<(f64, Pose2)> = self
+            .index
+            .nearest_to_query(&query, NEIGHBOURS)
+            .into_iter()
+            .filter_map(|(id, _)| {
+                let (place, d) = map.places.get(usize::try_from(id).ok()?)?;
+                let m = query.compare(d)?;
+                let t = Pose2::new(m.transform[0], m.transform[1], m.transform[2]);
+                Some((m.place.distance, compose(place, &t)))
+            })
+            .collect();
+        matches.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let best_distance = matches.first().map(|m| m.0);
+        // The best few, each both ways round (a street looks much the same driven either
+        // way, and the descriptor often takes one for the other).
+        let mut guesses: Vec<(Pose2, f64, f64)> = Vec::new();
+        for (_, g) in matches.iter().filter(|m| m.0 <= MAX_DISTANCE) {
+            if guesses.len() >= 2 * MAX_CANDIDATES {
+                break;
+            }
+            for turn in [0.0, std::f64::consts::PI] {
+                let g = Pose2::new(g.x, g.y, wrap_angle(g.theta + turn));
+                if !guesses
+                    .iter()
+                    .any(|(h, _, _)| same(h, &g, SAME_M, SAME_RAD))
+                {
+                    guesses.push((g, GUESS_HALF_M, GUESS_HALF_RAD));
+                }
+            }
+        }
+        if let Some(p) = self.pending {
+            guesses.push((compose(&p.transform, vehicle), 2.0, 0.05));
+        }
+        let stride = local.len().div_ceil(self.scan.search_points.max(1)).max(1);
+        let sample: Vec<[f64; 2]> = local.iter().step_by(stride).copied().collect();
+        let mut scored: Vec<Peak> = guesses
+            .iter()
+            .filter_map(|(g, m, r)| self.correlate_at(g, &sample, *m, *r))
+            .collect();
+        scored.sort_by(|a, b| b.score.total_cmp(&a.score));
+        let Some(best) = scored.first().copied() else {
+            self.pending = None;
+            return Attempt::NothingVerified { best_distance };
+        };
+        let runner_up = scored
+            .iter()
+            .filter(|p| {
+                !same(
+                    &p.pose,
+                    &best.pose,
+                    RIVAL_MIN_SEPARATION_M,
+                    RIVAL_MIN_TURN_RAD,
+                )
+            })
+            .map(|p| p.score)
+            .fold(0.0, f64::max);
+        tracing::debug!(
+            x_m = best.pose.x,
+            y_m = best.pose.y,
+            heading_rad = best.pose.theta,
+            score = best.score,
+            runner_up,
+            guesses = scored.len(),
+            local_points = local.len(),
+            "the scan search's best place"
+        );
+        if best.score < MIN_SCORE {
+            self.pending = None;
+            return Attempt::NothingVerified { best_distance };
+        }
+        if runner_up > best.score - MIN_MARGIN {
+            self.pending = None;
+            return Attempt::Ambiguous(2);
+        }
+        // The winner refined and checked as loop closure checks two scans.
+        let tight = Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 0.03f64.powi(2)));
+        let reference = reference_scan(
+            map.near([best.pose.x, best.pose.y], VERIFY_RADIUS_M),
+            &self.scan,
+        );
+        let al = match align_scans(
+            &reference,
+            local,
+            &best.pose,
+            &tight,
+            &self.align,
+            &self.scan,
+        ) {
+            Ok(al) => al,
+            Err(refusal) => {
+                tracing::debug!(
+                    ?refusal,
+                    "the scan search's best place refused by the scan verifier"
+                );
+                self.pending = None;
+                return Attempt::NothingVerified { best_distance };
+            }
+        };
+        let here = al.transform;
+        let rivals = self.rivals(&sample, &here, best.score);
+        if rivals > 0 {
+            self.pending = None;
+            return Attempt::Ambiguous(1 + rivals);
+        }
+        // The local frame in the map's.
+        let v = Verified {
+            transform: compose(&here, &inverse(vehicle)),
+            covariance: al.covariance,
+            matches: al.matches.len(),
+        };
+        let confirmed = self
+            .pending
+            .is_some_and(|p| same(&p.transform, &v.transform, CONFIRM_M, CONFIRM_RAD));
+        if confirmed {
+            self.pending = None;
+            Attempt::Fix(v)
+        } else {
+            self.pending = Some(v);
+            Attempt::Candidate(v)
+        }
+    }
+
+    /// Places of the map where it looks as it does around the verified pose `here` (the
+    /// map's own scan there, described around shifted origins and looked up among all its
+    /// places), each tried both ways round: one where the local scan scores within
+    /// [`MIN_MARGIN`] of `best` (the winner's score) is a rival.
+    fn rivals(&mut self, sample: &[[f64; 2]], here: &Pose2, best: f64) -> usize {
+        let map = Arc::clone(&self.map);
+        let mut offered: Vec<Pose2> = Vec::new();
+        if let Ok(query) = PlaceQuery::new(&map.around(here), &map.settings) {
+            for (id, _) in self.index.nearest_to_query(&query, MAX_RIVAL_CHECKS) {
+                let Some((place, d)) = usize::try_from(id).ok().and_then(|i| map.places.get(i))
+                else {
+                    continue;
+                };
+                if let Some(m) = query.compare(d) {
+                    let t = Pose2::new(m.transform[0], m.transform[1], m.transform[2]);
+                    offered.push(compose(place, &t));
+                }
+            }
+        }
+        let mut rivals: Vec<Pose2> = Vec::new();
+        for there in offered {
+            for turn in [0.0, std::f64::consts::PI] {
+                let start = Pose2::new(there.x, there.y, wrap_angle(there.theta + turn));
+                if same(&start, here, RIVAL_MIN_SEPARATION_M, RIVAL_MIN_TURN_RAD) {
+                    continue;
+                }
+                let Some(peak) = self.correlate_at(&start, sample, RIVAL_HALF_M, GUESS_HALF_RAD)
+                else {
+                    continue;
+                };
+                tracing::debug!(
+                    x_m = peak.pose.x,
+                    y_m = peak.pose.y,
+                    heading_rad = peak.pose.theta,
+                    score = peak.score,
+                    best,
+                    "a look-alike place of the map tried as a rival (scans)"
+                );
+                if peak.score > best - MIN_MARGIN
+                    && !same(&peak.pose, here, RIVAL_MIN_SEPARATION_M, RIVAL_MIN_TURN_RAD)
+                    && !rivals.iter().any(|x| same(x, &peak.pose, SAME_M, SAME_RAD))
+                {
+                    rivals.push(peak.pose);
+                }
+            }
+        }
+        rivals.len()
+    }
+}

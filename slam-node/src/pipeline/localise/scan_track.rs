@@ -1,0 +1,301 @@
+//! Tracking in a saved map's scans once the search has a fix: a Kalman filter on the
+//! vehicle's pose in the map's frame, predicted by the local filter's motion and updated by
+//! registering each rotation's cloud against the map's scans.
+//!
+//! - **Predict**: the local filter (which maps in a frame of its own, as while searching)
+//!   moved by `u` since the last rotation; the map pose is composed with `u` and its
+//!   covariance grows by the Jacobians of the composition and a motion noise
+//!   ([`TrackSettings`]) in the vehicle's frame, growing with the distance and the turn.
+//! - **Update**: the rotation's cloud (radar odometry's, in the vehicle's frame at the
+//!   rotation's end) is registered against the map's scans ([`super::scan_map::ScanMap`]),
+//!   from the prediction, by radar odometry's point-to-line ICP, with a pair gate of three
+//!   of the prediction's standard deviations. The registered pose is a measurement of the
+//!   pose with the registration's covariance (its information, a floor; inflated along a
+//!   direction the scene does not pin), tested against the prediction (chi-square, 3 dof)
+//!   and fused (Joseph form).
+//! - **Lost**: [`TrackSettings::lost_after`] rotations in a row without an accepted update,
+//!   or the position's standard deviation past [`TrackSettings::lost_sigma_m`].
+//!
+//! The state is three numbers: nothing of the map enters a filter, so tracking costs one
+//! registration a rotation whatever the map's size. No IO.
+
+use nalgebra::{Matrix3, Vector3};
+use radar_model::geometry::{wrap_angle, Pose2};
+use radar_odometry::{covariance, register, Constraint, HEADING_LENGTH_M};
+use slam_graph::se2::{compose, inverse};
+
+use super::scan_map::ScanMap;
+
+/// Tracking's settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackSettings {
+    /// Motion noise per rotation: a standard deviation along the motion (m) of this much...
+    pub along_m: f64,
+    /// ... plus this fraction of the distance moved.
+    pub along_per_m: f64,
+    /// Across the motion (m), and per metre moved.
+    pub across_m: f64,
+    /// See `across_m`.
+    pub across_per_m: f64,
+    /// Heading (rad), and per radian turned.
+    pub heading_rad: f64,
+    /// See `heading_rad`.
+    pub heading_per_rad: f64,
+    /// The registration's floor: standard deviation of a fit on a well-constrained scene,
+    /// each axis (m) and in heading (rad).
+    pub floor_m: f64,
+    /// See `floor_m`.
+    pub floor_rad: f64,
+    /// Pairs counted as one independent error in the registration's covariance.
+    pub correlated_pairs: f64,
+    /// Fewest pairs for a registration.
+    pub min_pairs: usize,
+    /// A registration with a residual above this (m, RMS) is not used.
+    pub max_rms_m: f64,
+    /// The gate of a registration against the prediction: chi-square, 3 dof.
+    pub gate_chi2: f64,
+    /// Rotations in a row without an accepted registration that lose the fix.
+    pub lost_after: u32,
+    /// A position standard deviation past this (m) loses the fix.
+    pub lost_sigma_m: f64,
+    /// A rotation's cloud is registered with at most this many of its points (evenly).
+    pub max_points: usize,
+}
+
+impl Default for TrackSettings {
+    fn default() -> Self {
+        Self {
+            along_m: 0.02,
+            along_per_m: 0.03,
+            across_m: 0.02,
+            across_per_m: 0.02,
+            heading_rad: 0.002,
+            heading_per_rad: 0.05,
+            floor_m: 0.05,
+            floor_rad: 0.002,
+            correlated_pairs: 10.0,
+            min_pairs: 100,
+            max_rms_m: 0.6,
+            // 0.999 of chi-square with 3 dof.
+            gate_chi2: 16.27,
+            lost_after: 12,
+            lost_sigma_m: 5.0,
+            max_points: 1500,
+        }
+    }
+}
+
+/// What one rotation's update did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Update {
+    /// The registration was fused.
+    Fused {
+        /// Its squared Mahalanobis distance from the prediction.
+        d2: f64,
+    },
+    /// No registration (too few pairs, an empty cloud, a poor fit).
+    NoRegistration,
+    /// A registration outside the gate: not fused.
+    Gated {
+        /// Its squared Mahalanobis distance.
+        d2: f64,
+    },
+}
+
+/// The pose filter in the map's frame.
+#[derive(Debug, Clone)]
+pub struct ScanTracker {
+    settings: TrackSettings,
+    pose: Pose2,
+    cov: Matrix3<f64>,
+    /// The local filter's pose at the last rotation (in its frame).
+    last_local: Pose2,
+    misses: u32,
+    /// Counts: fused, no registration, gated.
+    pub fused: u64,
+    /// See `fused`.
+    pub unregistered: u64,
+    /// See `fused`.
+    pub gated: u64,
+}
+
+fn symmetric(m: Matrix3<f64>) -> Matrix3<f64> {
+    0.5 * (m + m.transpose())
+}
+
+impl ScanTracker {
+    /// Starts at `pose` in the map with covariance `cov`, the local filter at `local`.
+    pub fn new(settings: TrackSettings, pose: Pose2, cov: Matrix3<f64>, local: Pose2) -> Self {
+        Self {
+            settings,
+            pose,
+            cov: symmetric(cov),
+            last_local: local,
+            misses: 0,
+            fused: 0,
+            unregistered: 0,
+            gated: 0,
+        }
+    }
+
+    /// The pose in the map and its covariance.
+    pub fn estimate(&self) -> (Pose2, Matrix3<f64>) {
+        (self.pose, self.cov)
+    }
+
+    /// The local frame restarted at `origin` (in the old frame).
+    pub fn reframe(&mut self, origin: &Pose2) {
+        self.last_local = compose(&inverse(origin), &self.last_local);
+    }
+
+    /// Whether the fix is lost.
+    pub fn lost(&self) -> bool {
+        let sigma = self
+            .cov
+            .fixed_view::<2, 2>(0, 0)
+            .symmetric_eigenvalues()
+            .max()
+            .max(0.0)
+            .sqrt();
+        self.misses >= self.settings.lost_after
+            || sigma.is_nan()
+            || sigma > self.settings.lost_sigma_m
+    }
+
+    /// The motion noise of a step `u` (in the vehicle's frame).
+    fn motion_noise(&self, u: &Pose2) -> Matrix3<f64> {
+        let s = &self.settings;
+        let d = u.x.hypot(u.y);
+        let along = s.along_m + s.along_per_m * d;
+        let across = s.across_m + s.across_per_m * d;
+        let heading = s.heading_rad + s.heading_per_rad * u.theta.abs();
+        // Along and across the step's direction (forward when it is too short to have one).
+        let (sn, cs) = if d > 1e-6 {
+            (u.y / d, u.x / d)
+        } else {
+            (0.0, 1.0)
+        };
+        let r = nalgebra::Matrix2::new(cs, -sn, sn, cs);
+        let xy =
+            r * nalgebra::Matrix2::new(along * along, 0.0, 0.0, across * across) * r.transpose();
+        let mut q = Matrix3::zeros();
+        q.fixed_view_mut::<2, 2>(0, 0).copy_from(&xy);
+        q[(2, 2)] = heading * heading;
+        q
+    }
+
+    /// Predicts by the local filter's motion to `local` (its pose now, in its frame).
+    pub fn predict(&mut self, local: &Pose2) {
+        let u = self.last_local.between(local);
+        self.last_local = *local;
+        let (j_pose, j_u) = self.pose.compose_jacobians(&u);
+        let q = self.motion_noise(&u);
+        self.pose = compose(&self.pose, &u);
+        self.cov = symmetric(j_pose * self.cov * j_pose.transpose() + j_u * q * j_u.transpose());
+    }
+
+    /// A rotation without a cloud to register (radar odometry had none): a miss.
+    pub fn skip(&mut self) -> Update {
+        self.misses += 1;
+        self.unregistered += 1;
+        Update::NoRegistration
+    }
+
+    /// Registers `cloud` (in the vehicle's frame) against `map` from the prediction and
+    /// fuses it when it passes.
+    pub fn update(&mut self, map: &ScanMap, cloud: &[[f64; 2]]) -> Update {
+        let s = self.settings;
+        let stride = cloud.len().div_ceil(s.max_points.max(1)).max(1);
+        let points: Vec<[f64; 2]> = cloud.iter().step_by(stride).copied().collect();
+        let sigma = self
+            .cov
+            .fixed_view::<2, 2>(0, 0)
+            .symmetric_eigenvalues()
+            .max()
+            .max(0.0)
+            .sqrt();
+        let gate = (3.0 * sigma + 0.5).clamp(1.0, 4.0);
+        let outcome = register(&map.cloud, &points, self.pose, gate, s.min_pairs)
+            .filter(|reg| reg.rms_m <= s.max_rms_m)
+            .and_then(|reg| {
+                let floor = Matrix3::from_diagonal(&Vector3::new(
+                    s.floor_m.powi(2),
+                    s.floor_m.powi(2),
+                    s.floor_rad.powi(2),
+                ));
+                // Each kept point stands for `stride` of the cloud's: the same information.
+                let mut r = covariance(&reg, &floor, s.correlated_pairs, 0.05)?;
+                if let Some(c) = Constraint::of(&reg).filter(|c| c.weakest < 0.02) {
+                    let d = c.direction;
+                    let v = Vector3::new(d[0], d[1], d[2] / HEADING_LENGTH_M);
+                    r += v * v.transpose() * 100.0;
+                }
+                Some((reg.pose, symmetric(r)))
+            });
+        let Some((z, r)) = outcome else {
+            self.misses += 1;
+            self.unregistered += 1;
+            return Update::NoRegistration;
+        };
+        let nu = Vector3::new(
+            z.x - self.pose.x,
+            z.y - self.pose.y,
+            wrap_angle(z.theta - self.pose.theta),
+        );
+        let innovation_cov = symmetric(self.cov + r);
+        let Some(chol) = innovation_cov.cholesky() else {
+            self.misses += 1;
+            self.unregistered += 1;
+            return Update::NoRegistration;
+        };
+        let d2 = nu.dot(&chol.solve(&nu));
+        if d2.is_nan() || d2 > s.gate_chi2 {
+            self.misses += 1;
+            self.gated += 1;
+            return Update::Gated { d2 };
+        }
+        // K = P S^-1 (S symmetric): solve S K' = P.
+        let k = chol.solve(&self.cov).transpose();
+        let dx = k * nu;
+        self.pose = Pose2::new(
+            self.pose.x + dx[0],
+            self.pose.y + dx[1],
+            wrap_angle(self.pose.theta + dx[2]),
+        );
+        let i_k = Matrix3::identity() - k;
+        self.cov = symmetric(i_k * self.cov * i_k.transpose() + k * r * k.transpose());
+        self.misses = 0;
+        self.fused += 1;
+        Update::Fused { d2 }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prediction_composes_the_local_motion_and_grows_the_covariance() {
+        let mut t = ScanTracker::new(
+            TrackSettings::default(),
+            Pose2::new(10.0, 5.0, std::f64::consts::FRAC_PI_2),
+            Matrix3::from_diagonal(&Vector3::new(0.01, 0.01, 1e-4)),
+            Pose2::new(0.0, 0.0, 0.0),
+        );
+        t.predict(&Pose2::new(2.0, 0.0, 0.1));
+        let (p, c) = t.estimate();
+        assert!(
+            (p.x - 10.0).abs() < 1e-12 && (p.y - 7.0).abs() < 1e-12,
+            "{p:?}"
+        );
+        assert!((p.theta - (std::f64::consts::FRAC_PI_2 + 0.1)).abs() < 1e-12);
+        // Along the step (north in the map) it grew by (0.02 + 0.03 * 2)^2.
+        assert!((c[(1, 1)] - (0.01 + 0.08f64.powi(2))).abs() < 1e-9, "{c}");
+        assert!((c - c.transpose()).norm() < 1e-15);
+        assert!(c.cholesky().is_some());
+        // The local frame restarted at its current pose: no motion follows from it.
+        t.reframe(&Pose2::new(2.0, 0.0, 0.1));
+        t.predict(&Pose2::new(0.0, 0.0, 0.0));
+        assert!((t.estimate().0.y - 7.0).abs() < 1e-12);
+    }
+}
