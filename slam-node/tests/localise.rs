@@ -250,3 +250,165 @@ fn bad_map_files_and_a_map_of_another_radar_refuse_the_run_naming_the_file() {
         "{t}"
     );
 }
+
+/// The urban street driven on the radar alone for this long (s, 9 m/s).
+const STREET_S: &str = "20";
+
+fn street_run(seed: u32, extra_config: &str, out: &Path, extra: &[&str]) -> Output {
+    std::fs::create_dir_all(out).unwrap();
+    let file = out.join("run.toml");
+    // Submaps keep the scans the map file saves.
+    let config = format!(
+        "[sim]\nseed = {seed}\n\n[odometry]\nsource = \"none\"\n\n[submaps]\nenabled = true\nmax_distance_m = 100.0\n\n{extra_config}"
+    );
+    std::fs::write(&file, config).unwrap();
+    Command::new(env!("CARGO_BIN_EXE_slam-node"))
+        .args(["--config", file.to_str().unwrap()])
+        .args(["--embedded-sim", "--scene"])
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../sim-sensor/scenes/urban-street.toml"
+        ))
+        .args(["--fast", "--duration", STREET_S, "--no-figures"])
+        .args(["--progress-every", "0", "--out"])
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+/// A street mapped on the radar alone keeps its scans in the map; a second drive (another
+/// speckle seed, other moving cars) localises in them from no prior: the search finds the
+/// place from the last stretch's scan, then each rotation registers against the map.
+#[test]
+fn a_drive_on_the_radar_alone_localises_by_the_maps_scans_from_no_prior() {
+    let dir = tempfile::tempdir().unwrap();
+    let dir = if let Ok(keep) = std::env::var("LOCALISE_TEST_KEEP") {
+        std::path::PathBuf::from(keep)
+    } else {
+        dir.path().to_path_buf()
+    };
+    let dir = dir.as_path();
+    let map_out = dir.join("map-run");
+    let run = street_run(1, "", &map_out, &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let map = map_out.join("map.slmap");
+    let loaded = Map::load(&map).unwrap();
+    assert!(
+        loaded.scan_point_count() > 1000,
+        "{}",
+        loaded.scan_point_count()
+    );
+
+    let out = dir.join("by-scans");
+    let run = street_run(
+        2,
+        "[map]\nmode = \"localise\"\n",
+        &out,
+        &["--map", map.to_str().unwrap()],
+    );
+    let t = text(&run);
+    assert!(run.status.success(), "{t}");
+    assert!(t.contains("by its scans"), "{t}");
+    let fix = numbers_after(&t, "first fix after");
+    assert!(fix[0] < 15.0, "{t}");
+    // "tracking by scans: N rotations published ...; F fixes, L lost ...; registrations
+    // fused A, none found B, outside the gate C"
+    let tr = numbers_after(&t, "tracking by scans:");
+    let (published_rotations, fused) = (tr[0], tr[4]);
+    assert!(published_rotations >= 10.0, "{t}");
+    assert!(fused >= 0.8 * published_rotations, "{t}");
+    // The map's frame is the mapping run's estimate (metres from the truth after 180 m
+    // on the radar alone): each published pose is scored against the truth in the map's
+    // frame, where the map puts the true pose (evaluation/localise_in_map.py).
+    let errors = errors_in_map_frame(&map_out, &out);
+    assert!(errors.len() >= 10, "{t}");
+    let rms =
+        |k: usize| (errors.iter().map(|e| e[k] * e[k]).sum::<f64>() / errors.len() as f64).sqrt();
+    let (along, across, heading) = (rms(0), rms(1), rms(2).to_degrees());
+    assert!(
+        along < 0.15 && across < 0.15,
+        "along {along} m, across {across} m\n{t}"
+    );
+    assert!(heading < 0.5, "heading {heading} deg\n{t}");
+    assert!(
+        errors[0][0].hypot(errors[0][1]) < 1.0,
+        "the fix: {:?}\n{t}",
+        errors[0]
+    );
+    assert!(
+        !t.contains("localisation lost"),
+        "the fix held on the mapped street\n{t}"
+    );
+    assert!(!out.join("map.slmap").exists());
+}
+
+/// A TUM file's poses `(time, x, y, heading)`.
+fn tum(path: &Path) -> Vec<[f64; 4]> {
+    std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            [v[0], v[1], v[2], 2.0 * v[6].atan2(v[7])]
+        })
+        .collect()
+}
+
+fn wrap(a: f64) -> f64 {
+    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+}
+
+fn compose(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    let (s, c) = a[2].sin_cos();
+    [
+        a[0] + c * b[0] - s * b[1],
+        a[1] + s * b[0] + c * b[1],
+        wrap(a[2] + b[2]),
+    ]
+}
+
+fn inverse(a: [f64; 3]) -> [f64; 3] {
+    let (s, c) = a[2].sin_cos();
+    [-(c * a[0] + s * a[1]), -(-s * a[0] + c * a[1]), -a[2]]
+}
+
+fn nearest_in_time(rows: &[[f64; 4]], t: f64) -> [f64; 3] {
+    let r = rows
+        .iter()
+        .min_by(|a, b| (a[0] - t).abs().total_cmp(&(b[0] - t).abs()))
+        .unwrap();
+    [r[1], r[2], r[3]]
+}
+
+/// Each pose the localising run published against the truth in the map's frame: the
+/// mapping run's true pose nearest the true one (by position) and its estimate there give
+/// the map's frame, `truth in map = estimate * inv(mapping truth) * truth`. `[along m,
+/// across m, heading rad]` per pose, along and across the true heading.
+fn errors_in_map_frame(map_run: &Path, run: &Path) -> Vec<[f64; 3]> {
+    let (m_truth, m_est) = (
+        tum(&map_run.join("groundtruth.tum")),
+        tum(&map_run.join("trajectory.tum")),
+    );
+    let truth = tum(&run.join("groundtruth.tum"));
+    tum(&run.join("trajectory.tum"))
+        .iter()
+        .map(|p| {
+            let t = nearest_in_time(&truth, p[0]);
+            let m = m_truth
+                .iter()
+                .min_by(|a, b| {
+                    (a[1] - t[0])
+                        .hypot(a[2] - t[1])
+                        .total_cmp(&(b[1] - t[0]).hypot(b[2] - t[1]))
+                })
+                .unwrap();
+            let est = nearest_in_time(&m_est, m[0]);
+            let tm = compose(est, compose(inverse([m[1], m[2], m[3]]), t));
+            let (dx, dy) = (p[1] - tm[0], p[2] - tm[1]);
+            let (s, c) = tm[2].sin_cos();
+            [c * dx + s * dy, -s * dx + c * dy, wrap(p[3] - tm[2])]
+        })
+        .collect()
+}

@@ -15,11 +15,13 @@ impl fmt::Display for Localisation<'_> {
         let l = self.0;
         writeln!(
             f,
-            "  localisation in {}: {} submaps, {} features, {} places; {}",
+            "  localisation in {}: {} submaps, {} features, {} scan points, {} places; by its {}; {}",
             l.path,
             l.map_submaps,
             l.map_features,
+            l.map_scan_points,
             l.places,
+            l.by,
             if l.prior {
                 "started from the prior pose"
             } else {
@@ -46,11 +48,19 @@ impl fmt::Display for Localisation<'_> {
                 l.attempts, l.search_ms_p50, l.search_ms_max
             )?;
         }
-        writeln!(
-            f,
-            "  tracking: {} rotations published in the map's frame; {} fixes, {} lost (no map feature seen for 12 rotations); map features put into the filter {}, taken out {}, refused {}",
-            l.published, l.fixes, l.lost, l.inserted, l.removed, l.refused
-        )?;
+        if l.by == "scans" {
+            writeln!(
+                f,
+                "  tracking by scans: {} rotations published in the map's frame; {} fixes, {} lost (no registration against the map's scans for 12 rotations); registrations fused {}, none found {}, outside the gate {}",
+                l.published, l.fixes, l.lost, l.track_fused, l.track_unregistered, l.track_gated
+            )?;
+        } else {
+            writeln!(
+                f,
+                "  tracking: {} rotations published in the map's frame; {} fixes, {} lost (no map feature seen for 12 rotations); map features put into the filter {}, taken out {}, refused {}",
+                l.published, l.fixes, l.lost, l.inserted, l.removed, l.refused
+            )?;
+        }
         if let Some(s) = &l.score {
             writeln!(
                 f,

@@ -133,7 +133,13 @@ impl DressingSpec {
         for j in 0..city.blocks_y {
             for i in 0..city.blocks_x {
                 let mut rng = ChaCha8Rng::seed_from_u64(seed);
-                rng.set_stream(u64::from(j) * u64::from(MAX_BLOCKS) + u64::from(i) + 1);
+                // `repeated`: every block dressed from the same stream, alike to the last
+                // post (a city built to tempt wrong loop closures and wrong fixes).
+                rng.set_stream(if city.repeated {
+                    1
+                } else {
+                    u64::from(j) * u64::from(MAX_BLOCKS) + u64::from(i) + 1
+                });
                 let x0 = f64::from(i) * px + half;
                 let y0 = f64::from(j) * py + half;
                 let (x1, y1) = (x0 + city.block_x_m, y0 + city.block_y_m);

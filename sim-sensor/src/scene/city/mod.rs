@@ -87,7 +87,8 @@ pub struct CitySpec {
     pub corner_spacing_m: f64,
     /// No two landmarks closer than this, metres.
     pub min_spacing_m: f64,
-    /// Every block the same landmark pattern.
+    /// Every block the same landmark pattern (with `dressing`: every block dressed alike,
+    /// its fronts, gaps, hedges, fences, trees, poles and parked cars).
     pub repeated: bool,
     /// Each block is a building whose outline (four fronts on its building line) hides what
     /// lies behind it; the fronts are objects (drawn by the realistic renderer, occluders
@@ -117,8 +118,8 @@ pub struct CitySpec {
     pub control_step_s: f64,
     /// The realistic city (`[city.dressing]`, needs the scene's `[realism]`): the blocks
     /// and streets lined as the street generator lines them ([`dressing`]) instead of the
-    /// point-landmark table above (`kerb_spacing_m`, `corner_spacing_m`, `min_spacing_m`,
-    /// `repeated` and `buildings` are then unused).
+    /// point-landmark table above (`kerb_spacing_m`, `corner_spacing_m`, `min_spacing_m`
+    /// and `buildings` are then unused).
     pub dressing: Option<DressingSpec>,
 }
 
@@ -213,7 +214,8 @@ pub struct CityLayout {
     pub carriageway_half_m: f64,
     /// Kerb to building line, metres.
     pub pavement_m: f64,
-    /// Every block the same landmark pattern.
+    /// Every block the same landmark pattern (with `dressing`: every block dressed alike,
+    /// its fronts, gaps, hedges, fences, trees, poles and parked cars).
     pub repeated: bool,
     /// The junctions the route passes where it turns (and its ends), world metres.
     pub route_corners: Vec<[f64; 2]>,
