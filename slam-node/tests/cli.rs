@@ -414,6 +414,8 @@ fn a_run_that_knows_the_truth_writes_groundtruth_tum_beside_its_trajectory_for_e
     let truth = tum_poses(&dir.path().join("groundtruth.tum"));
     assert!(truth.len() > 5, "{} true poses", truth.len());
     assert!(truth.len() <= estimate.len());
+    // The simulator's own truth log, on by default (`[output] ground_truth`).
+    assert!(dir.path().join("ground-truth.jsonl").exists());
     // Each true pose is at the time of an estimated one, and near it: the filter tracks.
     for t in &truth {
         let e = estimate
@@ -667,4 +669,50 @@ fn output_spectra_false_writes_no_spectra_file() {
     assert!(!out.join("spectra.jsonl").exists());
     let outputs = text.lines().find(|l| l.contains("outputs in")).unwrap();
     assert!(!outputs.contains("spectra"), "{outputs}");
+}
+
+#[test]
+fn output_ground_truth_false_writes_no_ground_truth_file_and_still_scores() {
+    // A long simulated run turns the simulator's truth log off (a line per azimuth); the
+    // daemon scores itself against the scene's truth in memory all the same.
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("run.toml");
+    std::fs::write(&config, "[output]\nground_truth = false\n").unwrap();
+    let run = slam_node()
+        .arg("--config")
+        .arg(&config)
+        .args([
+            "--embedded-sim",
+            "--fast",
+            "--duration",
+            "4",
+            "--no-figures",
+        ])
+        .args(["--progress-every", "0", "--out"])
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let out = dir.path().join("out");
+    assert!(out.join("trajectory.tum").exists());
+    assert!(!out.join("ground-truth.jsonl").exists());
+    // Scored: the summary's error against the truth, and the true poses for evo.
+    let scored = text
+        .lines()
+        .find(|l| l.contains("pose error vs truth: RMS"))
+        .unwrap_or_else(|| panic!("no score against the truth:\n{text}"));
+    let rms: f64 = scored
+        .split("RMS ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{scored}"));
+    assert!(rms.is_finite() && rms < 5.0, "{scored}");
+    let truth = tum_poses(&out.join("groundtruth.tum"));
+    assert!(truth.len() > 5, "{} true poses", truth.len());
 }
