@@ -33,10 +33,10 @@ pub struct RawOutput {
     /// false on a vehicle that runs for days, whose disk it would otherwise fill.
     pub spectra: bool,
     /// Write `ground-truth.jsonl` when the simulator runs in the daemon (`--embedded-sim`):
-    /// the simulated truth, a JSON line per azimuth. Default true; false for long simulated
-    /// runs. The run is scored against the
-    /// truth either way (the summary's pose error, `groundtruth.tum`): the daemon holds it
-    /// in memory, this file is only a copy.
+    /// the simulated truth, a JSON line per azimuth (1.2 GB an hour on the realistic city,
+    /// 0.33 GB on the shipped field). Default true; false for long simulated runs. The run
+    /// is scored against the truth either way (the summary's pose error, `groundtruth.tum`):
+    /// the daemon holds it in memory, this file is only a copy.
     pub ground_truth: bool,
     /// Record the run as an MCAP file (ROS 2 messages, CDR), relative to `directory`,
     /// ending in `.mcap`. Default: none.
