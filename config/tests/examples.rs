@@ -131,6 +131,7 @@ fn the_defaults_are_the_documented_values() {
     assert!(c.filter.first_estimate_jacobians);
     assert!(c.filter.repeat_look_decorrelation);
     assert_eq!(c.output.trajectory_path(), Path::new("out/trajectory.tum"));
+    assert!(c.output.spectra && c.output.ground_truth);
 }
 
 #[test]
@@ -145,6 +146,8 @@ fn the_vehicle_example_points_at_the_real_radar() {
         matches!(c.odometry.motion_model, MotionModel::Bicycle { wheelbase_m } if wheelbase_m.get() == 2.7)
     );
     assert_eq!(c.filter.association, config::filter::Association::Jcbb);
+    // Nothing that grows with every rotation for as long as the vehicle runs.
+    assert!(!c.output.spectra && !c.output.ground_truth);
 }
 
 #[test]

@@ -261,6 +261,7 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "output.pictures",
     "output.progress",
     "output.spectra",
+    "output.ground_truth",
     "output.zenoh.enabled",
     "output.zenoh.mode",
     "output.zenoh.multicast_scouting",

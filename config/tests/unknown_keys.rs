@@ -175,6 +175,7 @@ fn a_value_of_the_wrong_type_names_the_key() {
             "radar.connect_timeout_ms",
         ),
         ("[radar]\ntcp_nodelay = 1", "radar.tcp_nodelay"),
+        ("[output]\nground_truth = \"no\"", "output.ground_truth"),
         ("[filter]\nsigma_u = \"small\"", "filter.sigma_u"),
         ("[sim]\nseed = 1e3", "sim.seed"),
         ("radar = 5", "radar"),

@@ -117,27 +117,45 @@ impl std::fmt::Display for StopSignal {
 
 /// Resolves at the first request to stop the process: Ctrl-C, or on Unix SIGTERM, so that
 /// a daemon stopped by its service manager ends as it does at a terminal (outputs written,
-/// summary printed) instead of being killed mid-write. Installs the handlers when first
-/// polled; if neither can be installed it never resolves (the default action then stands).
-pub async fn stop_signal() -> StopSignal {
+/// summary printed) instead of being killed mid-write. On Unix the handlers are installed
+/// when this is called, not when the future is first polled: a request that comes between
+/// the two is not lost (a binary can install them before it reads its inputs). Call it
+/// inside a tokio runtime (as tokio's `signal` requires). If neither can be installed the
+/// future never resolves (the default action then stands).
+pub fn stop_signal() -> impl std::future::Future<Output = StopSignal> + Send + 'static {
     #[cfg(unix)]
-    {
+    let handlers = {
         use tokio::signal::unix::{signal, SignalKind};
-        if let Ok(mut term) = signal(SignalKind::terminate()) {
-            return tokio::select! {
-                r = tokio::signal::ctrl_c() => match r {
-                    Ok(()) => StopSignal::CtrlC,
-                    Err(_) => {
-                        term.recv().await;
-                        StopSignal::Term
-                    }
-                },
-                _ = term.recv() => StopSignal::Term,
-            };
+        (
+            signal(SignalKind::interrupt()).ok(),
+            signal(SignalKind::terminate()).ok(),
+        )
+    };
+    async move {
+        #[cfg(unix)]
+        {
+            let (mut interrupt, mut terminate) = handlers;
+            tokio::select! {
+                () = delivered(interrupt.as_mut()) => StopSignal::CtrlC,
+                () = delivered(terminate.as_mut()) => StopSignal::Term,
+            }
+        }
+        #[cfg(not(unix))]
+        match tokio::signal::ctrl_c().await {
+            Ok(()) => StopSignal::CtrlC,
+            Err(_) => std::future::pending().await,
         }
     }
-    match tokio::signal::ctrl_c().await {
-        Ok(()) => StopSignal::CtrlC,
-        Err(_) => std::future::pending().await,
+}
+
+/// Resolves when `signal` is delivered; never without a handler, or once the runtime that
+/// delivers it is gone.
+#[cfg(unix)]
+async fn delivered(signal: Option<&mut tokio::signal::unix::Signal>) {
+    if let Some(s) = signal {
+        if s.recv().await.is_some() {
+            return;
+        }
     }
+    std::future::pending::<()>().await;
 }

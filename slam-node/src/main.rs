@@ -10,7 +10,7 @@
 mod cli;
 
 use std::process::ExitCode;
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use anyhow::Context;
@@ -40,10 +40,35 @@ fn run(args: cli::Args) -> anyhow::Result<()> {
     if args.lists_profiles() {
         return list_profiles();
     }
-    let opts = cli::options(&args)?;
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .context("starting the tokio runtime")?;
+    // Ctrl-C and SIGTERM (what `kill`, systemd and container runtimes send), handled from
+    // here on, before anything is read. Before the run begins (the configuration, a saved map
+    // or a recording being read, the scene built, the simulator started, a Foxglove client
+    // awaited) the run has produced nothing and those steps do not look at the stop flag: the
+    // process ends at once, as the signal's default action would, after saying so. From then on the run ends the same
+    // way for both: the pipeline drains, the outputs are written and the summary printed.
+    let stop = Arc::new(AtomicBool::new(false));
+    let stop_request = {
+        let _runtime = runtime.enter();
+        radar_driver::stop_signal()
+    };
+    let stop_flag = Arc::clone(&stop);
+    runtime.spawn(async move {
+        let why = stop_request.await;
+        if slam_node::daemon::start::abandon_start() {
+            eprintln!("slam-node: stopped ({why}) while starting up, before the run began");
+            end_as_signalled(why);
+        }
+        eprintln!("slam-node: stopping ({why})");
+        stop_flag.store(true, Ordering::Relaxed);
+    });
+    let mut opts = cli::options(&args)?;
+    opts.stop = Arc::clone(&stop);
     let doing = args.doing();
-    let stop = Arc::clone(&opts.stop);
-    let stopped = Arc::clone(&opts.stop);
+    let stopped = stop;
     let every = opts.progress_every_rotations;
     let progress: Option<slam_node::pipeline::run::ProgressFn> = (every > 0).then(|| {
         Box::new(
@@ -55,18 +80,7 @@ fn run(args: cli::Args) -> anyhow::Result<()> {
             },
         ) as slam_node::pipeline::run::ProgressFn
     });
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .context("starting the tokio runtime")?;
     let result = runtime.block_on(async move {
-        // Ctrl-C and SIGTERM (what `kill`, systemd and container runtimes send) end the run
-        // the same way: the pipeline drains, the outputs are written and the summary printed.
-        tokio::spawn(async move {
-            let why = radar_driver::stop_signal().await;
-            eprintln!("slam-node: stopping ({why})");
-            stop.store(true, Ordering::Relaxed);
-        });
         // SIGUSR1: save the map now ([map] path), the run goes on.
         #[cfg(unix)]
         match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::user_defined1()) {
@@ -83,7 +97,14 @@ fn run(args: cli::Args) -> anyhow::Result<()> {
         run_daemon(opts, progress).await
     });
     if result.as_ref().is_err_and(|e| e.is_stopped_before_start()) {
-        // Ctrl-C during the scene's build: do not wait for the abandoned build.
+        if slam_node::daemon::start::start_abandoned() {
+            // The stop handler is ending the process (`end_as_signalled`): the status is its.
+            loop {
+                std::thread::park();
+            }
+        }
+        // A stop flag set while the scene was built (not by this binary's handler, which ends
+        // a stop before the run itself): do not wait for the abandoned build.
         runtime.shutdown_background();
         anyhow::bail!("stopped (Ctrl-C or SIGTERM) while building the scene, before the run began");
     }
@@ -133,6 +154,29 @@ fn run(args: cli::Args) -> anyhow::Result<()> {
         anyhow::bail!("{doing}: replayed up to where the file is damaged: {e}");
     }
     Ok(())
+}
+
+/// Ends the process as `why`'s signal does by default (SIGINT for Ctrl-C, SIGTERM), for a
+/// stop before the run began: a shell sees 130 or 143 and stops a script there, since the run
+/// made nothing to go on with; systemd counts a death by SIGTERM or SIGINT as a clean stop (the
+/// unit ends inactive, not failed, as it would with status 1, and no `SuccessExitStatus=` is
+/// needed, as it would be for `exit(143)`).
+fn end_as_signalled(why: radar_driver::StopSignal) -> ! {
+    let number = match why {
+        radar_driver::StopSignal::CtrlC => 2,
+        radar_driver::StopSignal::Term => 15,
+    };
+    #[cfg(unix)]
+    {
+        let signal = match why {
+            radar_driver::StopSignal::CtrlC => signal_hook::consts::SIGINT,
+            radar_driver::StopSignal::Term => signal_hook::consts::SIGTERM,
+        };
+        // The default action back in place, then the signal raised: the process ends here.
+        let _ = signal_hook::low_level::emulate_default_handler(signal);
+    }
+    // Where the signal cannot be re-raised: the status a shell would show for it.
+    std::process::exit(128 + number)
 }
 
 /// Prints every radar profile, each value with its source.

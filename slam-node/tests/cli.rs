@@ -308,6 +308,7 @@ fn interrupt(child: &std::process::Child) {
 #[test]
 fn ctrl_c_while_a_large_scene_is_being_built_stops_the_process_at_once() {
     use std::io::{BufRead, BufReader};
+    use std::os::unix::process::ExitStatusExt;
     use std::process::Stdio;
     // The shipped field plus 20 walls of dense points: about 190,000 features, and a day of
     // trajectory to integrate (the longest horizon). Its build takes seconds in a debug
@@ -377,8 +378,12 @@ fn ctrl_c_while_a_large_scene_is_being_built_stops_the_process_at_once() {
         took < Duration::from_millis(1000),
         "the build went on for {took:?} after Ctrl-C:\n{log}"
     );
-    assert_eq!(status.code(), Some(1), "{log}");
-    assert!(log.contains("while building the scene"), "{log}");
+    // Before the run began: the process ends by the signal, as a stop in start-up does.
+    assert_eq!(status.signal(), Some(2), "{log}");
+    assert!(
+        log.contains("stopped (Ctrl-C) while starting up, before the run began"),
+        "{log}"
+    );
 }
 
 /// TUM lines as (t, x, y, theta).
@@ -414,6 +419,8 @@ fn a_run_that_knows_the_truth_writes_groundtruth_tum_beside_its_trajectory_for_e
     let truth = tum_poses(&dir.path().join("groundtruth.tum"));
     assert!(truth.len() > 5, "{} true poses", truth.len());
     assert!(truth.len() <= estimate.len());
+    // The simulator's own truth log, on by default (`[output] ground_truth`).
+    assert!(dir.path().join("ground-truth.jsonl").exists());
     // Each true pose is at the time of an estimated one, and near it: the filter tracks.
     for t in &truth {
         let e = estimate
@@ -667,4 +674,126 @@ fn output_spectra_false_writes_no_spectra_file() {
     assert!(!out.join("spectra.jsonl").exists());
     let outputs = text.lines().find(|l| l.contains("outputs in")).unwrap();
     assert!(!outputs.contains("spectra"), "{outputs}");
+}
+
+#[test]
+fn output_ground_truth_false_writes_no_ground_truth_file_and_still_scores() {
+    // A long simulated run turns the simulator's truth log off (a line per azimuth); the
+    // daemon scores itself against the scene's truth in memory all the same.
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("run.toml");
+    std::fs::write(&config, "[output]\nground_truth = false\n").unwrap();
+    let run = slam_node()
+        .arg("--config")
+        .arg(&config)
+        .args([
+            "--embedded-sim",
+            "--fast",
+            "--duration",
+            "4",
+            "--no-figures",
+        ])
+        .args(["--progress-every", "0", "--out"])
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let out = dir.path().join("out");
+    assert!(out.join("trajectory.tum").exists());
+    assert!(!out.join("ground-truth.jsonl").exists());
+    // Scored: the summary's error against the truth, and the true poses for evo.
+    let scored = text
+        .lines()
+        .find(|l| l.contains("pose error vs truth: RMS"))
+        .unwrap_or_else(|| panic!("no score against the truth:\n{text}"));
+    let rms: f64 = scored
+        .split("RMS ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{scored}"));
+    assert!(rms.is_finite() && rms < 5.0, "{scored}");
+    let truth = tum_poses(&out.join("groundtruth.tum"));
+    assert!(truth.len() > 5, "{} true poses", truth.len());
+}
+
+#[cfg(unix)]
+#[test]
+fn a_stop_while_the_daemon_is_still_reading_its_inputs_ends_it_at_once_by_that_signal() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::Stdio;
+    // A daemon stopped during its start-up (systemd's SIGTERM, Ctrl-C) used to die silently
+    // by the default action before its handler was in place, or read on. Now: one line, and
+    // the process ends by the signal (status 143 or 130 in a shell; a clean stop for
+    // systemd). Deterministic: the configuration is a FIFO, whose opening for writing below
+    // returns only once the daemon has opened it for reading, after its handlers are
+    // installed; it then waits for the configuration's text for as long as the test likes.
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("run.toml");
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        println!("SKIPPED: mkfifo is not available");
+        return;
+    }
+    for (flag, number, name) in [("-TERM", 15, "SIGTERM"), ("-INT", 2, "Ctrl-C")] {
+        let mut child = slam_node()
+            .arg("--config")
+            .arg(&fifo)
+            .args(["--embedded-sim", "--no-figures", "--out"])
+            .arg(dir.path().join("out"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Opened for writing in a thread, so that a daemon which never opens the FIFO fails
+        // the test in bounded time instead of blocking it.
+        let (opened_tx, opened) = std::sync::mpsc::channel();
+        let path = fifo.clone();
+        std::thread::spawn(move || {
+            let writer = std::fs::OpenOptions::new().write(true).open(&path);
+            let _ = opened_tx.send(writer);
+        });
+        let writer = match opened.recv_timeout(Duration::from_secs(30)) {
+            Ok(w) => w.unwrap(),
+            Err(_) => {
+                let _ = child.kill();
+                panic!("the daemon never opened its configuration");
+            }
+        };
+        let status = Command::new("kill")
+            .args([flag, &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let sent = Instant::now();
+        let status = loop {
+            if let Some(status) = child.try_wait().unwrap() {
+                break status;
+            }
+            if sent.elapsed() > Duration::from_secs(10) {
+                let _ = child.kill();
+                panic!("{name}: still running 10 s after the signal, reading its configuration");
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        let took = sent.elapsed();
+        drop(writer);
+        let mut log = String::new();
+        let _ = std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut log);
+        assert_eq!(status.signal(), Some(number), "{name}: {status:?}\n{log}");
+        assert!(
+            log.contains(&format!(
+                "stopped ({name}) while starting up, before the run began"
+            )),
+            "{name}: {log}"
+        );
+        assert_eq!(log.lines().count(), 1, "{name}: one line expected:\n{log}");
+        assert!(took < Duration::from_secs(2), "{name}: took {took:?}");
+        assert!(!dir.path().join("out").exists(), "{name}: outputs made");
+    }
 }

@@ -7,6 +7,7 @@
 
 mod localise_report;
 pub mod report;
+pub mod start;
 pub mod zenoh_odometry;
 
 // The sources' modules under their earlier names.
@@ -72,7 +73,8 @@ pub enum DaemonError {
 }
 
 impl DaemonError {
-    /// Whether a stop (Ctrl-C) came while the scene was being built, before the run began.
+    /// Whether a stop (Ctrl-C, SIGTERM) came before the run began: while the scene was being
+    /// built, or (the binary) anywhere in the start ([`start::abandon_start`]).
     pub fn is_stopped_before_start(&self) -> bool {
         matches!(self, DaemonError::Source(SourceError::Stopped))
     }
@@ -320,6 +322,11 @@ pub async fn run_daemon(
         running,
     } = inputs;
     let output = OutputHandle::spawn(output_files(&opts, motion, node.clone()))?;
+    // The run begins: from here a stop request drains it and its outputs are written; before,
+    // the binary ended the process at once (`start`), and a request that came first wins.
+    if !start::begin_run() {
+        return Err(SourceError::Stopped.into());
+    }
     let driver_handle = driver.map(radar_driver::Driver::spawn);
     let control = RunControl {
         end_after_silence,

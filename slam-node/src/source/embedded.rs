@@ -20,6 +20,10 @@ use super::{sink, Inputs, Running, SourceEnd, SourceError, Stopping};
 use crate::output::figures::TruthOverlay;
 use crate::pipeline::{Pipeline, SceneTruth, SettingsRecipe, SourceFacts, TruthOracle};
 
+/// The embedded simulator's ground-truth file inside the output folder (`sim-sensor`'s
+/// format), written when `[output] ground_truth` is true.
+pub const GROUND_TRUTH_JSONL: &str = "ground-truth.jsonl";
+
 /// The simulator to start in this process.
 #[derive(Debug, Clone)]
 pub struct EmbeddedSim {
@@ -179,7 +183,13 @@ pub async fn start(
     odometry: Option<Box<dyn OdometrySource>>,
 ) -> Result<Inputs, SourceError> {
     let mut options = sim.options;
-    options.ground_truth_path = Some(out_dir.join("ground-truth.jsonl"));
+    // A copy of the truth for other tools (`[output] ground_truth`): the run scores itself
+    // against the scene's truth in memory (the oracle below), with or without it.
+    options.ground_truth_path = recipe
+        .config
+        .output
+        .ground_truth
+        .then(|| out_dir.join(GROUND_TRUTH_JSONL));
     let start_ns = *options
         .start_time_ns
         .get_or_insert(1_704_067_200_000_000_000);
