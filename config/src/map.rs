@@ -269,6 +269,17 @@ mod tests {
     }
 
     #[test]
+    fn localise_with_is_read_from_its_name_and_defaults_to_scans() {
+        assert_eq!(MapSettings::default().localise_with, LocaliseWith::Scans);
+        let raw: RawMap = toml::from_str("localise_with = \"features\"").unwrap();
+        let s = raw.validate().unwrap();
+        assert_eq!(s.localise_with, LocaliseWith::Features);
+        assert_eq!(RawMap::from(&s).validate().unwrap(), s);
+        let err = toml::from_str::<RawMap>("localise_with = \"lidar\"").unwrap_err();
+        assert!(err.to_string().contains("scans"), "{err}");
+    }
+
+    #[test]
     fn a_prior_pose_is_checked_and_its_heading_wrapped() {
         let raw = RawMap {
             mode: MapMode::Localise,

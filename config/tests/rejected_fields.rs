@@ -238,6 +238,7 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "submaps.loop_closure",
     "map.save",
     "map.mode",
+    "map.localise_with",
     "radar.tcp_nodelay",
     "radar.non_contoured",
     "radar.drop_policy",
