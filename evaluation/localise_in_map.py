@@ -68,6 +68,23 @@ class MapFrame:
         if len(self.truth) < 2 or len(self.est) < 2:
             sys.exit(f"{map_run}: too few poses in groundtruth.tum or trajectory.tum")
 
+    def by_pass(self, pose, reach_m=5.0, gap_s=30.0):
+        """`pose` in the map's frame by each pass of the mapping drive within `reach_m` of it
+        (passes: runs of mapping poses more than `gap_s` apart in time): where the map holds a
+        street twice, each pass places it, and the spread is the map's own inconsistency."""
+        d = np.hypot(self.truth[:, 1] - pose[0], self.truth[:, 2] - pose[1])
+        near = np.flatnonzero(d <= reach_m)
+        out = []
+        if len(near) == 0:
+            return out
+        runs = np.split(near, np.flatnonzero(np.diff(self.truth[near, 0]) > gap_s) + 1)
+        for run in runs:
+            i = int(run[np.argmin(d[run])])
+            m_true = tuple(self.truth[i, 1:4])
+            m_est = tuple(at_time(self.est, self.truth[i, 0])[1:4])
+            out.append(compose(m_est, compose(inverse(m_true), pose)))
+        return out
+
     def of(self, pose):
         """`pose` (true, world) in the map's frame, and how far the nearest mapping pose was."""
         d = np.hypot(self.truth[:, 1] - pose[0], self.truth[:, 2] - pose[1])
@@ -124,6 +141,19 @@ def score(map_run, loc_run):
         if sg is not None and abs(sg[0] - row[0]) < 0.05 and all(v > 0 for v in sg[1:]):
             sg = sg[1:]
             cons.append(math.sqrt(((dx / sg[0]) ** 2 + (dy / sg[1]) ** 2 + (dth / sg[2]) ** 2) / 3.0))
+    # Where the mapping drive passed more than once: how far apart the passes put the truth
+    # (the map's own inconsistency), and the error against the pass nearest the estimate.
+    spread, nearest_pass, once = [], [], []
+    for k, row in enumerate(published):
+        t = tuple(at_time(truth, row[0])[1:4])
+        passes = frame.by_pass(t)
+        if len(passes) == 1:
+            once.append(k)
+        if len(passes) >= 2:
+            spread.append(
+                max(math.hypot(a[0] - b[0], a[1] - b[1]) for a in passes for b in passes)
+            )
+            nearest_pass.append(min(math.hypot(row[1] - a[0], row[2] - a[1]) for a in passes))
     err = [math.hypot(a, b) for a, b in zip(along, across)]
     print(
         f"{len(published)} poses published in the map's frame; against the truth in the map's "
@@ -133,6 +163,20 @@ def score(map_run, loc_run):
         f"(diagonal covariance); the mapping drive passed within {np.median(reach):.1f} m "
         f"(median, max {max(reach):.1f} m)"
     )
+    if once:
+        print(
+            f"where the mapping drive passed once ({len(once)} poses, the map consistent with "
+            f"itself): RMS along {rms([along[k] for k in once]):.3f} m, across "
+            f"{rms([across[k] for k in once]):.3f} m, heading "
+            f"{math.degrees(rms([heading[k] for k in once])):.3f} deg"
+        )
+    if spread:
+        print(
+            f"where the mapping drive passed twice or more ({len(spread)} poses): the passes put "
+            f"the truth {rms(spread):.2f} m apart (RMS; max {max(spread):.2f} m), the map's own "
+            f"inconsistency; the estimate is {rms(nearest_pass):.2f} m (RMS) from the nearest "
+            f"pass's"
+        )
     print(
         f"against the world's truth (the map's own error included): RMS {rms(world):.2f} m, "
         f"max {max(world):.2f} m"

@@ -3,6 +3,8 @@
 //! With `--against SAVED.slmap` (an extended map against the map it extended) it also
 //! prints how far the saved submaps' frames moved, against their saved uncertainty, and
 //! whether their features are unchanged.
+//! With `--scan-csv OUT.csv` it writes every scan point in the map's frame (`submap,x_m,y_m`:
+//! each submap's scan placed by its frame), for plots.
 //! Exit 1 with the reason when the file does not load or the profile's geometry differs.
 
 use std::path::PathBuf;
@@ -29,6 +31,18 @@ fn main() -> ExitCode {
         }
         None => None,
     };
+    let scan_csv = match rest.iter().position(|a| a == "--scan-csv") {
+        Some(i) if i + 1 < rest.len() => {
+            let p = PathBuf::from(rest.remove(i + 1));
+            rest.remove(i);
+            Some(p)
+        }
+        Some(_) => {
+            eprintln!("--scan-csv needs an output file");
+            return ExitCode::FAILURE;
+        }
+        None => None,
+    };
     let mut args = rest.into_iter();
     let map = match Map::load(&path) {
         Ok(m) => m,
@@ -37,6 +51,18 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    if let Some(out) = scan_csv {
+        match write_scan_csv(&map, &out) {
+            Ok(n) => println!(
+                "{n} scan points in the map's frame written to {}",
+                out.display()
+            ),
+            Err(e) => {
+                eprintln!("{}: {e}", out.display());
+                return ExitCode::FAILURE;
+            }
+        }
+    }
     let bytes = std::fs::metadata(&path).map_or(0, |m| m.len());
     // The file's own version (the u32 after the 8-byte magic; the load above checked it),
     // not this build's: a version 1 file reads as version 1.
@@ -167,4 +193,23 @@ fn file_version(path: &std::path::Path) -> Option<u32> {
     let mut head = [0u8; 12];
     std::fs::File::open(path).ok()?.read_exact(&mut head).ok()?;
     Some(u32::from_le_bytes([head[8], head[9], head[10], head[11]]))
+}
+
+/// Every scan point of `map` in the map's frame, as `submap,x_m,y_m` lines: the count.
+fn write_scan_csv(map: &Map, out: &std::path::Path) -> std::io::Result<usize> {
+    use std::io::Write;
+    let mut w = std::io::BufWriter::new(std::fs::File::create(out)?);
+    writeln!(w, "submap,x_m,y_m")?;
+    let mut n = 0;
+    for (k, s) in map.submaps.iter().enumerate() {
+        let f = s.frame_pose();
+        let (sin, cos) = f.theta.sin_cos();
+        for p in map.scan_points(k).unwrap_or_default() {
+            let (x, y) = (f.x + cos * p[0] - sin * p[1], f.y + sin * p[0] + cos * p[1]);
+            writeln!(w, "{k},{x:.3},{y:.3}")?;
+            n += 1;
+        }
+    }
+    w.flush()?;
+    Ok(n)
 }

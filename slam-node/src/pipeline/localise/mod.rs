@@ -49,7 +49,7 @@ use super::DaemonEkf;
 use known::{Loaded, MapFeatures, SwapRule};
 use scan_map::ScanMap;
 use scan_search::{KeptCloud, ScanSearcher};
-use scan_track::{ScanTracker, TrackSettings, Update};
+use scan_track::{ScanTracker, TrackSettings};
 pub use score::LocaliseScore;
 use search::{Attempt, PlaceSearcher};
 use worker::{Outcome, Query, Search, SearchWorker};
@@ -119,6 +119,18 @@ impl LocaliseSettings {
         let (pose, std) = self.prior.unwrap_or(([0.0; 3], [0.0; 3]));
         s.initial_pose = pose;
         s.initial_pose_std = std;
+        if self.by_scans(s) {
+            // By scans the local filter only carries the motion from one rotation to the
+            // next (radar odometry's, the gyro's): it maps no features, which would cost
+            // the pipeline thread most of its time and serve nothing.
+            s.filter.add_features = false;
+        }
+    }
+
+    /// Whether the run localises by the map's scans: asked for, radar odometry on, and a
+    /// map that holds scans.
+    pub fn by_scans(&self, s: &PipelineSettings) -> bool {
+        self.scans && s.scan_match.enabled && self.map.scan_point_count() > 0
     }
 }
 
@@ -322,8 +334,10 @@ impl Localiser {
         }
         let features = Arc::new(MapFeatures::new(map));
         let scan_map = if l.scans {
-            let built = if s.scan_match.enabled {
+            let built = if l.by_scans(s) {
                 ScanMap::new(map, &features)
+            } else if s.scan_match.enabled {
+                None
             } else {
                 warn!(
                     file = %l.path.display(),
@@ -610,12 +624,16 @@ impl Localiser {
             Some(c) => t.update(&b.map, c),
             None => t.skip(),
         };
-        if let Update::Gated { d2 } = update {
-            tracing::debug!(
-                d2,
-                "a registration against the map's scans outside the gate"
-            );
-        }
+        let (pose, cov) = t.estimate();
+        tracing::debug!(
+            ?update,
+            x_m = pose.x,
+            y_m = pose.y,
+            heading_rad = pose.theta,
+            sigma_x_m = cov[(0, 0)].max(0.0).sqrt(),
+            sigma_y_m = cov[(1, 1)].max(0.0).sqrt(),
+            "tracking by scans"
+        );
         self.summary.published += 1;
         self.summary.track_fused = t.fused;
         self.summary.track_unregistered = t.unregistered;

@@ -9,7 +9,7 @@
 //! - **Update**: the rotation's cloud (radar odometry's, in the vehicle's frame at the
 //!   rotation's end) is registered against the map's scans ([`super::scan_map::ScanMap`]),
 //!   from the prediction, by radar odometry's point-to-line ICP, with a pair gate of three
-//!   of the prediction's standard deviations. The registered pose is a measurement of the
+//!   of the prediction's standard deviations (at least [`TrackSettings::min_gate_m`]). The registered pose is a measurement of the
 //!   pose with the registration's covariance (its information, a floor; inflated along a
 //!   direction the scene does not pin), tested against the prediction (chi-square, 3 dof)
 //!   and fused (Joseph form).
@@ -60,6 +60,12 @@ pub struct TrackSettings {
     pub lost_sigma_m: f64,
     /// A rotation's cloud is registered with at most this many of its points (evenly).
     pub max_points: usize,
+    /// The registration's first pair gate is three of the prediction's standard deviations
+    /// and half a metre, at least this (m) and at most 4 m. Along a street the walls pair
+    /// at any offset along it: the posts, trees, parked cars and cross streets that pin it
+    /// must be within the gate to be paired, or an offset the prediction carries (out of a
+    /// turn) is never taken out. The gate narrows to a fifth as the registration converges.
+    pub min_gate_m: f64,
 }
 
 impl Default for TrackSettings {
@@ -70,7 +76,7 @@ impl Default for TrackSettings {
             across_m: 0.02,
             across_per_m: 0.02,
             heading_rad: 0.002,
-            heading_per_rad: 0.05,
+            heading_per_rad: 0.3,
             floor_m: 0.05,
             floor_rad: 0.002,
             correlated_pairs: 10.0,
@@ -81,6 +87,7 @@ impl Default for TrackSettings {
             lost_after: 12,
             lost_sigma_m: 5.0,
             max_points: 1500,
+            min_gate_m: 2.5,
         }
     }
 }
@@ -95,6 +102,11 @@ pub enum Update {
     },
     /// No registration (too few pairs, an empty cloud, a poor fit).
     NoRegistration,
+    /// A registration with too large a residual (m, RMS): not used.
+    PoorFit {
+        /// Its residual.
+        rms_m: f64,
+    },
     /// A registration outside the gate: not fused.
     Gated {
         /// Its squared Mahalanobis distance.
@@ -214,24 +226,28 @@ impl ScanTracker {
             .max()
             .max(0.0)
             .sqrt();
-        let gate = (3.0 * sigma + 0.5).clamp(1.0, 4.0);
-        let outcome = register(&map.cloud, &points, self.pose, gate, s.min_pairs)
-            .filter(|reg| reg.rms_m <= s.max_rms_m)
-            .and_then(|reg| {
-                let floor = Matrix3::from_diagonal(&Vector3::new(
-                    s.floor_m.powi(2),
-                    s.floor_m.powi(2),
-                    s.floor_rad.powi(2),
-                ));
-                // Each kept point stands for `stride` of the cloud's: the same information.
-                let mut r = covariance(&reg, &floor, s.correlated_pairs, 0.05)?;
-                if let Some(c) = Constraint::of(&reg).filter(|c| c.weakest < 0.02) {
-                    let d = c.direction;
-                    let v = Vector3::new(d[0], d[1], d[2] / HEADING_LENGTH_M);
-                    r += v * v.transpose() * 100.0;
-                }
-                Some((reg.pose, symmetric(r)))
-            });
+        let gate = (3.0 * sigma + 0.5).clamp(s.min_gate_m, 4.0);
+        let registered = register(&map.cloud, &points, self.pose, gate, s.min_pairs);
+        if let Some(reg) = registered.filter(|reg| reg.rms_m > s.max_rms_m) {
+            self.misses += 1;
+            self.unregistered += 1;
+            return Update::PoorFit { rms_m: reg.rms_m };
+        }
+        let outcome = registered.and_then(|reg| {
+            let floor = Matrix3::from_diagonal(&Vector3::new(
+                s.floor_m.powi(2),
+                s.floor_m.powi(2),
+                s.floor_rad.powi(2),
+            ));
+            // Each kept point stands for `stride` of the cloud's: the same information.
+            let mut r = covariance(&reg, &floor, s.correlated_pairs, 0.05)?;
+            if let Some(c) = Constraint::of(&reg).filter(|c| c.weakest < 0.02) {
+                let d = c.direction;
+                let v = Vector3::new(d[0], d[1], d[2] / HEADING_LENGTH_M);
+                r += v * v.transpose() * 100.0;
+            }
+            Some((reg.pose, symmetric(r)))
+        });
         let Some((z, r)) = outcome else {
             self.misses += 1;
             self.unregistered += 1;
