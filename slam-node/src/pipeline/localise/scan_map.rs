@@ -59,6 +59,12 @@ impl ScanMap {
                 );
             }
         }
+        Self::from_points(points, frames)
+    }
+
+    /// The map of `points` (already in the map's frame), with places along the drive of
+    /// `frames`; `None` without points.
+    pub fn from_points(points: Vec<[f64; 2]>, frames: &MapFeatures) -> Option<Self> {
         if points.is_empty() {
             return None;
         }

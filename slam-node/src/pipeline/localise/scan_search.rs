@@ -347,3 +347,209 @@ impl ScanSearcher {
         rivals.len()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::localise::known::MapFeatures;
+    use slam_graph::se2::transform_point;
+
+    /// A deterministic pseudo-random sequence in [0, 1).
+    struct Lcg(u64);
+
+    impl Lcg {
+        fn next(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// A street along x from 0 to 400 m with fronts either side (set back irregularly,
+    /// with gaps), cross streets every 100 m and posts: points every 0.5 m, as a scan sees
+    /// them, shifted by `dx` along x.
+    fn street(rng: &mut Lcg, dx: f64) -> Vec<[f64; 2]> {
+        let mut out = Vec::new();
+        for side in [-1.0, 1.0] {
+            let mut x = 0.0;
+            while x < 400.0 {
+                let width = 6.0 + 15.0 * rng.next();
+                let setback = 2.0 * rng.next();
+                let gap = rng.next() < 0.3;
+                let mut u = 0.0;
+                while u < width {
+                    let px = x + u;
+                    // Cross streets every 100 m (12 m wide) have no fronts.
+                    if !gap && px % 100.0 > 12.0 {
+                        out.push([px + dx, side * (8.0 + setback)]);
+                    }
+                    u += 0.5;
+                }
+                x += width;
+            }
+            // The cross streets' fronts.
+            for k in 0..4 {
+                let cx = 100.0 * f64::from(k) + dx;
+                let mut y = 10.0;
+                while y < 60.0 {
+                    out.push([cx, side * y]);
+                    out.push([cx + 12.0, side * y]);
+                    y += 0.5;
+                }
+            }
+            // Buildings further back: rectangles 8-20 m wide, 20-50 m from the centre line.
+            for _ in 0..40 {
+                let (x0, y0) = (400.0 * rng.next(), 20.0 + 20.0 * rng.next());
+                let (w, h) = (8.0 + 12.0 * rng.next(), 5.0 + 10.0 * rng.next());
+                let mut u = 0.0;
+                while u < w {
+                    out.push([x0 + u + dx, side * y0]);
+                    out.push([x0 + u + dx, side * (y0 + h)]);
+                    u += 0.5;
+                }
+                let mut v = 0.0;
+                while v < h {
+                    out.push([x0 + dx, side * (y0 + v)]);
+                    out.push([x0 + w + dx, side * (y0 + v)]);
+                    v += 0.5;
+                }
+            }
+            // Posts.
+            for _ in 0..30 {
+                out.push([400.0 * rng.next() + dx, side * (5.0 + rng.next())]);
+            }
+        }
+        out
+    }
+
+    /// The map's drive: one submap along the street, from x = 0 to x = 400 (plus `dx`).
+    fn drive(dxs: &[f64]) -> MapFeatures {
+        let id = Matrix3::identity() * 1e-4;
+        MapFeatures {
+            features: Vec::new(),
+            frames: dxs
+                .iter()
+                .map(|dx| (Pose2::new(*dx, 0.0, 0.0), id))
+                .collect(),
+            ends: dxs
+                .iter()
+                .map(|dx| Pose2::new(dx + 400.0, 0.0, 0.0))
+                .collect(),
+            end_local: dxs
+                .iter()
+                .map(|_| (Pose2::new(400.0, 0.0, 0.0), id))
+                .collect(),
+        }
+    }
+
+    /// What a vehicle at `pose` sees of `world` within 80 m, in its frame, with 0.1 m of
+    /// jitter, thinned to one point per metre cell as the local scan is.
+    fn seen(world: &[[f64; 2]], pose: &Pose2, rng: &mut Lcg) -> Vec<[f64; 2]> {
+        let inv = inverse(pose);
+        let local: Vec<[f64; 2]> = world
+            .iter()
+            .map(|p| transform_point(&inv, *p))
+            .filter(|p| p[0].hypot(p[1]) <= 80.0 && p[0].hypot(p[1]) >= 4.0)
+            .map(|p| {
+                [
+                    p[0] + 0.1 * (rng.next() - 0.5),
+                    p[1] + 0.1 * (rng.next() - 0.5),
+                ]
+            })
+            .collect();
+        let s = ScanAlignSettings::default();
+        let mut acc = ScanAccumulator::new(&s);
+        // Two rotations of the same view: every cell is seen twice.
+        acc.add(&Pose2::new(0.0, 0.0, 0.0), &local);
+        acc.add(&Pose2::new(0.0, 0.0, 0.0), &local);
+        acc.take()
+    }
+
+    #[test]
+    fn a_place_of_a_street_is_found_and_confirmed_from_no_prior() {
+        let mut rng = Lcg(7);
+        let world = street(&mut rng, 0.0);
+        let map = Arc::new(ScanMap::from_points(world.clone(), &drive(&[0.0])).unwrap());
+        let mut search = ScanSearcher::new(map);
+        // The local frame: the vehicle started at (150, 1) heading east; it is now 20 m on.
+        let origin = Pose2::new(150.0, 1.0, 0.02);
+        let vehicle_local = Pose2::new(20.0, -0.5, -0.01);
+        let truth = compose(&origin, &vehicle_local);
+        let local = seen(&world, &truth, &mut rng);
+        let first = search.attempt(&local, &vehicle_local);
+        assert!(matches!(first, Attempt::Candidate(_)), "{first:?}");
+        let second = search.attempt(&local, &vehicle_local);
+        let Attempt::Fix(v) = second else {
+            panic!("{second:?}");
+        };
+        // The local frame's origin in the map, to the cell's size and better.
+        assert!((v.transform.x - origin.x).abs() < 0.3, "{v:?}");
+        assert!((v.transform.y - origin.y).abs() < 0.3, "{v:?}");
+        assert!(
+            wrap_angle(v.transform.theta - origin.theta).abs() < 0.01,
+            "{v:?}"
+        );
+        assert!(v.covariance.cholesky().is_some());
+    }
+
+    #[test]
+    fn a_map_that_holds_the_street_twice_never_gives_a_fix() {
+        let mut rng = Lcg(7);
+        let mut world = street(&mut rng, 0.0);
+        let mut copy = Lcg(7);
+        world.extend(street(&mut copy, 1000.0));
+        let map = Arc::new(ScanMap::from_points(world.clone(), &drive(&[0.0, 1000.0])).unwrap());
+        let mut search = ScanSearcher::new(map);
+        let vehicle_local = Pose2::new(0.0, 0.0, 0.0);
+        let truth = Pose2::new(170.0, 0.5, 0.01);
+        let local = seen(&world, &truth, &mut rng);
+        for _ in 0..3 {
+            let a = search.attempt(&local, &vehicle_local);
+            // The two copies score alike: places alike, never a candidate.
+            assert!(matches!(a, Attempt::Ambiguous(_)), "{a:?}");
+        }
+    }
+
+    /// The tracker on the same street: a prediction 0.3 m and 0.01 rad off is pulled onto
+    /// the truth by one rotation's registration, with a covariance that shrinks and stays
+    /// symmetric positive definite; a registration 2 m from the confident prediction is
+    /// outside the gate and not fused.
+    #[test]
+    fn tracking_registers_each_rotation_against_the_map_and_gates_a_jump() {
+        use super::super::scan_track::{ScanTracker, TrackSettings, Update};
+        let mut rng = Lcg(11);
+        let world = street(&mut rng, 0.0);
+        let map = ScanMap::from_points(world.clone(), &drive(&[0.0])).unwrap();
+        let truth = Pose2::new(200.0, 0.5, 0.0);
+        let start = Pose2::new(200.3, 0.3, 0.01);
+        let cov = Matrix3::from_diagonal(&Vector3::new(0.25, 0.25, 0.02f64.powi(2)));
+        let mut t = ScanTracker::new(TrackSettings::default(), start, cov, start);
+        let cloud = seen(&world, &truth, &mut rng);
+        let u = t.update(&map, &cloud);
+        assert!(matches!(u, Update::Fused { .. }), "{u:?}");
+        let (p, c) = t.estimate();
+        assert!((p.x - truth.x).hypot(p.y - truth.y) < 0.05, "{p:?}");
+        assert!(wrap_angle(p.theta - truth.theta).abs() < 0.002, "{p:?}");
+        assert!(c[(0, 0)] < 0.25 && c[(1, 1)] < 0.25, "{c}");
+        assert!((c - c.transpose()).norm() < 1e-12 && c.cholesky().is_some());
+        // The vehicle is in fact 2 m further on than the (now confident) prediction: the
+        // registration finds it there, far outside the prediction's gate, and is not fused.
+        let ahead = seen(&world, &Pose2::new(202.0, 0.5, 0.0), &mut rng);
+        let u = t.update(&map, &ahead);
+        assert!(matches!(u, Update::Gated { .. }), "{u:?}");
+        assert!((t.estimate().0.x - truth.x).abs() < 0.05);
+        assert!(!t.lost());
+    }
+
+    #[test]
+    fn too_small_a_local_scan_is_no_attempt() {
+        let mut rng = Lcg(3);
+        let world = street(&mut rng, 0.0);
+        let map = Arc::new(ScanMap::from_points(world, &drive(&[0.0])).unwrap());
+        let mut search = ScanSearcher::new(map);
+        let a = search.attempt(&[[10.0, 8.0]; 20], &Pose2::new(0.0, 0.0, 0.0));
+        assert_eq!(a, Attempt::TooFewFeatures);
+    }
+}
