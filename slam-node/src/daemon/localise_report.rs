@@ -51,8 +51,8 @@ impl fmt::Display for Localisation<'_> {
         if l.by == "scans" {
             writeln!(
                 f,
-                "  tracking by scans: {} rotations published in the map's frame; {} fixes, {} lost (no registration against the map's scans for 12 rotations); registrations fused {}, none found {}, outside the gate {}",
-                l.published, l.fixes, l.lost, l.track_fused, l.track_unregistered, l.track_gated
+                "  tracking by scans: {} rotations published in the map's frame; {} fixes, {} lost (no registration against the map's scans for 12 rotations); registrations fused {}, none found {}, outside the gate {} (re-anchored on agreeing ones {} times)",
+                l.published, l.fixes, l.lost, l.track_fused, l.track_unregistered, l.track_gated, l.track_reanchored
             )?;
         } else {
             writeln!(

@@ -49,7 +49,7 @@ use super::DaemonEkf;
 use known::{Loaded, MapFeatures, SwapRule};
 use scan_map::ScanMap;
 use scan_search::{KeptCloud, ScanSearcher};
-use scan_track::{ScanTracker, TrackSettings};
+use scan_track::{ScanTracker, TrackSettings, Update};
 pub use score::LocaliseScore;
 use search::{Attempt, PlaceSearcher};
 use worker::{Outcome, Query, Search, SearchWorker};
@@ -200,6 +200,9 @@ pub struct LocaliseSummary {
     pub track_unregistered: u64,
     /// See `track_fused`.
     pub track_gated: u64,
+    /// Of those outside the gate, the times the pose was re-anchored on registrations that
+    /// agreed with each other.
+    pub track_reanchored: u64,
     /// Search attempts' wall time on the search's thread (ms): median and largest.
     pub search_ms_p50: f64,
     /// Largest.
@@ -635,9 +638,16 @@ impl Localiser {
             "tracking by scans"
         );
         self.summary.published += 1;
-        self.summary.track_fused = t.fused;
-        self.summary.track_unregistered = t.unregistered;
-        self.summary.track_gated = t.gated;
+        // Counted over every fix of the run (a tracker lives from a fix to its loss).
+        match update {
+            Update::Fused { .. } => self.summary.track_fused += 1,
+            Update::NoRegistration | Update::PoorFit { .. } => self.summary.track_unregistered += 1,
+            Update::Gated { .. } => self.summary.track_gated += 1,
+            Update::Reanchored { .. } => {
+                self.summary.track_gated += 1;
+                self.summary.track_reanchored += 1;
+            }
+        }
         let lost = t.lost();
         trim_local_map(ekf, SEARCH_KEEP_M);
         let pose = ekf.pose();

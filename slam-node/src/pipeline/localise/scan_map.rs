@@ -13,6 +13,7 @@ use std::collections::HashMap;
 
 use radar_model::geometry::Pose2;
 use radar_odometry::{PlaceDescriptor, PlaceIndex, PlaceSettings, ReferenceCloud};
+use slam_graph::correlate::ScoreGrid;
 use slam_graph::scans::SCAN_NORMAL_RADIUS_M;
 use slam_graph::se2::transform_point;
 use slam_map::Map;
@@ -36,7 +37,18 @@ pub struct ScanMap {
     pub places: Vec<(Pose2, PlaceDescriptor)>,
     /// The descriptors' settings.
     pub settings: PlaceSettings,
+    /// The whole map's correlative score grid for tracking ([`TRACK_GRID_CELL_M`] cells, a
+    /// [`TRACK_GRID_SIGMA_M`] kernel; twice as coarse when the map spans too large an area,
+    /// `None` when even that exceeds [`TRACK_GRID_MAX_CELLS`]).
+    pub grid: Option<ScoreGrid>,
 }
+
+/// The tracking score grid's cells (m), kernel (m) and bound (cells, 4 bytes each).
+pub const TRACK_GRID_CELL_M: f64 = 0.5;
+/// See [`TRACK_GRID_CELL_M`].
+pub const TRACK_GRID_SIGMA_M: f64 = 0.5;
+/// See [`TRACK_GRID_CELL_M`].
+pub const TRACK_GRID_MAX_CELLS: usize = 8 << 20;
 
 fn bucket_of(p: [f64; 2]) -> (i64, i64) {
     (
@@ -75,12 +87,27 @@ impl ScanMap {
                 buckets.entry(bucket_of(*p)).or_default().push(i);
             }
         }
+        let grid = ScoreGrid::new(
+            &points,
+            TRACK_GRID_CELL_M,
+            TRACK_GRID_SIGMA_M,
+            TRACK_GRID_MAX_CELLS,
+        )
+        .or_else(|| {
+            ScoreGrid::new(
+                &points,
+                2.0 * TRACK_GRID_CELL_M,
+                TRACK_GRID_SIGMA_M,
+                TRACK_GRID_MAX_CELLS,
+            )
+        });
         let cloud = ReferenceCloud::new(points, SCAN_NORMAL_RADIUS_M, TRACK_PAIR_GATE_M);
         let mut out = Self {
             cloud,
             buckets,
             places: Vec::new(),
             settings: PlaceSettings::default(),
+            grid,
         };
         let r = out.settings.max_range_m;
         for p in drive_points(frames, PLACE_SPACING_M) {

@@ -515,7 +515,7 @@ mod tests {
     /// The tracker on the same street: a prediction 0.3 m and 0.01 rad off is pulled onto
     /// the truth by one rotation's registration, with a covariance that shrinks and stays
     /// symmetric positive definite; a registration 2 m from the confident prediction is
-    /// outside the gate and not fused.
+    /// outside the gate and not fused, until four in a row agree on it.
     #[test]
     fn tracking_registers_each_rotation_against_the_map_and_gates_a_jump() {
         use super::super::scan_track::{ScanTracker, TrackSettings, Update};
@@ -540,6 +540,23 @@ mod tests {
         let u = t.update(&map, &ahead);
         assert!(matches!(u, Update::Gated { .. }), "{u:?}");
         assert!((t.estimate().0.x - truth.x).abs() < 0.05);
+        // The registrations keep agreeing on that offset: after four in a row the pose is
+        // taken from them (the prediction was wrong, not the map).
+        for _ in 0..2 {
+            let u = t.update(&map, &ahead);
+            assert!(matches!(u, Update::Gated { .. }), "{u:?}");
+        }
+        let u = t.update(&map, &ahead);
+        assert!(matches!(u, Update::Reanchored { .. }), "{u:?}");
+        let (p, c) = t.estimate();
+        assert!(
+            (p.x - 202.0).abs() < 0.05 && (p.y - 0.5).abs() < 0.05,
+            "{p:?}"
+        );
+        assert!(
+            c.cholesky().is_some() && c[(0, 0)] > 1.0,
+            "grown by the offset: {c}"
+        );
         assert!(!t.lost());
     }
 

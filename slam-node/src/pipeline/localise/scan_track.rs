@@ -7,12 +7,16 @@
 //!   covariance grows by the Jacobians of the composition and a motion noise
 //!   ([`TrackSettings`]) in the vehicle's frame, growing with the distance and the turn.
 //! - **Update**: the rotation's cloud (radar odometry's, in the vehicle's frame at the
-//!   rotation's end) is registered against the map's scans ([`super::scan_map::ScanMap`]),
-//!   from the prediction, by radar odometry's point-to-line ICP, with a pair gate of three
+//!   rotation's end) is laid on the map's score grid over a window of 2 m and 0.02 rad
+//!   around the prediction (correlative search: no basin), then registered against the
+//!   map's scans ([`super::scan_map::ScanMap`]) from the best, by radar odometry's point-to-line ICP, with a pair gate of three
 //!   of the prediction's standard deviations (at least [`TrackSettings::min_gate_m`]). The registered pose is a measurement of the
 //!   pose with the registration's covariance (its information, a floor; inflated along a
 //!   direction the scene does not pin), tested against the prediction (chi-square, 3 dof)
 //!   and fused (Joseph form).
+//! - **Re-anchored**: registrations outside the gate that agree with each other on their
+//!   offset from the prediction ([`TrackSettings::reanchor_after`] in a row) are right about
+//!   the map and the prediction is not: the pose is taken from the registration.
 //! - **Lost**: [`TrackSettings::lost_after`] rotations in a row without an accepted update,
 //!   or the position's standard deviation past [`TrackSettings::lost_sigma_m`].
 //!
@@ -22,6 +26,7 @@
 use nalgebra::{Matrix3, Vector3};
 use radar_model::geometry::{wrap_angle, Pose2};
 use radar_odometry::{covariance, register, Constraint, HEADING_LENGTH_M};
+use slam_graph::correlate::{correlate, Window};
 use slam_graph::se2::{compose, inverse};
 
 use super::scan_map::ScanMap;
@@ -66,6 +71,27 @@ pub struct TrackSettings {
     /// must be within the gate to be paired, or an offset the prediction carries (out of a
     /// turn) is never taken out. The gate narrows to a fifth as the registration converges.
     pub min_gate_m: f64,
+    /// Before ICP, a correlative search on the map's score grid over this window around
+    /// the prediction (m either way, rad either way, in steps of `search_step_rad`), with at
+    /// most `search_points` of the cloud: ICP starts from its best. A single rotation's
+    /// ICP does not leave the basin it starts in, and along a street of walls an offset
+    /// of a metre or two (out of a turn) is such a basin: the posts, trees and parked cars
+    /// that pin the street are then beyond the narrowing gate.
+    pub search_half_m: f64,
+    /// See `search_half_m`.
+    pub search_half_rad: f64,
+    /// See `search_half_m`.
+    pub search_step_rad: f64,
+    /// See `search_half_m`.
+    pub search_points: usize,
+    /// Registrations outside the gate that agree on their offset from the prediction
+    /// (within `reanchor_agree_m` and `reanchor_agree_rad`) this many times in a row move
+    /// the pose to the registration (fewer than `lost_after`).
+    pub reanchor_after: u32,
+    /// See `reanchor_after`.
+    pub reanchor_agree_m: f64,
+    /// See `reanchor_after`.
+    pub reanchor_agree_rad: f64,
 }
 
 impl Default for TrackSettings {
@@ -88,6 +114,13 @@ impl Default for TrackSettings {
             lost_sigma_m: 5.0,
             max_points: 1500,
             min_gate_m: 2.5,
+            search_half_m: 2.0,
+            search_half_rad: 0.02,
+            search_step_rad: 0.005,
+            search_points: 400,
+            reanchor_after: 4,
+            reanchor_agree_m: 0.3,
+            reanchor_agree_rad: 0.01,
         }
     }
 }
@@ -112,6 +145,12 @@ pub enum Update {
         /// Its squared Mahalanobis distance.
         d2: f64,
     },
+    /// Outside the gate, but the last registrations agreed on the offset: the pose was
+    /// taken from the registration.
+    Reanchored {
+        /// Its squared Mahalanobis distance.
+        d2: f64,
+    },
 }
 
 /// The pose filter in the map's frame.
@@ -129,6 +168,11 @@ pub struct ScanTracker {
     pub unregistered: u64,
     /// See `fused`.
     pub gated: u64,
+    /// Re-anchored on registrations that agreed with each other outside the gate.
+    pub reanchored: u64,
+    /// The last gated registration's offset from its prediction (in the prediction's
+    /// frame), and how many in a row agreed with it.
+    gated_offset: Option<(Pose2, u32)>,
 }
 
 fn symmetric(m: Matrix3<f64>) -> Matrix3<f64> {
@@ -147,6 +191,8 @@ impl ScanTracker {
             fused: 0,
             unregistered: 0,
             gated: 0,
+            reanchored: 0,
+            gated_offset: None,
         }
     }
 
@@ -227,7 +273,21 @@ impl ScanTracker {
             .max(0.0)
             .sqrt();
         let gate = (3.0 * sigma + 0.5).clamp(s.min_gate_m, 4.0);
-        let registered = register(&map.cloud, &points, self.pose, gate, s.min_pairs);
+        let start = map
+            .grid
+            .as_ref()
+            .and_then(|grid| {
+                let stride = cloud.len().div_ceil(s.search_points.max(1)).max(1);
+                let sample: Vec<[f64; 2]> = cloud.iter().step_by(stride).copied().collect();
+                let window = Window {
+                    half_m: s.search_half_m,
+                    half_rad: s.search_half_rad,
+                    step_rad: s.search_step_rad,
+                };
+                correlate(grid, &sample, &self.pose, &window, 1.0, 0)
+            })
+            .map_or(self.pose, |(best, _)| best.pose);
+        let registered = register(&map.cloud, &points, start, gate, s.min_pairs);
         if let Some(reg) = registered.filter(|reg| reg.rms_m > s.max_rms_m) {
             self.misses += 1;
             self.unregistered += 1;
@@ -268,8 +328,34 @@ impl ScanTracker {
         if d2.is_nan() || d2 > s.gate_chi2 {
             self.misses += 1;
             self.gated += 1;
+            // Registrations that keep disagreeing with the prediction by the same offset
+            // are right about the map and the prediction is not (a turn it got wrong, or a
+            // street the map holds twice, a metre or two apart, and the tracker on the
+            // other copy): after `reanchor_after` in a row the pose is taken from the
+            // registration, its covariance the registration's grown by the offset.
+            let offset = self.pose.between(&z);
+            let agreeing = match self.gated_offset {
+                Some((o, n))
+                    if (o.x - offset.x).hypot(o.y - offset.y) <= s.reanchor_agree_m
+                        && wrap_angle(o.theta - offset.theta).abs() <= s.reanchor_agree_rad =>
+                {
+                    n + 1
+                }
+                _ => 1,
+            };
+            self.gated_offset = Some((offset, agreeing));
+            if agreeing >= s.reanchor_after {
+                self.pose = z;
+                let grow = Vector3::new(offset.x, offset.y, offset.theta);
+                self.cov = symmetric(r + Matrix3::from_diagonal(&grow.component_mul(&grow)));
+                self.misses = 0;
+                self.gated_offset = None;
+                self.reanchored += 1;
+                return Update::Reanchored { d2 };
+            }
             return Update::Gated { d2 };
         }
+        self.gated_offset = None;
         // K = P S^-1 (S symmetric): solve S K' = P.
         let k = chol.solve(&self.cov).transpose();
         let dx = k * nu;
