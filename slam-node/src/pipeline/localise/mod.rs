@@ -226,6 +226,19 @@ enum Phase {
     Tracking,
 }
 
+impl Phase {
+    /// A search from nothing: no attempt yet, nothing driven, no previous window.
+    fn searching() -> Self {
+        Phase::Searching {
+            last: None,
+            since: 0,
+            driven_m: 0.0,
+            counted_to: None,
+            previous: None,
+        }
+    }
+}
+
 /// The localisation stage.
 pub struct Localiser {
     path: PathBuf,
@@ -427,13 +440,7 @@ impl Localiser {
             phase: if l.prior.is_some() {
                 Phase::Tracking
             } else {
-                Phase::Searching {
-                    last: None,
-                    since: 0,
-                    driven_m: 0.0,
-                    counted_to: None,
-                    previous: None,
-                }
+                Phase::searching()
             },
             first_rotation_s: None,
             rotations: 0,
@@ -674,13 +681,7 @@ impl Localiser {
             }
             self.worker.forget();
             push_restart(&mut self.restarts, &mut self.frame, None);
-            self.phase = Phase::Searching {
-                last: None,
-                since: 0,
-                driven_m: 0.0,
-                counted_to: None,
-                previous: None,
-            };
+            self.phase = Phase::searching();
         }
     }
 
@@ -729,13 +730,7 @@ impl Localiser {
         self.updates_seen = 0;
         self.worker.forget();
         push_restart(&mut self.restarts, &mut self.frame, None);
-        self.phase = Phase::Searching {
-            last: None,
-            since: 0,
-            driven_m: 0.0,
-            counted_to: None,
-            previous: None,
-        };
+        self.phase = Phase::searching();
     }
 
     fn on_attempt(&mut self, attempt: Attempt, ekf: &mut DaemonEkf, since_start_s: f64) {

@@ -16,11 +16,11 @@ use slam_graph::se2::{inverse, transform_point};
 use super::known::{MapFeatures, WorldFeature};
 use super::search::{Attempt, PlaceSearcher};
 
-/// A deterministic pseudo-random sequence in [0, 1).
-struct Lcg(u64);
+/// A deterministic pseudo-random sequence in [0, 1) (the scan search's tests use it too).
+pub(super) struct Lcg(pub(super) u64);
 
 impl Lcg {
-    fn next(&mut self) -> f64 {
+    pub(super) fn next(&mut self) -> f64 {
         self.0 = self
             .0
             .wrapping_mul(6_364_136_223_846_793_005)

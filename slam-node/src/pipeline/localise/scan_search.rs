@@ -354,18 +354,7 @@ mod tests {
     use crate::pipeline::localise::known::MapFeatures;
     use slam_graph::se2::transform_point;
 
-    /// A deterministic pseudo-random sequence in [0, 1).
-    struct Lcg(u64);
-
-    impl Lcg {
-        fn next(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-    }
+    use crate::pipeline::localise::repeated_tests::Lcg;
 
     /// A street along x from 0 to 400 m with fronts either side (set back irregularly,
     /// with gaps), cross streets every 100 m and posts: points every 0.5 m, as a scan sees

@@ -206,15 +206,19 @@ impl ScanTracker {
         self.last_local = compose(&inverse(origin), &self.last_local);
     }
 
-    /// Whether the fix is lost.
-    pub fn lost(&self) -> bool {
-        let sigma = self
-            .cov
+    /// The position's standard deviation along its worst direction (m).
+    fn position_sigma(&self) -> f64 {
+        self.cov
             .fixed_view::<2, 2>(0, 0)
             .symmetric_eigenvalues()
             .max()
             .max(0.0)
-            .sqrt();
+            .sqrt()
+    }
+
+    /// Whether the fix is lost.
+    pub fn lost(&self) -> bool {
+        let sigma = self.position_sigma();
         self.misses >= self.settings.lost_after
             || sigma.is_nan()
             || sigma > self.settings.lost_sigma_m
@@ -265,13 +269,7 @@ impl ScanTracker {
         let s = self.settings;
         let stride = cloud.len().div_ceil(s.max_points.max(1)).max(1);
         let points: Vec<[f64; 2]> = cloud.iter().step_by(stride).copied().collect();
-        let sigma = self
-            .cov
-            .fixed_view::<2, 2>(0, 0)
-            .symmetric_eigenvalues()
-            .max()
-            .max(0.0)
-            .sqrt();
+        let sigma = self.position_sigma();
         let gate = (3.0 * sigma + 0.5).clamp(s.min_gate_m, 4.0);
         let start = map
             .grid
