@@ -15,33 +15,15 @@ use slam_map::Map;
 fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
     let Some(path) = args.next().map(PathBuf::from) else {
-        eprintln!("usage: map_info FILE [PROFILE] [--against SAVED]");
+        eprintln!("usage: map_info FILE [PROFILE] [--against SAVED] [--scan-csv OUT.csv]");
         return ExitCode::FAILURE;
     };
     let mut rest: Vec<String> = args.collect();
-    let against = match rest.iter().position(|a| a == "--against") {
-        Some(i) if i + 1 < rest.len() => {
-            let p = PathBuf::from(rest.remove(i + 1));
-            rest.remove(i);
-            Some(p)
-        }
-        Some(_) => {
-            eprintln!("--against needs a map file");
-            return ExitCode::FAILURE;
-        }
-        None => None,
-    };
-    let scan_csv = match rest.iter().position(|a| a == "--scan-csv") {
-        Some(i) if i + 1 < rest.len() => {
-            let p = PathBuf::from(rest.remove(i + 1));
-            rest.remove(i);
-            Some(p)
-        }
-        Some(_) => {
-            eprintln!("--scan-csv needs an output file");
-            return ExitCode::FAILURE;
-        }
-        None => None,
+    let (Ok(against), Ok(scan_csv)) = (
+        take_path(&mut rest, "--against", "a map file"),
+        take_path(&mut rest, "--scan-csv", "an output file"),
+    ) else {
+        return ExitCode::FAILURE;
     };
     let mut args = rest.into_iter();
     let map = match Map::load(&path) {
@@ -212,4 +194,21 @@ fn write_scan_csv(map: &Map, out: &std::path::Path) -> std::io::Result<usize> {
     }
     w.flush()?;
     Ok(n)
+}
+
+/// Takes `flag PATH` out of `rest`: the path, `None` without the flag, `Err` (said on
+/// stderr) when the flag has no value.
+fn take_path(rest: &mut Vec<String>, flag: &str, what: &str) -> Result<Option<PathBuf>, ()> {
+    match rest.iter().position(|a| a == flag) {
+        Some(i) if i + 1 < rest.len() => {
+            let p = PathBuf::from(rest.remove(i + 1));
+            rest.remove(i);
+            Ok(Some(p))
+        }
+        Some(_) => {
+            eprintln!("{flag} needs {what}");
+            Err(())
+        }
+        None => Ok(None),
+    }
 }

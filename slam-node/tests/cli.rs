@@ -643,15 +643,14 @@ fn sigterm_ends_a_run_like_ctrl_c_with_its_outputs_and_summary() {
     assert!(trajectory.len() > 2, "{} poses written", trajectory.len());
 }
 
-#[test]
-fn output_spectra_false_writes_no_spectra_file() {
-    // A vehicle running for days turns the spectra log off: it grows with every rotation.
-    let dir = tempfile::tempdir().unwrap();
-    let config = dir.path().join("run.toml");
-    std::fs::write(&config, "[output]\nspectra = false\n").unwrap();
+/// Four seconds of the embedded simulator with `config` (written into `dir`), outputs in
+/// `dir/out`: the run must succeed; its stdout.
+fn four_embedded_seconds(dir: &std::path::Path, config: &str) -> String {
+    let file = dir.join("run.toml");
+    std::fs::write(&file, config).unwrap();
     let run = slam_node()
         .arg("--config")
-        .arg(&config)
+        .arg(&file)
         .args([
             "--embedded-sim",
             "--fast",
@@ -660,15 +659,23 @@ fn output_spectra_false_writes_no_spectra_file() {
             "--no-figures",
         ])
         .args(["--progress-every", "0", "--out"])
-        .arg(dir.path().join("out"))
+        .arg(dir.join("out"))
         .output()
         .unwrap();
-    let text = String::from_utf8_lossy(&run.stdout);
+    let text = String::from_utf8_lossy(&run.stdout).into_owned();
     assert!(
         run.status.success(),
         "{text}{}",
         String::from_utf8_lossy(&run.stderr)
     );
+    text
+}
+
+#[test]
+fn output_spectra_false_writes_no_spectra_file() {
+    // A vehicle running for days turns the spectra log off: it grows with every rotation.
+    let dir = tempfile::tempdir().unwrap();
+    let text = four_embedded_seconds(dir.path(), "[output]\nspectra = false\n");
     let out = dir.path().join("out");
     assert!(out.join("trajectory.tum").exists());
     assert!(!out.join("spectra.jsonl").exists());
@@ -681,28 +688,7 @@ fn output_ground_truth_false_writes_no_ground_truth_file_and_still_scores() {
     // A long simulated run turns the simulator's truth log off (a line per azimuth); the
     // daemon scores itself against the scene's truth in memory all the same.
     let dir = tempfile::tempdir().unwrap();
-    let config = dir.path().join("run.toml");
-    std::fs::write(&config, "[output]\nground_truth = false\n").unwrap();
-    let run = slam_node()
-        .arg("--config")
-        .arg(&config)
-        .args([
-            "--embedded-sim",
-            "--fast",
-            "--duration",
-            "4",
-            "--no-figures",
-        ])
-        .args(["--progress-every", "0", "--out"])
-        .arg(dir.path().join("out"))
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "{text}{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let text = four_embedded_seconds(dir.path(), "[output]\nground_truth = false\n");
     let out = dir.path().join("out");
     assert!(out.join("trajectory.tum").exists());
     assert!(!out.join("ground-truth.jsonl").exists());

@@ -36,7 +36,7 @@ use slam_graph::se2::{compose, inverse};
 use slam_graph::{align_scans, reference_scan, AlignSettings, ScanAccumulator, ScanAlignSettings};
 
 use super::scan_map::ScanMap;
-use super::search::{Attempt, Verified, SAME_M, SAME_RAD};
+use super::search::{confirm, same, vehicle_at, Attempt, Verified, SAME_M, SAME_RAD};
 
 /// Map places compared in full per attempt (nearest by ring key).
 const NEIGHBOURS: usize = 40;
@@ -55,9 +55,6 @@ const GUESS_HALF_RAD: f64 = 0.12;
 const RIVAL_HALF_M: f64 = 8.0;
 /// The score grids' cells at most (a 100 m radius at 1 m cells is 40,000).
 const MAX_SCORE_CELLS: usize = 1 << 20;
-/// A fix needs the second verification within this of the first (m, rad).
-const CONFIRM_M: f64 = 1.0;
-const CONFIRM_RAD: f64 = 0.03;
 /// The correlative score (the mean kernel value under the local scan's points, in [0, 1])
 /// a place must reach: a city's scans are dense (a wall every few metres), so the local
 /// scan laid anywhere in a street scores 0.55-0.70; laid on its own place, 0.80-0.83
@@ -97,10 +94,6 @@ pub struct ScanSearcher {
     scan: ScanAlignSettings,
     align: AlignSettings,
     pending: Option<Verified>,
-}
-
-fn same(a: &Pose2, b: &Pose2, m: f64, rad: f64) -> bool {
-    (a.x - b.x).hypot(a.y - b.y) <= m && wrap_angle(a.theta - b.theta).abs() <= rad
 }
 
 impl ScanSearcher {
@@ -183,8 +176,7 @@ impl ScanSearcher {
             .filter_map(|(id, _)| {
                 let (place, d) = map.places.get(usize::try_from(id).ok()?)?;
                 let m = query.compare(d)?;
-                let t = Pose2::new(m.transform[0], m.transform[1], m.transform[2]);
-                Some((m.place.distance, compose(place, &t)))
+                Some((m.place.distance, vehicle_at(place, &m)))
             })
             .collect();
         matches.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -286,16 +278,7 @@ impl ScanSearcher {
             covariance: al.covariance,
             matches: al.matches.len(),
         };
-        let confirmed = self
-            .pending
-            .is_some_and(|p| same(&p.transform, &v.transform, CONFIRM_M, CONFIRM_RAD));
-        if confirmed {
-            self.pending = None;
-            Attempt::Fix(v)
-        } else {
-            self.pending = Some(v);
-            Attempt::Candidate(v)
-        }
+        confirm(&mut self.pending, v)
     }
 
     /// Places of the map where it looks as it does around the verified pose `here` (the
@@ -312,8 +295,7 @@ impl ScanSearcher {
                     continue;
                 };
                 if let Some(m) = query.compare(d) {
-                    let t = Pose2::new(m.transform[0], m.transform[1], m.transform[2]);
-                    offered.push(compose(place, &t));
+                    offered.push(vehicle_at(place, &m));
                 }
             }
         }

@@ -162,14 +162,6 @@ pub struct ScanTracker {
     /// The local filter's pose at the last rotation (in its frame).
     last_local: Pose2,
     misses: u32,
-    /// Counts: fused, no registration, gated.
-    pub fused: u64,
-    /// See `fused`.
-    pub unregistered: u64,
-    /// See `fused`.
-    pub gated: u64,
-    /// Re-anchored on registrations that agreed with each other outside the gate.
-    pub reanchored: u64,
     /// The last gated registration's offset from its prediction (in the prediction's
     /// frame), and how many in a row agreed with it.
     gated_offset: Option<(Pose2, u32)>,
@@ -188,10 +180,6 @@ impl ScanTracker {
             cov: symmetric(cov),
             last_local: local,
             misses: 0,
-            fused: 0,
-            unregistered: 0,
-            gated: 0,
-            reanchored: 0,
             gated_offset: None,
         }
     }
@@ -259,7 +247,6 @@ impl ScanTracker {
     /// A rotation without a cloud to register (radar odometry had none): a miss.
     pub fn skip(&mut self) -> Update {
         self.misses += 1;
-        self.unregistered += 1;
         Update::NoRegistration
     }
 
@@ -288,7 +275,6 @@ impl ScanTracker {
         let registered = register(&map.cloud, &points, start, gate, s.min_pairs);
         if let Some(reg) = registered.filter(|reg| reg.rms_m > s.max_rms_m) {
             self.misses += 1;
-            self.unregistered += 1;
             return Update::PoorFit { rms_m: reg.rms_m };
         }
         let outcome = registered.and_then(|reg| {
@@ -308,7 +294,6 @@ impl ScanTracker {
         });
         let Some((z, r)) = outcome else {
             self.misses += 1;
-            self.unregistered += 1;
             return Update::NoRegistration;
         };
         let nu = Vector3::new(
@@ -319,13 +304,11 @@ impl ScanTracker {
         let innovation_cov = symmetric(self.cov + r);
         let Some(chol) = innovation_cov.cholesky() else {
             self.misses += 1;
-            self.unregistered += 1;
             return Update::NoRegistration;
         };
         let d2 = nu.dot(&chol.solve(&nu));
         if d2.is_nan() || d2 > s.gate_chi2 {
             self.misses += 1;
-            self.gated += 1;
             // Registrations that keep disagreeing with the prediction by the same offset
             // are right about the map and the prediction is not (a turn it got wrong, or a
             // street the map holds twice, a metre or two apart, and the tracker on the
@@ -348,7 +331,6 @@ impl ScanTracker {
                 self.cov = symmetric(r + Matrix3::from_diagonal(&grow.component_mul(&grow)));
                 self.misses = 0;
                 self.gated_offset = None;
-                self.reanchored += 1;
                 return Update::Reanchored { d2 };
             }
             return Update::Gated { d2 };
@@ -365,7 +347,6 @@ impl ScanTracker {
         let i_k = Matrix3::identity() - k;
         self.cov = symmetric(i_k * self.cov * i_k.transpose() + k * r * k.transpose());
         self.misses = 0;
-        self.fused += 1;
         Update::Fused { d2 }
     }
 }

@@ -25,7 +25,7 @@
 
 use nalgebra::Matrix3;
 use radar_model::geometry::{wrap_angle, Pose2};
-use radar_odometry::{PlaceDescriptor, PlaceIndex, PlaceQuery, PlaceSettings};
+use radar_odometry::{PlaceDescriptor, PlaceIndex, PlaceQuery, PlaceSettings, QueryMatch};
 use slam_filter::{FrozenSubmap, SubmapFeature};
 use slam_graph::places::{refine, PlaceSearch};
 use slam_graph::se2::{compose, inverse, transform_point};
@@ -210,9 +210,8 @@ impl PlaceSearcher {
             .filter_map(|(id, _)| {
                 let (place, d) = self.places.get(usize::try_from(id).ok()?)?;
                 let m = query.compare(d)?;
-                let t = Pose2::new(m.transform[0], m.transform[1], m.transform[2]);
                 // The vehicle in the map, then the local frame in the map.
-                let vehicle_in_map = compose(place, &t);
+                let vehicle_in_map = vehicle_at(place, &m);
                 Some((m.place.distance, compose(&vehicle_in_map, &to_vehicle)))
             })
             .collect();
@@ -268,16 +267,7 @@ impl PlaceSearcher {
                     self.pending = None;
                     return Attempt::Ambiguous(1 + rivals);
                 }
-                let confirmed = self
-                    .pending
-                    .is_some_and(|p| same(&p.transform, &v.transform, CONFIRM_M, CONFIRM_RAD));
-                if confirmed {
-                    self.pending = None;
-                    Attempt::Fix(v)
-                } else {
-                    self.pending = Some(v);
-                    Attempt::Candidate(v)
-                }
+                confirm(&mut self.pending, v)
             }
             [_] => {
                 self.pending = None;
@@ -288,6 +278,29 @@ impl PlaceSearcher {
                 Attempt::Ambiguous(many.len())
             }
         }
+    }
+}
+
+/// Where a descriptor match puts the vehicle in the map: the query's frame in `place`'s.
+pub(super) fn vehicle_at(place: &Pose2, m: &QueryMatch) -> Pose2 {
+    compose(
+        place,
+        &Pose2::new(m.transform[0], m.transform[1], m.transform[2]),
+    )
+}
+
+/// A place verified alone and without rivals: confirmed (the fix) when it agrees with the
+/// attempt before ([`CONFIRM_M`], [`CONFIRM_RAD`]), else the candidate the next attempt must
+/// confirm.
+pub(super) fn confirm(pending: &mut Option<Verified>, v: Verified) -> Attempt {
+    let confirmed =
+        pending.is_some_and(|p| same(&p.transform, &v.transform, CONFIRM_M, CONFIRM_RAD));
+    if confirmed {
+        *pending = None;
+        Attempt::Fix(v)
+    } else {
+        *pending = Some(v);
+        Attempt::Candidate(v)
     }
 }
 
@@ -468,8 +481,7 @@ impl PlaceSearcher {
             if m.place.distance > MAX_DISTANCE {
                 continue;
             }
-            let t = Pose2::new(m.transform[0], m.transform[1], m.transform[2]);
-            let there = compose(place, &t);
+            let there = vehicle_at(place, &m);
             if (there.x - here.x).hypot(there.y - here.y) < RIVAL_MIN_SEPARATION_M {
                 continue;
             }
@@ -497,7 +509,8 @@ impl PlaceSearcher {
 }
 
 /// Whether two transforms are within `m` metres and `rad` radians.
-fn same(a: &Pose2, b: &Pose2, m: f64, rad: f64) -> bool {
+/// Whether two poses are within `m` metres and `rad` of each other.
+pub(super) fn same(a: &Pose2, b: &Pose2, m: f64, rad: f64) -> bool {
     (a.x - b.x).hypot(a.y - b.y) <= m && wrap_angle(a.theta - b.theta).abs() <= rad
 }
 
