@@ -241,3 +241,114 @@ fn a_chunk_whose_size_disagrees_with_its_data_ends_the_replay_and_says_why() {
         assert!(counts.rotations < ROTATIONS, "{counts:?}");
     }
 }
+
+/// The process's resident memory (kB), from /proc/self/status.
+#[cfg(target_os = "linux")]
+fn resident_kb() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .expect("status")
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .expect("VmRSS")
+}
+
+/// An FFT message whose data is far longer than the bins it declares (issue 38, item 4: a
+/// 141 KB file made the replay hold 3.5 GB) costs only the declared bins: 32 messages of
+/// 4 MiB each declaring 400 bins, every azimuth received and held at once, add much less
+/// than one message's data to the process's resident memory (holding each message's buffer
+/// would add 128 MiB; large buffers are returned to the system when freed).
+#[cfg(target_os = "linux")]
+#[test]
+fn an_fft_message_holds_only_the_bins_it_declares() {
+    use ros_msgs::navtech::{RadarConfigurationMsg, RadarFftDataMsg};
+    const MESSAGES: u16 = 32;
+    const BINS: u16 = 400;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("long-data.mcap");
+    let mut w = mcap::WriteOptions::new()
+        .profile("ros2")
+        .compression(Some(mcap::Compression::Zstd))
+        .create(Cursor::new(Vec::new()))
+        .expect("writer");
+    let none = BTreeMap::new();
+    let config_schema = w
+        .add_schema(
+            &RadarConfigurationMsg::type_name(),
+            "ros2msg",
+            RadarConfigurationMsg::schema_text().as_bytes(),
+        )
+        .expect("schema");
+    let config = w
+        .add_channel(config_schema, "/radar_data/configuration", "cdr", &none)
+        .expect("channel");
+    let fft_schema = w
+        .add_schema(
+            &RadarFftDataMsg::type_name(),
+            "ros2msg",
+            RadarFftDataMsg::schema_text().as_bytes(),
+        )
+        .expect("schema");
+    let fft = w
+        .add_channel(fft_schema, "/radar_data/fft_data", "cdr", &none)
+        .expect("channel");
+    let mut write = |channel_id, data: &[u8]| {
+        w.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id,
+                sequence: 0,
+                log_time: 1,
+                publish_time: 1,
+            },
+            data,
+        )
+        .expect("write");
+    };
+    let configuration = RadarConfigurationMsg {
+        header: Header::new(Time::from_secs_f64(T0), "radar"),
+        azimuth_samples: 400,
+        encoder_size: 5600,
+        bin_size: 438.0,
+        range_in_bins: BINS,
+        expected_rotation_rate: 4000,
+        range_gain: 1.0,
+        ..RadarConfigurationMsg::default()
+    };
+    write(config, &to_cdr(&configuration).expect("cdr"));
+    for k in 0..MESSAGES {
+        let m = RadarFftDataMsg {
+            header: Header::new(Time::from_secs_f64(T0), "radar"),
+            azimuth: 14 * k,
+            sweep_counter: k,
+            ntp_seconds: T0 as u32,
+            ntp_split_seconds: 625_000 * u32::from(k),
+            data: vec![7; 4 << 20],
+            data_length: BINS,
+            ..RadarFftDataMsg::default()
+        };
+        write(fft, &to_cdr(&m).expect("cdr"));
+    }
+    w.finish().expect("finish");
+    std::fs::write(&path, w.into_inner().into_inner()).expect("write");
+
+    let before_kb = resident_kb();
+    let (az, _odo, handle) = replay(&path);
+    let held: Vec<_> = std::iter::from_fn(|| az.recv_timeout(Duration::from_secs(10)).ok())
+        .take(usize::from(MESSAGES))
+        .collect();
+    let grown_kb = resident_kb().saturating_sub(before_kb);
+    if held.len() != usize::from(MESSAGES) {
+        drop(az);
+        panic!("{} azimuths: {:?}", held.len(), handle.finish());
+    }
+    assert!(held.iter().all(|a| a.bins.len() == usize::from(BINS)));
+    assert!(
+        grown_kb < 32 * 1024,
+        "holding {} azimuths of {BINS} bins grew the process by {grown_kb} kB",
+        held.len()
+    );
+    drop(az);
+    let counts = handle.finish();
+    assert_eq!(counts.malformed, 0);
+}
