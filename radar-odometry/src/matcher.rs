@@ -2,10 +2,13 @@
 //! vehicle at the last mark (the caller's motion estimate de-skews the cloud), and at the
 //! end of a rotation the cloud registered against the previous rotation's, giving the
 //! vehicle's motion between the two with a covariance and how well the scene pinned it.
+//! The cloud is then placed again along the motion registered, and that is the next
+//! rotation's reference.
 //!
 //! Memory: two clouds of at most `points_per_azimuth` x azimuths points (16 bytes each),
-//! bounded by [`MAX_POINTS`], and over the previous cloud a k-d tree (for the normals) and
-//! a pair grid of at most 2^18 cells, rebuilt once a rotation.
+//! with each return as seen (24 bytes), bounded by [`MAX_POINTS`], and over the previous
+//! cloud a k-d tree (for the normals) and a pair grid of at most 2^18 cells, rebuilt once a
+//! rotation.
 
 use nalgebra::{Matrix3, Vector3};
 use radar_model::geometry::Pose2;
@@ -73,8 +76,8 @@ pub struct ScanMatchSettings {
     pub search_m: f64,
     /// Whether the registration places the rotation's returns along the motion it is
     /// trying (a constant twist from the last mark to the rotation's end,
-    /// [`register_swept`]) instead of where the caller's estimate put them, and places the
-    /// next rotation's reference along the motion found. Where the caller's estimate missed
+    /// [`register_swept`]) instead of where the caller's estimate put them (either way the
+    /// next rotation's reference is placed along the motion found). Where the caller's estimate missed
     /// a turn's onset, a rotation swept through the turn is bent by up to the whole turn,
     /// and a registration of it as placed stops short of the turn. Swept, only the late
     /// returns pin the motion (the early ones were seen from near the mark whatever the
@@ -165,6 +168,10 @@ pub struct MatcherCounts {
     pub swept: u64,
 }
 
+/// A rotation's returns in the sensor's frame when each was swept, and how far through the
+/// rotation that was.
+type AsSeen = (Vec<[f64; 2]>, Vec<f64>);
+
 /// A return as seen, for re-placing it along a measured motion.
 #[derive(Debug, Clone, Copy)]
 struct Seen {
@@ -195,7 +202,11 @@ pub struct ScanMatcher {
     /// The same points as seen: range, bearing and their azimuth's time.
     seen: Vec<Seen>,
     /// The previous rotation's points in the vehicle's frame at its end.
-    previous: Option<ReferenceCloud>,
+    previous: Option<Vec<[f64; 2]>>,
+    /// The previous rotation's returns as seen (in the sensor's frame, and how far through
+    /// the rotation), to place them again along the motion its caller settles on
+    /// ([`Self::place_reference`]).
+    previous_seen: Option<AsSeen>,
     /// Whether they were placed along a motion (registered, or the caller's estimate), not
     /// swept from where the caller had none.
     reference_placed: bool,
@@ -239,7 +250,7 @@ impl ScanMatcher {
     /// estimates for that moment (slam-node accumulates it into each submap's scan for loop
     /// closure).
     pub fn last_cloud(&self) -> Option<&[[f64; 2]]> {
-        self.previous.as_ref().map(ReferenceCloud::points)
+        self.previous.as_deref()
     }
 
     /// Adds one azimuth's returns at `bearing_rad`, swept at `time_s`, the sensor at
@@ -282,14 +293,12 @@ impl ScanMatcher {
         for &i in self.order.iter().take(keep.min(room)) {
             let range_m = returns[i].range_m();
             self.current.push(sensor.point_at(range_m, bearing_rad));
-            // Kept only for the swept registration, which re-places them.
-            if s.deskew {
-                self.seen.push(Seen {
-                    range_m,
-                    bearing_rad,
-                    time_s,
-                });
-            }
+            // Kept to place them again along the motion measured.
+            self.seen.push(Seen {
+                range_m,
+                bearing_rad,
+                time_s,
+            });
         }
     }
 
@@ -312,15 +321,17 @@ impl ScanMatcher {
         }) = end
         else {
             self.previous = None;
+            self.previous_seen = None;
             return None;
         };
         let mut local = in_frame_of(&end, &points);
         // Whether `local` is placed along a motion: the caller's estimate, or below the
         // motion registered.
         let mut placed = !search;
-        // Swept: each return in the sensor's frame when it was swept, and how far through
-        // the rotation that was.
-        let swept = (self.settings.deskew && until_s > since_s && !seen.is_empty()).then(|| {
+        // Each return in the sensor's frame when it was swept, and how far through the
+        // rotation that was: for the swept registration, and to place the cloud again along
+        // the motion registered.
+        let as_seen = (until_s > since_s && !seen.is_empty()).then(|| {
             let origin = Pose2::new(0.0, 0.0, 0.0);
             let span = until_s - since_s;
             let sensor: Vec<[f64; 2]> = seen
@@ -332,15 +343,22 @@ impl ScanMatcher {
         });
         let mut out = None;
         // Replaced by this rotation's cloud below, whatever the registration does.
-        if let Some(reference) = self.previous.take() {
-            let reference = &reference;
+        self.previous_seen = None;
+        if let Some(points) = self.previous.take() {
+            let reference = &ReferenceCloud::new(
+                points,
+                self.settings.normal_radius_m,
+                self.settings.pair_gate_m,
+            );
             self.counts.tried += 1;
             let min_pairs = self.min_pairs(local.len());
             let gate = self.settings.pair_gate_m;
             // Swept only against a reference placed along a motion: a reference swept from
             // where the caller had no estimate (searching) is as bent as this cloud placed
             // the same way, and the two are registered as they are.
-            let sweep = swept.as_ref().filter(|_| self.reference_placed && !search);
+            let sweep = as_seen
+                .as_ref()
+                .filter(|_| self.settings.deskew && self.reference_placed && !search);
             let fit = |start: Pose2| match sweep {
                 Some((sensor, fractions)) => {
                     register_swept(reference, sensor, fractions, start, gate, min_pairs)
@@ -360,9 +378,12 @@ impl ScanMatcher {
                     None => share,
                 });
             }
-            if let (Some(r), Some((sensor, fractions))) = (reg.as_ref(), swept.as_ref()) {
+            if let (Some(r), Some((sensor, fractions))) = (reg.as_ref(), as_seen.as_ref()) {
                 // The next rotation's reference: this cloud placed along the motion found,
-                // in its frame (the frame the filter's next mark stands for).
+                // in its frame (the frame the filter's next mark stands for), not along the
+                // caller's estimate, which a turn's onset or end makes wrong by a good part
+                // of the turn (the estimate bends the cloud; the registration's motion
+                // bends it far less).
                 local = place_along(&r.pose, sensor, fractions);
                 placed = true;
                 if sweep.is_some() {
@@ -378,16 +399,31 @@ impl ScanMatcher {
             }
         }
         self.reference_placed = placed;
-        self.previous = if local.is_empty() {
-            None
-        } else {
-            Some(ReferenceCloud::new(
-                local,
-                self.settings.normal_radius_m,
-                self.settings.pair_gate_m,
-            ))
-        };
+        self.previous = (!local.is_empty()).then_some(local);
+        self.previous_seen = as_seen;
         out
+    }
+
+    /// Places the last rotation's returns again along `motion`, the vehicle's pose at that
+    /// rotation's end in the frame at the mark before it as the caller settled on it (a
+    /// filter fusing the registration with its prediction settles between the two), so
+    /// that the next rotation's reference is in the frame the caller's next mark stands
+    /// for. Without it the reference is placed along the motion registered (or, when the
+    /// registration failed, the caller's estimate). Nothing happens before a rotation has
+    /// been closed with a motion estimate.
+    pub fn place_reference(&mut self, motion: Pose2) {
+        let Some((sensor, fractions)) = self.previous_seen.as_ref() else {
+            return;
+        };
+        if self.previous.is_none()
+            || ![motion.x, motion.y, motion.theta]
+                .iter()
+                .all(|v| v.is_finite())
+        {
+            return;
+        }
+        self.previous = Some(place_along(&motion, sensor, fractions));
+        self.reference_placed = true;
     }
 
     /// Pairs a registration of `points` points needs: [`ScanMatchSettings::min_pairs`], or
@@ -773,6 +809,87 @@ mod tests {
         assert!(
             replaced < 0.008,
             "re-placed, the heading reaches the turn: {replaced} rad (as placed {bent})"
+        );
+    }
+
+    /// A turn's onset the caller did not foresee bends the rotation swept through it: placed
+    /// along the caller's straight estimate, its returns lie up to the whole turn off. As
+    /// the next rotation's reference that bent cloud would carry the bend into the next
+    /// registration; placed again along the motion registered, it carries far less.
+    #[test]
+    fn the_next_reference_is_placed_along_the_motion_registered() {
+        let world = town();
+        let straight = Pose2::new(2.5, 0.0, 0.0);
+        let turn = crate::register::exp([2.5, 0.0, 0.12]);
+        let mut m = ScanMatcher::new(dense());
+        let mut start = Pose2::new(-15.0, 0.0, 0.0);
+        // The caller's estimate is the last motion registered (straight before the turn).
+        let mut estimate = straight;
+        let mut errors = Vec::new();
+        for (k, truth) in [straight, straight, turn, turn, turn].iter().enumerate() {
+            let t0 = 0.25 * k as f64;
+            feed_swept(&mut m, &world, &start, truth, &estimate, t0);
+            let end = RotationEnd {
+                pose: estimate,
+                since_s: t0,
+                until_s: t0 + 0.25,
+            };
+            if let Some(got) = m.end_rotation(Some(end), false) {
+                errors.push((got.motion.theta - truth.theta).abs());
+                estimate = got.motion;
+            }
+            start = start.compose(truth);
+        }
+        assert_eq!(errors.len(), 4, "{errors:?}");
+        // The onset (the third rotation) is registered short whatever is done with it; the
+        // rotations after it register against references placed along the motion found.
+        assert!(
+            errors[1] > 0.01,
+            "the onset is registered short: {errors:?}"
+        );
+        assert!(
+            errors[2] < 0.004 && errors[3] < 0.004,
+            "after the onset: {errors:?}"
+        );
+    }
+
+    /// A caller that settles on a motion of its own (a filter fusing the registration with
+    /// its prediction) has the reference placed along it, in the frame its next mark stands
+    /// for: settled on the truth, the registrations after the onset are on the truth; a
+    /// non-finite motion changes nothing.
+    #[test]
+    fn the_reference_is_placed_along_the_motion_the_caller_settled_on() {
+        let world = town();
+        let straight = Pose2::new(2.5, 0.0, 0.0);
+        let turn = crate::register::exp([2.5, 0.0, 0.12]);
+        let mut m = ScanMatcher::new(dense());
+        let mut start = Pose2::new(-15.0, 0.0, 0.0);
+        let mut estimate = straight;
+        let mut errors = Vec::new();
+        for (k, truth) in [straight, straight, turn, turn, turn].iter().enumerate() {
+            let t0 = 0.25 * k as f64;
+            feed_swept(&mut m, &world, &start, truth, &estimate, t0);
+            let end = RotationEnd {
+                pose: estimate,
+                since_s: t0,
+                until_s: t0 + 0.25,
+            };
+            if let Some(got) = m.end_rotation(Some(end), false) {
+                errors.push((got.motion.theta - truth.theta).abs());
+            }
+            let before = m.last_cloud().map(<[[f64; 2]]>::to_vec);
+            m.place_reference(Pose2::new(f64::NAN, 0.0, 0.0));
+            assert_eq!(m.last_cloud().map(<[[f64; 2]]>::to_vec), before);
+            m.place_reference(*truth);
+            estimate = *truth;
+            start = start.compose(truth);
+        }
+        assert_eq!(errors.len(), 4, "{errors:?}");
+        // The onset's own cloud was placed straight by the estimate: registered short.
+        assert!(errors[1] > 0.01, "{errors:?}");
+        assert!(
+            errors[0] < 0.004 && errors[2] < 0.005 && errors[3] < 0.005,
+            "{errors:?}"
         );
     }
 

@@ -211,6 +211,7 @@ fn an_absurd_or_non_finite_measurement_is_refused_and_changes_nothing() {
         steer_rad: 0.0,
     })
     .unwrap();
+    assert!(f.pose_since_mark().is_none(), "no mark yet");
     f.mark_motion();
     f.predict_to(T0 + 0.25).unwrap();
     let before = f.state().clone();
@@ -271,6 +272,13 @@ fn a_composed_motion_sets_the_pose_and_leaves_the_mark() {
     assert!((pose.x - (mark.x + c * 1.9 - s * 0.02)).abs() < 1e-12);
     assert!((pose.y - (mark.y + s * 1.9 + c * 0.02)).abs() < 1e-12);
     assert!((pose.theta - wrap_angle(mark.theta + 0.01)).abs() < 1e-12);
+    // The motion the filter holds since the mark is the measurement composed.
+    let held = f.pose_since_mark().expect("a mark");
+    assert!(
+        (held.x - 1.9).abs() < 1e-9 && (held.y - 0.02).abs() < 1e-9,
+        "{held:?}"
+    );
+    assert!((held.theta - 0.01).abs() < 1e-12, "{held:?}");
     let after = f.state().clone_pose_mean();
     assert_eq!(after, mark, "the mark does not move");
     let p = f.state().pose_covariance();

@@ -29,6 +29,14 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         self.state.tally.as_ref()
     }
 
+    /// The estimated pose in the frame of the estimated pose at the last mark (the clone),
+    /// every update since included: the motion the filter holds since the mark. `None`
+    /// without a mark.
+    pub fn pose_since_mark(&self) -> Option<Pose2> {
+        self.state.tally.as_ref()?;
+        Some(relative_pose(&self.state.clone_pose_mean(), &self.pose()).0)
+    }
+
     /// The pose at `time_s` in the frame of the pose at the last mark, as the odometry
     /// drives it (the tally extrapolated with the held odometry, mean only; updates since
     /// the mark do not move it). `None` without a mark or odometry.

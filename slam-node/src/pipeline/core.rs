@@ -93,6 +93,9 @@ pub struct Pipeline {
     gyro: Option<super::gyro::GyroQueue>,
     /// With truth: each rotation's published pose and the true pose then.
     online: Vec<(PoseSample, Pose2)>,
+    /// With truth and submaps: the filter's pose chained through the submaps' switch poses
+    /// alone (the online pose without the global layer's corrections), with the truth.
+    odometry_track: Vec<(PoseSample, Pose2)>,
     /// This thread's CPU clock when the last rotation closed (see `measure_cpu`).
     cpu_mark: Option<std::time::Duration>,
     /// The run's clock at the last periodic saved map (`[map] save_every_s`).
@@ -195,6 +198,7 @@ impl Pipeline {
             .composing(settings.radar_compose),
             gyro: settings.gyro.map(super::gyro::GyroQueue::new),
             online: Vec::new(),
+            odometry_track: Vec::new(),
             cpu_mark: None,
             last_map_save_s: None,
             burst_warned_s: f64::NEG_INFINITY,
@@ -672,6 +676,16 @@ impl Pipeline {
             if let Some(truth) = self.truth.as_ref() {
                 if let Some(t) = truth.pose_at(published.timestamp_s) {
                     self.online.push((published, t));
+                    if let Some(s) = self.submaps.as_ref() {
+                        let p = s.to_odometry(&self.ekf.pose());
+                        let chained = PoseSample {
+                            x_m: p.x,
+                            y_m: p.y,
+                            theta_rad: p.theta,
+                            ..published
+                        };
+                        self.odometry_track.push((chained, t));
+                    }
                 }
             }
             events.push(OutputEvent::Pose(published));
@@ -900,6 +914,11 @@ impl Pipeline {
         if !self.online.is_empty() {
             let (est, tru): (Vec<PoseSample>, Vec<Pose2>) = self.online.iter().copied().unzip();
             s.online = Some(super::submaps::score_trajectory(&est, &tru));
+        }
+        if !self.odometry_track.is_empty() {
+            let (est, tru): (Vec<PoseSample>, Vec<Pose2>) =
+                self.odometry_track.iter().copied().unzip();
+            s.odometry_track = Some(super::submaps::score_trajectory(&est, &tru));
         }
         s.odometry_out_of_order = self.gate.out_of_order();
         let localised = &self.online[..self.online_before_mapping.unwrap_or(self.online.len())];

@@ -196,6 +196,11 @@ impl RadarOdometryStage {
                 Err(e) => warn!(error = %e, "radar odometry update failed"),
             }
         }
+        // The next rotation registers against this one placed along the motion the filter
+        // settled on: the frame its next mark stands for.
+        if let Some(settled) = ekf.pose_since_mark() {
+            self.matcher.place_reference(settled);
+        }
         if self.drives {
             drive_sample(ekf, &self.motion, tally, applied.as_ref(), self.gyro)
         } else {

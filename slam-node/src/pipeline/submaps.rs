@@ -162,6 +162,9 @@ pub struct SubmapRun {
     /// Each frozen submap's scan as handed to the global layer (`None`: it kept none), for
     /// the saved map.
     scans: Vec<Option<Arc<Vec<[f64; 2]>>>>,
+    /// The current submap's frame chained from this run's first by the switch poses alone,
+    /// never by the global layer's solutions: the frame of the run's odometry.
+    odometry_frame: Pose2,
 }
 
 /// A saved map to go on from, as [`SubmapRun::resumed`] takes it.
@@ -218,6 +221,7 @@ impl SubmapRun {
             drive_starts: Vec::new(),
             joins: Vec::new(),
             scans: Vec::new(),
+            odometry_frame: Pose2::new(0.0, 0.0, 0.0),
         })
     }
 
@@ -229,6 +233,7 @@ impl SubmapRun {
         let joins = r.layer.joins().to_vec();
         let loops = r.layer.loops().to_vec();
         let (frames, frame_covs): (Vec<Pose2>, Vec<Matrix3<f64>>) = r.frames.into_iter().unzip();
+        let odometry_frame = frames.last().copied().unwrap_or(Pose2::new(0.0, 0.0, 0.0));
         Ok(Self {
             layer: Some(GlobalLayer::spawn_with(r.layer)?),
             options,
@@ -249,6 +254,7 @@ impl SubmapRun {
             drive_starts: r.drive_starts,
             joins,
             scans: r.scans,
+            odometry_frame,
         })
     }
 
@@ -276,6 +282,14 @@ impl SubmapRun {
         }
         let (f, fc) = self.frame();
         world_pose(&f, &fc, local, cov)
+    }
+
+    /// A pose of the current submap in the frame of the run's odometry: the submaps'
+    /// frames chained by their switch poses only, the global layer's corrections left out
+    /// (the pose a radar odometry's drift is measured on; the published pose takes the
+    /// corrections as they come).
+    pub fn to_odometry(&self, local: &Pose2) -> Pose2 {
+        compose(&self.odometry_frame, local)
     }
 
     /// A point of the current submap in the world.
@@ -381,6 +395,7 @@ impl SubmapRun {
         );
         self.frames.push(p);
         self.frame_covs.push(c);
+        self.odometry_frame = compose(&self.odometry_frame, &frozen.end_pose);
         let scan = self.scan.take();
         let scan_points = scan.len();
         let scan = (self.options.global.scans.enabled && !scan.is_empty()).then_some(scan);

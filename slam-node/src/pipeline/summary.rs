@@ -122,6 +122,11 @@ pub struct PipelineSummary {
     /// trajectory (its drift over 100-800 m segments).
     #[serde(skip)]
     pub online: Option<super::submaps::TrajectoryScore>,
+    /// With ground truth and submaps: the filter's pose chained through the submaps'
+    /// switch poses alone, the global layer's corrections left out (the odometry), scored
+    /// as a trajectory.
+    #[serde(skip)]
+    pub odometry_track: Option<super::submaps::TrajectoryScore>,
     /// Pose error against truth.
     pub pose: Option<PoseErrorStats>,
     /// Associated observations against the true geometry (truth known only).
