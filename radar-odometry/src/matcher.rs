@@ -207,6 +207,9 @@ pub struct ScanMatcher {
     /// the rotation), to place them again along the motion its caller settles on
     /// ([`Self::place_reference`]).
     previous_seen: Option<AsSeen>,
+    /// The motion the previous rotation's returns are placed along (the frame at its end in
+    /// the frame at the mark before it).
+    previous_motion: Option<Pose2>,
     /// Whether they were placed along a motion (registered, or the caller's estimate), not
     /// swept from where the caller had none.
     reference_placed: bool,
@@ -322,6 +325,7 @@ impl ScanMatcher {
         else {
             self.previous = None;
             self.previous_seen = None;
+            self.previous_motion = None;
             return None;
         };
         let mut local = in_frame_of(&end, &points);
@@ -344,6 +348,9 @@ impl ScanMatcher {
         let mut out = None;
         // Replaced by this rotation's cloud below, whatever the registration does.
         self.previous_seen = None;
+        self.previous_motion = None;
+        // Placed along the caller's estimate (none when searching: where each was seen).
+        let mut motion = (!search).then_some(end);
         if let Some(points) = self.previous.take() {
             let reference = &ReferenceCloud::new(
                 points,
@@ -385,6 +392,7 @@ impl ScanMatcher {
                 // of the turn (the estimate bends the cloud; the registration's motion
                 // bends it far less).
                 local = place_along(&r.pose, sensor, fractions);
+                motion = Some(r.pose);
                 placed = true;
                 if sweep.is_some() {
                     self.counts.swept += 1;
@@ -401,7 +409,37 @@ impl ScanMatcher {
         self.reference_placed = placed;
         self.previous = (!local.is_empty()).then_some(local);
         self.previous_seen = as_seen;
+        self.previous_motion = motion;
         out
+    }
+
+    /// Moves each of the last rotation's returns `shift(bearing)` metres along its beam and
+    /// places them again along the motion they were placed along: for returns read before
+    /// the caller could correct them (the range-Doppler coupling of a radar on a vehicle
+    /// whose speed was not yet known reads a return ahead short), so that the next
+    /// rotation, corrected, registers against a reference corrected the same way. Nothing
+    /// happens without such a rotation, or for a non-finite shift.
+    pub fn shift_reference_ranges(&mut self, shift: impl Fn(f64) -> f64) {
+        let (Some((sensor, fractions)), Some(motion), Some(_)) = (
+            self.previous_seen.as_mut(),
+            self.previous_motion,
+            self.previous.as_ref(),
+        ) else {
+            return;
+        };
+        let origin = Pose2::new(0.0, 0.0, 0.0);
+        let mut moved = false;
+        for p in sensor.iter_mut() {
+            let bearing = -p[1].atan2(p[0]);
+            let d = shift(bearing);
+            if d.is_finite() && d != 0.0 {
+                *p = origin.point_at(p[0].hypot(p[1]) + d, bearing);
+                moved = true;
+            }
+        }
+        if moved {
+            self.previous = Some(place_along(&motion, sensor, fractions));
+        }
     }
 
     /// Places the last rotation's returns again along `motion`, the vehicle's pose at that
@@ -423,6 +461,7 @@ impl ScanMatcher {
             return;
         }
         self.previous = Some(place_along(&motion, sensor, fractions));
+        self.previous_motion = Some(motion);
         self.reference_placed = true;
     }
 
@@ -891,6 +930,57 @@ mod tests {
             errors[0] < 0.004 && errors[2] < 0.005 && errors[3] < 0.005,
             "{errors:?}"
         );
+    }
+
+    /// Returns read before their ranges could be corrected (a range-Doppler coupling at an
+    /// unknown speed reads those ahead short) are moved along their beams and placed again:
+    /// the reference equals the rotation read correctly. A non-finite shift moves nothing.
+    #[test]
+    fn the_references_ranges_are_shifted_along_their_beams() {
+        let world = town();
+        let shift = |bearing: f64| 0.4 * bearing.cos();
+        let end = Some(RotationEnd {
+            pose: Pose2::new(0.0, 0.0, 0.0),
+            since_s: 0.0,
+            until_s: 0.25,
+        });
+        let mut read_short = ScanMatcher::new(dense());
+        let mut read_right = ScanMatcher::new(dense());
+        for (bearing, returns) in scan(&world, &Pose2::new(0.0, 0.0, 0.0)) {
+            let short: Vec<Return> = returns
+                .iter()
+                .map(|r| Return {
+                    range_m: r.range_m - shift(bearing),
+                    ..*r
+                })
+                .collect();
+            read_short.add_azimuth(Some(Pose2::new(0.0, 0.0, 0.0)), 0.1, bearing, &short);
+            read_right.add_azimuth(Some(Pose2::new(0.0, 0.0, 0.0)), 0.1, bearing, &returns);
+        }
+        read_short.end_rotation(end, false);
+        read_right.end_rotation(end, false);
+        let before = read_short.last_cloud().expect("a cloud").to_vec();
+        read_short.shift_reference_ranges(|_| f64::NAN);
+        assert_eq!(read_short.last_cloud().expect("a cloud"), &before[..]);
+        read_short.shift_reference_ranges(shift);
+        let (a, b) = (
+            read_short.last_cloud().expect("a cloud"),
+            read_right.last_cloud().expect("a cloud"),
+        );
+        assert_eq!(a.len(), b.len());
+        let worst = a
+            .iter()
+            .zip(b)
+            .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-9, "{worst} m");
+        // Ahead the returns moved 0.4 m out.
+        let moved = before
+            .iter()
+            .zip(a)
+            .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+            .fold(0.0, f64::max);
+        assert!((moved - 0.4).abs() < 0.01, "{moved} m");
     }
 
     /// Through a turn the estimate (the last rotation's motion) misses the turn's change:

@@ -826,10 +826,12 @@ impl Pipeline {
         let end_s = self
             .last_time_s
             .unwrap_or_else(|| self.ekf.state().time_s());
-        if let Some(sample) =
-            self.scan_match
-                .end_rotation(&mut self.ekf, self.truth.as_ref(), end_s)
-        {
+        if let Some(sample) = self.scan_match.end_rotation(
+            &mut self.ekf,
+            self.truth.as_ref(),
+            end_s,
+            self.settings.doppler_range_coupling_s,
+        ) {
             // Radar only: the sample is the only odometry; it is applied at once, at its own
             // time, so that the next rotation is de-skewed with it.
             let t = sample.timestamp_s;

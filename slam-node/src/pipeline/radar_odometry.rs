@@ -137,14 +137,25 @@ impl RadarOdometryStage {
     /// filter ([`slam_filter::Ekf::mark_motion`]) for the next rotation. Driving, before the
     /// filter has started, the registration searches for the motion and its first result
     /// starts the filter.
+    /// `doppler_coupling_s` is the radar's range-Doppler coupling: the returns read before
+    /// the filter started were not corrected for it, and the reference the first rotation
+    /// after the start registers against is corrected with the speed it starts at.
     pub fn end_rotation(
         &mut self,
         ekf: &mut DaemonEkf,
         truth: Option<&TruthObserver>,
         end_s: f64,
+        doppler_coupling_s: f64,
     ) -> Option<OdometrySample> {
         if self.drives && ekf.held_odometry().is_none() {
-            return self.start(end_s);
+            let sample = self.start(end_s);
+            if let Some(first) = sample.as_ref() {
+                let speed = first.speed_mps;
+                self.matcher.shift_reference_ranges(|bearing| {
+                    super::frontend::doppler_range_shift_m(doppler_coupling_s, speed, bearing)
+                });
+            }
+            return sample;
         }
         let tally = ekf.motion_tally().copied();
         let until_s = ekf.state().time_s();
