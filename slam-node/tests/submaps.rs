@@ -1,6 +1,7 @@
 //! The filter on submaps, through the daemon's pipeline: with limits never reached it is
 //! today's dense filter to 1e-9; with a small limit it closes submaps and the published
-//! world pose stays where the dense filter's is.
+//! world pose stays where the dense filter's is, and the odometry (the filter's pose chained
+//! by the switch poses alone) goes on across every switch without a jump.
 
 mod support;
 
@@ -44,6 +45,15 @@ fn run(
     submaps: Option<SubmapOptions>,
     azimuths: &[radar_driver::Azimuth],
 ) -> (Pipeline, Vec<PoseSample>) {
+    let (p, poses, _) = run_with_odometry(submaps, azimuths);
+    (p, poses)
+}
+
+/// [`run`], with the odometry's poses (`OutputEvent::OdometryPose`).
+fn run_with_odometry(
+    submaps: Option<SubmapOptions>,
+    azimuths: &[radar_driver::Azimuth],
+) -> (Pipeline, Vec<PoseSample>, Vec<PoseSample>) {
     let mut s = support::still_radar_settings();
     s.motion = MotionModel::Bicycle { wheelbase_m: 2.7 };
     s.submaps = submaps;
@@ -62,14 +72,15 @@ fn run(
         p.process_azimuth(az, &mut events).expect("processed");
     }
     p.finish(&mut events);
-    let poses = events
-        .into_iter()
-        .filter_map(|e| match e {
-            OutputEvent::Pose(p) => Some(p),
-            _ => None,
-        })
-        .collect();
-    (p, poses)
+    let (mut poses, mut odometry) = (Vec::new(), Vec::new());
+    for e in events {
+        match e {
+            OutputEvent::Pose(p) => poses.push(p),
+            OutputEvent::OdometryPose(p) => odometry.push(p),
+            _ => {}
+        }
+    }
+    (p, poses, odometry)
 }
 
 fn options(limits: SubmapLimits) -> SubmapOptions {
@@ -125,4 +136,43 @@ fn small_submaps_close_and_the_world_pose_stays_with_the_dense_one() {
     assert!(d < 0.5, "world poses {d:.3} m apart");
     // The world covariance carries the frames' uncertainty: positive definite.
     assert!(cs.cholesky().is_some());
+}
+
+#[test]
+fn the_odometry_goes_on_across_every_submap_switch() {
+    let azimuths = drive(40);
+    let (dense, dense_poses, dense_odometry) = run_with_odometry(None, &azimuths);
+    assert!(
+        dense_odometry.is_empty(),
+        "no submaps, no separate odometry"
+    );
+    let limits = SubmapLimits {
+        max_distance_m: 4.0,
+        max_features: 1000,
+    };
+    let (sub, poses, odometry) = run_with_odometry(Some(options(limits)), &azimuths);
+    assert!(sub.submaps().expect("submaps on").current() >= 3);
+    assert_eq!(
+        odometry.len(),
+        poses.len(),
+        "an odometry pose with each pose"
+    );
+    for (o, p) in odometry.iter().zip(&poses) {
+        assert_eq!(o.timestamp_s, p.timestamp_s);
+    }
+    // At 2 m/s no step between poses is a jump.
+    for w in odometry.windows(2) {
+        let step = (w[1].x_m - w[0].x_m).hypot(w[1].y_m - w[0].y_m);
+        let dt = w[1].timestamp_s - w[0].timestamp_s;
+        let turn = (w[1].theta_rad - w[0].theta_rad).abs();
+        assert!(
+            step < 1.25 * SPEED * dt + 0.05 && turn < 0.1,
+            "a step of {step} m in {dt} s, {turn} rad"
+        );
+    }
+    // It ends where the dense filter does (the same motion, the same posts).
+    let (a, b) = (dense_poses.last().unwrap(), odometry.last().unwrap());
+    let d = (a.x_m - b.x_m).hypot(a.y_m - b.y_m);
+    assert!(d < 0.5, "{d} m from the dense filter");
+    let _ = dense;
 }

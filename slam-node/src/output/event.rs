@@ -16,6 +16,11 @@ use super::trajectory::PoseSample;
 pub enum OutputEvent {
     /// One trajectory pose.
     Pose(PoseSample),
+    /// On submaps, with each pose: the vehicle chained by the filter's motion and the
+    /// submaps' switch poses alone, the global layer's corrections left out (the odometry):
+    /// written as `trajectory-odometry.tum` and, in the Boreas benchmark's odometry format,
+    /// as `odometry-boreas.txt`.
+    OdometryPose(PoseSample),
     /// One rotation's diagnostics.
     Rotation(Box<RotationDiagnostics>),
     /// A map snapshot (rewrites the map file).

@@ -297,6 +297,7 @@ impl<W: Write + Seek> McapRecorder<W> {
             }
             OutputEvent::Spectrum(_)
             | OutputEvent::Truth(_)
+            | OutputEvent::OdometryPose(_)
             | OutputEvent::Trajectory(_)
             | OutputEvent::SavedMap(_) => Ok(()),
         }

@@ -316,6 +316,10 @@ impl OutputHandle {
 /// The trajectory in the Boreas benchmark's odometry format, next to `trajectory.tum`.
 pub const BOREAS_ODOMETRY_FILE: &str = "odometry-boreas.txt";
 
+/// The odometry's trajectory (on submaps: the filter's pose chained by the switch poses
+/// alone, the global layer's corrections left out), next to `trajectory.tum` (TUM).
+pub const ODOMETRY_TRAJECTORY_FILE: &str = "trajectory-odometry.tum";
+
 /// The ground-truth trajectory's file name, next to the estimated trajectory (TUM).
 pub const GROUND_TRUTH_FILE: &str = "groundtruth.tum";
 
@@ -361,6 +365,10 @@ fn run(
         summary.files.push(files.dir.join(SPECTRA_FILE));
     }
     let mut poses: Vec<PoseSample> = Vec::new();
+    // On submaps: the odometry's poses (the Boreas file takes them) and their file.
+    let mut odometry_poses: Vec<PoseSample> = Vec::new();
+    let mut odometry_traj: Option<TumWriter<BufWriter<File>>> = None;
+    let odometry_path = files.dir.join(ODOMETRY_TRAJECTORY_FILE);
     let mut ground_truth: Option<TumWriter<BufWriter<File>>> = None;
     // The pose of the rotation being closed (a Pose comes just before its Rotation).
     let mut rotation_pose: Option<PoseSample> = None;
@@ -388,6 +396,18 @@ fn run(
                 rotation_pose = Some(p);
                 poses.push(p);
                 summary.poses += 1;
+            }
+            OutputEvent::OdometryPose(p) => {
+                if odometry_traj.is_none() {
+                    let w =
+                        TumWriter::new(create(&odometry_path)?).map_err(io_err(&odometry_path))?;
+                    summary.files.push(odometry_path.clone());
+                    odometry_traj = Some(w);
+                }
+                if let Some(w) = odometry_traj.as_mut() {
+                    w.write(&p).map_err(io_err(&odometry_path))?;
+                }
+                odometry_poses.push(p);
             }
             OutputEvent::Rotation(r) => {
                 // The rotation's pose came just before it; with its error against the truth
@@ -496,6 +516,9 @@ fn run(
         }
     }
     traj.flush().map_err(io_err(&traj_path))?;
+    if let Some(w) = odometry_traj.as_mut() {
+        w.flush().map_err(io_err(&odometry_path))?;
+    }
     if let Some(w) = ground_truth.as_mut() {
         w.flush().map_err(io_err(&truth_path))?;
     }
@@ -504,9 +527,16 @@ fn run(
         spec.flush().map_err(io_err(&spec_path))?;
     }
     // The trajectory in the Boreas benchmark's odometry format (a row per rotation: the time
-    // in microseconds and the upper 3x4 of T_vk_v0, z up), for its evaluator as it is.
-    if !poses.is_empty() {
-        let frames: Vec<(i64, radar_model::geometry::Pose2)> = poses
+    // in microseconds and the upper 3x4 of T_vk_v0, z up), for its evaluator as it is: the
+    // odometry's on submaps (an odometry benchmark scores motion, and the global layer's
+    // corrections arrive as jumps), else the published poses.
+    let boreas_poses = if odometry_poses.is_empty() {
+        &poses
+    } else {
+        &odometry_poses
+    };
+    if !boreas_poses.is_empty() {
+        let frames: Vec<(i64, radar_model::geometry::Pose2)> = boreas_poses
             .iter()
             .map(|p| {
                 (

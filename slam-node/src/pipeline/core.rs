@@ -671,24 +671,30 @@ impl Pipeline {
                     [cov[(2, 0)], cov[(2, 1)], cov[(2, 2)]],
                 ],
             };
+            // On submaps, the odometry: the filter's pose chained by the switch poses alone.
+            let odometry = self.submaps.as_ref().map(|s| {
+                let p = s.to_odometry(&self.ekf.pose());
+                PoseSample {
+                    x_m: p.x,
+                    y_m: p.y,
+                    theta_rad: p.theta,
+                    ..published
+                }
+            });
             // With truth, the online trajectory is kept to be scored at the end (a pose a
             // rotation: 8.6 MB for six hours at 4 Hz).
             if let Some(truth) = self.truth.as_ref() {
                 if let Some(t) = truth.pose_at(published.timestamp_s) {
                     self.online.push((published, t));
-                    if let Some(s) = self.submaps.as_ref() {
-                        let p = s.to_odometry(&self.ekf.pose());
-                        let chained = PoseSample {
-                            x_m: p.x,
-                            y_m: p.y,
-                            theta_rad: p.theta,
-                            ..published
-                        };
+                    if let Some(chained) = odometry {
                         self.odometry_track.push((chained, t));
                     }
                 }
             }
             events.push(OutputEvent::Pose(published));
+            if let Some(chained) = odometry {
+                events.push(OutputEvent::OdometryPose(chained));
+            }
             if let Some(truth) = self.truth.as_mut() {
                 truth.on_rotation(
                     self.ekf.state().time_s(),
