@@ -60,10 +60,10 @@ pub fn summary_text(r: &DaemonReport) -> String {
         put(&PoseError(p));
     }
     if let Some(o) = &s.online {
-        put(&OnlineDrift(o));
+        put(&DriftLine::Online(o));
     }
     if let Some(o) = &s.odometry_track {
-        put(&OdometryDrift(o));
+        put(&DriftLine::Odometry(o));
     }
     if let Some(o) = &s.observation_errors {
         put(&ObservationErrors(o));
@@ -503,44 +503,37 @@ fn drift_text(o: &crate::pipeline::submaps::TrajectoryScore) -> String {
     }
 }
 
-/// The pose published each rotation (the online pose) against the truth, as the radar
-/// odometry literature scores a trajectory: printed when the drive is long enough to have
-/// 100 m segments.
-struct OnlineDrift<'a>(&'a crate::pipeline::submaps::TrajectoryScore);
-
-impl fmt::Display for OnlineDrift<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let o = self.0;
-        if o.drift_percent.is_none() {
-            return Ok(());
-        }
-        writeln!(
-            f,
-            "  online pose vs truth (as published each rotation): RMS {:.3} m, max {:.3} m; drift over 100-800 m segments {} on {:.0} m driven (KITTI / Boreas definition, slam_filter::drift)",
-            o.rms_m,
-            o.max_m,
-            drift_text(o),
-            o.length_m
-        )
-    }
+/// A trajectory against the truth, as the radar odometry literature scores one: printed
+/// when the drive is long enough to have 100 m segments. The pose published each rotation
+/// (the online pose, with its RMS and max), or the odometry: the filter's pose chained
+/// through the submaps' switch poses alone, the online pose without the global layer's
+/// corrections, which arrive as jumps and count as drift in every segment across them.
+enum DriftLine<'a> {
+    Online(&'a crate::pipeline::submaps::TrajectoryScore),
+    Odometry(&'a crate::pipeline::submaps::TrajectoryScore),
 }
 
-/// The filter's pose chained through the submaps' switch poses alone: the online pose
-/// without the global layer's corrections, which arrive as jumps and count as drift in
-/// every segment across them. The drift the radar odometry literature reports.
-struct OdometryDrift<'a>(&'a crate::pipeline::submaps::TrajectoryScore);
-
-impl fmt::Display for OdometryDrift<'_> {
+impl fmt::Display for DriftLine<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let o = self.0;
+        let (Self::Online(o) | Self::Odometry(o)) = *self;
         if o.drift_percent.is_none() {
             return Ok(());
         }
-        writeln!(
-            f,
-            "  odometry vs truth (the online pose without the global layer's corrections): drift over 100-800 m segments {}",
-            drift_text(o),
-        )
+        match self {
+            Self::Online(_) => writeln!(
+                f,
+                "  online pose vs truth (as published each rotation): RMS {:.3} m, max {:.3} m; drift over 100-800 m segments {} on {:.0} m driven (KITTI / Boreas definition, slam_filter::drift)",
+                o.rms_m,
+                o.max_m,
+                drift_text(o),
+                o.length_m
+            ),
+            Self::Odometry(_) => writeln!(
+                f,
+                "  odometry vs truth (the online pose without the global layer's corrections): drift over 100-800 m segments {}",
+                drift_text(o),
+            ),
+        }
     }
 }
 

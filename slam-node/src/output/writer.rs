@@ -398,15 +398,9 @@ fn run(
                 summary.poses += 1;
             }
             OutputEvent::OdometryPose(p) => {
-                if odometry_traj.is_none() {
-                    let w =
-                        TumWriter::new(create(&odometry_path)?).map_err(io_err(&odometry_path))?;
-                    summary.files.push(odometry_path.clone());
-                    odometry_traj = Some(w);
-                }
-                if let Some(w) = odometry_traj.as_mut() {
-                    w.write(&p).map_err(io_err(&odometry_path))?;
-                }
+                opened(&mut odometry_traj, &odometry_path, &mut summary.files)?
+                    .write(&p)
+                    .map_err(io_err(&odometry_path))?;
                 odometry_poses.push(p);
             }
             OutputEvent::Rotation(r) => {
@@ -414,15 +408,9 @@ fn run(
                 // the true pose is known: write it for `evo_ape tum groundtruth.tum
                 // trajectory.tum`.
                 if let Some(t) = rotation_pose.take().and_then(|p| true_pose(&p, &r)) {
-                    if ground_truth.is_none() {
-                        let w =
-                            TumWriter::new(create(&truth_path)?).map_err(io_err(&truth_path))?;
-                        summary.files.push(truth_path.clone());
-                        ground_truth = Some(w);
-                    }
-                    if let Some(w) = ground_truth.as_mut() {
-                        w.write(&t).map_err(io_err(&truth_path))?;
-                    }
+                    opened(&mut ground_truth, &truth_path, &mut summary.files)?
+                        .write(&t)
+                        .map_err(io_err(&truth_path))?;
                 }
                 if diag_csv {
                     writeln!(diag, "{}", super::csv::diagnostics_row(&r))
@@ -564,6 +552,23 @@ fn run(
         summary.figures.push(p);
     }
     Ok(summary)
+}
+
+/// The TUM file in `slot`, created at `path` (and listed in `files`) on its first pose.
+fn opened<'a>(
+    slot: &'a mut Option<TumWriter<BufWriter<File>>>,
+    path: &std::path::Path,
+    files: &mut Vec<PathBuf>,
+) -> Result<&'a mut TumWriter<BufWriter<File>>, WriterError> {
+    let w = match slot.take() {
+        Some(w) => w,
+        None => {
+            let w = TumWriter::new(create(path)?).map_err(io_err(path))?;
+            files.push(path.to_path_buf());
+            w
+        }
+    };
+    Ok(slot.insert(w))
 }
 
 /// `dir/name-online.ext` beside `dir/name.ext`.
