@@ -71,6 +71,44 @@ async fn the_realistic_street_is_driven_on_the_radar_alone() {
     assert!(online.mean_nees < 7.81 * 3.0, "NEES {}", online.mean_nees);
 }
 
+/// On submaps every switch drops the filter's mark; marked again at once, radar odometry
+/// registers the rotation after the switch against the one before it, as any other (it
+/// lost that rotation and searched for the next before: two registrations a switch).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn radar_odometry_registers_straight_across_submap_switches() {
+    let work = tempfile::tempdir().expect("a folder");
+    // The vehicle's submaps (100 m) made 15 m long.
+    let text = vehicle_radar_only().replace("max_distance_m = 100.0", "max_distance_m = 15.0");
+    assert!(text.contains("max_distance_m = 15.0"), "{text}");
+    let config = config::Config::from_toml_str(&text).expect("the configuration");
+    let scene = sim_sensor::scene::Scene::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../sim-sensor/scenes/urban-street.toml"),
+    )
+    .expect("the realistic street");
+    let mut sim = SimOptions::for_tests(scene);
+    sim.pacing = Pacing::AsFastAsPossible;
+    let mut opts = options(config, Some(&text), work.path());
+    opts.max_stream_s = Some(10.0);
+    opts.simulator = Some(Simulator {
+        sim: EmbeddedSim::new(sim),
+        recorded: None,
+    });
+    let report = run_daemon(opts, None).await.expect("the run");
+    let s = &report.run.summary;
+    let switches = s.submaps.as_ref().expect("submaps").submaps - 1;
+    assert!(switches >= 3, "about 70 m in submaps of 15 m: {switches}");
+    let m = s.scan_match.expect("radar odometry ran");
+    // The first registrations search (no motion yet); none after a switch.
+    assert!(m.searched <= 2, "{m:?}");
+    assert!(m.failed <= 1, "{m:?}");
+    assert!(
+        m.tried + 3 >= s.rotations,
+        "a registration every rotation: {} of {} rotations",
+        m.tried,
+        s.rotations
+    );
+}
+
 fn recorded(dir: PathBuf) -> RecordedReplay {
     RecordedReplay {
         dir,
