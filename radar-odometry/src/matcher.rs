@@ -794,6 +794,28 @@ mod tests {
         }
     }
 
+    /// Rotation `k` (a quarter second each) swept from `start` along `truth`, placed by the
+    /// caller along `estimate` and closed with it; `start` moves on to the rotation's end.
+    fn sweep_rotation(
+        m: &mut ScanMatcher,
+        world: &[[f64; 2]],
+        start: &mut Pose2,
+        truth: &Pose2,
+        estimate: &Pose2,
+        k: usize,
+    ) -> Option<RotationMotion> {
+        let t0 = 0.25 * k as f64;
+        feed_swept(m, world, start, truth, estimate, t0);
+        let end = RotationEnd {
+            pose: *estimate,
+            since_s: t0,
+            until_s: t0 + 0.25,
+        };
+        let got = m.end_rotation(Some(end), false);
+        *start = start.compose(truth);
+        got
+    }
+
     #[test]
     fn the_exponential_inverts_the_logarithm() {
         use crate::register::{exp, log};
@@ -826,16 +848,7 @@ mod tests {
             let mut start = Pose2::new(-10.0, 0.0, 0.0);
             let mut got = None;
             for (k, truth) in [straight, straight, straight, turn].iter().enumerate() {
-                let t0 = 0.25 * k as f64;
-                feed_swept(&mut m, &world, &start, truth, &straight, t0);
-                let end = RotationEnd {
-                    pose: straight,
-                    since_s: t0,
-                    until_s: t0 + 0.25,
-                };
-                got = m.end_rotation(Some(end), false);
-                let p = start.point_at(truth.x.hypot(truth.y), -truth.y.atan2(truth.x));
-                start = Pose2::new(p[0], p[1], start.theta + truth.theta);
+                got = sweep_rotation(&mut m, &world, &mut start, truth, &straight, k);
             }
             let got = got.expect("registers");
             (got.motion.theta - turn.theta).abs()
@@ -865,14 +878,8 @@ mod tests {
         let mut estimate = straight;
         let mut errors = Vec::new();
         for (k, truth) in [straight, straight, turn, turn, turn].iter().enumerate() {
-            let t0 = 0.25 * k as f64;
-            feed_swept(&mut m, &world, &start, truth, &estimate, t0);
-            let end = RotationEnd {
-                pose: estimate,
-                since_s: t0,
-                until_s: t0 + 0.25,
-            };
-            if let Some(got) = m.end_rotation(Some(end), false) {
+            let registered = sweep_rotation(&mut m, &world, &mut start, truth, &estimate, k);
+            if let Some(got) = registered {
                 errors.push((got.motion.theta - truth.theta).abs());
                 estimate = got.motion;
             }
@@ -883,7 +890,6 @@ mod tests {
                 m.place_reference(*truth);
                 estimate = *truth;
             }
-            start = start.compose(truth);
         }
         assert_eq!(errors.len(), 4, "{errors:?}");
         // The onset's own cloud was placed straight by the estimate: registered short,

@@ -291,3 +291,29 @@ fn a_composed_motion_sets_the_pose_and_leaves_the_mark() {
         .is_err());
     assert_eq!(f.pose(), pose);
 }
+
+/// A new submap starts at the vehicle; a mark set before is set again there (the motion
+/// since the old one belongs to the old frame), so the motion from the switch on is
+/// measured as before. Without a mark none is set.
+#[test]
+fn a_new_submap_keeps_a_mark_at_the_vehicle() {
+    let mut f = filter(FilterSettings::default());
+    f.apply_odometry(OdometrySample {
+        timestamp_s: T0,
+        speed_mps: 8.0,
+        steer_rad: 0.0,
+    })
+    .unwrap();
+    f.start_submap();
+    assert!(f.motion_tally().is_none(), "no mark before, none after");
+    f.mark_motion();
+    f.predict_to(T0 + 0.25).unwrap();
+    f.start_submap();
+    let tally = f.motion_tally().expect("marked again");
+    assert_eq!(tally.since_s, T0 + 0.25);
+    let held = f.pose_since_mark().expect("a mark");
+    assert!(held.x.abs() < 1e-12 && held.y.abs() < 1e-12 && held.theta.abs() < 1e-12);
+    f.predict_to(T0 + 0.5).unwrap();
+    let moved = f.pose_since_mark().expect("a mark");
+    assert!((moved.x - 2.0).abs() < 1e-6, "{moved:?}");
+}

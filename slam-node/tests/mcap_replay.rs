@@ -105,16 +105,7 @@ fn unknown_schemas_wrong_encodings_and_malformed_cdr_cost_their_messages_only() 
     let scan_proto = w
         .add_channel(proto, TOPIC_BSCAN, "cdr", &none)
         .expect("channel");
-    let scan_schema = w
-        .add_schema(
-            &RadarBScanMsg::type_name(),
-            "ros2msg",
-            RadarBScanMsg::schema_text().as_bytes(),
-        )
-        .expect("schema");
-    let scan = w
-        .add_channel(scan_schema, TOPIC_BSCAN, "cdr", &none)
-        .expect("channel");
+    let scan = ros2_channel::<RadarBScanMsg, _>(&mut w, TOPIC_BSCAN);
     let good = to_cdr(&TwistStamped {
         header: Header::new(Time::from_secs_f64(T0), "base_link"),
         twist: Twist {
@@ -127,18 +118,7 @@ fn unknown_schemas_wrong_encodings_and_malformed_cdr_cost_their_messages_only() 
         },
     })
     .expect("cdr");
-    let mut write = |channel_id, data: &[u8]| {
-        w.write_to_known_channel(
-            &mcap::records::MessageHeader {
-                channel_id,
-                sequence: 0,
-                log_time: 1,
-                publish_time: 1,
-            },
-            data,
-        )
-        .expect("write");
-    };
+    let mut write = |channel_id, data: &[u8]| write_message(&mut w, channel_id, data);
     write(odo_ok, &good);
     write(odo_json, b"{\"twist\": 1}");
     write(scan_proto, b"\x08\x01");
@@ -272,39 +252,9 @@ fn an_fft_message_holds_only_the_bins_it_declares() {
         .compression(Some(mcap::Compression::Zstd))
         .create(Cursor::new(Vec::new()))
         .expect("writer");
-    let none = BTreeMap::new();
-    let config_schema = w
-        .add_schema(
-            &RadarConfigurationMsg::type_name(),
-            "ros2msg",
-            RadarConfigurationMsg::schema_text().as_bytes(),
-        )
-        .expect("schema");
-    let config = w
-        .add_channel(config_schema, "/radar_data/configuration", "cdr", &none)
-        .expect("channel");
-    let fft_schema = w
-        .add_schema(
-            &RadarFftDataMsg::type_name(),
-            "ros2msg",
-            RadarFftDataMsg::schema_text().as_bytes(),
-        )
-        .expect("schema");
-    let fft = w
-        .add_channel(fft_schema, "/radar_data/fft_data", "cdr", &none)
-        .expect("channel");
-    let mut write = |channel_id, data: &[u8]| {
-        w.write_to_known_channel(
-            &mcap::records::MessageHeader {
-                channel_id,
-                sequence: 0,
-                log_time: 1,
-                publish_time: 1,
-            },
-            data,
-        )
-        .expect("write");
-    };
+    let config = ros2_channel::<RadarConfigurationMsg, _>(&mut w, "/radar_data/configuration");
+    let fft = ros2_channel::<RadarFftDataMsg, _>(&mut w, "/radar_data/fft_data");
+    let mut write = |channel_id, data: &[u8]| write_message(&mut w, channel_id, data);
     let configuration = RadarConfigurationMsg {
         header: Header::new(Time::from_secs_f64(T0), "radar"),
         azimuth_samples: 400,

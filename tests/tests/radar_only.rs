@@ -43,24 +43,29 @@ fn vehicle_radar_only() -> String {
     out
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_realistic_street_is_driven_on_the_radar_alone() {
+/// 10 s of the realistic street through the configuration `text`, on the embedded
+/// simulator (every port on 127.0.0.1:0).
+async fn street(text: &str) -> slam_node::daemon::DaemonReport {
     let work = tempfile::tempdir().expect("a folder");
-    let text = vehicle_radar_only();
-    let config = config::Config::from_toml_str(&text).expect("the radar-only configuration");
+    let config = config::Config::from_toml_str(text).expect("the configuration");
     let scene = sim_sensor::scene::Scene::load(
         &Path::new(env!("CARGO_MANIFEST_DIR")).join("../sim-sensor/scenes/urban-street.toml"),
     )
     .expect("the realistic street");
     let mut sim = SimOptions::for_tests(scene);
     sim.pacing = Pacing::AsFastAsPossible;
-    let mut opts = options(config, Some(&text), work.path());
+    let mut opts = options(config, Some(text), work.path());
     opts.max_stream_s = Some(10.0);
     opts.simulator = Some(Simulator {
         sim: EmbeddedSim::new(sim),
         recorded: None,
     });
-    let report = run_daemon(opts, None).await.expect("the run");
+    run_daemon(opts, None).await.expect("the run")
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_realistic_street_is_driven_on_the_radar_alone() {
+    let report = street(&vehicle_radar_only()).await;
     let s = &report.run.summary;
     let m = s.scan_match.expect("radar odometry ran");
     assert!(m.drives, "radar odometry drove the prediction: {m:?}");
@@ -76,24 +81,10 @@ async fn the_realistic_street_is_driven_on_the_radar_alone() {
 /// lost that rotation and searched for the next before: two registrations a switch).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn radar_odometry_registers_straight_across_submap_switches() {
-    let work = tempfile::tempdir().expect("a folder");
     // The vehicle's submaps (100 m) made 15 m long.
     let text = vehicle_radar_only().replace("max_distance_m = 100.0", "max_distance_m = 15.0");
     assert!(text.contains("max_distance_m = 15.0"), "{text}");
-    let config = config::Config::from_toml_str(&text).expect("the configuration");
-    let scene = sim_sensor::scene::Scene::load(
-        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../sim-sensor/scenes/urban-street.toml"),
-    )
-    .expect("the realistic street");
-    let mut sim = SimOptions::for_tests(scene);
-    sim.pacing = Pacing::AsFastAsPossible;
-    let mut opts = options(config, Some(&text), work.path());
-    opts.max_stream_s = Some(10.0);
-    opts.simulator = Some(Simulator {
-        sim: EmbeddedSim::new(sim),
-        recorded: None,
-    });
-    let report = run_daemon(opts, None).await.expect("the run");
+    let report = street(&text).await;
     let s = &report.run.summary;
     let switches = s.submaps.as_ref().expect("submaps").submaps - 1;
     assert!(switches >= 3, "about 70 m in submaps of 15 m: {switches}");

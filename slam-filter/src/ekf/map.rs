@@ -185,13 +185,20 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
     /// Closes the current local map and starts a new one where the vehicle is (see
     /// [`crate::submap`]): the vehicle at the new frame's origin with zero covariance, no
     /// features, the radar loss and the held odometry kept, tentative targets re-expressed
-    /// in the new frame. Returns the closed map's compact record (material noise settled
-    /// first). O(N).
+    /// in the new frame. A mark ([`Self::mark_motion`]) is set again at the vehicle: the
+    /// motion since the old one is not carried into the new frame, but the motion from here
+    /// on is measured as before (radar odometry registers the next rotation against the
+    /// last; dropped, it lost the rotation after every switch and searched the one after).
+    /// Returns the closed map's compact record (material noise settled first). O(N).
     pub fn start_submap(&mut self) -> FrozenSubmap {
         self.settle_material_noise();
         let origin = self.state.pose();
+        let marked = self.state.tally.is_some();
         let closed = self.state.restart_at_origin();
         self.tentatives.reframe(&origin);
+        if marked {
+            self.mark_motion();
+        }
         FrozenSubmap::from_state(&closed)
     }
 }

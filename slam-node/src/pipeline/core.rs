@@ -715,13 +715,7 @@ impl Pipeline {
         // The submap closes after this rotation's pose was published in it.
         if let Some(s) = self.submaps.as_mut() {
             let t = self.ekf.state().time_s();
-            // A new submap starts at the vehicle and drops the filter's mark; marked again
-            // at once, the next rotation is placed and registered against this one (in the
-            // vehicle's frame at its end, where the new submap starts). Unmarked, radar
-            // odometry lost the rotation after every switch and searched the one after it.
-            if s.end_rotation(&mut self.ekf, t) && self.ekf.held_odometry().is_some() {
-                self.ekf.mark_motion();
-            }
+            s.end_rotation(&mut self.ekf, t);
             self.summary.current_submap = s.current();
         }
         self.save_map_if_due(events);

@@ -186,3 +186,33 @@ pub fn replay_counts(path: &Path) -> McapReplayCounts {
     assert_eq!(n, counts.azimuths);
     counts
 }
+
+/// A `ros2msg` schema for `M` and a CDR channel on `topic` carrying it, in `w`.
+pub fn ros2_channel<M: ros_msgs::RosMessage, W: std::io::Write + std::io::Seek>(
+    w: &mut mcap::Writer<W>,
+    topic: &str,
+) -> u16 {
+    let schema = w
+        .add_schema(&M::type_name(), "ros2msg", M::schema_text().as_bytes())
+        .expect("schema");
+    w.add_channel(schema, topic, "cdr", &std::collections::BTreeMap::new())
+        .expect("channel")
+}
+
+/// One message of `data` on `channel`, logged and published at time 1.
+pub fn write_message<W: std::io::Write + std::io::Seek>(
+    w: &mut mcap::Writer<W>,
+    channel: u16,
+    data: &[u8],
+) {
+    w.write_to_known_channel(
+        &mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence: 0,
+            log_time: 1,
+            publish_time: 1,
+        },
+        data,
+    )
+    .expect("write");
+}
