@@ -81,6 +81,14 @@ pub struct RawMap {
     /// The prior's standard deviations `[x m, y m, heading rad]`, each > 0. Default
     /// `[1.0, 1.0, 0.03]`.
     pub initial_sigma: [f64; 3],
+    /// Localising or extending: a ROS 2 topic (absolute, `/initialpose` as RViz's "2D Pose
+    /// Estimate" publishes it) of `geometry_msgs/msg/PoseWithCovarianceStamped` in the
+    /// `map` frame, subscribed to over Zenoh (`[output.zenoh]`'s session; slam-node built
+    /// with its `zenoh` feature). Each message starts (or restarts) tracking at its pose,
+    /// carried from its stamp to the latest rotation along the vehicle's motion; its
+    /// covariance's x, y and yaw block is the prior's (all zero: `initial_sigma`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub initial_pose_topic: Option<String>,
     /// Localising: `"scans"` (the map's radar scans, the default) or `"features"` (its
     /// point features). Extend mode localises with features.
     pub localise_with: LocaliseWith,
@@ -96,6 +104,7 @@ impl Default for RawMap {
             file: None,
             initial_pose: None,
             initial_sigma: DEFAULT_INITIAL_SIGMA,
+            initial_pose_topic: None,
             localise_with: LocaliseWith::Scans,
         }
     }
@@ -118,6 +127,8 @@ pub struct MapSettings {
     pub initial_pose: Option<[f64; 3]>,
     /// Its standard deviations, each finite and > 0.
     pub initial_sigma: [f64; 3],
+    /// Localising or extending: the ROS 2 topic priors arrive on (over Zenoh).
+    pub initial_pose_topic: Option<String>,
     /// What localisation registers against.
     pub localise_with: LocaliseWith,
 }
@@ -181,6 +192,18 @@ fn prior_sigma(s: [f64; 3]) -> Result<[f64; 3], ValueError> {
     }
 }
 
+fn prior_topic(topic: Option<&str>, mode: MapMode) -> Result<Option<String>, ValueError> {
+    let Some(topic) = topic else {
+        return Ok(None);
+    };
+    if !mode.reads_a_map() {
+        return Err(ValueError::Rule(format!(
+            "priors on {topic:?} are only read when localising or extending (map.mode = \"localise\" or \"extend\")"
+        )));
+    }
+    crate::odometry::ros_topic(topic).map(Some)
+}
+
 impl RawMap {
     /// Validates this section alone; errors name `map.<field>`.
     pub fn validate(&self) -> Result<MapSettings, FieldErrors> {
@@ -198,6 +221,10 @@ impl RawMap {
             file: c.check("map.file", map_file(self.file.as_ref())),
             initial_pose: c.check("map.initial_pose", prior_pose(self.initial_pose)),
             initial_sigma: c.check("map.initial_sigma", prior_sigma(self.initial_sigma)),
+            initial_pose_topic: c.check(
+                "map.initial_pose_topic",
+                prior_topic(self.initial_pose_topic.as_deref(), self.mode),
+            ),
             localise_with: self.localise_with,
         }
     }
@@ -213,6 +240,7 @@ impl From<&MapSettings> for RawMap {
             file: s.file.clone(),
             initial_pose: s.initial_pose,
             initial_sigma: s.initial_sigma,
+            initial_pose_topic: s.initial_pose_topic.clone(),
             localise_with: s.localise_with,
         }
     }
@@ -307,6 +335,34 @@ mod tests {
             };
             let e = raw.validate().unwrap_err().to_string();
             assert!(e.contains(field), "{e}");
+        }
+    }
+
+    #[test]
+    fn a_prior_topic_is_a_ros_topic_read_only_when_localising() {
+        let raw = RawMap {
+            mode: MapMode::Localise,
+            initial_pose_topic: Some("/initialpose".into()),
+            ..RawMap::default()
+        };
+        let s = raw.validate().unwrap();
+        assert_eq!(s.initial_pose_topic.as_deref(), Some("/initialpose"));
+        assert_eq!(RawMap::from(&s).validate().unwrap(), s);
+        for (mode, topic, words) in [
+            (MapMode::Localise, "initialpose", "absolute ROS 2 topic"),
+            (MapMode::Extend, "/initial pose", "absolute ROS 2 topic"),
+            (MapMode::Map, "/initialpose", "only read when localising"),
+        ] {
+            let raw = RawMap {
+                mode,
+                initial_pose_topic: Some(topic.into()),
+                ..RawMap::default()
+            };
+            let e = raw.validate().unwrap_err().to_string();
+            assert!(
+                e.contains("map.initial_pose_topic") && e.contains(words),
+                "{e}"
+            );
         }
     }
 }

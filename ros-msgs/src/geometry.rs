@@ -141,6 +141,23 @@ impl Default for PoseWithCovariance {
     }
 }
 
+/// `geometry_msgs/PoseWithCovarianceStamped`: a pose with its covariance in
+/// `header.frame_id` (RViz's "2D Pose Estimate" publishes one on `/initialpose`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PoseWithCovarianceStamped {
+    /// Time and frame.
+    pub header: Header,
+    /// The pose and its covariance.
+    pub pose: PoseWithCovariance,
+}
+def!(
+    PoseWithCovarianceStamped,
+    POSE_WITH_COVARIANCE_STAMPED,
+    "geometry_msgs/PoseWithCovarianceStamped",
+    "std_msgs/Header header\nPoseWithCovariance pose\n",
+    [HEADER, POSE_WITH_COVARIANCE]
+);
+
 /// `geometry_msgs/Twist`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Twist {

@@ -3,7 +3,8 @@
 //! message's schema text in MCAP's `ros2msg` encoding. No IO, no clock.
 //!
 //! The types: `builtin_interfaces` Time/Duration, `std_msgs` Header/ColorRGBA,
-//! `geometry_msgs` Point, Vector3, Quaternion, Pose, PoseWithCovariance, Twist,
+//! `geometry_msgs` Point, Vector3, Quaternion, Pose, PoseWithCovariance,
+//! PoseWithCovarianceStamped, Twist,
 //! TwistWithCovariance, TwistStamped, Transform, TransformStamped, `nav_msgs/Odometry`,
 //! `tf2_msgs/TFMessage`, `sensor_msgs` PointField, PointCloud2, Image, CompressedImage,
 //! `visualization_msgs` Marker, MarkerArray (Humble layout), and Navtech's `navtech_msgs`

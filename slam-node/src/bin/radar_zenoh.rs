@@ -139,7 +139,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     let started = Instant::now();
     let limit = args.duration_s.map(Duration::from_secs_f64);
     let mut azimuth_count = 0u64;
-    while !stop.load(Ordering::Relaxed) && limit.map_or(true, |l| started.elapsed() < l) {
+    while !stop.load(Ordering::Relaxed) && limit.is_none_or(|l| started.elapsed() < l) {
         match azimuths.recv_timeout(Duration::from_millis(100)) {
             Ok(az) => {
                 publisher.on_azimuth(&az);

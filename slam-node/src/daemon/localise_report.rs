@@ -41,6 +41,20 @@ impl fmt::Display for Localisation<'_> {
                 l.attempts, l.ambiguous
             )?,
         }
+        if l.priors_received > 0 {
+            writeln!(
+                f,
+                "  prior poses from the topic: {} received, {} started tracking, {} refused (stamped outside the last {} s of poses kept); the first fix {}",
+                l.priors_received,
+                l.priors_applied,
+                l.priors_refused,
+                crate::pipeline::localise::RECENT_S,
+                match l.time_to_fix_s {
+                    Some(t) => format!("after {t:.1} s"),
+                    None => "not taken".to_owned(),
+                }
+            )?;
+        }
         if l.attempts > 0 {
             writeln!(
                 f,

@@ -9,6 +9,7 @@ mod localise_report;
 pub mod report;
 pub mod start;
 pub mod zenoh_odometry;
+pub mod zenoh_prior;
 
 // The sources' modules under their earlier names.
 #[cfg(feature = "sim")]
@@ -138,6 +139,9 @@ pub struct DaemonReport {
     pub mcap_replay: Option<mcap_replay::McapReplayCounts>,
     /// Odometry from Zenoh: what the subscription received and lost.
     pub zenoh_odometry: Option<zenoh_odometry::ZenohOdometryCounts>,
+    /// Prior poses from Zenoh (`[map] initial_pose_topic`): what the subscription received
+    /// and refused.
+    pub zenoh_prior: Option<zenoh_odometry::ZenohOdometryCounts>,
 }
 
 /// The Zenoh session a run needs (publishing, or odometry from Zenoh), opened on a blocking
@@ -147,6 +151,7 @@ async fn open_zenoh(
     config: &config::Config,
 ) -> Result<Option<crate::output::live::SharedNode>, DaemonError> {
     let wanted = config.output.zenoh.enabled
+        || config.map.initial_pose_topic.is_some()
         || matches!(
             config.odometry.source,
             config::odometry::OdometrySource::Zenoh { .. }
@@ -204,6 +209,36 @@ fn zenoh_odometry_source(
     _node: Option<&crate::output::live::SharedNode>,
     _motion: radar_model::motion::MotionModel,
 ) -> Result<Option<ZenohOdometrySource>, DaemonError> {
+    Ok(None)
+}
+
+/// The prior poses `[map] initial_pose_topic` asks for, subscribed to on `node`: the
+/// pipeline's end of their channel and the counters; `None` without the key.
+type PriorSubscription = (
+    crossbeam_channel::Receiver<crate::pipeline::localise::PriorPose>,
+    zenoh_odometry::SharedStats,
+    Box<dyn std::any::Any + Send>,
+);
+
+#[cfg(feature = "zenoh")]
+fn zenoh_priors(
+    config: &config::Config,
+    node: Option<&crate::output::live::SharedNode>,
+) -> Result<Option<PriorSubscription>, DaemonError> {
+    let (Some(topic), Some(node)) = (config.map.initial_pose_topic.as_deref(), node) else {
+        return Ok(None);
+    };
+    let priors = zenoh_prior::ZenohPriors::subscribe(node, topic)?;
+    let stats = priors.stats();
+    Ok(Some((priors.rx.clone(), stats, Box::new(priors))))
+}
+
+/// Without the `zenoh` feature there are no priors from Zenoh ([`open_zenoh`] refused them).
+#[cfg(not(feature = "zenoh"))]
+fn zenoh_priors(
+    _config: &config::Config,
+    _node: Option<&crate::output::live::SharedNode>,
+) -> Result<Option<PriorSubscription>, DaemonError> {
     Ok(None)
 }
 
@@ -307,6 +342,12 @@ pub async fn run_daemon(
     let _ = std::fs::create_dir_all(&opts.out_dir);
     let (odo_trigger, odo_shutdown) = shutdown_pair();
     let (inputs, zenoh_stats) = open_source(&mut opts, recipe, node.as_ref(), odo_shutdown).await?;
+    // Held until the run ends: dropping it undeclares the subscription.
+    let (priors, prior_stats, prior_subscription) = match zenoh_priors(&opts.config, node.as_ref())?
+    {
+        Some((rx, stats, held)) => (Some(rx), Some(stats), Some(held)),
+        None => (None, None, None),
+    };
     let Inputs {
         azimuths,
         driver,
@@ -339,6 +380,7 @@ pub async fn run_daemon(
         azimuths,
         odometry,
         gyro,
+        priors,
     };
     let thread = std::thread::Builder::new()
         .name("slam-pipeline".into())
@@ -379,6 +421,8 @@ pub async fn run_daemon(
         .await
         .map_err(|_| DaemonError::PipelinePanicked)??;
     let zenoh_odometry = zenoh_stats.map(|s| s.snapshot());
+    let zenoh_prior = prior_stats.map(|s| s.snapshot());
+    drop(prior_subscription);
     close_zenoh(node).await;
     Ok(DaemonReport {
         run,
@@ -390,6 +434,7 @@ pub async fn run_daemon(
         driver_failure,
         mcap_replay: end.mcap,
         zenoh_odometry,
+        zenoh_prior,
     })
 }
 

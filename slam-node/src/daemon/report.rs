@@ -110,6 +110,9 @@ pub fn summary_text(r: &DaemonReport) -> String {
     if let Some(z) = &r.zenoh_odometry {
         put(&ZenohOdometry(z));
     }
+    if let Some(z) = &r.zenoh_prior {
+        put(&ZenohPrior(z));
+    }
     if let Some(rec) = &r.writer.recording {
         put(&Recording(rec));
     }
@@ -844,6 +847,26 @@ impl fmt::Display for ZenohOdometry<'_> {
         writeln!(
             f,
             "  Zenoh odometry on {}: {} samples received, {} taken; lost {} (malformed {}, another type {}, queue full {})",
+            z.key,
+            z.received,
+            z.decoded,
+            z.lost(),
+            z.malformed,
+            z.wrong_type,
+            z.dropped
+        )
+    }
+}
+
+/// What the Zenoh prior pose subscription received and refused.
+struct ZenohPrior<'a>(&'a ZenohOdometryCounts);
+
+impl fmt::Display for ZenohPrior<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let z = self.0;
+        writeln!(
+            f,
+            "  Zenoh prior poses on {}: {} received, {} taken; refused {} (malformed or not in the map frame {}, another type {}, queue full {})",
             z.key,
             z.received,
             z.decoded,

@@ -37,15 +37,16 @@ impl ZenohOdometryCounts {
     }
 }
 
-/// The subscription's live counters.
+/// The subscription's live counters (the prior pose's subscription, `zenoh_prior`, keeps
+/// the same).
 #[derive(Debug, Default)]
 pub struct ZenohOdometryStats {
-    key: String,
-    received: AtomicU64,
-    decoded: AtomicU64,
-    malformed: AtomicU64,
-    wrong_type: AtomicU64,
-    dropped: AtomicU64,
+    pub(crate) key: String,
+    pub(crate) received: AtomicU64,
+    pub(crate) decoded: AtomicU64,
+    pub(crate) malformed: AtomicU64,
+    pub(crate) wrong_type: AtomicU64,
+    pub(crate) dropped: AtomicU64,
 }
 
 impl ZenohOdometryStats {
@@ -77,7 +78,7 @@ pub type SharedStats = Arc<ZenohOdometryStats>;
 pub use subscriber::ZenohOdometry;
 
 #[cfg(feature = "zenoh")]
-mod subscriber {
+pub(crate) mod subscriber {
     use std::sync::atomic::Ordering;
     use std::sync::Arc;
     use std::time::Duration;
@@ -113,10 +114,16 @@ mod subscriber {
     /// Whether a sample's encoding names a ROS type other than `expected` (no schema, or a
     /// schema naming the same type, is not).
     fn names_another_type(encoding: &zenoh::bytes::Encoding, expected: OdometryMessage) -> bool {
+        names_other_than(encoding, &expected.type_name())
+    }
+
+    /// Whether a sample's encoding names a ROS type other than `expected` (`package/msg/Type`;
+    /// `package/Type` is the same type); no schema is not.
+    pub(crate) fn names_other_than(encoding: &zenoh::bytes::Encoding, expected: &str) -> bool {
         let text = encoding.to_string();
         match text.split_once(';') {
             Some((_, schema)) if !schema.is_empty() => {
-                OdometryMessage::from_type_name(schema) != Some(expected)
+                schema != expected && schema != expected.replacen("/msg/", "/", 1)
             }
             _ => false,
         }

@@ -285,7 +285,7 @@ mod publisher {
                     let (odometry, tf) = ros::pose_messages(&p, last_input.as_ref(), &motion);
                     put(&topics.pose, &odometry, &mut summary);
                     put(&topics.tf, &tf, &mut summary);
-                    if poses % TF_STATIC_EVERY_POSES == 0 {
+                    if poses.is_multiple_of(TF_STATIC_EVERY_POSES) {
                         let stamp = Time::from_secs_f64(p.timestamp_s);
                         put(&topics.tf_static, &ros::tf_static(stamp), &mut summary);
                     }
@@ -363,7 +363,7 @@ mod publisher {
         /// Publishes what `az` completes: the configuration if it is new, the previous
         /// rotation's B-scan when `az` starts another, `az` itself as FFT data on request.
         pub fn on_azimuth(&mut self, az: &radar_driver::Azimuth) {
-            let changed = self.geometry.as_ref().map_or(true, |g| {
+            let changed = self.geometry.as_ref().is_none_or(|g| {
                 !(Arc::ptr_eq(g, &az.geometry) || **g == *az.geometry)
             });
             if changed {

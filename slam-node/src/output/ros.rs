@@ -272,6 +272,65 @@ impl OdometryMessage {
     }
 }
 
+/// Why a prior pose message (`[map] initial_pose_topic`) was refused.
+#[derive(Debug, thiserror::Error)]
+pub enum PriorError {
+    /// The payload did not decode as `geometry_msgs/msg/PoseWithCovarianceStamped`.
+    #[error("not a geometry_msgs/msg/PoseWithCovarianceStamped: {0}")]
+    Decode(#[from] ros_msgs::CdrError),
+    /// The pose is in another frame than the map's.
+    #[error("the pose is in frame {0:?}, not {MAP_FRAME:?}")]
+    Frame(String),
+    /// A position or orientation that is not finite, or a zero quaternion.
+    #[error("the pose is not finite, or its orientation is not a rotation")]
+    Pose,
+    /// The x, y, yaw block of the covariance is not symmetric positive definite (and not
+    /// all zero).
+    #[error("its covariance's x, y and yaw block is not symmetric positive definite")]
+    Covariance,
+}
+
+/// The prior pose a `geometry_msgs/msg/PoseWithCovarianceStamped` payload in the map's frame
+/// stands for (RViz's "2D Pose Estimate"): the position's x and y, the yaw of its
+/// orientation, and the covariance's x, y and yaw block (`None` when it is all zero: the
+/// configured sigmas apply). A zero stamp is "now" (the latest rotation).
+pub fn prior_pose(payload: &[u8]) -> Result<crate::pipeline::localise::PriorPose, PriorError> {
+    let m: ros_msgs::geometry::PoseWithCovarianceStamped = ros_msgs::from_cdr(payload)?;
+    if m.header.frame_id.trim_start_matches('/') != MAP_FRAME {
+        return Err(PriorError::Frame(m.header.frame_id));
+    }
+    let p = m.pose.pose;
+    let q = p.orientation;
+    let norm2 = q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w;
+    let values = [p.position.x, p.position.y, q.x, q.y, q.z, q.w];
+    if !values.iter().all(|v| v.is_finite()) || norm2 < 1e-12 {
+        return Err(PriorError::Pose);
+    }
+    let yaw = (2.0 * (q.w * q.z + q.x * q.y)).atan2(norm2 - 2.0 * (q.y * q.y + q.z * q.z));
+    let at = [0usize, 1, 5];
+    let c = &m.pose.covariance;
+    let block = nalgebra::Matrix3::from_fn(|r, k| c[at[r] * 6 + at[k]]);
+    let covariance = if block.iter().all(|v| *v == 0.0) {
+        None
+    } else {
+        let symmetric = (block - block.transpose()).amax() <= 1e-9 * block.amax();
+        if !block.iter().all(|v| v.is_finite()) || !symmetric || block.cholesky().is_none() {
+            return Err(PriorError::Covariance);
+        }
+        Some(block)
+    };
+    let stamp = m.header.stamp;
+    Ok(crate::pipeline::localise::PriorPose {
+        stamp_s: (stamp != Time::default()).then(|| stamp.as_secs_f64()),
+        pose: radar_model::geometry::Pose2::new(
+            p.position.x,
+            p.position.y,
+            radar_model::geometry::wrap_angle(yaw),
+        ),
+        covariance,
+    })
+}
+
 /// The pose's 3x3 covariance over (x, y, theta) placed in ROS's 6x6 over (x, y, z, roll,
 /// pitch, yaw); the plane's other three are left 0.
 fn covariance6(c: &[[f64; 3]; 3]) -> [f64; 36] {
@@ -492,4 +551,90 @@ pub fn detections_message(d: &RotationDetections) -> PointCloud2 {
         &["x", "y", "z", "power_db"],
         &points,
     )
+}
+
+#[cfg(test)]
+mod prior_tests {
+    use super::*;
+    use ros_msgs::geometry::PoseWithCovarianceStamped;
+
+    /// RViz's "2D Pose Estimate": a yaw-only quaternion, 0.25 m² on x and y, 0.0685 rad² on
+    /// yaw.
+    fn estimate(frame: &str, yaw: f64) -> PoseWithCovarianceStamped {
+        let mut covariance = [0.0; 36];
+        covariance[0] = 0.25;
+        covariance[7] = 0.25;
+        covariance[35] = 0.068_538_919_452_190_42;
+        PoseWithCovarianceStamped {
+            header: Header::new(Time::from_nanos(1_704_067_205_500_000_000), frame),
+            pose: PoseWithCovariance {
+                pose: Pose {
+                    position: Point {
+                        x: 12.5,
+                        y: -3.0,
+                        z: 0.0,
+                    },
+                    orientation: Quaternion {
+                        x: 0.0,
+                        y: 0.0,
+                        z: (0.5 * yaw).sin(),
+                        w: (0.5 * yaw).cos(),
+                    },
+                },
+                covariance,
+            },
+        }
+    }
+
+    #[test]
+    fn a_pose_estimate_in_the_map_frame_is_a_prior() {
+        let bytes = ros_msgs::to_cdr(&estimate("map", 2.5)).unwrap();
+        let p = prior_pose(&bytes).unwrap();
+        assert_eq!(p.stamp_s, Some(1_704_067_205.5));
+        assert!((p.pose.x - 12.5).abs() < 1e-12 && (p.pose.y + 3.0).abs() < 1e-12);
+        assert!((p.pose.theta - 2.5).abs() < 1e-12, "{}", p.pose.theta);
+        let c = p.covariance.unwrap();
+        assert_eq!((c[(0, 0)], c[(1, 1)]), (0.25, 0.25));
+        assert!((c[(2, 2)] - 0.0685).abs() < 1e-3 && c[(0, 2)] == 0.0);
+        // No covariance: the configured sigmas; a zero stamp: now.
+        let mut m = estimate("/map", -1.0);
+        m.pose.covariance = [0.0; 36];
+        m.header.stamp = Time::default();
+        let p = prior_pose(&ros_msgs::to_cdr(&m).unwrap()).unwrap();
+        assert_eq!((p.stamp_s, p.covariance), (None, None));
+        assert!((p.pose.theta + 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_prior_in_another_frame_or_with_bad_values_is_refused_by_name() {
+        let refused = |m: &PoseWithCovarianceStamped| {
+            prior_pose(&ros_msgs::to_cdr(m).unwrap())
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(refused(&estimate("odom", 0.0)).contains("\"odom\""));
+        let mut m = estimate("map", 0.0);
+        m.pose.pose.position.x = f64::NAN;
+        assert!(refused(&m).contains("not finite"));
+        let mut m = estimate("map", 0.0);
+        m.pose.pose.orientation = Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            w: 0.0,
+        };
+        assert!(refused(&m).contains("not a rotation"));
+        for (i, v) in [(0, -1.0), (1, 0.3), (35, f64::INFINITY)] {
+            let mut m = estimate("map", 0.0);
+            m.pose.covariance[i] = v;
+            assert!(refused(&m).contains("positive definite"), "{i}");
+        }
+        let bytes = ros_msgs::to_cdr(&estimate("map", 0.0)).unwrap();
+        for cut in [0, 3, 20, bytes.len() - 8] {
+            assert!(prior_pose(&bytes[..cut])
+                .unwrap_err()
+                .to_string()
+                .starts_with("not a geometry_msgs"));
+        }
+    }
 }

@@ -75,6 +75,10 @@ const TYPE_HASHES: &[(&str, &str)] = &[
         "RIHS01_5f0fcd4f81d5d06ad9b4c4c63e3ea51b82d6ae4d0558f1d475229b1121db6f64",
     ),
     (
+        "geometry_msgs/msg/PoseWithCovarianceStamped",
+        "RIHS01_26432f9803e43727d3c8f668d1fdb3c630f548af631e2f4e31382371bfea3b6e",
+    ),
+    (
         "tf2_msgs/msg/TFMessage",
         "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
     ),

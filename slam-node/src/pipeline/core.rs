@@ -721,6 +721,15 @@ impl Pipeline {
         self.save_map_if_due(events);
     }
 
+    /// A prior pose in the saved map's frame (`[map] initial_pose_topic`): the localiser
+    /// starts tracking from it at the next rotation's end. A run that does not localise
+    /// has no map frame to take it in: it is counted nowhere and ignored.
+    pub fn prior_pose(&mut self, p: super::localise::PriorPose) {
+        if let Some(l) = self.localise.as_mut() {
+            l.prior(p);
+        }
+    }
+
     /// The pose published this rotation: the filter's in the world; localising, the
     /// localiser's in the map's frame once it has a fix (after its rotation's work).
     fn pose_to_publish(&mut self) -> Option<(Pose2, Matrix3<f64>)> {

@@ -26,6 +26,8 @@ pub struct PipelineInputs {
     pub odometry: Option<Box<dyn OdometrySource>>,
     /// The gyro of radar-only driving, or `None`.
     pub gyro: Option<Box<dyn GyroSource>>,
+    /// Prior poses in the saved map's frame (`[map] initial_pose_topic`), or `None`.
+    pub priors: Option<Receiver<super::localise::PriorPose>>,
 }
 
 impl std::fmt::Debug for PipelineInputs {
@@ -33,6 +35,7 @@ impl std::fmt::Debug for PipelineInputs {
         f.debug_struct("PipelineInputs")
             .field("odometry", &self.odometry.is_some())
             .field("gyro", &self.gyro.is_some())
+            .field("priors", &self.priors.is_some())
             .finish_non_exhaustive()
     }
 }
@@ -343,6 +346,12 @@ pub fn run_pipeline(
                 if pipeline.summary().odometry_samples == before {
                     break;
                 }
+            }
+        }
+        if let Some(rx) = inputs.priors.as_ref() {
+            // Bounded by the channel's capacity; the latest wins in the localiser.
+            while let Ok(p) = rx.try_recv() {
+                pipeline.prior_pose(p);
             }
         }
         let next = match held.take() {

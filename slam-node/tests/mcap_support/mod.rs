@@ -116,6 +116,7 @@ pub fn run(
             azimuths,
             odometry: Some(odometry),
             gyro: None,
+            priors: None,
         },
         &output,
         RunControl {

@@ -291,6 +291,7 @@ pub fn run_queued(
             azimuths: rx,
             odometry: Some(odometry),
             gyro: None,
+            priors: None,
         },
         &output,
         control,

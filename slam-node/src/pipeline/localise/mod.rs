@@ -9,6 +9,10 @@
 //!   is the filter's plus the nearest submap frame's own uncertainty in the map (a shared
 //!   error of its features that averaging them does not reduce).
 //! - **With a prior** (`[map] initial_pose`, `initial_sigma`): tracking starts there.
+//! - **A prior from a topic** (`[map] initial_pose_topic`, [`PriorPose`]): at any time,
+//!   searching or tracking, a prior starts tracking again at its pose, carried from its
+//!   stamp to the latest rotation along the local filter's motion (the last
+//!   [`RECENT_S`] of it are kept; an older stamp is refused with a WARN).
 //! - **Without** ([`search`]): the filter maps in a frame of its own until place
 //!   recognition and the loop-closure verifier find that frame in the map, twice in
 //!   agreement, never two places at once, and clearly ahead of every other place of the map
@@ -71,6 +75,11 @@ const LOST_AFTER_ROTATIONS: u32 = 12;
 const MIN_HITS: u64 = 3;
 /// Local frame restarts remembered to carry a late search outcome into the current frame.
 const MAX_RESTARTS_KEPT: usize = 8;
+/// Local poses kept to carry a prior from its stamp to the latest rotation (s).
+pub const RECENT_S: f64 = 30.0;
+/// A prior stamped this far (s) after the latest rotation is taken as of that rotation;
+/// later, it is refused (a clock that is not the radar's).
+const PRIOR_AHEAD_S: f64 = 1.0;
 /// By scans: the local scan a search attempt describes is made of the clouds of the last
 /// this many metres of driving, at most [`KEEP_ROTATIONS`] of them.
 const KEEP_M: f64 = 60.0;
@@ -86,6 +95,9 @@ pub struct LocaliseSettings {
     pub map: Arc<Map>,
     /// The prior pose in the map's frame and its standard deviations, when given.
     pub prior: Option<([f64; 3], [f64; 3])>,
+    /// The standard deviations a prior from the topic takes when its covariance is all
+    /// zero (`[map] initial_sigma`).
+    pub prior_sigma: [f64; 3],
     /// Extend mode (`[map] mode = "extend"`): once localised, map on in the map's frame
     /// ([`crate::pipeline::extend`]).
     pub extend: bool,
@@ -101,6 +113,7 @@ impl LocaliseSettings {
             path,
             map,
             prior: c.initial_pose.map(|p| (p, c.initial_sigma)),
+            prior_sigma: c.initial_sigma,
             extend: c.mode == config::MapMode::Extend,
             scans: c.localise_with == config::LocaliseWith::Scans
                 && c.mode != config::MapMode::Extend,
@@ -203,6 +216,13 @@ pub struct LocaliseSummary {
     /// Of those outside the gate, the times the pose was re-anchored on registrations that
     /// agreed with each other.
     pub track_reanchored: u64,
+    /// Priors received from the topic (`[map] initial_pose_topic`).
+    pub priors_received: u64,
+    /// Of those, the ones tracking started from (a later one in the same rotation
+    /// replaces an earlier one).
+    pub priors_applied: u64,
+    /// Of those, the ones refused (stamped outside the poses kept).
+    pub priors_refused: u64,
     /// Search attempts' wall time on the search's thread (ms): median and largest.
     pub search_ms_p50: f64,
     /// Largest.
@@ -265,6 +285,25 @@ pub struct Localiser {
     summary: LocaliseSummary,
     /// Localising by scans.
     scans: Option<ByScans>,
+    /// The latest prior from the topic, applied at the next rotation's end.
+    pending_prior: Option<PriorPose>,
+    /// The local filter's pose at each rotation's end over the last [`RECENT_S`]: the
+    /// local frame it is in, the time, the pose.
+    recent: VecDeque<(u64, f64, Pose2)>,
+    /// See [`LocaliseSettings::prior_sigma`].
+    prior_sigma: [f64; 3],
+}
+
+/// A prior pose from a topic (`[map] initial_pose_topic`): where the vehicle was in the
+/// map's frame at `stamp_s` (the radar's clock), and how sure that is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PriorPose {
+    /// When (s, the radar's clock); `None`: as of the latest rotation.
+    pub stamp_s: Option<f64>,
+    /// The pose in the map's frame.
+    pub pose: Pose2,
+    /// Its covariance over (x, y, heading); `None`: [`LocaliseSettings::prior_sigma`].
+    pub covariance: Option<Matrix3<f64>>,
 }
 
 /// Localisation by the map's scans: the map, the last stretch's clouds, the tracker.
@@ -454,7 +493,133 @@ impl Localiser {
                 driven_m: 0.0,
                 counted_to: None,
             }),
+            pending_prior: None,
+            recent: VecDeque::new(),
+            prior_sigma: l.prior_sigma,
         })
+    }
+
+    /// A prior from the topic: applied at the next rotation's end (the latest wins).
+    pub fn prior(&mut self, p: PriorPose) {
+        self.summary.priors_received += 1;
+        self.pending_prior = Some(p);
+    }
+
+    /// The local filter's pose at `stamp_s`, in the current local frame: interpolated
+    /// between the rotations' ends kept around it, carried through the frame restarts
+    /// since. `None` when the stamp is before the poses kept, or later than the last by
+    /// more than [`PRIOR_AHEAD_S`] (then it is taken as of the last), or the restarts in
+    /// between are no longer known.
+    fn local_at(&self, stamp_s: Option<f64>) -> Option<Pose2> {
+        let (last_frame, last_s, last_pose) = *self.recent.back()?;
+        let stamp_s = stamp_s.unwrap_or(last_s);
+        if stamp_s >= last_s {
+            return (stamp_s - last_s <= PRIOR_AHEAD_S)
+                .then_some(last_pose)
+                .and_then(|p| carry(p, last_frame, self.frame, &self.restarts));
+        }
+        let k = self.recent.iter().position(|(_, t, _)| *t > stamp_s)?;
+        let (fb, tb, b) = self.recent[k];
+        let (fa, ta, a) = *self.recent.get(k.checked_sub(1)?)?;
+        let a = carry(a, fa, fb, &self.restarts)?;
+        let w = if tb > ta {
+            (stamp_s - ta) / (tb - ta)
+        } else {
+            1.0
+        };
+        let at = Pose2::new(
+            a.x + w * (b.x - a.x),
+            a.y + w * (b.y - a.y),
+            wrap_angle(a.theta + w * wrap_angle(b.theta - a.theta)),
+        );
+        carry(at, fb, self.frame, &self.restarts)
+    }
+
+    /// Starts tracking at the prior `p`, carried to now (`ekf`'s pose) along the local
+    /// filter's motion since its stamp.
+    fn apply_prior(&mut self, p: PriorPose, ekf: &mut DaemonEkf, since_start_s: f64) {
+        let now = ekf.pose();
+        let Some(then) = self.local_at(p.stamp_s) else {
+            self.summary.priors_refused += 1;
+            let held = self.recent.front().zip(self.recent.back());
+            warn!(
+                file = %self.path.display(),
+                stamp_s = p.stamp_s,
+                held_from_s = held.map(|(a, _)| a.1),
+                held_to_s = held.map(|(_, b)| b.1),
+                "prior pose refused: stamped outside the vehicle's poses kept (the last {RECENT_S} s of the radar's clock)"
+            );
+            return;
+        };
+        let motion = slam_graph::se2::compose(&slam_graph::se2::inverse(&then), &now);
+        let pose = slam_graph::se2::compose(&p.pose, &motion);
+        let cov = p.covariance.unwrap_or_else(|| {
+            let s = self.prior_sigma;
+            Matrix3::from_diagonal(&nalgebra::Vector3::new(
+                s[0] * s[0],
+                s[1] * s[1],
+                s[2] * s[2],
+            ))
+        });
+        let cov = compose_covariance(&p.pose, &cov, &motion, &Matrix3::zeros());
+        if self.start_tracking(pose, cov, ekf, since_start_s) {
+            self.summary.priors_applied += 1;
+            info!(
+                file = %self.path.display(),
+                x_m = pose.x,
+                y_m = pose.y,
+                heading_rad = wrap_angle(pose.theta),
+                carried_m = motion.x.hypot(motion.y),
+                "prior pose from the topic: tracking from it, publishing the pose in the map's frame"
+            );
+        }
+    }
+
+    /// Starts (or restarts) tracking at `pose` in the map's frame with `cov`; whether it
+    /// started.
+    fn start_tracking(
+        &mut self,
+        pose: Pose2,
+        cov: Matrix3<f64>,
+        ekf: &mut DaemonEkf,
+        since_start_s: f64,
+    ) -> bool {
+        let local = ekf.pose();
+        let started = match self.scans.as_mut() {
+            Some(b) => {
+                // By scans the local filter maps on; the tracker starts at the fix.
+                b.tracker = Some(ScanTracker::new(b.settings, pose, cov, local));
+                b.driven_m = 0.0;
+                b.counted_to = None;
+                Ok(())
+            }
+            None => self.tracking_filter(ekf, pose, cov).map(|new| {
+                *ekf = new;
+                // The filter is now in the map's frame: the local poses kept are not.
+                self.recent.clear();
+                self.loaded.clear();
+                self.loaded
+                    .swap(ekf, &self.features, &self.rule, ekf.state().time_s(), true);
+            }),
+        };
+        match started {
+            Ok(()) => {
+                self.phase = Phase::Tracking;
+                self.updates_seen = ekf.stats().updates;
+                self.quiet_rotations = 0;
+                self.summary.fixes += 1;
+                self.fix_rotation = self.rotations;
+                if self.summary.time_to_fix_s.is_none() {
+                    self.summary.time_to_fix_s = Some(since_start_s);
+                    self.summary.rotations_to_fix = self.rotations;
+                }
+                true
+            }
+            Err(e) => {
+                warn!(error = %e, "the fix could not start the tracking filter");
+                false
+            }
+        }
     }
 
     /// With a prior, the filter the pipeline built (at the prior) becomes the tracking
@@ -530,6 +695,17 @@ impl Localiser {
         let first = *self.first_rotation_s.get_or_insert(time_s);
         if let (Some(b), Some(c)) = (self.scans.as_mut(), cloud) {
             b.keep(ekf.pose(), c);
+        }
+        self.recent.push_back((self.frame, time_s, ekf.pose()));
+        while self
+            .recent
+            .front()
+            .is_some_and(|(_, t, _)| *t < time_s - RECENT_S)
+        {
+            self.recent.pop_front();
+        }
+        if let Some(p) = self.pending_prior.take() {
+            self.apply_prior(p, ekf, time_s - first);
         }
         match &mut self.phase {
             Phase::Tracking if self.scans.is_some() => {
@@ -741,48 +917,16 @@ impl Localiser {
                 let pose = slam_graph::se2::compose(&v.transform, &local);
                 let cov =
                     compose_covariance(&v.transform, &v.covariance, &local, &ekf.pose_covariance());
-                let started = match self.scans.as_mut() {
-                    Some(b) => {
-                        // By scans the local filter maps on; the tracker starts at the fix.
-                        b.tracker = Some(ScanTracker::new(b.settings, pose, cov, local));
-                        b.driven_m = 0.0;
-                        b.counted_to = None;
-                        Ok(())
-                    }
-                    None => self.tracking_filter(ekf, pose, cov).map(|new| {
-                        *ekf = new;
-                        self.loaded.clear();
-                        self.loaded.swap(
-                            ekf,
-                            &self.features,
-                            &self.rule,
-                            ekf.state().time_s(),
-                            true,
-                        );
-                    }),
-                };
-                match started {
-                    Ok(()) => {
-                        self.phase = Phase::Tracking;
-                        self.updates_seen = ekf.stats().updates;
-                        self.quiet_rotations = 0;
-                        self.summary.fixes += 1;
-                        self.fix_rotation = self.rotations;
-                        if self.summary.time_to_fix_s.is_none() {
-                            self.summary.time_to_fix_s = Some(since_start_s);
-                            self.summary.rotations_to_fix = self.rotations;
-                        }
-                        info!(
-                            file = %self.path.display(),
-                            after_s = since_start_s,
-                            x_m = pose.x,
-                            y_m = pose.y,
-                            heading_rad = wrap_angle(pose.theta),
-                            matches = v.matches,
-                            "localised in the map: publishing the pose in the map's frame"
-                        );
-                    }
-                    Err(e) => warn!(error = %e, "the fix could not start the tracking filter"),
+                if self.start_tracking(pose, cov, ekf, since_start_s) {
+                    info!(
+                        file = %self.path.display(),
+                        after_s = since_start_s,
+                        x_m = pose.x,
+                        y_m = pose.y,
+                        heading_rad = wrap_angle(pose.theta),
+                        matches = v.matches,
+                        "localised in the map: publishing the pose in the map's frame"
+                    );
                 }
             }
             Attempt::Candidate(v) => info!(
@@ -848,6 +992,22 @@ impl Localiser {
 
 /// The search's local frame restarts (`origin`: the new frame's origin in the old one;
 /// `None`: a new search).
+/// `pose` in local frame `from` carried into frame `to` through the restarts between
+/// (each new frame's origin in the old); `None` when a new search began in between or the
+/// restarts are no longer known.
+fn carry(
+    mut pose: Pose2,
+    from: u64,
+    to: u64,
+    restarts: &VecDeque<(u64, Option<Pose2>)>,
+) -> Option<Pose2> {
+    for k in from..to {
+        let (_, origin) = restarts.iter().find(|(f, _)| *f == k)?;
+        pose = slam_graph::se2::compose(&slam_graph::se2::inverse(&(*origin)?), &pose);
+    }
+    Some(pose)
+}
+
 fn push_restart(
     restarts: &mut VecDeque<(u64, Option<Pose2>)>,
     frame: &mut u64,
