@@ -363,9 +363,10 @@ mod publisher {
         /// Publishes what `az` completes: the configuration if it is new, the previous
         /// rotation's B-scan when `az` starts another, `az` itself as FFT data on request.
         pub fn on_azimuth(&mut self, az: &radar_driver::Azimuth) {
-            let changed = self.geometry.as_ref().is_none_or(|g| {
-                !(Arc::ptr_eq(g, &az.geometry) || **g == *az.geometry)
-            });
+            let changed = self
+                .geometry
+                .as_ref()
+                .is_none_or(|g| !(Arc::ptr_eq(g, &az.geometry) || **g == *az.geometry));
             if changed {
                 self.geometry = Some(Arc::clone(&az.geometry));
                 put(
