@@ -207,6 +207,8 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[map]\nfile = \"\"", "map.file", "empty"),
     ("[map]\ninitial_pose = [0.0, nan, 0.0]", "map.initial_pose", "three finite numbers"),
     ("[map]\ninitial_sigma = [1.0, 1.0, 0.0]", "map.initial_sigma", "finite numbers > 0"),
+    ("[map]\ninitial_pose_topic = \"/initialpose\"", "map.initial_pose_topic", "only read when localising"),
+    ("[map]\nmode = \"localise\"\ninitial_pose_topic = \"initialpose\"", "map.initial_pose_topic", "absolute ROS 2 topic"),
     // the learned front end and the radar's model
     ("[detector]\nfloor_sigma = 0.0", "detector.floor_sigma", "got 0"),
     ("[detector]\nfloor_min_snr_db = -1.0", "detector.floor_min_snr_db", "got -1"),
