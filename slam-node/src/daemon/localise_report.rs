@@ -41,6 +41,17 @@ impl fmt::Display for Localisation<'_> {
                 l.attempts, l.ambiguous
             )?,
         }
+        if l.by == "scans" {
+            writeln!(
+                f,
+                "  the map against itself: {} pairs of submaps of different passes over the same streets, {} aligned scan to scan; their passes {:.2} m apart (median), {:.2} m at most; added to the published covariance where the vehicle is ({:.0} ms at load)",
+                l.map_pairs_compared,
+                l.map_pairs_aligned,
+                l.map_offset_p50_m,
+                l.map_offset_max_m,
+                l.map_check_ms
+            )?;
+        }
         if l.priors_received > 0 {
             writeln!(
                 f,

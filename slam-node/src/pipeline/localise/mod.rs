@@ -223,6 +223,18 @@ pub struct LocaliseSummary {
     pub priors_applied: u64,
     /// Of those, the ones refused (stamped outside the poses kept).
     pub priors_refused: u64,
+    /// By scans: pairs of submaps of different passes over the same streets compared at
+    /// load, aligned, and the offsets between them (m): median and largest; the load's
+    /// wall time for it (ms).
+    pub map_pairs_compared: usize,
+    /// See `map_pairs_compared`.
+    pub map_pairs_aligned: usize,
+    /// See `map_pairs_compared`.
+    pub map_offset_p50_m: f64,
+    /// See `map_pairs_compared`.
+    pub map_offset_max_m: f64,
+    /// See `map_pairs_compared`.
+    pub map_check_ms: f64,
     /// Search attempts' wall time on the search's thread (ms): median and largest.
     pub search_ms_p50: f64,
     /// Largest.
@@ -445,6 +457,21 @@ impl Localiser {
                 "features"
             },
             map_scan_points: scan_map.as_ref().map_or(0, |m| m.len()),
+            map_pairs_compared: scan_map
+                .as_ref()
+                .map_or(0, |m| m.disagreement.pairs_compared),
+            map_pairs_aligned: scan_map
+                .as_ref()
+                .map_or(0, |m| m.disagreement.pairs_aligned),
+            map_offset_p50_m: scan_map.as_ref().map_or(0.0, |m| {
+                let mut v = m.disagreement.offsets_m.clone();
+                v.sort_by(f64::total_cmp);
+                v.get(v.len() / 2).copied().unwrap_or(0.0)
+            }),
+            map_offset_max_m: scan_map.as_ref().map_or(0.0, |m| {
+                m.disagreement.offsets_m.iter().copied().fold(0.0, f64::max)
+            }),
+            map_check_ms: scan_map.as_ref().map_or(0.0, |m| m.disagreement.wall_ms),
             ..LocaliseSummary::default()
         };
         info!(
@@ -973,9 +1000,15 @@ impl Localiser {
             return None;
         }
         if let Some(b) = self.scans.as_ref() {
-            // By scans: the tracker's pose and its covariance against the map (the map's own
-            // error against the world is the map's, reported with it, not added here).
-            return b.tracker.as_ref().map(ScanTracker::estimate);
+            // By scans: the tracker's pose and its covariance against the map, plus where the
+            // map disagrees with itself there (its passes over the same streets apart: the
+            // map's frame is itself uncertain by that much). The map's own error against the
+            // world is the map's, reported with it, not added here.
+            return b.tracker.as_ref().map(|t| {
+                let (pose, cov) = t.estimate();
+                let cov = cov + b.map.disagreement.at([pose.x, pose.y]);
+                (pose, 0.5 * (cov + cov.transpose()))
+            });
         }
         let pose = ekf.pose();
         let cov = ekf.pose_covariance() + self.features.frame_covariance_at(&pose);

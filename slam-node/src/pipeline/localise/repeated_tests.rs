@@ -17,10 +17,10 @@ use super::known::{MapFeatures, WorldFeature};
 use super::search::{Attempt, PlaceSearcher};
 
 /// A deterministic pseudo-random sequence in [0, 1) (the scan search's tests use it too).
-pub(super) struct Lcg(pub(super) u64);
+pub(crate) struct Lcg(pub(crate) u64);
 
 impl Lcg {
-    pub(super) fn next(&mut self) -> f64 {
+    pub(crate) fn next(&mut self) -> f64 {
         self.0 = self
             .0
             .wrapping_mul(6_364_136_223_846_793_005)

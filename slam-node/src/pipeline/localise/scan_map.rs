@@ -11,6 +11,7 @@
 
 use std::collections::HashMap;
 
+use nalgebra::{Matrix3, Vector3};
 use radar_model::geometry::Pose2;
 use radar_odometry::{PlaceDescriptor, PlaceIndex, PlaceSettings, ReferenceCloud};
 use slam_graph::correlate::ScoreGrid;
@@ -41,6 +42,150 @@ pub struct ScanMap {
     /// [`TRACK_GRID_SIGMA_M`] kernel; twice as coarse when the map spans too large an area,
     /// `None` when even that exceeds [`TRACK_GRID_MAX_CELLS`]).
     pub grid: Option<ScoreGrid>,
+    /// Where the mapping drive passed more than once, how far apart its passes put the
+    /// same walls ([`Disagreement::measure`]).
+    pub disagreement: Disagreement,
+}
+
+/// Submaps this close in the drive's order are one pass (their scans overlap by the
+/// radar's reach): not compared.
+const SAME_PASS_SUBMAPS: usize = 2;
+/// A point of one pass has a point of the other within this (m) where they overlap.
+const OVERLAP_M: f64 = 5.0;
+/// Two submaps are compared when this share of one's points (a subsample) overlaps the
+/// other's.
+const MIN_OVERLAP_SHARE: f64 = 0.2;
+/// The offsets between passes searched for (m, one sigma: the verifier's window is three).
+const PASS_OFFSET_SIGMA_M: f64 = 4.0;
+/// Points of a submap looked at for the overlap share.
+const OVERLAP_SAMPLE: usize = 400;
+
+/// Where the map disagrees with itself: each pair of submaps of different passes over the
+/// same streets aligned scan to scan (the loop-closure verifier's `align_scans`, from no
+/// offset), and the offset between them, at the middle of their overlap, kept over the
+/// overlap's buckets. The map's frame is the mapping drive's estimate; where its passes
+/// put the same wall metres apart a localiser matches one or the other (or both), and how
+/// far it can be from "the truth in the map's frame" is that offset: the published
+/// covariance adds it there (by scans; by features the submap frame's covariance plays
+/// that part).
+#[derive(Debug, Default)]
+pub struct Disagreement {
+    /// Per bucket of [`BUCKET_M`]: the largest offset's covariance `[x, y, heading]` (its
+    /// outer product).
+    buckets: HashMap<(i64, i64), Matrix3<f64>>,
+    /// Pairs of submaps of different passes that overlap, and of those the ones aligned.
+    pub pairs_compared: usize,
+    /// See `pairs_compared`.
+    pub pairs_aligned: usize,
+    /// The offsets (m) of the aligned pairs, at the middle of their overlap.
+    pub offsets_m: Vec<f64>,
+    /// Wall time the comparison took at load (ms).
+    pub wall_ms: f64,
+}
+
+impl Disagreement {
+    /// Compares the submaps' scans `scans` (each in the map's frame, in the drive's
+    /// order) pass against pass.
+    pub fn measure(scans: &[Vec<[f64; 2]>]) -> Self {
+        let started = std::time::Instant::now();
+        let settings = slam_graph::scans::ScanAlignSettings::default();
+        let align = slam_graph::align::AlignSettings::default();
+        let boxes: Vec<Option<[f64; 4]>> = scans.iter().map(|s| bounds(s)).collect();
+        let mut out = Self::default();
+        let mut references: HashMap<usize, ReferenceCloud> = HashMap::new();
+        let prior = Pose2::new(0.0, 0.0, 0.0);
+        let prior_cov = Matrix3::from_diagonal(&Vector3::new(
+            PASS_OFFSET_SIGMA_M.powi(2),
+            PASS_OFFSET_SIGMA_M.powi(2),
+            0.05f64.powi(2),
+        ));
+        for k in 0..scans.len() {
+            for j in k + SAME_PASS_SUBMAPS + 1..scans.len() {
+                let (Some(a), Some(b)) = (boxes[k], boxes[j]) else {
+                    continue;
+                };
+                if a[0] > b[2] + OVERLAP_M
+                    || b[0] > a[2] + OVERLAP_M
+                    || a[1] > b[3] + OVERLAP_M
+                    || b[1] > a[3] + OVERLAP_M
+                {
+                    continue;
+                }
+                let rj = references.entry(j).or_insert_with(|| {
+                    ReferenceCloud::new(scans[j].clone(), SCAN_NORMAL_RADIUS_M, OVERLAP_M)
+                });
+                let stride = scans[k].len().div_ceil(OVERLAP_SAMPLE).max(1);
+                let sampled = scans[k].iter().step_by(stride);
+                let n = scans[k].len().div_ceil(stride);
+                let near = sampled
+                    .filter(|p| rj.nearest_within(p, OVERLAP_M).is_some())
+                    .count();
+                if n == 0 || (near as f64) < MIN_OVERLAP_SHARE * n as f64 {
+                    continue;
+                }
+                out.pairs_compared += 1;
+                let overlap: Vec<[f64; 2]> = scans[k]
+                    .iter()
+                    .filter(|p| rj.nearest_within(p, OVERLAP_M).is_some())
+                    .copied()
+                    .collect();
+                let reference = slam_graph::scans::reference_scan(scans[j].clone(), &settings);
+                let Ok(al) = slam_graph::scans::align_scans(
+                    &reference, &overlap, &prior, &prior_cov, &align, &settings,
+                ) else {
+                    continue;
+                };
+                out.pairs_aligned += 1;
+                let n = overlap.len() as f64;
+                let c = overlap
+                    .iter()
+                    .fold([0.0, 0.0], |m, p| [m[0] + p[0] / n, m[1] + p[1] / n]);
+                let moved = transform_point(&al.transform, c);
+                let d = Vector3::new(
+                    moved[0] - c[0],
+                    moved[1] - c[1],
+                    radar_model::geometry::wrap_angle(al.transform.theta),
+                );
+                out.offsets_m.push(d[0].hypot(d[1]));
+                let cov = d * d.transpose();
+                for p in &overlap {
+                    let slot = out
+                        .buckets
+                        .entry(bucket_of(*p))
+                        .or_insert_with(Matrix3::zeros);
+                    if cov.trace() > slot.trace() {
+                        *slot = cov;
+                    }
+                }
+            }
+        }
+        out.wall_ms = started.elapsed().as_secs_f64() * 1e3;
+        out
+    }
+
+    /// The map's disagreement with itself at `p` (the covariance of the largest offset
+    /// between its passes there; zero where it was driven once).
+    pub fn at(&self, p: [f64; 2]) -> Matrix3<f64> {
+        self.buckets
+            .get(&bucket_of(p))
+            .copied()
+            .unwrap_or_else(Matrix3::zeros)
+    }
+}
+
+/// `[min x, min y, max x, max y]` of `points`; `None` when empty.
+fn bounds(points: &[[f64; 2]]) -> Option<[f64; 4]> {
+    points.iter().fold(None, |b, p| {
+        Some(match b {
+            None => [p[0], p[1], p[0], p[1]],
+            Some(b) => [
+                b[0].min(p[0]),
+                b[1].min(p[1]),
+                b[2].max(p[0]),
+                b[3].max(p[1]),
+            ],
+        })
+    })
 }
 
 /// The tracking score grid's cells (m), kernel (m) and bound (cells, 4 bytes each).
@@ -61,17 +206,23 @@ impl ScanMap {
     /// The map's scans placed by their frames (`frames` from [`MapFeatures`]); `None` when
     /// the map holds no scan point.
     pub fn new(map: &Map, frames: &MapFeatures) -> Option<Self> {
-        let mut points = Vec::with_capacity(map.scan_point_count());
-        for (k, (frame, _)) in frames.frames.iter().enumerate() {
-            if let Some(scan) = map.scan_of(k) {
-                points.extend(
+        let scans: Vec<Vec<[f64; 2]>> = frames
+            .frames
+            .iter()
+            .enumerate()
+            .map(|(k, (frame, _))| {
+                map.scan_of(k).map_or_else(Vec::new, |scan| {
                     scan.iter()
                         .map(|q| transform_point(frame, [f64::from(q[0]), f64::from(q[1])]))
-                        .filter(|p| p[0].is_finite() && p[1].is_finite()),
-                );
-            }
-        }
-        Self::from_points(points, frames)
+                        .filter(|p| p[0].is_finite() && p[1].is_finite())
+                        .collect()
+                })
+            })
+            .collect();
+        let disagreement = Disagreement::measure(&scans);
+        let mut out = Self::from_points(scans.concat(), frames)?;
+        out.disagreement = disagreement;
+        Some(out)
     }
 
     /// The map of `points` (already in the map's frame), with places along the drive of
@@ -108,6 +259,7 @@ impl ScanMap {
             places: Vec::new(),
             settings: PlaceSettings::default(),
             grid,
+            disagreement: Disagreement::default(),
         };
         let r = out.settings.max_range_m;
         for p in drive_points(frames, PLACE_SPACING_M) {
@@ -178,5 +330,70 @@ impl ScanMap {
             index.insert(i as u64, d);
         }
         index
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::localise::repeated_tests::Lcg;
+    use crate::pipeline::localise::scan_search::tests::street;
+
+    /// The street's points in `[from, to)` along it, each moved by `offset`: one submap's
+    /// scan in the map's frame.
+    fn submap(world: &[[f64; 2]], from: f64, to: f64, offset: [f64; 2]) -> Vec<[f64; 2]> {
+        world
+            .iter()
+            .filter(|p| p[0] >= from && p[0] < to)
+            .map(|p| [p[0] + offset[0], p[1] + offset[1]])
+            .collect()
+    }
+
+    #[test]
+    fn a_second_pass_placed_apart_is_measured_where_it_overlaps_and_nowhere_else() {
+        let world = street(&mut Lcg(11), 0.0);
+        let there: Vec<Vec<[f64; 2]>> = (0..4)
+            .map(|k| {
+                let x = 100.0 * f64::from(k);
+                submap(&world, x, x + 100.0, [0.0, 0.0])
+            })
+            .collect();
+        // One pass: nothing to compare, no disagreement anywhere.
+        let once = Disagreement::measure(&there);
+        assert_eq!((once.pairs_compared, once.pairs_aligned), (0, 0));
+        assert_eq!(once.at([50.0, 8.0]), Matrix3::zeros());
+
+        // The way back over the first 300 m, the map's estimate 1.5 m further along and
+        // 0.4 m to the side.
+        let offset = [1.5, 0.4];
+        let mut both = there.clone();
+        both.extend((0..3).rev().map(|k| {
+            let x = 100.0 * f64::from(k);
+            submap(&world, x, x + 100.0, offset)
+        }));
+        let twice = Disagreement::measure(&both);
+        // Submaps 1 and 5, 0 and 6; not 2 and 4, two submaps apart in the drive's order
+        // (taken for one pass: the radar's reach spans them).
+        assert_eq!(
+            (
+                twice.pairs_compared,
+                twice.pairs_aligned,
+                twice.offsets_m.len()
+            ),
+            (2, 2, 2),
+            "{:?}",
+            twice.offsets_m
+        );
+        let apart = offset[0].hypot(offset[1]);
+        for d in &twice.offsets_m {
+            assert!((d - apart).abs() < 0.1, "{d} m, not {apart} m");
+        }
+        let here = twice.at([150.0, 8.0]);
+        assert!(
+            (here[(0, 0)].sqrt() - 1.5).abs() < 0.1 && (here[(1, 1)].sqrt() - 0.4).abs() < 0.1,
+            "{here}"
+        );
+        // The last 100 m were driven once.
+        assert_eq!(twice.at([350.0, 8.0]), Matrix3::zeros());
     }
 }

@@ -331,7 +331,7 @@ impl ScanSearcher {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::pipeline::localise::known::MapFeatures;
     use slam_graph::se2::transform_point;
@@ -341,7 +341,7 @@ mod tests {
     /// A street along x from 0 to 400 m with fronts either side (set back irregularly,
     /// with gaps), cross streets every 100 m and posts: points every 0.5 m, as a scan sees
     /// them, shifted by `dx` along x.
-    fn street(rng: &mut Lcg, dx: f64) -> Vec<[f64; 2]> {
+    pub(crate) fn street(rng: &mut Lcg, dx: f64) -> Vec<[f64; 2]> {
         let mut out = Vec::new();
         for side in [-1.0, 1.0] {
             let mut x = 0.0;
