@@ -92,7 +92,6 @@ fn six_seconds_of_noise_leave_the_map_and_the_parked_vehicle_as_they_were() {
 /// keeps the four reflectors, maps no phantoms and keeps the parked vehicle's heading.
 #[test]
 fn the_simulators_noise_burst_over_loopback_leaves_the_daemons_map_and_heading() {
-    use std::sync::atomic::AtomicBool;
     use std::sync::{Arc, Mutex};
     use std::time::Duration;
 
@@ -130,23 +129,7 @@ fn the_simulators_noise_burst_over_loopback_leaves_the_daemons_map_and_heading()
             },
         ) as slam_node::pipeline::run::ProgressFn
     };
-    let opts = slam_node::daemon::DaemonOptions {
-        config: config::Config::default(),
-        simulator: Some(slam_node::daemon::Simulator {
-            sim: slam_node::daemon::EmbeddedSim::new(sim),
-            recorded: None,
-        }),
-        mcap: None,
-        max_stream_s: Some(20.0),
-        out_dir: dir.path().to_path_buf(),
-        figures: false,
-        progress_every_rotations: 0,
-        stop: Arc::new(AtomicBool::new(false)),
-        keep_configured_compensation: false,
-        spectrum_bearings_deg: Vec::new(),
-        detector: Some(slam_node::detect::DetectorSettings::default()),
-        written: None,
-    };
+    let opts = support::embedded_options(config::Config::default(), sim, dir.path(), 20.0);
     let runtime = tokio::runtime::Runtime::new().expect("runtime");
     let report = runtime
         .block_on(async {

@@ -4,8 +4,8 @@
 //! process, against its embedded simulator as fast as possible, `[odometry] source =
 //! "zenoh"`) maps with it. Built only with `--features zenoh`.
 
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
+mod support;
+
 use std::time::{Duration, Instant};
 
 use radar_model::motion::MotionModel;
@@ -14,7 +14,7 @@ use ros_msgs::geometry::{Twist, TwistStamped, TwistWithCovariance, Vector3};
 use ros_msgs::nav::Odometry;
 use ros_msgs::std_msgs::Header;
 use ros_msgs::{to_cdr, RosMessage};
-use slam_node::daemon::{run_daemon, DaemonOptions, DaemonReport, EmbeddedSim};
+use slam_node::daemon::{run_daemon, DaemonOptions, DaemonReport};
 use slam_node::output::live::rmw_zenoh_key;
 use zenoh::bytes::Encoding;
 use zenoh::qos::CongestionControl;
@@ -100,23 +100,7 @@ fn options(
     let mut sim = sim_sensor::SimOptions::for_tests(scene.clone());
     sim.odometry_bind = None;
     sim.start_time_ns = Some(START_NS);
-    let opts = DaemonOptions {
-        config,
-        simulator: Some(slam_node::daemon::Simulator {
-            sim: EmbeddedSim::new(sim),
-            recorded: None,
-        }),
-        mcap: None,
-        max_stream_s: Some(DURATION_S),
-        out_dir: out.to_path_buf(),
-        figures: false,
-        progress_every_rotations: 0,
-        stop: Arc::new(AtomicBool::new(false)),
-        keep_configured_compensation: false,
-        spectrum_bearings_deg: Vec::new(),
-        detector: Some(slam_node::detect::DetectorSettings::default()),
-        written: None,
-    };
+    let opts = support::embedded_options(config, sim, out, DURATION_S);
     (opts, scene)
 }
 

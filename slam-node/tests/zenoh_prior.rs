@@ -8,15 +8,15 @@
 //! decode, and a prior stamped before every pose the localiser keeps, sent before it, are
 //! refused and counted. Built only with `--features zenoh`.
 
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
+mod support;
+
 use std::time::{Duration, Instant};
 
 use ros_msgs::builtin::Time;
 use ros_msgs::geometry::{Point, Pose, PoseWithCovariance, PoseWithCovarianceStamped, Quaternion};
 use ros_msgs::std_msgs::Header;
 use ros_msgs::{to_cdr, RosMessage};
-use slam_node::daemon::{run_daemon, DaemonOptions, DaemonReport, EmbeddedSim};
+use slam_node::daemon::{run_daemon, DaemonOptions, DaemonReport};
 use zenoh::bytes::Encoding;
 use zenoh::Wait;
 
@@ -41,23 +41,7 @@ fn options(
     sim.start_time_ns = Some(START_NS);
     sim.seed = Some(seed);
     sim.pacing = pacing;
-    DaemonOptions {
-        config,
-        simulator: Some(slam_node::daemon::Simulator {
-            sim: EmbeddedSim::new(sim),
-            recorded: None,
-        }),
-        mcap: None,
-        max_stream_s: Some(DURATION_S),
-        out_dir: out.to_path_buf(),
-        figures: false,
-        progress_every_rotations: 0,
-        stop: Arc::new(AtomicBool::new(false)),
-        keep_configured_compensation: false,
-        spectrum_bearings_deg: Vec::new(),
-        detector: Some(slam_node::detect::DetectorSettings::default()),
-        written: None,
-    }
+    support::embedded_options(config, sim, out, DURATION_S)
 }
 
 fn run(opts: DaemonOptions) -> DaemonReport {

@@ -108,10 +108,22 @@ pub fn summary_text(r: &DaemonReport) -> String {
         put(&McapReplay(c));
     }
     if let Some(z) = &r.zenoh_odometry {
-        put(&ZenohOdometry(z));
+        put(&ZenohSubscription(
+            z,
+            "odometry",
+            "samples",
+            "lost",
+            "malformed",
+        ));
     }
     if let Some(z) = &r.zenoh_prior {
-        put(&ZenohPrior(z));
+        put(&ZenohSubscription(
+            z,
+            "prior poses",
+            "priors",
+            "refused",
+            "malformed or not in the map frame",
+        ));
     }
     if let Some(rec) = &r.writer.recording {
         put(&Recording(rec));
@@ -838,35 +850,23 @@ impl fmt::Display for McapReplay<'_> {
     }
 }
 
-/// What the Zenoh odometry subscription received and lost.
-struct ZenohOdometry<'a>(&'a ZenohOdometryCounts);
+/// What a Zenoh subscription (odometry, prior poses) received and lost: its counts, what it
+/// carries, what its messages are called, the word for those not taken and for those that
+/// did not decode.
+struct ZenohSubscription<'a>(
+    &'a ZenohOdometryCounts,
+    &'static str,
+    &'static str,
+    &'static str,
+    &'static str,
+);
 
-impl fmt::Display for ZenohOdometry<'_> {
+impl fmt::Display for ZenohSubscription<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let z = self.0;
+        let ZenohSubscription(z, what, items, lost, malformed) = self;
         writeln!(
             f,
-            "  Zenoh odometry on {}: {} samples received, {} taken; lost {} (malformed {}, another type {}, queue full {})",
-            z.key,
-            z.received,
-            z.decoded,
-            z.lost(),
-            z.malformed,
-            z.wrong_type,
-            z.dropped
-        )
-    }
-}
-
-/// What the Zenoh prior pose subscription received and refused.
-struct ZenohPrior<'a>(&'a ZenohOdometryCounts);
-
-impl fmt::Display for ZenohPrior<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let z = self.0;
-        writeln!(
-            f,
-            "  Zenoh prior poses on {}: {} received, {} taken; refused {} (malformed or not in the map frame {}, another type {}, queue full {})",
+            "  Zenoh {what} on {}: {} {items} received, {} taken; {lost} {} ({malformed} {}, another type {}, queue full {})",
             z.key,
             z.received,
             z.decoded,

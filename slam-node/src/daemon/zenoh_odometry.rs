@@ -111,6 +111,32 @@ pub(crate) mod subscriber {
         }
     }
 
+    /// Hands a decoded message to the pipeline without blocking, counting it as taken, or as
+    /// dropped (the channel full) or malformed, each loss through `log`.
+    pub(crate) fn deliver<T, E: std::fmt::Display>(
+        s: &ZenohOdometryStats,
+        tx: &crossbeam_channel::Sender<T>,
+        decoded: Result<T, E>,
+        log: fn(&ZenohOdometryStats, &str, &str),
+    ) {
+        match decoded {
+            Ok(item) => match tx.try_send(item) {
+                Ok(()) => {
+                    s.decoded.fetch_add(1, Ordering::Relaxed);
+                }
+                Err(TrySendError::Full(_)) => {
+                    s.dropped.fetch_add(1, Ordering::Relaxed);
+                    log(s, "queue full", "the pipeline is behind");
+                }
+                Err(TrySendError::Disconnected(_)) => {}
+            },
+            Err(e) => {
+                s.malformed.fetch_add(1, Ordering::Relaxed);
+                log(s, "malformed", &e.to_string());
+            }
+        }
+    }
+
     /// Whether a sample's encoding names a ROS type other than `expected` (no schema, or a
     /// schema naming the same type, is not).
     fn names_another_type(encoding: &zenoh::bytes::Encoding, expected: OdometryMessage) -> bool {
@@ -153,22 +179,7 @@ pub(crate) mod subscriber {
                     return;
                 }
                 let payload = sample.payload().to_bytes();
-                match message.decode(&payload, &motion) {
-                    Ok(record) => match tx.try_send(record) {
-                        Ok(()) => {
-                            s.decoded.fetch_add(1, Ordering::Relaxed);
-                        }
-                        Err(TrySendError::Full(_)) => {
-                            s.dropped.fetch_add(1, Ordering::Relaxed);
-                            log_lost(s, "queue full", "the pipeline is behind");
-                        }
-                        Err(TrySendError::Disconnected(_)) => {}
-                    },
-                    Err(e) => {
-                        s.malformed.fetch_add(1, Ordering::Relaxed);
-                        log_lost(s, "malformed", &e.to_string());
-                    }
-                }
+                deliver(s, &tx, message.decode(&payload, &motion), log_lost);
             })?;
             info!(key = %subscription.key, message = %message.type_name(), "odometry from Zenoh");
             Ok(Self {

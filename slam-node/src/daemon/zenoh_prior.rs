@@ -18,12 +18,12 @@ mod subscriber {
     use std::sync::atomic::Ordering;
     use std::sync::Arc;
 
-    use crossbeam_channel::{bounded, Receiver, TrySendError};
+    use crossbeam_channel::{bounded, Receiver};
     use ros_msgs::geometry::PoseWithCovarianceStamped;
     use ros_msgs::RosMessage;
     use tracing::{info, warn};
 
-    use super::super::zenoh_odometry::subscriber::names_other_than;
+    use super::super::zenoh_odometry::subscriber::{deliver, names_other_than};
     use super::super::zenoh_odometry::{SharedStats, ZenohOdometryStats};
     use crate::output::live::LiveError;
     use crate::output::zenoh_node::{Subscription, ZenohNode};
@@ -70,22 +70,8 @@ mod subscriber {
                     log_lost(s, "another type", &sample.encoding().to_string());
                     return;
                 }
-                match crate::output::ros::prior_pose(&sample.payload().to_bytes()) {
-                    Ok(prior) => match tx.try_send(prior) {
-                        Ok(()) => {
-                            s.decoded.fetch_add(1, Ordering::Relaxed);
-                        }
-                        Err(TrySendError::Full(_)) => {
-                            s.dropped.fetch_add(1, Ordering::Relaxed);
-                            log_lost(s, "queue full", "the pipeline is behind");
-                        }
-                        Err(TrySendError::Disconnected(_)) => {}
-                    },
-                    Err(e) => {
-                        s.malformed.fetch_add(1, Ordering::Relaxed);
-                        log_lost(s, "malformed", &e.to_string());
-                    }
-                }
+                let decoded = crate::output::ros::prior_pose(&sample.payload().to_bytes());
+                deliver(s, &tx, decoded, log_lost);
             })?;
             info!(key = %subscription.key, message = %ros_type, "prior poses from Zenoh");
             Ok(Self {

@@ -299,3 +299,31 @@ pub fn run_queued(
     drop(output);
     report
 }
+
+/// The daemon's options for a run of the embedded simulator `sim` under `config`, for
+/// `max_stream_s` of stream, outputs in `out`: no figures, no progress lines, the default
+/// detector.
+pub fn embedded_options(
+    config: config::Config,
+    sim: sim_sensor::SimOptions,
+    out: &std::path::Path,
+    max_stream_s: f64,
+) -> slam_node::daemon::DaemonOptions {
+    slam_node::daemon::DaemonOptions {
+        config,
+        simulator: Some(slam_node::daemon::Simulator {
+            sim: slam_node::daemon::EmbeddedSim::new(sim),
+            recorded: None,
+        }),
+        mcap: None,
+        max_stream_s: Some(max_stream_s),
+        out_dir: out.to_path_buf(),
+        figures: false,
+        progress_every_rotations: 0,
+        stop: Arc::new(std::sync::atomic::AtomicBool::new(false)),
+        keep_configured_compensation: false,
+        spectrum_bearings_deg: Vec::new(),
+        detector: Some(slam_node::detect::DetectorSettings::default()),
+        written: None,
+    }
+}
