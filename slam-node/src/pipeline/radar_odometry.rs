@@ -37,6 +37,9 @@ impl RadarReturn for Detection {
     }
 }
 
+/// The largest acceleration (m/s^2) the held speed is extrapolated with.
+pub const MAX_ACCEL_MPS2: f64 = 4.0;
+
 /// The stage: the matcher, what the filter did with its measurements, and, when it drives
 /// the filter, whether it has a motion estimate.
 #[derive(Debug)]
@@ -55,6 +58,9 @@ pub struct RadarOdometryStage {
     gyro: bool,
     /// Driving: registrations composed onto the pose at the mark, not fused as updates.
     compose: bool,
+    /// Driving: the speed the last applied registration measured (m/s) and the middle of
+    /// its rotation (s), for the next speed's extrapolation.
+    last_speed: Option<(f64, f64)>,
 }
 
 impl RadarOdometryStage {
@@ -70,6 +76,7 @@ impl RadarOdometryStage {
             drives,
             motion,
             last_end_s: None,
+            last_speed: None,
             lost: false,
             gyro: drives && gyro,
             compose: false,
@@ -213,9 +220,54 @@ impl RadarOdometryStage {
             self.matcher.place_reference(settled);
         }
         if self.drives {
-            drive_sample(ekf, &self.motion, tally, applied.as_ref(), self.gyro)
+            let sample = drive_sample(ekf, &self.motion, tally, applied.as_ref(), self.gyro)?;
+            Some(self.extrapolated(sample, applied.as_ref(), tally))
         } else {
             None
+        }
+    }
+
+    /// The speed held over the next rotation: the one measured over this rotation carried
+    /// on by the change since the last (constant acceleration, at most
+    /// [`MAX_ACCEL_MPS2`]), when both were registered and neither was weak or searched.
+    /// A vehicle slowing into a junction or pulling away from it changes its speed by
+    /// 0.1-0.3 m/s a rotation; held constant, the prediction overshoots or lags by a
+    /// decimetre a rotation, and the filter, fusing it with the registration, follows it
+    /// part of the way (the registrations err 1-2 cm along the track).
+    fn extrapolated(
+        &mut self,
+        sample: OdometrySample,
+        applied: Option<&RotationMotion>,
+        tally: Option<slam_filter::motion_tally::MotionTally>,
+    ) -> OdometrySample {
+        let (Some(m), Some(t)) = (applied, tally) else {
+            self.last_speed = None;
+            return sample;
+        };
+        if m.weak || m.searched {
+            self.last_speed = None;
+            return sample;
+        }
+        let span = sample.timestamp_s - t.since_s;
+        let centre = t.since_s + 0.5 * span;
+        let speed = sample.speed_mps;
+        let previous = self.last_speed.replace((speed, centre));
+        let Some((before, before_centre)) = previous else {
+            return sample;
+        };
+        let dt = centre - before_centre;
+        if !(dt > 0.05 && dt < 1.0 && span > 0.05) {
+            return sample;
+        }
+        let accel = ((speed - before) / dt).clamp(-MAX_ACCEL_MPS2, MAX_ACCEL_MPS2);
+        let next = speed + accel * span;
+        OdometrySample {
+            speed_mps: if speed >= 0.0 {
+                next.max(0.0)
+            } else {
+                next.min(0.0)
+            },
+            ..sample
         }
     }
 
@@ -380,4 +432,98 @@ fn drive_sample(
             input.steer_rad - b
         },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Matrix3;
+    use radar_odometry::{Constraint, Registration};
+    use slam_filter::motion_tally::MotionTally;
+
+    fn stage() -> RadarOdometryStage {
+        RadarOdometryStage::new(
+            ScanMatchSettings::default(),
+            true,
+            MotionModel::Bicycle { wheelbase_m: 2.7 },
+            false,
+        )
+    }
+
+    fn registered(weak: bool) -> RotationMotion {
+        let pose = Pose2::new(2.0, 0.0, 0.0);
+        RotationMotion {
+            motion: pose,
+            covariance: Matrix3::identity() * 1e-4,
+            registration: Registration {
+                pose,
+                pairs: 500,
+                line_pairs: 400,
+                rms_m: 0.05,
+                iterations: 12,
+                information: Matrix3::identity(),
+            },
+            constraint: Constraint {
+                weakest: if weak { 0.0 } else { 0.5 },
+                direction: [1.0, 0.0, 0.0],
+            },
+            weak,
+            searched: false,
+        }
+    }
+
+    /// The stage's held speed after a rotation from `since_s` to `until_s` measured at
+    /// `speed_mps`.
+    fn held(
+        s: &mut RadarOdometryStage,
+        since_s: f64,
+        until_s: f64,
+        speed_mps: f64,
+        weak: bool,
+    ) -> f64 {
+        let sample = OdometrySample {
+            timestamp_s: until_s,
+            speed_mps,
+            steer_rad: 0.0,
+        };
+        let tally = MotionTally {
+            since_s,
+            rel: Pose2::new(speed_mps * (until_s - since_s), 0.0, 0.0),
+        };
+        s.extrapolated(sample, Some(&registered(weak)), Some(tally))
+            .speed_mps
+    }
+
+    #[test]
+    fn the_held_speed_goes_on_with_the_acceleration_measured_and_no_further() {
+        let mut s = stage();
+        // The first rotation has nothing to extrapolate from.
+        assert_eq!(held(&mut s, 0.0, 0.25, 8.0, false), 8.0);
+        // 8 -> 9 m/s over a rotation: 4 m/s^2, carried over the next quarter second.
+        assert!((held(&mut s, 0.25, 0.5, 9.0, false) - 10.0).abs() < 1e-9);
+        // Rotations of other lengths: the rate between the rotations' middles (0.375 and
+        // 0.55 s), carried over this rotation's length.
+        let next = held(&mut s, 0.5, 0.6, 9.2, false);
+        assert!((next - (9.2 + 0.2 / 0.175 * 0.1)).abs() < 1e-9, "{next}");
+        // A weak registration holds its speed and the next one starts afresh.
+        assert_eq!(held(&mut s, 0.6, 0.85, 9.0, true), 9.0);
+        assert_eq!(held(&mut s, 0.85, 1.1, 9.5, false), 9.5);
+        // A jump beyond MAX_ACCEL_MPS2 (a bad registration) is carried at that at most.
+        let next = held(&mut s, 1.1, 1.35, 13.5, false);
+        assert!(
+            (next - (13.5 + MAX_ACCEL_MPS2 * 0.25)).abs() < 1e-9,
+            "{next}"
+        );
+        // Slowing to a stop never reverses the held speed.
+        let mut s = stage();
+        held(&mut s, 0.0, 0.25, 0.8, false);
+        assert_eq!(held(&mut s, 0.25, 0.5, 0.1, false), 0.0);
+        // Without a registration applied the sample is the held one, unchanged.
+        let sample = OdometrySample {
+            timestamp_s: 0.75,
+            speed_mps: 5.0,
+            steer_rad: 0.0,
+        };
+        assert_eq!(s.extrapolated(sample, None, None), sample);
+    }
 }
