@@ -5,8 +5,7 @@
 //! "zenoh"`) maps with it. Built only with `--features zenoh`.
 
 mod support;
-
-use std::time::{Duration, Instant};
+mod zenoh_support;
 
 use radar_model::motion::MotionModel;
 use ros_msgs::builtin::Time;
@@ -14,7 +13,7 @@ use ros_msgs::geometry::{Twist, TwistStamped, TwistWithCovariance, Vector3};
 use ros_msgs::nav::Odometry;
 use ros_msgs::std_msgs::Header;
 use ros_msgs::{to_cdr, RosMessage};
-use slam_node::daemon::{run_daemon, DaemonOptions, DaemonReport};
+use slam_node::daemon::{DaemonOptions, DaemonReport};
 use slam_node::output::live::rmw_zenoh_key;
 use zenoh::bytes::Encoding;
 use zenoh::qos::CongestionControl;
@@ -104,29 +103,6 @@ fn options(
     (opts, scene)
 }
 
-/// Starts the daemon on a runtime of its own, waits (at most 30 s) until its odometry
-/// subscriber matches `publisher`, lets `publish` run, and returns the daemon's report.
-fn run_with(
-    opts: DaemonOptions,
-    publisher: &zenoh::pubsub::Publisher<'_>,
-    publish: impl FnOnce(),
-) -> DaemonReport {
-    let runtime = tokio::runtime::Runtime::new().unwrap();
-    let daemon = runtime.spawn(run_daemon(opts, None));
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while !publisher.matching_status().wait().unwrap().matching() {
-        assert!(Instant::now() < deadline, "the daemon never subscribed");
-        assert!(!daemon.is_finished(), "the daemon ended before subscribing");
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    publish();
-    runtime
-        .block_on(async { tokio::time::timeout(Duration::from_secs(120), daemon).await })
-        .expect("the daemon finishes within 2 min")
-        .expect("the daemon's task")
-        .expect("the daemon runs")
-}
-
 fn rms_position_m(report: &DaemonReport) -> f64 {
     report
         .run
@@ -155,7 +131,7 @@ fn odometry_published_over_zenoh_drives_the_daemon_and_its_trajectory_follows_it
         .congestion_control(CongestionControl::Block)
         .wait()
         .unwrap();
-    let report = run_with(opts, &publisher, || {
+    let report = zenoh_support::run_with(opts, &publisher, || {
         for &(stamp, speed, yaw) in &samples {
             publisher
                 .put(to_cdr(&odometry(stamp, speed, yaw)).unwrap())
@@ -221,7 +197,7 @@ fn malformed_cdr_from_a_zenoh_peer_costs_only_that_message_and_is_counted() {
         .wait()
         .unwrap();
     let (mut garbage, mut truncated, mut other_layout, mut other_type) = (0u64, 0u64, 0u64, 0u64);
-    let report = run_with(opts, &publisher, || {
+    let report = zenoh_support::run_with(opts, &publisher, || {
         for (k, &(stamp, speed, yaw)) in samples.iter().enumerate() {
             let good = to_cdr(&TwistStamped {
                 header: Header::new(stamp, "base_link"),

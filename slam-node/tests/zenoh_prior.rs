@@ -9,6 +9,7 @@
 //! refused and counted. Built only with `--features zenoh`.
 
 mod support;
+mod zenoh_support;
 
 use std::time::{Duration, Instant};
 
@@ -109,39 +110,28 @@ fn a_prior_pose_published_on_initialpose_starts_tracking_in_the_map() {
         .wait()
         .unwrap();
 
-    let runtime = tokio::runtime::Runtime::new().unwrap();
-    let daemon = runtime.spawn(run_daemon(opts, None));
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while !publisher.matching_status().wait().unwrap().matching() {
-        assert!(Instant::now() < deadline, "the daemon never subscribed");
-        assert!(!daemon.is_finished(), "the daemon ended before subscribing");
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    let matched = Instant::now();
-    std::thread::sleep(Duration::from_secs_f64(SEND_AFTER_S));
-    // The stream runs at the radar's rate from about when the subscription matched.
-    let stamp_s = matched.elapsed().as_secs_f64() - STAMPED_BEFORE_S;
-    let stamp_ns = START_NS + (stamp_s * 1e9) as u64;
-    let truth = trajectory.pose_at(stamp_ns - START_NS).unwrap();
-    // A pose in another frame, then garbage: each refused and counted, nothing else lost.
-    let mut elsewhere = estimate(stamp_ns, &truth);
-    elsewhere.header.frame_id = "odom".into();
-    publisher.put(to_cdr(&elsewhere).unwrap()).wait().unwrap();
-    publisher.put(vec![0u8, 1, 0, 0, 7]).wait().unwrap();
-    // A prior stamped a minute before the stream began: before every pose the localiser
-    // keeps, so it cannot be carried to now and is refused.
-    let stale = estimate(START_NS - 60_000_000_000, &truth);
-    publisher.put(to_cdr(&stale).unwrap()).wait().unwrap();
-    std::thread::sleep(Duration::from_millis(600));
-    publisher
-        .put(to_cdr(&estimate(stamp_ns, &truth)).unwrap())
-        .wait()
-        .unwrap();
-    let report = runtime
-        .block_on(async { tokio::time::timeout(Duration::from_secs(60), daemon).await })
-        .expect("the daemon finishes within a minute")
-        .expect("the daemon's task")
-        .expect("the daemon runs");
+    let report = zenoh_support::run_with(opts, &publisher, || {
+        let matched = Instant::now();
+        std::thread::sleep(Duration::from_secs_f64(SEND_AFTER_S));
+        // The stream runs at the radar's rate from about when the subscription matched.
+        let stamp_s = matched.elapsed().as_secs_f64() - STAMPED_BEFORE_S;
+        let stamp_ns = START_NS + (stamp_s * 1e9) as u64;
+        let truth = trajectory.pose_at(stamp_ns - START_NS).unwrap();
+        // A pose in another frame, then garbage: each refused and counted, nothing else lost.
+        let mut elsewhere = estimate(stamp_ns, &truth);
+        elsewhere.header.frame_id = "odom".into();
+        publisher.put(to_cdr(&elsewhere).unwrap()).wait().unwrap();
+        publisher.put(vec![0u8, 1, 0, 0, 7]).wait().unwrap();
+        // A prior stamped a minute before the stream began: before every pose the
+        // localiser keeps, so it cannot be carried to now and is refused.
+        let stale = estimate(START_NS - 60_000_000_000, &truth);
+        publisher.put(to_cdr(&stale).unwrap()).wait().unwrap();
+        std::thread::sleep(Duration::from_millis(600));
+        publisher
+            .put(to_cdr(&estimate(stamp_ns, &truth)).unwrap())
+            .wait()
+            .unwrap();
+    });
     let text = slam_node::daemon::report::summary_text(&report);
     println!("{text}");
 
