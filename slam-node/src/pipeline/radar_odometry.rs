@@ -39,6 +39,13 @@ impl RadarReturn for Detection {
 
 /// The largest acceleration (m/s^2) the held speed is extrapolated with.
 pub const MAX_ACCEL_MPS2: f64 = 4.0;
+/// A registration over less of the filter's time than this (s) does not set the held
+/// motion's rate. The filter's clock at a rotation's end is its last prediction's (an
+/// odometry or gyro sample, an update), not the last azimuth's, and two rotation ends can
+/// fall a few milliseconds apart: the motion registered between them is right to a
+/// centimetre or two, but a centimetre over 14 ms is 0.7 m/s, and the held speed went
+/// from 7 to -23 m/s for a rotation (the same route localised: 2.6 m off for a second).
+pub const MIN_RATE_SPAN_S: f64 = 0.1;
 
 /// The stage: the matcher, what the filter did with its measurements, and, when it drives
 /// the filter, whether it has a motion estimate.
@@ -249,6 +256,11 @@ impl RadarOdometryStage {
             return sample;
         }
         let span = sample.timestamp_s - t.since_s;
+        if span < MIN_RATE_SPAN_S {
+            // The sample holds the motion held so far (`drive_sample`).
+            self.last_speed = None;
+            return sample;
+        }
         let centre = t.since_s + 0.5 * span;
         let speed = sample.speed_mps;
         let previous = self.last_speed.replace((speed, centre));
@@ -256,7 +268,8 @@ impl RadarOdometryStage {
             return sample;
         };
         let dt = centre - before_centre;
-        if !(dt > 0.05 && dt < 1.0 && span > 0.05) {
+        if !(dt > 0.05 && dt < 1.0) {
+            self.last_speed = None;
             return sample;
         }
         let accel = ((speed - before) / dt).clamp(-MAX_ACCEL_MPS2, MAX_ACCEL_MPS2);
@@ -396,6 +409,13 @@ fn drive_sample(
         });
     };
     let dt = now_s - tally.since_s;
+    if dt < MIN_RATE_SPAN_S {
+        // Too short to take a rate from: the motion held so far goes on.
+        return Some(OdometrySample {
+            timestamp_s: now_s,
+            ..held
+        });
+    }
     let measured_distance = m.motion.x.signum() * m.motion.x.hypot(m.motion.y);
     let (distance, turn) = if m.weak {
         // Along the weak direction the registration said nothing: the translation it pins
@@ -502,14 +522,18 @@ mod tests {
         // 8 -> 9 m/s over a rotation: 4 m/s^2, carried over the next quarter second.
         assert!((held(&mut s, 0.25, 0.5, 9.0, false) - 10.0).abs() < 1e-9);
         // Rotations of other lengths: the rate between the rotations' middles (0.375 and
-        // 0.55 s), carried over this rotation's length.
-        let next = held(&mut s, 0.5, 0.6, 9.2, false);
-        assert!((next - (9.2 + 0.2 / 0.175 * 0.1)).abs() < 1e-9, "{next}");
+        // 0.56 s), carried over this rotation's length.
+        let next = held(&mut s, 0.5, 0.62, 9.2, false);
+        assert!((next - (9.2 + 0.2 / 0.185 * 0.12)).abs() < 1e-9, "{next}");
+        // Rotation ends 14 ms apart on the filter's clock: no rate from them, and the next
+        // rotation starts afresh.
+        assert_eq!(held(&mut s, 0.62, 0.634, 7.0, false), 7.0);
+        assert_eq!(held(&mut s, 0.634, 0.85, 9.0, false), 9.0);
         // A weak registration holds its speed and the next one starts afresh.
-        assert_eq!(held(&mut s, 0.6, 0.85, 9.0, true), 9.0);
-        assert_eq!(held(&mut s, 0.85, 1.1, 9.5, false), 9.5);
+        assert_eq!(held(&mut s, 0.85, 1.1, 9.0, true), 9.0);
+        assert_eq!(held(&mut s, 1.1, 1.35, 9.5, false), 9.5);
         // A jump beyond MAX_ACCEL_MPS2 (a bad registration) is carried at that at most.
-        let next = held(&mut s, 1.1, 1.35, 13.5, false);
+        let next = held(&mut s, 1.35, 1.6, 13.5, false);
         assert!(
             (next - (13.5 + MAX_ACCEL_MPS2 * 0.25)).abs() < 1e-9,
             "{next}"
