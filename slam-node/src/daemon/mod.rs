@@ -228,7 +228,7 @@ fn zenoh_priors(
     let (Some(topic), Some(node)) = (config.map.initial_pose_topic.as_deref(), node) else {
         return Ok(None);
     };
-    let priors = zenoh_prior::ZenohPriors::subscribe(node, topic)?;
+    let priors = zenoh_prior::subscribe(node, topic)?;
     let stats = priors.stats();
     Ok(Some((priors.rx.clone(), stats, Box::new(priors))))
 }

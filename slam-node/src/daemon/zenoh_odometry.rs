@@ -96,92 +96,69 @@ pub(crate) mod subscriber {
     /// Records waiting for the pipeline (about 50 s at 20 Hz); more are dropped and counted.
     pub const CAPACITY: usize = 1024;
 
-    /// The pipeline's end of the subscription.
+    /// A subscription whose samples are decoded in Zenoh's callback and handed to the
+    /// pipeline on a bounded channel, never blocking: each sample counted as received, then
+    /// as taken, or as lost (another ROS type named by its encoding, a payload that does not
+    /// decode, the channel full), the first ten losses and then every power of two logged.
+    /// Odometry and prior poses share it.
     #[derive(Debug)]
-    pub struct ZenohOdometry {
-        rx: Receiver<OdometryRecord>,
+    pub struct Decoded<T> {
+        /// The decoded messages.
+        pub rx: Receiver<T>,
         stats: SharedStats,
         _subscription: Subscription,
     }
 
-    fn log_lost(stats: &ZenohOdometryStats, what: &str, detail: &str) {
-        let n = stats.lost();
-        if n <= 10 || n.is_power_of_two() {
-            warn!(key = %stats.key, what, detail, lost = n, "Zenoh odometry sample lost");
-        }
-    }
-
-    /// Hands a decoded message to the pipeline without blocking, counting it as taken, or as
-    /// dropped (the channel full) or malformed, each loss through `log`.
-    pub(crate) fn deliver<T, E: std::fmt::Display>(
-        s: &ZenohOdometryStats,
-        tx: &crossbeam_channel::Sender<T>,
-        decoded: Result<T, E>,
-        log: fn(&ZenohOdometryStats, &str, &str),
-    ) {
-        match decoded {
-            Ok(item) => match tx.try_send(item) {
-                Ok(()) => {
-                    s.decoded.fetch_add(1, Ordering::Relaxed);
-                }
-                Err(TrySendError::Full(_)) => {
-                    s.dropped.fetch_add(1, Ordering::Relaxed);
-                    log(s, "queue full", "the pipeline is behind");
-                }
-                Err(TrySendError::Disconnected(_)) => {}
-            },
-            Err(e) => {
-                s.malformed.fetch_add(1, Ordering::Relaxed);
-                log(s, "malformed", &e.to_string());
-            }
-        }
-    }
-
-    /// Whether a sample's encoding names a ROS type other than `expected` (no schema, or a
-    /// schema naming the same type, is not).
-    fn names_another_type(encoding: &zenoh::bytes::Encoding, expected: OdometryMessage) -> bool {
-        names_other_than(encoding, &expected.type_name())
-    }
-
-    /// Whether a sample's encoding names a ROS type other than `expected` (`package/msg/Type`;
-    /// `package/Type` is the same type); no schema is not.
-    pub(crate) fn names_other_than(encoding: &zenoh::bytes::Encoding, expected: &str) -> bool {
-        let text = encoding.to_string();
-        match text.split_once(';') {
-            Some((_, schema)) if !schema.is_empty() => {
-                schema != expected && schema != expected.replacen("/msg/", "/", 1)
-            }
-            _ => false,
-        }
-    }
-
-    impl ZenohOdometry {
-        /// Subscribes to `topic` (`message`) on `node`, decoding under `motion`.
-        pub fn subscribe(
+    impl<T: Send + 'static> Decoded<T> {
+        /// Subscribes to `topic` (`ros_type`, `package/msg/Type`) on `node`, decoding each
+        /// payload with `decode`, at most `capacity` waiting; `what` names the messages in
+        /// the log.
+        pub fn subscribe<E: std::fmt::Display>(
             node: &ZenohNode,
             topic: &str,
-            message: OdometryMessage,
-            motion: MotionModel,
+            ros_type: &str,
+            capacity: usize,
+            what: &'static str,
+            decode: impl Fn(&[u8]) -> Result<T, E> + Send + Sync + 'static,
         ) -> Result<Self, LiveError> {
-            let (tx, rx) = bounded(CAPACITY);
-            let key = node.key(topic, &message.type_name())?;
+            let (tx, rx) = bounded(capacity);
             let stats = Arc::new(ZenohOdometryStats {
-                key: key.clone(),
+                key: node.key(topic, ros_type)?,
                 ..ZenohOdometryStats::default()
             });
-            let counters = Arc::clone(&stats);
-            let subscription = node.subscriber(topic, &message.type_name(), move |sample| {
-                let s = &counters;
+            let s = Arc::clone(&stats);
+            let expected = ros_type.to_owned();
+            let lost = move |s: &ZenohOdometryStats, why: &str, detail: &str| {
+                let n = s.lost();
+                if n <= 10 || n.is_power_of_two() {
+                    warn!(key = %s.key, why, detail, lost = n, "{what} from Zenoh lost");
+                }
+            };
+            let subscription = node.subscriber(topic, ros_type, move |sample| {
                 s.received.fetch_add(1, Ordering::Relaxed);
-                if names_another_type(sample.encoding(), message) {
+                if names_other_than(sample.encoding(), &expected) {
                     s.wrong_type.fetch_add(1, Ordering::Relaxed);
-                    log_lost(s, "another type", &sample.encoding().to_string());
+                    lost(&s, "another type", &sample.encoding().to_string());
                     return;
                 }
-                let payload = sample.payload().to_bytes();
-                deliver(s, &tx, message.decode(&payload, &motion), log_lost);
+                match decode(&sample.payload().to_bytes()) {
+                    Ok(item) => match tx.try_send(item) {
+                        Ok(()) => {
+                            s.decoded.fetch_add(1, Ordering::Relaxed);
+                        }
+                        Err(TrySendError::Full(_)) => {
+                            s.dropped.fetch_add(1, Ordering::Relaxed);
+                            lost(&s, "queue full", "the pipeline is behind");
+                        }
+                        Err(TrySendError::Disconnected(_)) => {}
+                    },
+                    Err(e) => {
+                        s.malformed.fetch_add(1, Ordering::Relaxed);
+                        lost(&s, "malformed", &e.to_string());
+                    }
+                }
             })?;
-            info!(key = %subscription.key, message = %message.type_name(), "odometry from Zenoh");
+            info!(key = %subscription.key, message = %ros_type, "{what} from Zenoh");
             Ok(Self {
                 rx,
                 stats,
@@ -195,9 +172,50 @@ pub(crate) mod subscriber {
         }
     }
 
+    /// Whether a sample's encoding names a ROS type other than `expected` (`package/msg/Type`;
+    /// `package/Type` is the same type); no schema is not.
+    fn names_other_than(encoding: &zenoh::bytes::Encoding, expected: &str) -> bool {
+        let text = encoding.to_string();
+        match text.split_once(';') {
+            Some((_, schema)) if !schema.is_empty() => {
+                schema != expected && schema != expected.replacen("/msg/", "/", 1)
+            }
+            _ => false,
+        }
+    }
+
+    /// The pipeline's end of the odometry subscription.
+    #[derive(Debug)]
+    pub struct ZenohOdometry(Decoded<OdometryRecord>);
+
+    impl ZenohOdometry {
+        /// Subscribes to `topic` (`message`) on `node`, decoding under `motion`.
+        pub fn subscribe(
+            node: &ZenohNode,
+            topic: &str,
+            message: OdometryMessage,
+            motion: MotionModel,
+        ) -> Result<Self, LiveError> {
+            Decoded::subscribe(
+                node,
+                topic,
+                &message.type_name(),
+                CAPACITY,
+                "odometry",
+                move |payload| message.decode(payload, &motion),
+            )
+            .map(Self)
+        }
+
+        /// The counters (live).
+        pub fn stats(&self) -> SharedStats {
+            self.0.stats()
+        }
+    }
+
     impl OdometrySource for ZenohOdometry {
         fn poll_next(&mut self, timeout: Duration) -> Result<OdometryPoll, OdometryError> {
-            Ok(radar_driver::odometry::poll_channel(&self.rx, timeout))
+            Ok(radar_driver::odometry::poll_channel(&self.0.rx, timeout))
         }
     }
 }

@@ -92,7 +92,9 @@ impl Disagreement {
         let align = slam_graph::align::AlignSettings::default();
         let boxes: Vec<Option<[f64; 4]>> = scans.iter().map(|s| bounds(s)).collect();
         let mut out = Self::default();
-        let mut references: HashMap<usize, ReferenceCloud> = HashMap::new();
+        // Each submap's scan as the verifier pairs against, built once (its k-d tree also
+        // answers the overlap queries).
+        let mut references: HashMap<usize, slam_graph::scans::ScanReference> = HashMap::new();
         let prior = Pose2::new(0.0, 0.0, 0.0);
         let prior_cov = Matrix3::from_diagonal(&Vector3::new(
             PASS_OFFSET_SIGMA_M.powi(2),
@@ -111,9 +113,10 @@ impl Disagreement {
                 {
                     continue;
                 }
-                let rj = references.entry(j).or_insert_with(|| {
-                    ReferenceCloud::new(scans[j].clone(), SCAN_NORMAL_RADIUS_M, OVERLAP_M)
+                let reference = references.entry(j).or_insert_with(|| {
+                    slam_graph::scans::reference_scan(scans[j].clone(), &settings)
                 });
+                let rj = &reference.cloud;
                 let stride = scans[k].len().div_ceil(OVERLAP_SAMPLE).max(1);
                 let sampled = scans[k].iter().step_by(stride);
                 let n = scans[k].len().div_ceil(stride);
@@ -129,9 +132,8 @@ impl Disagreement {
                     .filter(|p| rj.nearest_within(p, OVERLAP_M).is_some())
                     .copied()
                     .collect();
-                let reference = slam_graph::scans::reference_scan(scans[j].clone(), &settings);
                 let Ok(al) = slam_graph::scans::align_scans(
-                    &reference, &overlap, &prior, &prior_cov, &align, &settings,
+                    reference, &overlap, &prior, &prior_cov, &align, &settings,
                 ) else {
                     continue;
                 };
