@@ -16,7 +16,13 @@ from every true position of the first drive. The two second runs are put on one 
 the extend run's first true pose (its trajectory starts when mapping starts, after the
 fix); both are scored over the rows from then on: RMS and largest position error, RMS
 heading error, on new streets and on the mapped ones. Both runs' frames are the true world
-frame (the daemon starts its map frame at the true pose), so no alignment is done.
+frame at the start (the daemon starts its map frame at the true pose), so the first lines
+are unaligned; but a map made without wheel odometry turns and stretches its frame as it
+drifts, and the extend run inherits the saved map's frame: the `aligned` lines score each
+run after the one rigid motion (x, y, heading) that best fits its rows to the truth, which
+leaves the shape of the drive, and the `in the first map's alignment` line scores the
+extend run after the rigid motion that best fits the first run's final trajectory to its
+truth (the new streets against where the saved map would put them, were it aligned).
 Reads files only; needs numpy.
 """
 
@@ -65,6 +71,29 @@ def score(est, gt, mask):
     )
 
 
+def rigid(est, gt):
+    """The rigid motion (rotation R, translation t) that best fits est's positions to gt's
+    (least squares), and the heading it turns by."""
+    a, b = est[:, 1:3], gt[:, 1:3]
+    ma, mb = a.mean(0), b.mean(0)
+    h = (a - ma).T @ (b - mb)
+    u, _, vt = np.linalg.svd(h)
+    r = vt.T @ u.T
+    if np.linalg.det(r) < 0:
+        vt[-1] *= -1
+        r = vt.T @ u.T
+    return r, mb - r @ ma, math.atan2(r[1, 0], r[0, 0])
+
+
+def moved(est, motion):
+    """est moved by a rigid motion from `rigid`."""
+    r, t, turn = motion
+    out = est.copy()
+    out[:, 1:3] = est[:, 1:3] @ r.T + t
+    out[:, 3] = est[:, 3] + turn
+    return out
+
+
 def main():
     if len(sys.argv) not in (4, 5):
         sys.exit(__doc__)
@@ -80,6 +109,17 @@ def main():
         print(f"{name}: new streets {score(est, gt, new)}; mapped streets {score(est, gt, ~new)}")
         driven = np.hypot(*np.diff(gt[new, 1:3], axis=0).T)
         print(f"{name}: new streets driven about {driven[driven < 5].sum():.0f} m")
+    for name, est, gt in (("extend", ext_est, ext_gt), ("fresh", fre_est, fre_gt)):
+        new = nearest(first, gt[:, 1:3]) > new_m
+        al = moved(est, rigid(est, gt))
+        print(f"{name} aligned: new streets {score(al, gt, new)}; mapped streets {score(al, gt, ~new)}")
+    first_est, first_gt = run(sys.argv[1])
+    al = moved(ext_est, rigid(first_est, first_gt))
+    new = nearest(first, ext_gt[:, 1:3]) > new_m
+    print(
+        f"extend in the first map's alignment: new streets {score(al, ext_gt, new)}; "
+        f"mapped streets {score(al, ext_gt, ~new)}"
+    )
 
 
 if __name__ == "__main__":

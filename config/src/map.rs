@@ -90,7 +90,7 @@ pub struct RawMap {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub initial_pose_topic: Option<String>,
     /// Localising: `"scans"` (the map's radar scans, the default) or `"features"` (its
-    /// point features). Extend mode localises with features.
+    /// point features), in localise and extend mode alike.
     pub localise_with: LocaliseWith,
 }
 

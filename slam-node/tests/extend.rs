@@ -294,7 +294,11 @@ fn the_saved_scans_are_carried_into_the_merged_map_and_the_new_submaps_add_their
         saved.scans.len()
     );
     assert!(text(&run).contains("the scans of"), "{}", text(&run));
-    let config = format!("[sim]\nseed = 2\n\n{with_scans}\n[map]\nmode = \"extend\"\n");
+    // The outdoor field's scans are a few hundred points of posts: it localises by the
+    // map's features (by scans: the street test below).
+    let config = format!(
+        "[sim]\nseed = 2\n\n{with_scans}\n[map]\nmode = \"extend\"\nlocalise_with = \"features\"\n"
+    );
     let out = dir.path().join("second");
     let run = slam_node(
         &config,
@@ -310,4 +314,82 @@ fn the_saved_scans_are_carried_into_the_merged_map_and_the_new_submaps_add_their
         merged.scans.iter().any(|s| s.submap as usize >= n),
         "no scan of a new submap\n{t}"
     );
+}
+
+/// The urban street driven on the radar alone (submaps of 30 m keep their scans).
+fn street(seed: u32, extra_config: &str, out: &Path, duration_s: &str, extra: &[&str]) -> Output {
+    let config = format!(
+        "[sim]\nseed = {seed}\n\n[odometry]\nsource = \"none\"\n\n[submaps]\nenabled = true\nmax_distance_m = 30.0\n\n{extra_config}"
+    );
+    let scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../sim-sensor/scenes/urban-street.toml"
+    );
+    let mut args = vec!["--scene", scene];
+    args.extend_from_slice(extra);
+    slam_node(&config, out, duration_s, &args)
+}
+
+/// On the radar alone the run localises by the map's scans and joins the new drive where
+/// the scan tracker puts it: the street's first 90 m mapped (seed 1), a second drive
+/// (seed 2, other moving cars) over 180 m finds itself in that map from no prior and maps
+/// the rest of the street as new submaps, with their scans, past the saved ones' end.
+#[test]
+fn a_drive_on_the_radar_alone_extends_a_map_by_its_scans() {
+    let dir = tempfile::tempdir().unwrap();
+    let first = dir.path().join("first");
+    let run = street(1, "", &first, "10", &[]);
+    assert!(run.status.success(), "{}", text(&run));
+    let saved_file = first.join("map.slmap");
+    let saved = Map::load(&saved_file).unwrap();
+    let n = saved.submaps.len();
+    assert!(n >= 3 && saved.scan_point_count() > 1000, "{n} submaps");
+
+    let out = dir.path().join("second");
+    let run = street(
+        2,
+        "[map]\nmode = \"extend\"\n",
+        &out,
+        "20",
+        &["--map", saved_file.to_str().unwrap()],
+    );
+    let t = text(&run);
+    assert!(run.status.success(), "{t}");
+    assert!(t.contains("by its scans"), "{t}");
+    assert!(t.contains("extend: mapping from"), "{t}");
+    let merged = Map::load(&out.join("map.slmap")).unwrap();
+    holds_the_saved_map(&saved, &merged);
+    assert_eq!(merged.drive_starts, vec![n as u32]);
+    let join = merged.joins[0];
+    assert!(
+        (join.from as usize) < n && join.to as usize == n,
+        "{join:?}"
+    );
+    // The join rests on the rotations registered against the map since the fix.
+    assert_eq!(
+        u64::from(join.matches),
+        slam_node::pipeline::extend::TRACK_BEFORE_MAPPING
+    );
+    // The new drive's submaps keep their scans, and reach past the saved drive's end along
+    // the street (the saved frames and the new ones lie on the street's line, y near 0).
+    let new_scans = (n..merged.submaps.len())
+        .filter(|&k| merged.scan_of(k).is_some_and(|p| !p.is_empty()))
+        .count();
+    assert!(new_scans >= 2, "{new_scans} new submaps with scans");
+    let saved_end = saved
+        .submaps
+        .iter()
+        .map(|s| s.frame.x)
+        .fold(f64::MIN, f64::max);
+    let furthest = merged.submaps[n..]
+        .iter()
+        .map(|s| s.frame.x)
+        .fold(f64::MIN, f64::max);
+    assert!(
+        furthest > saved_end + 40.0,
+        "new submaps reach x = {furthest:.1} m, the saved ones {saved_end:.1} m"
+    );
+    for s in &merged.submaps[n..] {
+        assert!(s.frame.y.abs() < 2.0, "{:?}", s.frame);
+    }
 }

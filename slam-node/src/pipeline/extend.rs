@@ -42,6 +42,9 @@ pub enum ExtendError {
     /// The saved graph and the join do not make a graph.
     #[error("the saved map's graph cannot be extended: {0}")]
     Resume(#[from] ResumeError),
+    /// No pose in the map's frame to join at.
+    #[error("no fix in the map to join the new drive at")]
+    NoFix,
     /// The pose is not near any saved submap (a map without submaps).
     #[error("no saved submap to join the new drive to")]
     NoSubmap,
@@ -155,8 +158,9 @@ impl Extension {
         ekf: &DaemonEkf,
         settings: &PipelineSettings,
     ) -> Result<(SubmapRun, DaemonEkf), ExtendError> {
-        let pose = ekf.pose();
-        let cov = ekf.pose_covariance();
+        // By scans the filter carries only the motion in a frame of its own: the pose in
+        // the map is the scan tracker's.
+        let (pose, cov) = l.map_estimate(ekf).ok_or(ExtendError::NoFix)?;
         let (from, transform, covariance) = l
             .map_features()
             .in_nearest_submap(&pose, &cov)
@@ -166,7 +170,13 @@ impl Extension {
             to: 0,
             transform,
             covariance,
-            matches: ekf.feature_count(),
+            // What the join rests on: the map features the tracking filter holds, or by
+            // scans the rotations registered against the map since the fix.
+            matches: if l.tracks_by_scans() {
+                usize::try_from(l.tracked_rotations()).unwrap_or(usize::MAX)
+            } else {
+                ekf.feature_count()
+            },
             nis: 0.0,
             dof: 3,
             rival_matches: 0,
@@ -210,8 +220,13 @@ impl Extension {
             },
         )
         .map_err(ExtendError::Thread)?;
+        // The mapping filter adds features whatever the localising one did (by the map's
+        // scans the local filter maps none).
         let mut fresh = Ekf::new(
-            settings.filter.clone(),
+            slam_filter::FilterSettings {
+                add_features: true,
+                ..settings.filter.clone()
+            },
             Pose2::new(0.0, 0.0, 0.0),
             Matrix3::zeros(),
             ekf.state().time_s(),

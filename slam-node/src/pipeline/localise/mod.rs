@@ -101,8 +101,7 @@ pub struct LocaliseSettings {
     /// Extend mode (`[map] mode = "extend"`): once localised, map on in the map's frame
     /// ([`crate::pipeline::extend`]).
     pub extend: bool,
-    /// Localise against the map's scans (`[map] localise_with = "scans"`; extend mode
-    /// uses features).
+    /// Localise against the map's scans (`[map] localise_with = "scans"`), extending too.
     pub scans: bool,
 }
 
@@ -115,8 +114,7 @@ impl LocaliseSettings {
             prior: c.initial_pose.map(|p| (p, c.initial_sigma)),
             prior_sigma: c.initial_sigma,
             extend: c.mode == config::MapMode::Extend,
-            scans: c.localise_with == config::LocaliseWith::Scans
-                && c.mode != config::MapMode::Extend,
+            scans: c.localise_with == config::LocaliseWith::Scans,
         }
     }
 
@@ -990,6 +988,25 @@ impl Localiser {
                     );
                 }
             }
+        }
+    }
+
+    /// Whether the run tracks by the map's scans (else by its features).
+    pub fn tracks_by_scans(&self) -> bool {
+        self.scans.is_some()
+    }
+
+    /// The pose in the map's frame and its covariance against the map where the vehicle
+    /// is (the scan tracker's, or the filter's against the map's features), without what
+    /// the map adds of its own; `None` before the fix. Extend mode joins the new drive
+    /// there.
+    pub fn map_estimate(&self, ekf: &DaemonEkf) -> Option<(Pose2, Matrix3<f64>)> {
+        if !self.has_fix() {
+            return None;
+        }
+        match self.scans.as_ref() {
+            Some(b) => b.tracker.as_ref().map(|t| t.estimate()),
+            None => Some((ekf.pose(), ekf.pose_covariance())),
         }
     }
 
