@@ -127,7 +127,8 @@ def score(map_run, loc_run):
         sys.exit(f"{loc_run}: no pose published in the map's frame (no fix)")
     sig = sigmas(os.path.join(loc_run, "diagnostics.csv"))
     along, across, heading, world, cons, reach = [], [], [], [], [], []
-    for row in published:
+    cons_at = {}  # published pose index -> its consistency term
+    for k, row in enumerate(published):
         t = tuple(at_time(truth, row[0])[1:4])
         tm, d = frame.of(t)
         reach.append(d)
@@ -141,6 +142,7 @@ def score(map_run, loc_run):
         if sg is not None and abs(sg[0] - row[0]) < 0.05 and all(v > 0 for v in sg[1:]):
             sg = sg[1:]
             cons.append(math.sqrt(((dx / sg[0]) ** 2 + (dy / sg[1]) ** 2 + (dth / sg[2]) ** 2) / 3.0))
+            cons_at[k] = cons[-1]
     # Where the mapping drive passed more than once: how far apart the passes put the truth
     # (the map's own inconsistency), and the error against the pass nearest the estimate.
     spread, nearest_pass, once = [], [], []
@@ -164,11 +166,16 @@ def score(map_run, loc_run):
         f"(median, max {max(reach):.1f} m)"
     )
     if once:
+        once_cons = [cons_at[k] for k in once if k in cons_at]
+        twice_cons = [v for k, v in cons_at.items() if k not in set(once)]
         print(
             f"where the mapping drive passed once ({len(once)} poses, the map consistent with "
             f"itself): RMS along {rms([along[k] for k in once]):.3f} m, across "
             f"{rms([across[k] for k in once]):.3f} m, heading "
-            f"{math.degrees(rms([heading[k] for k in once])):.3f} deg"
+            f"{math.degrees(rms([heading[k] for k in once])):.3f} deg; consistency "
+            f"{np.mean(once_cons) if once_cons else float('nan'):.2f} over {len(once_cons)} poses "
+            f"(elsewhere {np.mean(twice_cons) if twice_cons else float('nan'):.2f} over "
+            f"{len(twice_cons)})"
         )
     if spread:
         print(

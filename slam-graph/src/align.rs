@@ -127,6 +127,16 @@ pub enum Refusal {
         /// And heading (rad).
         heading_rad: f64,
     },
+    /// Scans: a closure from a place descriptor that puts the new frame elsewhere than the
+    /// chain of submaps does, where the earlier place fits itself moved by that
+    /// difference: the place repeats (a grid of blocks dressed alike), and the chain's
+    /// position fits as well as the descriptor's.
+    Repeats {
+        /// How far the descriptor's position is from the chain's (m).
+        distance_m: f64,
+        /// Matches of the earlier scan with itself so moved.
+        self_matches: usize,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]

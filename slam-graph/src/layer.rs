@@ -57,6 +57,13 @@ pub struct GlobalSettings {
     pub place: PlaceSearch,
     /// Verification by the submaps' scans where both have one ([`crate::scans`]).
     pub scans: ScanAlignSettings,
+    /// Closures verified against different earlier places that put the new frame in
+    /// different places: when the weaker has at least this share of the stronger's
+    /// matches, none is taken. Both passed the verifier, so the scene repeats (a grid city
+    /// dressed alike fits one block over with fewer matches only because the blocks'
+    /// submaps overlap the new one over different lengths): 0.25, not the verifier's own
+    /// rival ratio.
+    pub max_conflict_ratio: f64,
 }
 
 impl Default for GlobalSettings {
@@ -71,6 +78,7 @@ impl Default for GlobalSettings {
             min_loop_travel_m: 100.0,
             place: PlaceSearch::default(),
             scans: ScanAlignSettings::default(),
+            max_conflict_ratio: 0.25,
         }
     }
 }
@@ -535,7 +543,7 @@ impl GlobalMap {
             .map(|((_, a, _), _)| a.matches.len())
             .max()
             .unwrap_or(0);
-        if rival as f64 >= s.align.max_rival_ratio * best_matches as f64 {
+        if rival > 0 && rival as f64 >= s.max_conflict_ratio * best_matches as f64 {
             report.conflicting += verified.len();
             self.stats.conflicting += verified.len() as u64;
             warn!(
@@ -627,7 +635,56 @@ impl GlobalMap {
         let (z, cov) = self.relative(i, k);
         let driven = (self.travel[k] - self.travel[i + 1]).max(0.0);
         within_drift(&self.settings.place, &a.transform, &z, &cov, driven)?;
+        self.not_repeating(i, &a.transform, &z)?;
         Ok(a)
+    }
+
+    /// Where the descriptor's closure (`found`: the new frame in submap `i`'s) and the chain
+    /// (`chain`) put the new frame apart by more than the rival separation, the move from
+    /// one to the other (`chain * found^-1`, in frame `i`) is tried on submap `i`'s own
+    /// scan: if the verifier accepts the scan as a second look at itself so moved, the new
+    /// scan, placed where the chain puts it, lies on the same structure as where the
+    /// descriptor puts it, and nothing tells the two places apart (a grid of blocks dressed
+    /// alike, one block over). Refused ([`crate::scans::fits_itself`], on less evidence than
+    /// a closure needs). A place that does not repeat does not fit itself moved, and a
+    /// closure after a long drift passes.
+    fn not_repeating(&self, i: usize, found: &Pose2, chain: &Pose2) -> Result<(), Refusal> {
+        let s = &self.settings;
+        let Some(Some(scan)) = self.scans.get(i) else {
+            return Ok(());
+        };
+        let shift = compose(chain, &inverse(found));
+        let distance_m = shift.x.hypot(shift.y);
+        tracing::debug!(
+            submap = i,
+            distance_m,
+            heading_rad = shift.theta,
+            "a place closure against the chain: tried on the earlier scan itself"
+        );
+        if distance_m <= s.align.rival_separation_m
+            && shift.theta.abs() <= 0.1 * s.align.rival_separation_m
+        {
+            return Ok(());
+        }
+        let window = [
+            s.place.prior_sigma_m,
+            s.place.prior_sigma_m,
+            s.place.prior_sigma_rad,
+        ];
+        match crate::scans::fits_itself(scan, &shift, window, &s.scans) {
+            Some(self_matches) => Err(Refusal::Repeats {
+                distance_m,
+                self_matches,
+            }),
+            None => {
+                tracing::debug!(
+                    submap = i,
+                    distance_m,
+                    "the earlier scan does not fit itself moved: the place does not repeat there"
+                );
+                Ok(())
+            }
+        }
     }
 
     /// Place descriptors made so far.

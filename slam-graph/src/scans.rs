@@ -57,7 +57,8 @@ pub struct ScanAlignSettings {
     /// The search scores at most this many of the newer scan's points (evenly taken); ICP
     /// then refines its best transform with all of them.
     pub search_points: usize,
-    /// The best transform's mean score must reach this (1: every point on a point).
+    /// The best transform's mean score over the sampled points within the earlier scan's
+    /// reach (`coverage_m`) must reach this (1: every point on a point).
     pub min_score: f64,
     /// The search's other peaks (farther than `rival_separation_m` from the best, or a
     /// tenth of it in rad) refined by ICP as well, at most this many.
@@ -73,8 +74,15 @@ pub struct ScanAlignSettings {
     /// scan's surface (m): the registrations from the starts are ranked by inliers, and a
     /// start that converges elsewhere to nearly as many is a rival.
     pub inlier_m: f64,
-    /// Share of the newer scan's points that must be inliers.
+    /// Share of the newer scan's points in the earlier scan's reach (see `coverage_m`)
+    /// that must be inliers.
     pub min_overlap: f64,
+    /// A point of the newer scan, placed by the registration, is within the earlier scan's
+    /// reach when an earlier point lies this close (m). Two submaps of a street driven the
+    /// other way overlap over part of their length only, and the rest of the newer scan
+    /// (streets, fronts the earlier drive never saw) says nothing for or against the
+    /// closure: the share of inliers counts the points the earlier scan could have seen.
+    pub coverage_m: f64,
     /// Candidates from the pose uncertainty: two submaps with scans are candidates when
     /// their frames' origins may lie within this distance (m) of each other.
     pub origin_reach_m: f64,
@@ -88,6 +96,7 @@ pub struct ScanAlignSettings {
     pub max_sigma_rad: f64,
     /// A return's noise for the joint test of the pairs (m).
     pub point_sigma_m: f64,
+
     /// Pairs counted as one independent measurement (neighbouring points of one surface
     /// are not independent): the covariance is scaled by it.
     pub correlated_pairs: f64,
@@ -114,6 +123,7 @@ impl Default for ScanAlignSettings {
             min_pairs: 300,
             inlier_m: 0.3,
             min_overlap: 0.3,
+            coverage_m: 2.0,
             origin_reach_m: 40.0,
             max_prior_candidates: 4,
             max_rms_m: 0.45,
@@ -275,19 +285,40 @@ fn inliers(reference: &ReferenceCloud, cloud: &[[f64; 2]], t: &Pose2, max_m: f64
         .count()
 }
 
-/// Verifies that scan `current` (of the newer submap, in its frame) is a second look at
-/// `reference` (the earlier submap's scan, in its frame), with `prior` (the newer frame in
-/// the earlier one) and its covariance: the transform found, its covariance, and the
-/// matched points (index in `reference`, index in `current`). See the module's doc for the
-/// tests it must pass.
-pub fn align_scans(
+/// How many points of `cloud`, moved by `t`, have a point of `reference` within `reach_m`.
+fn covered(reference: &ReferenceCloud, cloud: &[[f64; 2]], t: &Pose2, reach_m: f64) -> usize {
+    let (sn, cs) = t.theta.sin_cos();
+    cloud
+        .iter()
+        .filter(|p| {
+            let q = [t.x + cs * p[0] - sn * p[1], t.y + sn * p[0] + cs * p[1]];
+            reference.nearest_within(&q, reach_m).is_some()
+        })
+        .count()
+}
+
+/// The correlative search and ICP refinements of [`align_scans`], before its tests.
+#[derive(Debug, Clone, Copy)]
+struct Searched {
+    /// The refinement with the most inliers.
+    reg: Registration,
+    /// Its inliers.
+    inlying: usize,
+    /// The most inliers of a refinement that ended elsewhere.
+    rival: usize,
+    /// The points within the reference's reach once placed ([`ScanAlignSettings::coverage_m`]).
+    covered: usize,
+    /// The search's best score over the sampled points within reach.
+    score: f64,
+}
+
+fn search_and_refine(
     reference: &ScanReference,
     current: &[[f64; 2]],
     prior: &Pose2,
     prior_cov: &Matrix3<f64>,
-    align: &AlignSettings,
     s: &ScanAlignSettings,
-) -> Result<Alignment, Refusal> {
+) -> Result<Searched, Refusal> {
     let smaller = reference.points().len().min(current.len());
     if smaller < s.min_pairs {
         return Err(Refusal::TooFewCandidates(smaller));
@@ -320,7 +351,18 @@ pub fn align_scans(
     ) else {
         return Err(Refusal::TooFewMatches(0));
     };
-    if best.score < s.min_score {
+    // The mean score over the sampled points the earlier scan could have seen (see
+    // `coverage_m`): a street driven the other way overlaps over part of its length.
+    let in_reach = covered(&reference.cloud, &sample, &best.pose, s.coverage_m).max(1);
+    let score = best.score * sample.len() as f64 / in_reach as f64;
+    if score < s.min_score {
+        tracing::debug!(
+            score,
+            raw = best.score,
+            in_reach,
+            sampled = sample.len(),
+            "scan closure: the search's best score is low"
+        );
         return Err(Refusal::TooFewMatches(
             (best.score * current.len() as f64) as usize,
         ));
@@ -357,14 +399,78 @@ pub fn align_scans(
         .map(|(_, n)| *n)
         .max()
         .unwrap_or(0);
+    let covered = covered(&reference.cloud, current, &reg.pose, s.coverage_m).max(1);
+    Ok(Searched {
+        reg,
+        inlying,
+        rival,
+        covered,
+        score,
+    })
+}
+
+/// Whether `reference` fits itself moved by `shift` (within `window`, its standard
+/// deviations `[m, m, rad]`): the inliers of the best refinement when it pairs at least
+/// [`ScanAlignSettings::min_pairs`] points, half [`ScanAlignSettings::min_overlap`] of
+/// those within reach and within [`ScanAlignSettings::max_rms_m`]; rivals and the
+/// covariance are not asked for (several fits, or a slide along a corridor, are fits too).
+/// A guard against repeated structure: it finds a repeat on less evidence than a closure
+/// needs.
+pub fn fits_itself(
+    reference: &ScanReference,
+    shift: &Pose2,
+    window: [f64; 3],
+    s: &ScanAlignSettings,
+) -> Option<usize> {
+    let cov = Matrix3::from_diagonal(&Vector3::new(
+        window[0].powi(2),
+        window[1].powi(2),
+        window[2].powi(2),
+    ));
+    let f = search_and_refine(reference, reference.points(), shift, &cov, s).ok()?;
+    let share = f.inlying as f64 / f.covered as f64;
+    (f.inlying >= s.min_pairs && share >= 0.5 * s.min_overlap && f.reg.rms_m <= s.max_rms_m)
+        .then_some(f.inlying)
+}
+
+/// Verifies that scan `current` (of the newer submap, in its frame) is a second look at
+/// `reference` (the earlier submap's scan, in its frame), with `prior` (the newer frame in
+/// the earlier one) and its covariance: the transform found, its covariance, and the
+/// matched points (index in `reference`, index in `current`). See the module's doc for the
+/// tests it must pass.
+pub fn align_scans(
+    reference: &ScanReference,
+    current: &[[f64; 2]],
+    prior: &Pose2,
+    prior_cov: &Matrix3<f64>,
+    align: &AlignSettings,
+    s: &ScanAlignSettings,
+) -> Result<Alignment, Refusal> {
+    let Searched {
+        reg,
+        inlying,
+        rival,
+        covered,
+        score,
+    } = search_and_refine(reference, current, prior, prior_cov, s)?;
     if rival as f64 >= s.max_rival_ratio * inlying as f64 {
         return Err(Refusal::Ambiguous {
             best: inlying,
             rival,
         });
     }
-    let overlap = inlying as f64 / current.len() as f64;
+    let overlap = inlying as f64 / covered as f64;
     if reg.pairs < s.min_pairs || inlying < s.min_pairs || overlap < s.min_overlap {
+        tracing::debug!(
+            pairs = reg.pairs,
+            inlying,
+            covered,
+            points = current.len(),
+            reference = reference.points().len(),
+            rms = reg.rms_m,
+            score,
+            "scan closure: too few inliers"
+        );
         return Err(Refusal::TooFewMatches(inlying));
     }
     if reg.rms_m > s.max_rms_m {
@@ -414,6 +520,16 @@ pub fn align_scans(
         }
     }
     let dof = (2 * matches.len()).saturating_sub(3).max(1);
+    tracing::debug!(
+        pairs = reg.pairs,
+        inlying,
+        covered,
+        points = current.len(),
+        rms = reg.rms_m,
+        score,
+        share = overlap,
+        "scan closure verified"
+    );
     Ok(Alignment {
         transform: t,
         covariance: cov,
@@ -562,6 +678,114 @@ mod tests {
         // The registration itself refuses a motion its pairs do not pin, or the verifier
         // finds it unconstrained or ambiguous: any way, no closure.
         assert!(r.is_err(), "{r:?}");
+    }
+
+    /// A street driven the other way overlaps the earlier one over part of its length: the
+    /// newer scan is the earlier street's last 60 m and two other streets beyond it, which
+    /// the earlier scan never saw. Scored over all its points the search's best is
+    /// under the threshold; over the points within the earlier scan's reach it verifies.
+    #[test]
+    fn a_scan_that_overlaps_over_part_of_its_length_verifies() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let s = ScanAlignSettings::default();
+        let a = street(&mut rng, 80.0);
+        let mut seen = street(&mut rng, 80.0);
+        seen.retain(|p| p[0] > 20.0);
+        // Beyond the earlier scan's end, a street of its own: fronts at other set-backs.
+        let beyond: Vec<[f64; 2]> = street(&mut rng, 80.0)
+            .into_iter()
+            .map(|p| [p[0] + 250.0, 0.8 * p[1] + 1.0])
+            .collect();
+        seen.extend(beyond);
+        let further: Vec<[f64; 2]> = street(&mut rng, 80.0)
+            .into_iter()
+            .map(|p| [0.9 * p[0] + 420.0, -1.3 * p[1] - 2.0])
+            .collect();
+        seen.extend(further);
+        let truth = Pose2::new(40.0, 0.5, -0.03);
+        let b = moved(&seen, &truth);
+        let reference = reference_scan(a, &s);
+        let prior = Pose2::new(41.5, -0.5, -0.01);
+        let cov = Matrix3::from_diagonal(&Vector3::new(4.0, 4.0, 0.0025));
+        // Under a third of its points are near the earlier street.
+        let near = covered(&reference.cloud, &b, &truth, 2.0);
+        assert!(
+            (near as f64) < 0.34 * b.len() as f64,
+            "{near} of {}",
+            b.len()
+        );
+        let r = align_scans(&reference, &b, &prior, &cov, &AlignSettings::default(), &s)
+            .expect("the overlapping part verifies");
+        assert!(
+            (r.transform.x - truth.x).hypot(r.transform.y - truth.y) < 0.15,
+            "{:?}",
+            r.transform
+        );
+        assert!((r.transform.theta - truth.theta).abs() < 0.005);
+    }
+
+    /// A street whose every 115 m repeats (a grid of blocks dressed alike) fits itself
+    /// moved one block along; a street that does not repeat does not, and neither fits
+    /// itself moved where nothing repeats.
+    #[test]
+    fn a_repeating_street_fits_itself_one_block_over_and_another_does_not() {
+        let s = ScanAlignSettings::default();
+        let mut rng = ChaCha8Rng::seed_from_u64(10);
+        // One block's street, 115 m, repeated four times along x.
+        let block: Vec<[f64; 2]> = street(&mut rng, 57.5)
+            .into_iter()
+            .filter(|p| p[0] >= -57.5 && p[0] < 57.5 && p[1].abs() < 20.0)
+            .collect();
+        let repeated: Vec<[f64; 2]> = (0..4)
+            .flat_map(|k| {
+                let noise = &mut rng;
+                block
+                    .iter()
+                    .map(|p| {
+                        [
+                            p[0] + 115.0 * k as f64 + noise.gen_range(-0.05..0.05),
+                            p[1] + noise.gen_range(-0.05..0.05),
+                        ]
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let reference = reference_scan(repeated, &s);
+        let window = [2.0, 2.0, 0.05];
+        let block_over = Pose2::new(114.0, 0.6, 0.01);
+        assert!(
+            fits_itself(&reference, &block_over, window, &s).is_some(),
+            "one block over"
+        );
+        assert!(
+            fits_itself(&reference, &Pose2::new(57.0, 0.0, 0.0), window, &s).is_none(),
+            "half a block over"
+        );
+        // A street that does not repeat, 460 m long.
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let long: Vec<[f64; 2]> = (0..4)
+            .flat_map(|k| {
+                street(&mut rng, 57.5)
+                    .into_iter()
+                    .filter(|p| p[0] >= -57.5 && p[0] < 57.5 && p[1].abs() < 20.0)
+                    .map(move |p| {
+                        // Each block its own rhythm and fronts: stretched, set back
+                        // differently, every other one mirrored across the street.
+                        let f = 0.7 + 0.13 * k as f64;
+                        let side = if k % 2 == 0 { 1.0 } else { -1.0 };
+                        [
+                            115.0 * k as f64 + f * p[0],
+                            side * (1.0 + 0.45 * k as f64) * p[1],
+                        ]
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let reference = reference_scan(long, &s);
+        assert!(
+            fits_itself(&reference, &block_over, window, &s).is_none(),
+            "a street that does not repeat"
+        );
     }
 
     #[test]

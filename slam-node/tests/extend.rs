@@ -371,7 +371,7 @@ fn a_drive_on_the_radar_alone_extends_a_map_by_its_scans() {
         slam_node::pipeline::extend::TRACK_BEFORE_MAPPING
     );
     // The new drive's submaps keep their scans, and reach past the saved drive's end along
-    // the street (the saved frames and the new ones lie on the street's line, y near 0).
+    // the street.
     let new_scans = (n..merged.submaps.len())
         .filter(|&k| merged.scan_of(k).is_some_and(|p| !p.is_empty()))
         .count();
@@ -389,7 +389,16 @@ fn a_drive_on_the_radar_alone_extends_a_map_by_its_scans() {
         furthest > saved_end + 40.0,
         "new submaps reach x = {furthest:.1} m, the saved ones {saved_end:.1} m"
     );
-    for s in &merged.submaps[n..] {
-        assert!(s.frame.y.abs() < 2.0, "{:?}", s.frame);
-    }
+    // The new drive's final trajectory against the truth (radar only: the saved map is
+    // about a metre off at its end, and 90 m more on the radar alone add about as much).
+    let rms: f64 = t
+        .lines()
+        .find_map(|l| {
+            l.trim()
+                .strip_prefix("global trajectory vs truth (trajectory.tum, final frames): RMS ")
+        })
+        .and_then(|l| l.split(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no global trajectory line\n{t}"));
+    assert!(rms < 2.0, "the new drive {rms} m RMS from the truth\n{t}");
 }
