@@ -272,28 +272,25 @@ pub fn reference_scan(points: Vec<[f64; 2]>, settings: &ScanAlignSettings) -> Sc
 
 /// Points of `cloud`, placed by `t`, within `max_m` of `reference`'s surface.
 fn inliers(reference: &ReferenceCloud, cloud: &[[f64; 2]], t: &Pose2, max_m: f64) -> usize {
-    let (sn, cs) = t.theta.sin_cos();
-    cloud
-        .iter()
-        .filter(|p| {
-            let q = [t.x + cs * p[0] - sn * p[1], t.y + sn * p[0] + cs * p[1]];
-            // The nearest point within a cell and a half; the surface distance decides.
-            reference
-                .surface_distance(&q, max_m + 1.5)
-                .is_some_and(|(_, d)| d <= max_m)
-        })
-        .count()
+    // The nearest point within a cell and a half; the surface distance decides.
+    count_placed(cloud, t, |q| {
+        reference
+            .surface_distance(q, max_m + 1.5)
+            .is_some_and(|(_, d)| d <= max_m)
+    })
 }
 
 /// How many points of `cloud`, moved by `t`, have a point of `reference` within `reach_m`.
 fn covered(reference: &ReferenceCloud, cloud: &[[f64; 2]], t: &Pose2, reach_m: f64) -> usize {
+    count_placed(cloud, t, |q| reference.nearest_within(q, reach_m).is_some())
+}
+
+/// How many points of `cloud`, moved by `t`, satisfy `keep`.
+fn count_placed(cloud: &[[f64; 2]], t: &Pose2, keep: impl Fn(&[f64; 2]) -> bool) -> usize {
     let (sn, cs) = t.theta.sin_cos();
     cloud
         .iter()
-        .filter(|p| {
-            let q = [t.x + cs * p[0] - sn * p[1], t.y + sn * p[0] + cs * p[1]];
-            reference.nearest_within(&q, reach_m).is_some()
-        })
+        .filter(|p| keep(&[t.x + cs * p[0] - sn * p[1], t.y + sn * p[0] + cs * p[1]]))
         .count()
 }
 
