@@ -1010,25 +1010,19 @@ impl Localiser {
         }
     }
 
-    /// The pose to publish in the map's frame and its covariance (the filter's plus the
-    /// nearest submap frame's); `None` before the fix.
+    /// The pose to publish in the map's frame and its covariance ([`Self::map_estimate`]
+    /// plus what the map adds of its own there); `None` before the fix.
     pub fn published(&self, ekf: &DaemonEkf) -> Option<(Pose2, Matrix3<f64>)> {
-        if !self.has_fix() {
-            return None;
-        }
-        if let Some(b) = self.scans.as_ref() {
-            // By scans: the tracker's pose and its covariance against the map, plus where the
-            // map disagrees with itself there (its passes over the same streets apart: the
-            // map's frame is itself uncertain by that much). The map's own error against the
-            // world is the map's, reported with it, not added here.
-            return b.tracker.as_ref().map(|t| {
-                let (pose, cov) = t.estimate();
-                let cov = cov + b.map.disagreement.at([pose.x, pose.y]);
-                (pose, 0.5 * (cov + cov.transpose()))
-            });
-        }
-        let pose = ekf.pose();
-        let cov = ekf.pose_covariance() + self.features.frame_covariance_at(&pose);
+        let (pose, cov) = self.map_estimate(ekf)?;
+        // What the map adds of its own where the vehicle is. By scans: where it disagrees
+        // with itself (its passes over the same streets apart: the map's frame is itself
+        // uncertain by that much); the map's own error against the world is the map's,
+        // reported with it, not added here. By features: the nearest submap frame's.
+        let shared = match self.scans.as_ref() {
+            Some(b) => b.map.disagreement.at([pose.x, pose.y]),
+            None => self.features.frame_covariance_at(&pose),
+        };
+        let cov = cov + shared;
         Some((pose, 0.5 * (cov + cov.transpose())))
     }
 
