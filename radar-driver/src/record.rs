@@ -59,8 +59,13 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// Creates (truncates) `path` and starts the writer thread.
+    /// Creates (truncates) `path`, and the folders it names that do not exist yet (a
+    /// configuration's `out/vehicle/radar.colossus` on a fresh machine), and starts the
+    /// writer thread.
     pub fn create(path: &Path) -> std::io::Result<Self> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)?;
+        }
         let file = File::create(path)?;
         let (tx, rx) = bounded::<Bytes>(RECORD_QUEUE_CHUNKS);
         let counters = Arc::new(Counters::default());
@@ -161,6 +166,23 @@ mod tests {
 
     #[test]
     fn an_unwritable_path_is_an_error_at_creation() {
-        assert!(Recorder::create(Path::new("/nonexistent-dir/rec.bin")).is_err());
+        // A folder that cannot be made: its parent is a file.
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("a-file");
+        std::fs::write(&file, b"x").unwrap();
+        assert!(Recorder::create(&file.join("rec.bin")).is_err());
+    }
+
+    #[test]
+    fn the_recording_s_missing_folders_are_made() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir
+            .path()
+            .join("out")
+            .join("vehicle")
+            .join("radar.colossus");
+        let r = Recorder::create(&path).unwrap();
+        drop(r);
+        assert!(path.is_file());
     }
 }
