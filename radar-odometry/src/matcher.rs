@@ -31,6 +31,9 @@ pub const TURNING_SEEDS_RAD: [f64; 4] = [0.025, 0.05, 0.075, 0.1];
 /// A motion turning more than this over a rotation (rad) is a turn: its registration is
 /// tried from the headings [`TURN_SEEDS_RAD`] too ([`ScanMatcher`]'s `follow`).
 pub const TURNING_RAD: f64 = 0.03;
+/// Through a turn whose heading change the caller measured from outside the radar
+/// ([`ScanMatchSettings::turn_known`]): the headings tried either side of the start (rad).
+pub const KNOWN_TURN_SEEDS_RAD: [f64; 1] = [0.025];
 /// A search also starts straight ahead when the estimate it starts from turns more than
 /// this over the rotation (rad).
 pub const SEARCH_STRAIGHT_RAD: f64 = 0.01;
@@ -83,6 +86,13 @@ pub struct ScanMatchSettings {
     /// returns pin the motion (the early ones were seen from near the mark whatever the
     /// motion), so on a straight road it is noisier. Off by default.
     pub deskew: bool,
+    /// Whether the caller's heading change over a rotation is measured from outside the
+    /// radar (a gyro): a turn then does not call for registrations from other headings
+    /// ([`TURNING_SEEDS_RAD`]), since the start already holds the turn; only a
+    /// registration that pairs far fewer returns than usual is tried again
+    /// ([`TURN_SEEDS_RAD`]). Without it, the turn's onset and end change the turn by up to
+    /// 0.1 rad a rotation, beyond ICP's basin.
+    pub turn_known: bool,
 }
 
 impl Default for ScanMatchSettings {
@@ -102,6 +112,7 @@ impl Default for ScanMatchSettings {
             weak_constraint: 0.02,
             search_m: 6.0,
             deskew: false,
+            turn_known: false,
         }
     }
 }
@@ -164,6 +175,8 @@ pub struct MatcherCounts {
     pub searched: u64,
     /// Registrations retried from other headings (through a turn, or few pairs: a turn's onset).
     pub turned: u64,
+    /// Registrations run from those other headings (the retries' cost: two per heading).
+    pub retries: u64,
     /// Registrations kept that placed the returns along the motion they tried (swept).
     pub swept: u64,
 }
@@ -508,11 +521,12 @@ impl ScanMatcher {
             return first;
         }
         self.counts.turned += 1;
-        let seeds: &[f64] = if turning {
-            &TURNING_SEEDS_RAD
-        } else {
-            &TURN_SEEDS_RAD
+        let seeds: &[f64] = match (turning, self.settings.turn_known) {
+            (true, false) => &TURNING_SEEDS_RAD,
+            (true, true) => &KNOWN_TURN_SEEDS_RAD,
+            (false, _) => &TURN_SEEDS_RAD,
         };
+        self.counts.retries += 2 * seeds.len() as u64;
         seeds
             .iter()
             .flat_map(|d| [*d, -*d])
@@ -1021,5 +1035,52 @@ mod tests {
             got.motion.theta
         );
         assert!(m.counts().turned >= 1, "{:?}", m.counts());
+    }
+
+    /// With the turn measured from outside the radar (a gyro), the start holds the turn:
+    /// the rotation through it is registered from that start and from one heading either
+    /// side, not from the four either side a turn the caller guessed needs.
+    #[test]
+    fn a_turn_the_caller_measured_is_retried_from_the_nearest_headings_only() {
+        let world = town();
+        let compose = |a: &Pose2, b: &Pose2| {
+            let p = a.point_at(b.x.hypot(b.y), -b.y.atan2(b.x));
+            Pose2::new(p[0], p[1], a.theta + b.theta)
+        };
+        let turned = crate::register::exp([2.0, 0.0, 0.08]);
+        let first = Pose2::new(0.0, 0.0, 0.0);
+        let second = compose(&first, &turned);
+        let third = compose(&second, &turned);
+        let drive = |turn_known: bool| {
+            let mut m = ScanMatcher::new(ScanMatchSettings {
+                turn_known,
+                ..dense()
+            });
+            let mut rotation = |truth: &Pose2, estimate: Pose2| {
+                for (bearing, returns) in scan(&world, truth) {
+                    m.add_azimuth(Some(estimate), 0.0, bearing, &returns);
+                }
+                m.end_rotation(
+                    Some(RotationEnd {
+                        pose: estimate,
+                        since_s: 0.0,
+                        until_s: 0.0,
+                    }),
+                    false,
+                )
+            };
+            rotation(&first, Pose2::new(0.0, 0.0, 0.0));
+            let a = rotation(&second, turned).expect("registers the turn");
+            let b = rotation(&third, turned).expect("registers the turn");
+            (a, b, m.counts())
+        };
+        let (a, b, known) = drive(true);
+        for got in [a, b] {
+            assert!((got.motion.theta - 0.08).abs() < 0.003, "{got:?}");
+        }
+        let (_, _, guessed) = drive(false);
+        assert_eq!(known.turned, guessed.turned, "{known:?} {guessed:?}");
+        assert_eq!(known.retries, 2 * known.turned, "{known:?}");
+        assert_eq!(guessed.retries, 8 * guessed.turned, "{guessed:?}");
     }
 }

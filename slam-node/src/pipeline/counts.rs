@@ -34,6 +34,9 @@ pub struct ScanMatchCounts {
     pub searched: u64,
     /// Registrations retried from other headings (they paired few points: a turn's onset).
     pub turned: u64,
+    /// Registrations run from those other headings (two per heading tried; with a gyro
+    /// one heading either side, otherwise four).
+    pub retries: u64,
     /// Whether radar odometry drove the filter's prediction (no wheel odometry).
     pub drives: bool,
     /// Sum of the applied measurements' NIS (3 dof each).

@@ -74,8 +74,12 @@ impl RadarOdometryStage {
     /// A stage with `settings`; `drives` when there is no other odometry, with `gyro` when
     /// a gyro gives the turn (`super::gyro`).
     pub fn new(settings: ScanMatchSettings, drives: bool, motion: MotionModel, gyro: bool) -> Self {
+        let gyro = drives && gyro;
         Self {
-            matcher: ScanMatcher::new(settings),
+            matcher: ScanMatcher::new(ScanMatchSettings {
+                turn_known: settings.turn_known || gyro,
+                ..settings
+            }),
             counts: ScanMatchCounts {
                 drives,
                 ..ScanMatchCounts::default()
@@ -85,7 +89,7 @@ impl RadarOdometryStage {
             last_end_s: None,
             last_speed: None,
             lost: false,
-            gyro: drives && gyro,
+            gyro,
             compose: false,
         }
     }
@@ -123,6 +127,7 @@ impl RadarOdometryStage {
             weak: m.weak,
             searched: m.searched,
             turned: m.turned,
+            retries: m.retries,
             ..self.counts
         }
     }
