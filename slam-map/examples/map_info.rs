@@ -84,6 +84,15 @@ fn main() -> ExitCode {
             8 * map.scan_point_count()
         );
     }
+    if !map.paths.is_empty() {
+        let positions: usize = map.paths.iter().map(|p| p.points.len()).sum();
+        println!(
+            "paths: {} submaps, {} positions ({} bytes)",
+            map.paths.len(),
+            positions,
+            8 * positions
+        );
+    }
     // The saved graph solved again from the saved frames: they should barely move.
     if map.submaps.len() > 1 {
         match map

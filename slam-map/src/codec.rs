@@ -23,7 +23,7 @@ use std::io::{self, Read, Write};
 
 use crate::error::{FormatError, WriteError};
 pub use crate::format::{FORMAT_VERSION, HEADER_LEN, MAGIC};
-use crate::model::{Map, MapV1, MapV2};
+use crate::model::{Map, MapV1, MapV2, MapV3};
 use crate::validate::validate;
 
 /// What a reader accepts.
@@ -157,6 +157,10 @@ pub(crate) fn read_payload<R: Read>(
             .map_err(FormatError::Undecodable)?
     } else if header.version == 2 {
         postcard::take_from_bytes::<MapV2>(&payload)
+            .map(|(m, rest)| (Map::from(m), rest))
+            .map_err(FormatError::Undecodable)?
+    } else if header.version == 3 {
+        postcard::take_from_bytes::<MapV3>(&payload)
             .map(|(m, rest)| (Map::from(m), rest))
             .map_err(FormatError::Undecodable)?
     } else {

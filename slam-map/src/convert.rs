@@ -170,6 +170,7 @@ impl Map {
             drive_starts,
             joins,
             scans: Vec::new(),
+            paths: Vec::new(),
         };
         validate(&map).map_err(WriteError::Invalid)?;
         Ok((map, report))
@@ -202,6 +203,43 @@ impl Map {
             .collect();
         validate(&self).map_err(WriteError::Invalid)?;
         Ok(self)
+    }
+
+    /// The map with the submaps' paths (`(submap, positions in its frame)`, in increasing
+    /// submap order), stored as 32-bit floats; positions that are not finite are left out
+    /// and a path beyond [`crate::MAX_PATH_POINTS`] is thinned evenly to it. A path naming
+    /// a submap the map does not hold, or out of order, refuses the map.
+    pub fn with_paths<'a>(
+        mut self,
+        paths: impl IntoIterator<Item = (usize, &'a [[f64; 2]])>,
+    ) -> Result<Map, WriteError> {
+        self.paths = paths
+            .into_iter()
+            .filter(|(_, p)| !p.is_empty())
+            .map(|(k, points)| {
+                let step = points.len().div_ceil(crate::MAX_PATH_POINTS).max(1);
+                crate::MapPath {
+                    submap: u32::try_from(k).unwrap_or(u32::MAX),
+                    points: points
+                        .iter()
+                        .step_by(step)
+                        .map(|p| [p[0] as f32, p[1] as f32])
+                        .filter(|p| p[0].is_finite() && p[1].is_finite())
+                        .collect(),
+                }
+            })
+            .collect();
+        validate(&self).map_err(WriteError::Invalid)?;
+        Ok(self)
+    }
+
+    /// Submap `k`'s path in 64-bit positions, when it recorded one.
+    pub fn path_points(&self, k: usize) -> Option<Vec<[f64; 2]>> {
+        self.path_of(k).map(|p| {
+            p.iter()
+                .map(|q| [f64::from(q[0]), f64::from(q[1])])
+                .collect()
+        })
     }
 
     /// Submap `k`'s scan in 64-bit points, when it kept one.

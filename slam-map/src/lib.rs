@@ -32,6 +32,8 @@ pub mod validate;
 pub use codec::{Limits, DEFAULT_MAX_PAYLOAD_BYTES, FORMAT_VERSION, HEADER_LEN, MAGIC};
 pub use convert::{BuildReport, Drives, MapMeta};
 pub use error::{FormatError, LoadError, SaveError, WriteError};
-pub use format::MAX_SCAN_POINTS;
-pub use model::{LoopEdge, Map, MapFeature, MapProfile, MapScan, MapSubmap, PlaceDescriptor, Pose};
+pub use format::{MAX_PATH_POINTS, MAX_SCAN_POINTS, PATH_SPACING_M};
+pub use model::{
+    LoopEdge, Map, MapFeature, MapPath, MapProfile, MapScan, MapSubmap, PlaceDescriptor, Pose,
+};
 pub use profile::ProfileMismatch;

@@ -188,6 +188,21 @@ pub struct MapScan {
     pub points: Vec<[f32; 2]>,
 }
 
+/// Where the vehicle drove through a submap (format version 4): its positions in the
+/// submap's frame, in the order driven, one each time it had moved
+/// [`crate::PATH_SPACING_M`] from the last (the first where the submap began: the origin,
+/// except for a drive's first submap, whose frame is the map's), at most
+/// [`crate::MAX_PATH_POINTS`]. Localisation uses it to know where a vehicle can stand on
+/// each of the map's passes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MapPath {
+    /// The submap (index into [`Map::submaps`]; the paths are in increasing submap order,
+    /// one at most per submap).
+    pub submap: u32,
+    /// The positions `[x, y]` in the submap's frame (m).
+    pub points: Vec<[f32; 2]>,
+}
+
 /// A saved map.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Map {
@@ -211,6 +226,38 @@ pub struct Map {
     pub joins: Vec<LoopEdge>,
     /// The submaps' scans (format version 3), for the submaps that kept one.
     pub scans: Vec<MapScan>,
+    /// The vehicle's path through each submap (format version 4), for the submaps that
+    /// recorded one.
+    pub paths: Vec<MapPath>,
+}
+
+/// A map in format version 3 (no paths): read, never written.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct MapV3 {
+    pub created_unix_s: u64,
+    pub source: String,
+    pub profile: MapProfile,
+    pub submaps: Vec<MapSubmap>,
+    pub loops: Vec<LoopEdge>,
+    pub drive_starts: Vec<u32>,
+    pub joins: Vec<LoopEdge>,
+    pub scans: Vec<MapScan>,
+}
+
+impl From<MapV3> for Map {
+    fn from(m: MapV3) -> Self {
+        Map {
+            created_unix_s: m.created_unix_s,
+            source: m.source,
+            profile: m.profile,
+            submaps: m.submaps,
+            loops: m.loops,
+            drive_starts: m.drive_starts,
+            joins: m.joins,
+            scans: m.scans,
+            paths: Vec::new(),
+        }
+    }
 }
 
 /// A map in format version 2 (no scans): read, never written.
@@ -236,6 +283,7 @@ impl From<MapV2> for Map {
             drive_starts: m.drive_starts,
             joins: m.joins,
             scans: Vec::new(),
+            paths: Vec::new(),
         }
     }
 }
@@ -286,6 +334,15 @@ impl Map {
             .binary_search_by_key(&k, |s| s.submap)
             .ok()
             .map(|i| &self.scans[i].points[..])
+    }
+
+    /// Submap `k`'s path, when it recorded one.
+    pub fn path_of(&self, k: usize) -> Option<&[[f32; 2]]> {
+        let k = u32::try_from(k).ok()?;
+        self.paths
+            .binary_search_by_key(&k, |s| s.submap)
+            .ok()
+            .map(|i| &self.paths[i].points[..])
     }
 
     /// Scan points over all submaps.

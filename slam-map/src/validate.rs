@@ -1,7 +1,7 @@
 //! The format's rules beyond its encoding, checked on every map written and read: a map
 //! that breaks one is refused with the first broken rule and where it is.
 
-use crate::format::MAX_SCAN_POINTS;
+use crate::format::{MAX_PATH_POINTS, MAX_SCAN_POINTS};
 use crate::model::{Map, Pose};
 
 /// The longest `source` note (bytes).
@@ -136,6 +136,27 @@ pub fn validate(map: &Map) -> Result<(), String> {
         if !scan.points.iter().flatten().all(|v| v.is_finite()) {
             return Err(format!(
                 "scan {e} (submap {k}) holds a point that is not finite"
+            ));
+        }
+    }
+    let mut after = None;
+    for (e, path) in map.paths.iter().enumerate() {
+        let k = path.submap;
+        if k as usize >= n || after.is_some_and(|a| k <= a) {
+            return Err(format!(
+                "path {e} belongs to submap {k}: the paths' submaps must increase, each in 0..{n}"
+            ));
+        }
+        after = Some(k);
+        if path.points.len() > MAX_PATH_POINTS {
+            return Err(format!(
+                "path {e} (submap {k}) holds {} positions, more than {MAX_PATH_POINTS}",
+                path.points.len()
+            ));
+        }
+        if !path.points.iter().flatten().all(|v| v.is_finite()) {
+            return Err(format!(
+                "path {e} (submap {k}) holds a position that is not finite"
             ));
         }
     }

@@ -36,6 +36,7 @@ fn empty_payload() -> Vec<u8> {
         drive_starts: Vec::new(),
         joins: Vec::new(),
         scans: Vec::new(),
+        paths: Vec::new(),
     };
     postcard::to_allocvec(&empty).unwrap()
 }

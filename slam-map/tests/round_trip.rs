@@ -276,9 +276,21 @@ fn map() -> impl Strategy<Value = Map> {
             (pose(), proptest::array::uniform6(finite()), any::<u32>()),
             0..4,
         ),
+        proptest::collection::vec([-1e4f32..1e4, -1e4f32..1e4], 0..12),
     )
         .prop_map(
-            |(created, source, name, azimuths, encoder_size, range_bins, bin, submaps, loops)| {
+            |(
+                created,
+                source,
+                name,
+                azimuths,
+                encoder_size,
+                range_bins,
+                bin,
+                submaps,
+                loops,
+                path,
+            )| {
                 let n = submaps.len() as u32;
                 let loops = loops
                     .into_iter()
@@ -306,6 +318,14 @@ fn map() -> impl Strategy<Value = Map> {
                     drive_starts: Vec::new(),
                     joins: Vec::new(),
                     scans: Vec::new(),
+                    // The last submap's path, when drawn non-empty (format version 4).
+                    paths: (!path.is_empty())
+                        .then(|| slam_map::MapPath {
+                            submap: n - 1,
+                            points: path,
+                        })
+                        .into_iter()
+                        .collect(),
                 }
             },
         )

@@ -299,6 +299,43 @@ fn a_drive_on_the_radar_alone_localises_by_the_maps_scans_from_no_prior() {
         "{}",
         loaded.scan_point_count()
     );
+    // Where the vehicle drove through each submap (format version 4): the first path
+    // begins where the drive began (the first pose of the run's trajectory: submap 0's
+    // frame is the map's), positions 2 m apart, each path ending at its submap's end.
+    assert!(!loaded.paths.is_empty(), "no path in the map");
+    let trajectory = std::fs::read_to_string(map_out.join("trajectory.tum")).unwrap();
+    let first: Vec<f64> = trajectory
+        .lines()
+        .find(|l| !l.starts_with('#'))
+        .unwrap()
+        .split_whitespace()
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let start = loaded.path_of(0).expect("submap 0's path")[0];
+    assert!(
+        (f64::from(start[0]) - first[1]).hypot(f64::from(start[1]) - first[2]) < 0.5,
+        "the path begins at {start:?}, the drive at {:?}",
+        &first[1..3]
+    );
+    for path in &loaded.paths {
+        let s = &loaded.submaps[path.submap as usize];
+        let end = path.points.last().unwrap();
+        if (path.submap as usize) + 1 < loaded.submaps.len() {
+            assert!(
+                (f64::from(end[0]) - s.end_pose.x).hypot(f64::from(end[1]) - s.end_pose.y) < 1e-3,
+                "submap {}'s path ends at {end:?}",
+                path.submap
+            );
+        }
+        for w in path.points[..path.points.len() - 1].windows(2) {
+            let step = f64::from(w[1][0] - w[0][0]).hypot(f64::from(w[1][1] - w[0][1]));
+            assert!(
+                (2.0..6.0).contains(&step),
+                "a step of {step} m in submap {}",
+                path.submap
+            );
+        }
+    }
 
     let out = dir.join("by-scans");
     let run = street_run(

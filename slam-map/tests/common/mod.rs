@@ -72,6 +72,7 @@ pub fn sample_map(per_submap: usize) -> Map {
         drive_starts: Vec::new(),
         joins: Vec::new(),
         scans: Vec::new(),
+        paths: Vec::new(),
     }
 }
 
@@ -87,6 +88,23 @@ pub fn sample_map_with_scans(per_submap: usize) -> Map {
         slam_map::MapScan {
             submap: 2,
             points: vec![[0.25, 80.0]],
+        },
+    ];
+    m
+}
+
+/// [`sample_map_with_scans`] with the paths of its first two submaps (format version 4).
+#[allow(dead_code)] // not every test binary uses it
+pub fn sample_map_with_paths(per_submap: usize) -> Map {
+    let mut m = sample_map_with_scans(per_submap);
+    m.paths = vec![
+        slam_map::MapPath {
+            submap: 0,
+            points: vec![[0.0, 0.0], [2.0, 0.125], [4.5, -0.25]],
+        },
+        slam_map::MapPath {
+            submap: 1,
+            points: vec![[0.0, 0.0], [99.5, 2.5]],
         },
     ];
     m

@@ -217,6 +217,9 @@ impl Extension {
                 frames,
                 drive_starts,
                 scans,
+                paths: (0..n)
+                    .map(|k| map.path_points(k).unwrap_or_default())
+                    .collect(),
             },
         )
         .map_err(ExtendError::Thread)?;

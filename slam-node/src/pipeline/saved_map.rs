@@ -123,7 +123,13 @@ pub fn build(
                         .iter()
                         .enumerate()
                         .filter_map(|(k, s)| s.as_deref().map(|v| (k, &v[..])));
-                    Ok((map.with_scans(scans)?, report))
+                    let paths = p
+                        .paths
+                        .iter()
+                        .map(|v| &v[..])
+                        .chain(std::iter::once(p.path))
+                        .enumerate();
+                    Ok((map.with_scans(scans)?.with_paths(paths)?, report))
                 },
             )
         }

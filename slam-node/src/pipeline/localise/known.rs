@@ -56,6 +56,10 @@ pub struct MapFeatures {
     /// Each submap's end pose in its own frame and its covariance there (the mapping
     /// vehicle's uncertainty relative to the frame when the submap closed).
     pub end_local: Vec<(Pose2, Matrix3<f64>)>,
+    /// Where the vehicle drove through each submap, in the map's frame (the map's paths,
+    /// format version 4); empty where the map holds none ([`MapFeatures::path_of`] then
+    /// takes the line from the frame to the end).
+    pub paths: Vec<Vec<[f64; 2]>>,
 }
 
 /// A covariance made symmetric positive definite enough to enter the filter: at least
@@ -77,8 +81,12 @@ impl MapFeatures {
         let mut frames = Vec::with_capacity(map.submaps.len());
         let mut ends = Vec::with_capacity(map.submaps.len());
         let mut end_local = Vec::with_capacity(map.submaps.len());
+        let mut paths = Vec::with_capacity(map.submaps.len());
         for (k, s) in map.submaps.iter().enumerate() {
             let frame = Pose2::from(s.frame);
+            paths.push(map.path_points(k).map_or_else(Vec::new, |path| {
+                path.iter().map(|q| transform_point(&frame, *q)).collect()
+            }));
             let r = rotation(frame.theta);
             frames.push((frame, slam_map::model::unpack3(&s.frame_cov)));
             ends.push(slam_graph::se2::compose(&frame, &Pose2::from(s.end_pose)));
@@ -102,16 +110,27 @@ impl MapFeatures {
             frames,
             ends,
             end_local,
+            paths,
         }
     }
 
-    /// The submap whose stretch of drive (its frame to its end) passes nearest `xy`.
+    /// Where the vehicle drove through submap `k` in the map's frame: the saved path, or
+    /// without one (a map before format version 4) the line from its frame to its end. A
+    /// drive's first submap's frame is the map's origin, not where the vehicle started,
+    /// so that line can miss its drive by far.
+    pub fn path_of(&self, k: usize) -> Vec<[f64; 2]> {
+        match self.paths.get(k).filter(|p| !p.is_empty()) {
+            Some(p) => p.clone(),
+            None => match (self.frames.get(k), self.ends.get(k)) {
+                (Some((a, _)), Some(b)) => vec![[a.x, a.y], [b.x, b.y]],
+                _ => Vec::new(),
+            },
+        }
+    }
+
+    /// The submap whose stretch of drive ([`MapFeatures::path_of`]) passes nearest `xy`.
     pub fn nearest_submap(&self, xy: [f64; 2]) -> Option<usize> {
-        let dist = |k: usize| {
-            let a = self.frames[k].0;
-            let b = self.ends[k];
-            segment_distance([a.x, a.y], [b.x, b.y], xy)
-        };
+        let dist = |k: usize| polyline_distance(xy, &self.path_of(k));
         (0..self.frames.len()).min_by(|&i, &j| dist(i).total_cmp(&dist(j)))
     }
 
@@ -170,7 +189,38 @@ impl MapFeatures {
 }
 
 /// The distance from `p` to the segment `a`-`b`.
-fn segment_distance(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
+/// Distance (m) from `p` to the polyline `path` (infinite for an empty one).
+pub(crate) fn polyline_distance(p: [f64; 2], path: &[[f64; 2]]) -> f64 {
+    match path {
+        [] => f64::INFINITY,
+        [a] => (p[0] - a[0]).hypot(p[1] - a[1]),
+        _ => path
+            .windows(2)
+            .map(|w| segment_distance(w[0], w[1], p))
+            .fold(f64::INFINITY, f64::min),
+    }
+}
+
+/// Points at most `spacing` (m) apart along the polyline `path`, from its first vertex up
+/// to, not including, its last.
+pub(crate) fn path_samples(path: &[[f64; 2]], spacing: f64) -> impl Iterator<Item = [f64; 2]> + '_ {
+    path.windows(2).flat_map(move |w| {
+        let (a, b) = (w[0], w[1]);
+        let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+        let n = if len.is_finite() && spacing > 0.0 {
+            (len / spacing).ceil().clamp(1.0, 10_000.0) as usize
+        } else {
+            1
+        };
+        (0..n).map(move |i| {
+            let t = i as f64 / n as f64;
+            [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
+        })
+    })
+}
+
+/// Distance (m) from `p` to the segment from `a` to `b`.
+pub(crate) fn segment_distance(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {
     let d = [b[0] - a[0], b[1] - a[1]];
     let len2 = d[0] * d[0] + d[1] * d[1];
     let t = if len2 > 0.0 {
@@ -357,6 +407,7 @@ mod tests {
             drive_starts: Vec::new(),
             joins: Vec::new(),
             scans: Vec::new(),
+            paths: Vec::new(),
         }
     }
 

@@ -90,6 +90,7 @@ fn map_of(pattern: &[[f64; 2]], rng: &mut Lcg, copy_at: f64) -> MapFeatures {
             (Pose2::new(200.0, 0.0, 0.0), zero),
             (Pose2::new(200.0, 0.0, 0.0), zero),
         ],
+        paths: Vec::new(),
     }
 }
 

@@ -19,7 +19,7 @@ use slam_graph::scans::SCAN_NORMAL_RADIUS_M;
 use slam_graph::se2::transform_point;
 use slam_map::Map;
 
-use super::known::MapFeatures;
+use super::known::{path_samples, polyline_distance, MapFeatures};
 use super::search::{drive_points, PLACE_SPACING_M};
 
 /// The tracking reference's pair gate (m): its grid's cells are half of it.
@@ -85,8 +85,12 @@ pub struct Disagreement {
 
 impl Disagreement {
     /// Compares the submaps' scans `scans` (each in the map's frame, in the drive's
-    /// order) pass against pass.
-    pub fn measure(scans: &[Vec<[f64; 2]>]) -> Self {
+    /// order) pass against pass. `paths[k]` is where the vehicle drove through submap `k`
+    /// in the map's frame (a polyline): an offset is kept where both passes' paths run
+    /// within [`PASSES_NEAR_M`] of each other (where a vehicle can be on either pass), not
+    /// over every wall both scans saw (a street crossing theirs, seen down its length, is
+    /// not where their disagreement puts a localiser).
+    pub fn measure(scans: &[Vec<[f64; 2]>], paths: &[Vec<[f64; 2]>]) -> Self {
         let started = std::time::Instant::now();
         let settings = slam_graph::scans::ScanAlignSettings::default();
         let align = slam_graph::align::AlignSettings::default();
@@ -150,10 +154,16 @@ impl Disagreement {
                 );
                 out.offsets_m.push(d[0].hypot(d[1]));
                 let cov = d * d.transpose();
-                for p in &overlap {
+                let (Some(pk), Some(pj)) = (paths.get(k), paths.get(j)) else {
+                    continue;
+                };
+                let shared = along(pk)
+                    .filter(|p| polyline_distance(*p, pj) <= PASSES_NEAR_M)
+                    .chain(along(pj).filter(|p| polyline_distance(*p, pk) <= PASSES_NEAR_M));
+                for p in shared {
                     let slot = out
                         .buckets
-                        .entry(bucket_of(*p))
+                        .entry(bucket_of(p))
                         .or_insert_with(Matrix3::zeros);
                     if cov.trace() > slot.trace() {
                         *slot = cov;
@@ -174,6 +184,18 @@ impl Disagreement {
             .unwrap_or_else(Matrix3::zeros)
     }
 }
+
+/// Points at most [`PATH_SAMPLE_M`] apart along `path`, both ends included.
+fn along(path: &[[f64; 2]]) -> impl Iterator<Item = [f64; 2]> + '_ {
+    path_samples(path, PATH_SAMPLE_M).chain(path.last().copied())
+}
+
+/// Two passes share a street where their paths run this close (m): the street's width
+/// and a lane or two more (a map without paths, before format version 4, gives each submap
+/// the line from where it began to where it ended).
+const PASSES_NEAR_M: f64 = 15.0;
+/// Spacing of the samples along a submap's path (m).
+const PATH_SAMPLE_M: f64 = 2.0;
 
 /// `[min x, min y, max x, max y]` of `points`; `None` when empty.
 fn bounds(points: &[[f64; 2]]) -> Option<[f64; 4]> {
@@ -221,7 +243,11 @@ impl ScanMap {
                 })
             })
             .collect();
-        let disagreement = Disagreement::measure(&scans);
+        // Where the vehicle drove through each submap, in the map's frame.
+        let paths: Vec<Vec<[f64; 2]>> = (0..frames.frames.len())
+            .map(|k| frames.path_of(k))
+            .collect();
+        let disagreement = Disagreement::measure(&scans, &paths);
         let mut out = Self::from_points(scans.concat(), frames)?;
         out.disagreement = disagreement;
         Some(out)
@@ -360,8 +386,23 @@ mod tests {
                 submap(&world, x, x + 100.0, [0.0, 0.0])
             })
             .collect();
+        // Each submap's path: down the middle of the street (y = 0), the way it drove.
+        let path = |x: f64, back: bool, offset: [f64; 2]| {
+            let (a, b) = (
+                [x + offset[0], offset[1]],
+                [x + 100.0 + offset[0], offset[1]],
+            );
+            if back {
+                vec![b, a]
+            } else {
+                vec![a, b]
+            }
+        };
+        let paths: Vec<Vec<[f64; 2]>> = (0..4)
+            .map(|k| path(100.0 * f64::from(k), false, [0.0; 2]))
+            .collect();
         // One pass: nothing to compare, no disagreement anywhere.
-        let once = Disagreement::measure(&there);
+        let once = Disagreement::measure(&there, &paths);
         assert_eq!((once.pairs_compared, once.pairs_aligned), (0, 0));
         assert_eq!(once.at([50.0, 8.0]), Matrix3::zeros());
 
@@ -373,7 +414,13 @@ mod tests {
             let x = 100.0 * f64::from(k);
             submap(&world, x, x + 100.0, offset)
         }));
-        let twice = Disagreement::measure(&both);
+        let mut both_paths = paths.clone();
+        both_paths.extend(
+            (0..3)
+                .rev()
+                .map(|k| path(100.0 * f64::from(k), true, offset)),
+        );
+        let twice = Disagreement::measure(&both, &both_paths);
         // Submaps 1 and 5, 0 and 6; not 2 and 4, two submaps apart in the drive's order
         // (taken for one pass: the radar's reach spans them).
         assert_eq!(
@@ -397,5 +444,8 @@ mod tests {
         );
         // The last 100 m were driven once.
         assert_eq!(twice.at([350.0, 8.0]), Matrix3::zeros());
+        // 50 m down the street across at 100 m, whose fronts both passes saw: the offset
+        // is kept where the passes drove, not wherever their scans overlap.
+        assert_eq!(twice.at([105.0, 50.0]), Matrix3::zeros());
     }
 }

@@ -412,6 +412,7 @@ pub(crate) mod tests {
                 .iter()
                 .map(|_| (Pose2::new(400.0, 0.0, 0.0), id))
                 .collect(),
+            paths: Vec::new(),
         }
     }
 

@@ -115,14 +115,8 @@ pub struct PlaceSearcher {
 /// Points along the drive of the map: each submap's frame to its end, every `spacing` m.
 pub fn drive_points(map: &MapFeatures, spacing: f64) -> Vec<[f64; 2]> {
     let mut out = Vec::new();
-    for ((frame, _), end) in map.frames.iter().zip(&map.ends) {
-        let (a, b) = ([frame.x, frame.y], [end.x, end.y]);
-        let len = (b[0] - a[0]).hypot(b[1] - a[1]);
-        let n = (len / spacing).ceil().max(1.0) as usize;
-        for i in 0..n {
-            let t = i as f64 / n as f64;
-            out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
-        }
+    for k in 0..map.frames.len() {
+        out.extend(super::known::path_samples(&map.path_of(k), spacing));
     }
     if let Some(end) = map.ends.last() {
         out.push([end.x, end.y]);
@@ -528,6 +522,7 @@ mod tests {
             ],
             ends: vec![Pose2::new(25.0, 0.0, 0.0), Pose2::new(25.0, 20.0, 0.0)],
             end_local: Vec::new(),
+            paths: Vec::new(),
         };
         let p = drive_points(&map, 10.0);
         // 25 m in 3 steps, 20 m in 2, and the end.
@@ -535,5 +530,34 @@ mod tests {
         assert_eq!(p[0], [0.0, 0.0]);
         assert_eq!(p[3], [25.0, 0.0]);
         assert_eq!(p[5], [25.0, 20.0]);
+    }
+
+    /// With the map's paths (format version 4) the places follow where the vehicle drove:
+    /// the first submap's frame is the map's origin, 100 m from where the drive began, and
+    /// the drive turned; the line from frame to end would put places where no vehicle was.
+    #[test]
+    fn drive_points_follow_the_saved_path() {
+        let map = MapFeatures {
+            features: Vec::new(),
+            frames: vec![(Pose2::new(0.0, 0.0, 0.0), Matrix3::zeros())],
+            ends: vec![Pose2::new(120.0, 20.0, 1.5)],
+            end_local: Vec::new(),
+            paths: vec![vec![[100.0, 0.0], [120.0, 0.0], [120.0, 20.0]]],
+        };
+        let p = drive_points(&map, 10.0);
+        assert_eq!(
+            p,
+            vec![
+                [100.0, 0.0],
+                [110.0, 0.0],
+                [120.0, 0.0],
+                [120.0, 10.0],
+                [120.0, 20.0]
+            ]
+        );
+        // The submap nearest a point of the path, and how far.
+        assert_eq!(map.nearest_submap([119.0, 12.0]), Some(0));
+        let d = crate::pipeline::localise::known::polyline_distance([60.0, 10.0], &map.path_of(0));
+        assert!((d - 41.231).abs() < 1e-3, "{d}");
     }
 }
