@@ -658,6 +658,27 @@ mod tests {
         })
     }
 
+    /// One rotation of `world` seen from `truth`, its returns placed at the end of the
+    /// caller's `estimate` (no sweep), closed and registered.
+    fn placed_rotation(
+        m: &mut ScanMatcher,
+        world: &[[f64; 2]],
+        truth: &Pose2,
+        estimate: Pose2,
+    ) -> Option<RotationMotion> {
+        for (bearing, returns) in scan(world, truth) {
+            m.add_azimuth(Some(estimate), 0.0, bearing, &returns);
+        }
+        m.end_rotation(
+            Some(RotationEnd {
+                pose: estimate,
+                since_s: 0.0,
+                until_s: 0.0,
+            }),
+            false,
+        )
+    }
+
     /// Settings for the test scenes: every return of an azimuth kept, 50 pairs needed.
     fn dense() -> ScanMatchSettings {
         ScanMatchSettings {
@@ -1027,17 +1048,7 @@ mod tests {
         let third = compose(&second, &eased);
         // The caller places each rotation's returns at the end of its estimate.
         let rotation = |m: &mut ScanMatcher, truth: &Pose2, estimate: Pose2| {
-            for (bearing, returns) in scan(&world, truth) {
-                m.add_azimuth(Some(estimate), 0.0, bearing, &returns);
-            }
-            m.end_rotation(
-                Some(RotationEnd {
-                    pose: estimate,
-                    since_s: 0.0,
-                    until_s: 0.0,
-                }),
-                false,
-            )
+            placed_rotation(m, &world, truth, estimate)
         };
         rotation(&mut m, &first, Pose2::new(0.0, 0.0, 0.0));
         let got = rotation(&mut m, &second, turned).expect("registers the turn");
@@ -1062,19 +1073,8 @@ mod tests {
                 turn_known,
                 ..dense()
             });
-            let mut rotation = |truth: &Pose2, estimate: Pose2| {
-                for (bearing, returns) in scan(&world, truth) {
-                    m.add_azimuth(Some(estimate), 0.0, bearing, &returns);
-                }
-                m.end_rotation(
-                    Some(RotationEnd {
-                        pose: estimate,
-                        since_s: 0.0,
-                        until_s: 0.0,
-                    }),
-                    false,
-                )
-            };
+            let mut rotation =
+                |truth: &Pose2, estimate: Pose2| placed_rotation(&mut m, &world, truth, estimate);
             let origin = Pose2::new(0.0, 0.0, 0.0);
             rotation(&origin, origin);
             let step = Pose2::new(step_m, 0.0, 0.0);
@@ -1109,19 +1109,8 @@ mod tests {
                 turn_known,
                 ..dense()
             });
-            let mut rotation = |truth: &Pose2, estimate: Pose2| {
-                for (bearing, returns) in scan(&world, truth) {
-                    m.add_azimuth(Some(estimate), 0.0, bearing, &returns);
-                }
-                m.end_rotation(
-                    Some(RotationEnd {
-                        pose: estimate,
-                        since_s: 0.0,
-                        until_s: 0.0,
-                    }),
-                    false,
-                )
-            };
+            let mut rotation =
+                |truth: &Pose2, estimate: Pose2| placed_rotation(&mut m, &world, truth, estimate);
             rotation(&first, Pose2::new(0.0, 0.0, 0.0));
             let a = rotation(&second, turned).expect("registers the turn");
             let b = rotation(&third, turned).expect("registers the turn");

@@ -188,17 +188,9 @@ impl Map {
         self.scans = scans
             .into_iter()
             .filter(|(_, p)| !p.is_empty())
-            .map(|(k, points)| {
-                let step = points.len().div_ceil(crate::MAX_SCAN_POINTS).max(1);
-                MapScan {
-                    submap: u32::try_from(k).unwrap_or(u32::MAX),
-                    points: points
-                        .iter()
-                        .step_by(step)
-                        .map(|p| [p[0] as f32, p[1] as f32])
-                        .filter(|p| p[0].is_finite() && p[1].is_finite())
-                        .collect(),
-                }
+            .map(|(k, points)| MapScan {
+                submap: u32::try_from(k).unwrap_or(u32::MAX),
+                points: stored(points, crate::MAX_SCAN_POINTS),
             })
             .collect();
         validate(&self).map_err(WriteError::Invalid)?;
@@ -216,17 +208,9 @@ impl Map {
         self.paths = paths
             .into_iter()
             .filter(|(_, p)| !p.is_empty())
-            .map(|(k, points)| {
-                let step = points.len().div_ceil(crate::MAX_PATH_POINTS).max(1);
-                crate::MapPath {
-                    submap: u32::try_from(k).unwrap_or(u32::MAX),
-                    points: points
-                        .iter()
-                        .step_by(step)
-                        .map(|p| [p[0] as f32, p[1] as f32])
-                        .filter(|p| p[0].is_finite() && p[1].is_finite())
-                        .collect(),
-                }
+            .map(|(k, points)| crate::MapPath {
+                submap: u32::try_from(k).unwrap_or(u32::MAX),
+                points: stored(points, crate::MAX_PATH_POINTS),
             })
             .collect();
         validate(&self).map_err(WriteError::Invalid)?;
@@ -235,20 +219,12 @@ impl Map {
 
     /// Submap `k`'s path in 64-bit positions, when it recorded one.
     pub fn path_points(&self, k: usize) -> Option<Vec<[f64; 2]>> {
-        self.path_of(k).map(|p| {
-            p.iter()
-                .map(|q| [f64::from(q[0]), f64::from(q[1])])
-                .collect()
-        })
+        self.path_of(k).map(widened)
     }
 
     /// Submap `k`'s scan in 64-bit points, when it kept one.
     pub fn scan_points(&self, k: usize) -> Option<Vec<[f64; 2]>> {
-        self.scan_of(k).map(|p| {
-            p.iter()
-                .map(|q| [f64::from(q[0]), f64::from(q[1])])
-                .collect()
-        })
+        self.scan_of(k).map(widened)
     }
 
     /// The global layer's map: every submap it joined, placed by its current solution, and
@@ -381,4 +357,24 @@ impl Pose {
         y: 0.0,
         theta: 0.0,
     };
+}
+
+/// `points` as the file stores them: 32-bit floats (a millimetre at 10 km), thinned evenly
+/// to at most `max`, those that are not finite left out.
+fn stored(points: &[[f64; 2]], max: usize) -> Vec<[f32; 2]> {
+    let step = points.len().div_ceil(max.max(1)).max(1);
+    points
+        .iter()
+        .step_by(step)
+        .map(|p| [p[0] as f32, p[1] as f32])
+        .filter(|p| p[0].is_finite() && p[1].is_finite())
+        .collect()
+}
+
+/// Stored points back in 64 bits.
+fn widened(points: &[[f32; 2]]) -> Vec<[f64; 2]> {
+    points
+        .iter()
+        .map(|q| [f64::from(q[0]), f64::from(q[1])])
+        .collect()
 }

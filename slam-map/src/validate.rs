@@ -118,48 +118,20 @@ pub fn validate(map: &Map) -> Result<(), String> {
             ));
         }
     }
-    let mut after = None;
-    for (e, scan) in map.scans.iter().enumerate() {
-        let k = scan.submap;
-        if k as usize >= n || after.is_some_and(|a| k <= a) {
-            return Err(format!(
-                "scan {e} belongs to submap {k}: the scans' submaps must increase, each in 0..{n}"
-            ));
-        }
-        after = Some(k);
-        if scan.points.len() > MAX_SCAN_POINTS {
-            return Err(format!(
-                "scan {e} (submap {k}) holds {} points, more than {MAX_SCAN_POINTS}",
-                scan.points.len()
-            ));
-        }
-        if !scan.points.iter().flatten().all(|v| v.is_finite()) {
-            return Err(format!(
-                "scan {e} (submap {k}) holds a point that is not finite"
-            ));
-        }
-    }
-    let mut after = None;
-    for (e, path) in map.paths.iter().enumerate() {
-        let k = path.submap;
-        if k as usize >= n || after.is_some_and(|a| k <= a) {
-            return Err(format!(
-                "path {e} belongs to submap {k}: the paths' submaps must increase, each in 0..{n}"
-            ));
-        }
-        after = Some(k);
-        if path.points.len() > MAX_PATH_POINTS {
-            return Err(format!(
-                "path {e} (submap {k}) holds {} positions, more than {MAX_PATH_POINTS}",
-                path.points.len()
-            ));
-        }
-        if !path.points.iter().flatten().all(|v| v.is_finite()) {
-            return Err(format!(
-                "path {e} (submap {k}) holds a position that is not finite"
-            ));
-        }
-    }
+    point_lists(
+        "scan",
+        "points",
+        n,
+        MAX_SCAN_POINTS,
+        map.scans.iter().map(|s| (s.submap, &s.points[..])),
+    )?;
+    point_lists(
+        "path",
+        "positions",
+        n,
+        MAX_PATH_POINTS,
+        map.paths.iter().map(|p| (p.submap, &p.points[..])),
+    )?;
     // Every later drive is tied to an earlier one, or its frames float free of the map's.
     for d in 1..=map.drive_starts.len() {
         let tied = map.joins.iter().chain(&map.loops).any(|l| {
@@ -170,6 +142,39 @@ pub fn validate(map: &Map) -> Result<(), String> {
             return Err(format!(
                 "drive {d} (from submap {}) has no join or loop closure to an earlier drive",
                 map.drive_starts[d - 1]
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The rules of the per-submap point lists (scans, paths): each names a submap of the `n`
+/// in increasing order, holds at most `max` points, all finite.
+fn point_lists<'a>(
+    kind: &str,
+    things: &str,
+    n: usize,
+    max: usize,
+    lists: impl Iterator<Item = (u32, &'a [[f32; 2]])>,
+) -> Result<(), String> {
+    let mut after = None;
+    for (e, (k, points)) in lists.enumerate() {
+        if k as usize >= n || after.is_some_and(|a| k <= a) {
+            return Err(format!(
+                "{kind} {e} belongs to submap {k}: the {kind}s' submaps must increase, each in 0..{n}"
+            ));
+        }
+        after = Some(k);
+        if points.len() > max {
+            return Err(format!(
+                "{kind} {e} (submap {k}) holds {} {things}, more than {max}",
+                points.len()
+            ));
+        }
+        if !points.iter().flatten().all(|v| v.is_finite()) {
+            let one = things.trim_end_matches('s');
+            return Err(format!(
+                "{kind} {e} (submap {k}) holds a {one} that is not finite"
             ));
         }
     }
