@@ -6,10 +6,10 @@ use slam_map::{FormatError, Limits, Map, MapProfile, FORMAT_VERSION, MAGIC};
 #[test]
 fn a_collection_declaring_two_to_the_sixty_elements_allocates_little_and_fails() {
     let mut payload = empty_payload();
-    // The last five bytes are the submaps', loops', drive starts', joins' and scans'
-    // lengths.
-    assert_eq!(&payload[payload.len() - 5..], &[0, 0, 0, 0, 0]);
-    payload.truncate(payload.len() - 5);
+    // The last six bytes are the submaps', loops', drive starts', joins', scans' and
+    // paths' lengths.
+    assert_eq!(&payload[payload.len() - 6..], &[0, 0, 0, 0, 0, 0]);
+    payload.truncate(payload.len() - 6);
     // 2^60 as a LEB128 varint, then a few bytes of "submap".
     push_two_to_the_sixty(&mut payload);
     fails_allocating_little(payload);
@@ -18,7 +18,18 @@ fn a_collection_declaring_two_to_the_sixty_elements_allocates_little_and_fails()
 #[test]
 fn a_scan_declaring_two_to_the_sixty_points_allocates_little_and_fails() {
     let mut payload = empty_payload();
-    // One scan, of submap 0, whose points claim 2^60 entries.
+    // One scan, of submap 0, whose points claim 2^60 entries (the scans' and paths'
+    // lengths replaced).
+    payload.truncate(payload.len() - 2);
+    payload.extend_from_slice(&[1, 0]);
+    push_two_to_the_sixty(&mut payload);
+    fails_allocating_little(payload);
+}
+
+#[test]
+fn a_path_declaring_two_to_the_sixty_positions_allocates_little_and_fails() {
+    let mut payload = empty_payload();
+    // No scan; one path, of submap 0, whose positions claim 2^60 entries.
     payload.truncate(payload.len() - 1);
     payload.extend_from_slice(&[1, 0]);
     push_two_to_the_sixty(&mut payload);
