@@ -98,11 +98,11 @@ pub struct ScanMatchSettings {
     /// motion), so on a straight road it is noisier. Off by default.
     pub deskew: bool,
     /// Whether the caller's heading change over a rotation is measured from outside the
-    /// radar (a gyro): a turn then does not call for registrations from other headings
-    /// ([`TURNING_SEEDS_RAD`]), since the start already holds the turn; only a
-    /// registration that pairs far fewer returns than usual is tried again
-    /// ([`TURN_SEEDS_RAD`]). Without it, the turn's onset and end change the turn by up to
-    /// 0.1 rad a rotation, beyond ICP's basin.
+    /// radar (a gyro). A turn is then retried from the nearest headings only
+    /// ([`KNOWN_TURN_SEEDS_RAD`], not [`TURNING_SEEDS_RAD`]: the start already holds the
+    /// turn; without it, the turn's onset and end change the turn by up to 0.1 rad a
+    /// rotation, beyond ICP's basin), and a registration over less than [`SLOW_MOTION_M`]
+    /// gives its heading at least [`SLOW_HEADING_SIGMA_RAD`].
     pub turn_known: bool,
 }
 

@@ -96,7 +96,6 @@ pub struct ScanAlignSettings {
     pub max_sigma_rad: f64,
     /// A return's noise for the joint test of the pairs (m).
     pub point_sigma_m: f64,
-
     /// Pairs counted as one independent measurement (neighbouring points of one surface
     /// are not independent): the covariance is scaled by it.
     pub correlated_pairs: f64,

@@ -123,12 +123,8 @@ pub fn build(
                         .iter()
                         .enumerate()
                         .filter_map(|(k, s)| s.as_deref().map(|v| (k, &v[..])));
-                    let paths = p
-                        .paths
-                        .iter()
-                        .map(|v| &v[..])
-                        .chain(std::iter::once(p.path))
-                        .enumerate();
+                    let paths = run.paths();
+                    let paths = paths.iter().map(|v| &v[..]).enumerate();
                     Ok((map.with_scans(scans)?.with_paths(paths)?, report))
                 },
             )

@@ -162,11 +162,9 @@ pub struct SubmapRun {
     /// Each frozen submap's scan as handed to the global layer (`None`: it kept none), for
     /// the saved map.
     scans: Vec<Option<Arc<Vec<[f64; 2]>>>>,
-    /// Where the vehicle drove through each frozen submap (in its frame, a position every
-    /// [`slam_map::PATH_SPACING_M`]), for the saved map.
-    paths: Vec<Vec<[f64; 2]>>,
-    /// The same through the current submap so far.
-    path: Vec<[f64; 2]>,
+    /// The saved submaps' paths when the run extends a saved map (this run's are derived
+    /// from `history`: [`SubmapRun::paths`]).
+    saved_paths: Vec<Vec<[f64; 2]>>,
     /// The current submap's frame chained from this run's first by the switch poses alone,
     /// never by the global layer's solutions: the frame of the run's odometry.
     odometry_frame: Pose2,
@@ -228,8 +226,7 @@ impl SubmapRun {
             drive_starts: Vec::new(),
             joins: Vec::new(),
             scans: Vec::new(),
-            paths: Vec::new(),
-            path: Vec::new(),
+            saved_paths: Vec::new(),
             odometry_frame: Pose2::new(0.0, 0.0, 0.0),
         })
     }
@@ -263,8 +260,7 @@ impl SubmapRun {
             drive_starts: r.drive_starts,
             joins,
             scans: r.scans,
-            paths: r.paths,
-            path: Vec::new(),
+            saved_paths: r.paths,
             odometry_frame,
         })
     }
@@ -376,13 +372,6 @@ impl SubmapRun {
         let local_cov = ekf.pose_covariance();
         self.history
             .push((time_s, self.current() as u32, local, local_cov));
-        let moved = self
-            .path
-            .last()
-            .is_none_or(|p| (local.x - p[0]).hypot(local.y - p[1]) >= slam_map::PATH_SPACING_M);
-        if moved && local.x.is_finite() && local.y.is_finite() {
-            self.path.push([local.x, local.y]);
-        }
         if let Some(last) = self.last_local {
             self.driven_m += (local.x - last.x).hypot(local.y - last.y);
         }
@@ -418,10 +407,6 @@ impl SubmapRun {
         let scan_points = scan.len();
         let scan = (self.options.global.scans.enabled && !scan.is_empty()).then_some(scan);
         self.scans.push(scan.clone().map(Arc::new));
-        // The path ends where the next submap begins.
-        let mut path = std::mem::take(&mut self.path);
-        path.push([frozen.end_pose.x, frozen.end_pose.y]);
-        self.paths.push(path);
         if let Some(layer) = self.layer.as_mut() {
             layer.submit_with_scan(Arc::clone(&frozen), scan);
         }
@@ -611,9 +596,33 @@ impl SubmapRun {
             drive_starts: &self.drive_starts,
             joins: &self.joins,
             scans: &self.scans,
-            paths: &self.paths,
-            path: &self.path,
         }
+    }
+
+    /// Where the vehicle drove through every submap, in its frame, the current one's last:
+    /// a saved map's as it was loaded, this run's from the poses it recorded every rotation,
+    /// a position each time the vehicle had moved [`slam_map::PATH_SPACING_M`] from the last,
+    /// and a frozen submap's ending where the next one begins.
+    pub fn paths(&self) -> Vec<Vec<[f64; 2]>> {
+        let mut out = self.saved_paths.clone();
+        out.resize(self.frames.len(), Vec::new());
+        for (_, k, local, _) in &self.history {
+            let Some(path) = out.get_mut(*k as usize) else {
+                continue;
+            };
+            let moved = path
+                .last()
+                .is_none_or(|p| (local.x - p[0]).hypot(local.y - p[1]) >= slam_map::PATH_SPACING_M);
+            if moved && local.x.is_finite() && local.y.is_finite() {
+                path.push([local.x, local.y]);
+            }
+        }
+        for (k, frozen) in self.frozen.iter().enumerate().skip(self.first_new) {
+            if let Some(path) = out.get_mut(k) {
+                path.push([frozen.end_pose.x, frozen.end_pose.y]);
+            }
+        }
+        out
     }
 }
 
@@ -653,10 +662,6 @@ pub struct SubmapParts<'a> {
     pub joins: &'a [LoopClosure],
     /// Each frozen submap's scan, where it kept one.
     pub scans: &'a [Option<Arc<Vec<[f64; 2]>>>],
-    /// Each frozen submap's path (in its frame).
-    pub paths: &'a [Vec<[f64; 2]>],
-    /// The current submap's path so far.
-    pub path: &'a [[f64; 2]],
 }
 
 /// The closures over every true revisit: frame `i`'s true origin is the vehicle's true

@@ -118,13 +118,13 @@ impl MapFeatures {
     /// without one (a map before format version 4) the line from its frame to its end. A
     /// drive's first submap's frame is the map's origin, not where the vehicle started,
     /// so that line can miss its drive by far.
-    pub fn path_of(&self, k: usize) -> Vec<[f64; 2]> {
+    pub fn path_of(&self, k: usize) -> std::borrow::Cow<'_, [[f64; 2]]> {
         match self.paths.get(k).filter(|p| !p.is_empty()) {
-            Some(p) => p.clone(),
-            None => match (self.frames.get(k), self.ends.get(k)) {
+            Some(p) => std::borrow::Cow::Borrowed(p),
+            None => std::borrow::Cow::Owned(match (self.frames.get(k), self.ends.get(k)) {
                 (Some((a, _)), Some(b)) => vec![[a.x, a.y], [b.x, b.y]],
                 _ => Vec::new(),
-            },
+            }),
         }
     }
 

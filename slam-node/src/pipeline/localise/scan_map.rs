@@ -245,7 +245,7 @@ impl ScanMap {
             .collect();
         // Where the vehicle drove through each submap, in the map's frame.
         let paths: Vec<Vec<[f64; 2]>> = (0..frames.frames.len())
-            .map(|k| frames.path_of(k))
+            .map(|k| frames.path_of(k).into_owned())
             .collect();
         let disagreement = Disagreement::measure(&scans, &paths);
         let mut out = Self::from_points(scans.concat(), frames)?;
