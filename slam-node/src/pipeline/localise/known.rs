@@ -201,22 +201,37 @@ pub(crate) fn polyline_distance(p: [f64; 2], path: &[[f64; 2]]) -> f64 {
     }
 }
 
-/// Points at most `spacing` (m) apart along the polyline `path`, from its first vertex up
-/// to, not including, its last.
-pub(crate) fn path_samples(path: &[[f64; 2]], spacing: f64) -> impl Iterator<Item = [f64; 2]> + '_ {
-    path.windows(2).flat_map(move |w| {
+/// Points `spacing` (m) apart by distance travelled along the polyline `path`, from its
+/// first vertex up to, not including, its last: the spacing runs on across vertices, so a
+/// saved path's vertices every [`slam_map::PATH_SPACING_M`] give a point every `spacing`,
+/// not one per vertex. A segment longer than 10,000 spacings is sampled more coarsely (a
+/// corrupt or far-flung vertex costs no unbounded work).
+pub(crate) fn path_samples(path: &[[f64; 2]], spacing: f64) -> Vec<[f64; 2]> {
+    const MAX_PER_SEGMENT: f64 = 10_000.0;
+    let mut out = Vec::new();
+    if !(spacing.is_finite() && spacing > 0.0) {
+        out.extend(path.split_last().map_or(&[][..], |(_, rest)| rest));
+        return out;
+    }
+    // Distance along the current segment at which the next point falls.
+    let mut next = 0.0;
+    for w in path.windows(2) {
         let (a, b) = (w[0], w[1]);
         let len = (b[0] - a[0]).hypot(b[1] - a[1]);
-        let n = if len.is_finite() && spacing > 0.0 {
-            (len / spacing).ceil().clamp(1.0, 10_000.0) as usize
-        } else {
-            1
-        };
-        (0..n).map(move |i| {
-            let t = i as f64 / n as f64;
-            [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
-        })
-    })
+        if !len.is_finite() {
+            out.push(a);
+            next = 0.0;
+            continue;
+        }
+        let step = spacing.max(len / MAX_PER_SEGMENT);
+        while next < len {
+            let t = next / len;
+            out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+            next += step;
+        }
+        next -= len;
+    }
+    out
 }
 
 /// Distance (m) from `p` to the segment from `a` to `b`.

@@ -187,7 +187,9 @@ impl Disagreement {
 
 /// Points at most [`PATH_SAMPLE_M`] apart along `path`, both ends included.
 fn along(path: &[[f64; 2]]) -> impl Iterator<Item = [f64; 2]> + '_ {
-    path_samples(path, PATH_SAMPLE_M).chain(path.last().copied())
+    path_samples(path, PATH_SAMPLE_M)
+        .into_iter()
+        .chain(path.last().copied())
 }
 
 /// Two passes share a street where their paths run this close (m): the street's width

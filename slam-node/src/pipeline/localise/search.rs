@@ -560,4 +560,33 @@ mod tests {
         let d = crate::pipeline::localise::known::polyline_distance([60.0, 10.0], &map.path_of(0));
         assert!((d - 41.231).abs() < 1e-3, "{d}");
     }
+
+    /// A saved path holds a vertex every 2 m: the places still fall every `spacing` along
+    /// it (one per vertex made the places five times as dense, and the search's nearest 40
+    /// descriptors all came from a few stretches of the map).
+    #[test]
+    fn drive_points_are_spaced_along_a_densely_sampled_path() {
+        let path: Vec<[f64; 2]> = (0..=20).map(|i| [2.0 * f64::from(i), 0.0]).collect();
+        let map = MapFeatures {
+            features: Vec::new(),
+            frames: vec![(Pose2::new(0.0, 0.0, 0.0), Matrix3::zeros())],
+            ends: vec![Pose2::new(40.0, 0.0, 0.0)],
+            end_local: Vec::new(),
+            paths: vec![path],
+        };
+        let p = drive_points(&map, 10.0);
+        let xs: Vec<f64> = p.iter().map(|q| q[0]).collect();
+        assert_eq!(xs.len(), 5, "{xs:?}");
+        for (x, want) in xs.iter().zip([0.0, 10.0, 20.0, 30.0, 40.0]) {
+            assert!((x - want).abs() < 1e-9, "{xs:?}");
+        }
+        // Across a corner the spacing runs on: 10 m along the path, not from the corner.
+        let bent = vec![[0.0, 0.0], [4.0, 0.0], [4.0, 30.0]];
+        let q = crate::pipeline::localise::known::path_samples(&bent, 10.0);
+        assert_eq!(q.len(), 4, "{q:?}");
+        assert!(
+            (q[1][1] - 6.0).abs() < 1e-9 && (q[3][1] - 26.0).abs() < 1e-9,
+            "{q:?}"
+        );
+    }
 }
