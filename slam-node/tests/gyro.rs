@@ -126,3 +126,47 @@ fn a_gyro_foresees_a_swerve_that_radar_odometry_alone_lags() {
         "with the gyro {pos_gyro} m {heading_gyro} rad, without {pos_alone} m {heading_alone} rad"
     );
 }
+
+/// On the radar alone, with no truth and no start time (a vehicle's run), the filter's
+/// clock starts at the first registration: the rotation before it publishes nothing, and
+/// every pose published carries the stream's time (the first one used to be stamped 0.0,
+/// the clock not yet started, and a TUM reader took it for a pose 1.7e9 s earlier).
+#[test]
+fn on_the_radar_alone_no_pose_is_published_before_the_filters_clock_starts() {
+    let scene = swerving_street();
+    let mut config = config::Config::from_toml_str("[odometry]\nsource = \"none\"\n").unwrap();
+    config.sim.seed = 1;
+    let mut recipe = SettingsRecipe::from_config(config);
+    recipe.written = Some(std::collections::BTreeSet::from([
+        "odometry.source".to_owned()
+    ]));
+    let settings = slam_node::source::embedded::embedded_settings(&recipe, &scene, false)
+        .expect("settings")
+        .settings;
+    assert!(settings.radar_drives);
+    let start_s = START_NS as f64 * 1e-9;
+    let rotations: u32 = 8;
+    let mut pipeline = Pipeline::new(settings, None, None).expect("pipeline");
+    let mut radar = SimRadar::new(&scene, None, f64::from(rotations) * 0.25 + 2.0, START_NS);
+    let mut events = Vec::new();
+    let mut stamps = Vec::new();
+    for k in 0..u64::from(rotations) * radar.azimuths() {
+        pipeline
+            .process_azimuth(&radar.azimuth(k), &mut events)
+            .expect("azimuth");
+        for e in events.drain(..) {
+            if let slam_node::output::OutputEvent::Pose(p) = e {
+                stamps.push(p.timestamp_s);
+            }
+        }
+    }
+    assert!(pipeline.summary().rotations >= u64::from(rotations) - 1);
+    assert!(
+        stamps.len() >= rotations as usize - 3 && stamps.len() < rotations as usize,
+        "{stamps:?}"
+    );
+    assert!(
+        stamps.iter().all(|t| *t >= start_s && *t < start_s + 3.0),
+        "{stamps:?}"
+    );
+}

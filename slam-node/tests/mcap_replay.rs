@@ -49,7 +49,10 @@ fn a_recording_the_daemon_made_replays_to_the_same_trajectory_bit_for_bit() {
     assert_eq!(replayed_tum, live_tum);
     // The estimated poses, covariances included, to the bit.
     let live = payloads(&live_mcap, TOPIC_POSE);
-    assert_eq!(live.len() as u64, ROTATIONS);
+    assert_eq!(live.len() as u64, POSED_ROTATIONS);
+    let stamps = tum_stamps(&live_tum);
+    assert_eq!(stamps.len() as u64, POSED_ROTATIONS, "{live_tum}");
+    assert!(stamps.iter().all(|t| *t >= T0), "{live_tum}");
     assert_eq!(payloads(&replayed_mcap, TOPIC_POSE), live);
     assert_eq!(
         payloads(&replayed_mcap, TOPIC_BSCAN),

@@ -88,6 +88,10 @@ pub struct Pipeline {
     rotation_start_s: Option<f64>,
     summary: PipelineSummary,
     filter_started: bool,
+    /// Whether the filter's clock has started (its first odometry sample, radar odometry's
+    /// first registration, or a start at the truth's pose): before it the filter's pose
+    /// has no time, and nothing is published or recorded for the trajectory.
+    clock_started: bool,
     scan_match: RadarOdometryStage,
     /// The gyro's samples waiting for the radar's clock (radar only with a gyro).
     gyro: Option<super::gyro::GyroQueue>,
@@ -189,6 +193,7 @@ impl Pipeline {
             rotation_start_s: None,
             summary: PipelineSummary::default(),
             filter_started: false,
+            clock_started: false,
             scan_match: RadarOdometryStage::new(
                 settings.scan_match,
                 settings.radar_drives,
@@ -658,8 +663,14 @@ impl Pipeline {
         );
         self.warn_if_behind(d.total_ms);
         self.measure_cpu();
+        // Nothing is published before the filter's clock starts (on the radar alone, the
+        // first rotation before a registration): its pose would carry no time (0.0). A
+        // filter started at the truth's pose has its clock from the start.
+        self.clock_started |=
+            self.ekf.held_odometry().is_some() || self.ekf.state().time_s() != 0.0;
+        let clock_started = self.clock_started;
         // Localising: nothing is published in the map's frame before the fix.
-        if let Some((pose, cov)) = self.pose_to_publish() {
+        if let Some((pose, cov)) = self.pose_to_publish().filter(|_| clock_started) {
             let published = PoseSample {
                 timestamp_s: self.ekf.state().time_s(),
                 x_m: pose.x,
@@ -713,7 +724,7 @@ impl Pipeline {
         }
         events.push(OutputEvent::Rotation(Box::new(d)));
         // The submap closes after this rotation's pose was published in it.
-        if let Some(s) = self.submaps.as_mut() {
+        if let Some(s) = self.submaps.as_mut().filter(|_| clock_started) {
             let t = self.ekf.state().time_s();
             s.end_rotation(&mut self.ekf, t);
             self.summary.current_submap = s.current();

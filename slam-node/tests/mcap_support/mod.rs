@@ -18,6 +18,18 @@ use slam_node::pipeline::{run_pipeline, Pipeline, PipelineInputs, PipelineSettin
 pub const T0: f64 = 1.7e9;
 pub const AZIMUTHS: u64 = 200;
 pub const ROTATIONS: u64 = 8;
+/// Rotations a pose is published for: the first two hold no detection, so no beam brings
+/// the odometry into the filter and its clock has not started (a pose then would carry no
+/// time).
+pub const POSED_ROTATIONS: u64 = ROTATIONS - 2;
+
+/// The TUM trajectory's timestamps (comment lines skipped).
+pub fn tum_stamps(tum: &str) -> Vec<f64> {
+    tum.lines()
+        .filter(|l| !l.starts_with('#'))
+        .filter_map(|l| l.split(' ').next()?.parse().ok())
+        .collect()
+}
 
 /// Odometry from a list, all of it available at once.
 #[derive(Debug)]
