@@ -513,7 +513,7 @@ impl Localiser {
             scans: scan_map.map(|map| ByScans {
                 map,
                 kept: VecDeque::new(),
-                settings: TrackSettings::default(),
+                settings: TrackSettings::for_turn_source(s.gyro.is_some()),
                 tracker: None,
                 driven_m: 0.0,
                 counted_to: None,
