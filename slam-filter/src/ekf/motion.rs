@@ -90,6 +90,16 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         Ok(MotionOutcome::Applied { nis })
     }
 
+    /// Adds `variances` (x m^2, y m^2, heading rad^2) to the pose's covariance: process noise
+    /// over the interval since the mark that the motion model did not hold, for a caller that
+    /// has found it missed a manoeuvre (a turn's onset a constant-velocity prediction could
+    /// not foresee). The pose's covariance with the clone is unchanged, so a measurement of
+    /// the motion since the mark then weighs against the prediction by the larger variance.
+    /// Non-finite or negative entries are ignored.
+    pub fn add_process_noise_since_mark(&mut self, variances: [f64; 3]) {
+        self.state.inflate_pose_covariance(variances);
+    }
+
     /// Sets the pose to the pose at the last mark composed with `measured` (the pose at
     /// the state's time in the mark's frame, with covariance `cov`), as odometry drives a
     /// pose: for when the measurement *is* the odometry (radar odometry on the radar alone),

@@ -365,8 +365,8 @@ impl fmt::Display for RadarOdometry<'_> {
         if m.drives {
             writeln!(
                 f,
-                "  radar only: radar odometry drove the prediction; {} registrations searched for the motion (no estimate), {} weakly constrained (the scene did not pin the motion in one direction: the pose's uncertainty grew along it)",
-                m.searched, m.weak
+                "  radar only: radar odometry drove the prediction; {} registrations searched for the motion (no estimate), {} weakly constrained (the scene did not pin the motion in one direction: the pose's uncertainty grew along it), {} turned away from the held motion (a turn's onset or end: the heading's process noise widened)",
+                m.searched, m.weak, m.manoeuvres
             )?;
         } else if m.weak > 0 {
             writeln!(

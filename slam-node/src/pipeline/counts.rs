@@ -39,6 +39,10 @@ pub struct ScanMatchCounts {
     pub retries: u64,
     /// Whether radar odometry drove the filter's prediction (no wheel odometry).
     pub drives: bool,
+    /// On the radar alone without a gyro: rotations whose registration turned more than
+    /// `MANOEUVRE_HEADING_RAD` away from the held motion (a turn's onset or end), whose
+    /// heading process noise was widened by the difference.
+    pub manoeuvres: u64,
     /// Sum of the applied measurements' NIS (3 dof each).
     pub nis_sum: f64,
     /// Registrations compared with the true motion over the same interval (with ground
