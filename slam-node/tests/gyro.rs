@@ -40,23 +40,33 @@ fn swerving_street() -> sim_sensor::scene::Scene {
     scene
 }
 
+/// The embedded simulator's settings for `scene` on the radar alone (with a gyro when
+/// `gyro`), as a run without a configuration file gets them: the profile's and radar-only's
+/// values.
+fn radar_only_settings(
+    scene: &sim_sensor::scene::Scene,
+    gyro: bool,
+) -> slam_node::pipeline::PipelineSettings {
+    let mut config = config::Config::from_toml_str("[odometry]\nsource = \"none\"\n").unwrap();
+    config.sim.seed = 1;
+    let mut recipe = SettingsRecipe::from_config(config);
+    recipe.written = Some(std::collections::BTreeSet::from([
+        "odometry.source".to_owned()
+    ]));
+    recipe.facts.gyro = gyro;
+    let settings = slam_node::source::embedded::embedded_settings(&recipe, scene, false)
+        .expect("settings")
+        .settings;
+    assert!(settings.radar_drives);
+    settings
+}
+
 /// Drives the scene radar only, with or without the gyro; returns the RMS (position,
 /// heading) errors of the published pose against the truth over the rotations from the
 /// swerve on, and the summary's gyro figures.
 fn drive(with_gyro: bool) -> (f64, f64, Option<slam_node::pipeline::gyro::GyroSummary>) {
     let scene = swerving_street();
-    let mut config = config::Config::from_toml_str("[odometry]\nsource = \"none\"\n").unwrap();
-    config.sim.seed = 1;
-    let mut recipe = SettingsRecipe::from_config(config);
-    // As a run without a configuration file: the profile's and radar-only's values.
-    recipe.written = Some(std::collections::BTreeSet::from([
-        "odometry.source".to_owned()
-    ]));
-    recipe.facts.gyro = with_gyro;
-    let settings = slam_node::source::embedded::embedded_settings(&recipe, &scene, false)
-        .expect("settings")
-        .settings;
-    assert!(settings.radar_drives);
+    let settings = radar_only_settings(&scene, with_gyro);
     assert_eq!(settings.gyro.is_some(), with_gyro);
     let start_s = START_NS as f64 * 1e-9;
     let horizon = ROTATIONS as f64 * 0.25 + 2.0;
@@ -134,16 +144,7 @@ fn a_gyro_foresees_a_swerve_that_radar_odometry_alone_lags() {
 #[test]
 fn on_the_radar_alone_no_pose_is_published_before_the_filters_clock_starts() {
     let scene = swerving_street();
-    let mut config = config::Config::from_toml_str("[odometry]\nsource = \"none\"\n").unwrap();
-    config.sim.seed = 1;
-    let mut recipe = SettingsRecipe::from_config(config);
-    recipe.written = Some(std::collections::BTreeSet::from([
-        "odometry.source".to_owned()
-    ]));
-    let settings = slam_node::source::embedded::embedded_settings(&recipe, &scene, false)
-        .expect("settings")
-        .settings;
-    assert!(settings.radar_drives);
+    let settings = radar_only_settings(&scene, false);
     let start_s = START_NS as f64 * 1e-9;
     let rotations: u32 = 8;
     let mut pipeline = Pipeline::new(settings, None, None).expect("pipeline");
