@@ -130,7 +130,7 @@ impl Default for TrackSettings {
 /// rad RMS a rotation on the realistic city (0.00026 through its turns) against the 0.002
 /// rad of radar odometry alone. With the default's noise the tracker took each rotation's
 /// registration nearly whole; with this one it averages several: the return route's
-/// heading 0.108 -> 0.096 deg RMS, the same route's 0.081 -> 0.071 (slam-node/README.md,
+/// heading 0.108 -> 0.097 deg RMS, the same route's 0.081 -> 0.071 (slam-node/README.md,
 /// "By the map's scans").
 pub const GYRO_HEADING_RAD: f64 = 0.0007;
 /// See [`GYRO_HEADING_RAD`].
