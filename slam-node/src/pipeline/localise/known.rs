@@ -204,35 +204,50 @@ pub(crate) fn polyline_distance(p: [f64; 2], path: &[[f64; 2]]) -> f64 {
 /// Points `spacing` (m) apart by distance travelled along the polyline `path`, from its
 /// first vertex up to, not including, its last: the spacing runs on across vertices, so a
 /// saved path's vertices every [`slam_map::PATH_SPACING_M`] give a point every `spacing`,
-/// not one per vertex. A segment longer than 10,000 spacings is sampled more coarsely (a
-/// corrupt or far-flung vertex costs no unbounded work).
+/// not one per vertex. At most [`MAX_PATH_SAMPLES`] points: a longer path (a map file's
+/// far-flung but finite vertices) is sampled more coarsely, at no unbounded cost.
 pub(crate) fn path_samples(path: &[[f64; 2]], spacing: f64) -> Vec<[f64; 2]> {
-    const MAX_PER_SEGMENT: f64 = 10_000.0;
+    let finite_len = |w: &[[f64; 2]]| {
+        let len = (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]);
+        if len.is_finite() {
+            len
+        } else {
+            0.0
+        }
+    };
+    let total: f64 = path.windows(2).map(finite_len).sum();
+    let step = if spacing.is_finite() && spacing > 0.0 {
+        spacing.max(total / MAX_PATH_SAMPLES as f64)
+    } else {
+        f64::INFINITY
+    };
     let mut out = Vec::new();
-    if !(spacing.is_finite() && spacing > 0.0) {
-        out.extend(path.split_last().map_or(&[][..], |(_, rest)| rest));
-        return out;
-    }
     // Distance along the current segment at which the next point falls.
     let mut next = 0.0;
     for w in path.windows(2) {
         let (a, b) = (w[0], w[1]);
         let len = (b[0] - a[0]).hypot(b[1] - a[1]);
-        if !len.is_finite() {
+        if !len.is_finite() || !step.is_finite() {
+            // No distance to run along: the vertex itself.
             out.push(a);
             next = 0.0;
             continue;
         }
-        let step = spacing.max(len / MAX_PER_SEGMENT);
-        while next < len {
+        while next < len && out.len() < 2 * MAX_PATH_SAMPLES {
             let t = next / len;
             out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
             next += step;
         }
-        next -= len;
+        next = (next - len).max(0.0);
     }
     out
 }
+
+/// The most points [`path_samples`] gives along a path, one more for rounding, plus the
+/// vertices it cannot run along (a non-finite segment); a safety net stops it at twice this.
+/// A saved path holds at most [`slam_map::MAX_PATH_POINTS`] vertices 2 m apart: 8.2 km,
+/// 820 places at 10 m.
+pub(crate) const MAX_PATH_SAMPLES: usize = 8192;
 
 /// Distance (m) from `p` to the segment from `a` to `b`.
 pub(crate) fn segment_distance(a: [f64; 2], b: [f64; 2], p: [f64; 2]) -> f64 {

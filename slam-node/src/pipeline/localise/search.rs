@@ -588,5 +588,14 @@ mod tests {
             (q[1][1] - 6.0).abs() < 1e-9 && (q[3][1] - 26.0).abs() < 1e-9,
             "{q:?}"
         );
+        // A map file's far-flung but finite vertices cost a bounded number of places.
+        use crate::pipeline::localise::known::{path_samples, MAX_PATH_SAMPLES};
+        let far: Vec<[f64; 2]> = (0..4096)
+            .map(|i| [f64::from(i) * 3e37, if i % 2 == 0 { 0.0 } else { 1e37 }])
+            .collect();
+        let n = path_samples(&far, 10.0).len();
+        assert!(n > 0 && n <= MAX_PATH_SAMPLES + 1, "{n}");
+        let n = path_samples(&[[0.0, 0.0], [f64::MAX, f64::MAX]], 10.0).len();
+        assert!(n <= MAX_PATH_SAMPLES + 1, "{n}");
     }
 }
