@@ -219,7 +219,7 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[radar]\nmodel = \"\"", "radar.model", "must not be empty"),
     // the gyro of radar-only driving, and the simulator's
     ("[gyro]\nsource = \"tcp\"", "gyro.source", "only used when the radar drives the filter"),
-    ("[gyro]\naddress = \"127.0.0.1:1\"", "gyro.address", "is only used with gyro.source = \"tcp\""),
+    ("[gyro]\naddress = \"127.0.0.1:0\"", "gyro.address", "is only used with gyro.source = \"tcp\""),
     ("[gyro]\npath = \"g.txt\"", "gyro.path", "is only used with gyro.source = \"file\""),
     ("[gyro]\nnoise_density_rad_s_per_sqrt_hz = -1.0", "gyro.noise_density_rad_s_per_sqrt_hz", "got -1"),
     ("[gyro]\nbias_std_rad_s = -1.0", "gyro.bias_std_rad_s", "got -1"),

@@ -185,14 +185,10 @@ impl Map {
         mut self,
         scans: impl IntoIterator<Item = (usize, &'a [[f64; 2]])>,
     ) -> Result<Map, WriteError> {
-        self.scans = scans
-            .into_iter()
-            .filter(|(_, p)| !p.is_empty())
-            .map(|(k, points)| MapScan {
-                submap: u32::try_from(k).unwrap_or(u32::MAX),
-                points: stored(points, crate::MAX_SCAN_POINTS),
-            })
-            .collect();
+        self.scans = per_submap(scans, crate::MAX_SCAN_POINTS, |submap, points| MapScan {
+            submap,
+            points,
+        });
         validate(&self).map_err(WriteError::Invalid)?;
         Ok(self)
     }
@@ -205,14 +201,9 @@ impl Map {
         mut self,
         paths: impl IntoIterator<Item = (usize, &'a [[f64; 2]])>,
     ) -> Result<Map, WriteError> {
-        self.paths = paths
-            .into_iter()
-            .filter(|(_, p)| !p.is_empty())
-            .map(|(k, points)| crate::MapPath {
-                submap: u32::try_from(k).unwrap_or(u32::MAX),
-                points: stored(points, crate::MAX_PATH_POINTS),
-            })
-            .collect();
+        self.paths = per_submap(paths, crate::MAX_PATH_POINTS, |submap, points| {
+            crate::MapPath { submap, points }
+        });
         validate(&self).map_err(WriteError::Invalid)?;
         Ok(self)
     }
@@ -361,6 +352,21 @@ impl Pose {
 
 /// `points` as the file stores them: 32-bit floats (a millimetre at 10 km), thinned evenly
 /// to at most `max`, those that are not finite left out.
+/// A point list per submap (`(submap, points in its frame)`; empty ones left out), each
+/// [`stored`] to at most `max` points and made into a record by `make`. A submap index
+/// beyond `u32` becomes `u32::MAX`, which validation refuses.
+fn per_submap<'a, T>(
+    lists: impl IntoIterator<Item = (usize, &'a [[f64; 2]])>,
+    max: usize,
+    make: impl Fn(u32, Vec<[f32; 2]>) -> T,
+) -> Vec<T> {
+    lists
+        .into_iter()
+        .filter(|(_, p)| !p.is_empty())
+        .map(|(k, points)| make(u32::try_from(k).unwrap_or(u32::MAX), stored(points, max)))
+        .collect()
+}
+
 fn stored(points: &[[f64; 2]], max: usize) -> Vec<[f32; 2]> {
     let step = points.len().div_ceil(max.max(1)).max(1);
     points

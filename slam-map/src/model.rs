@@ -274,7 +274,7 @@ pub(crate) struct MapV2 {
 
 impl From<MapV2> for Map {
     fn from(m: MapV2) -> Self {
-        Map {
+        Map::from(MapV3 {
             created_unix_s: m.created_unix_s,
             source: m.source,
             profile: m.profile,
@@ -283,8 +283,7 @@ impl From<MapV2> for Map {
             drive_starts: m.drive_starts,
             joins: m.joins,
             scans: Vec::new(),
-            paths: Vec::new(),
-        }
+        })
     }
 }
 

@@ -38,19 +38,7 @@ fn the_encoding_of_a_fixed_map_is_unchanged() {
 
 #[test]
 fn a_version_3_file_reads_as_the_same_map_without_paths() {
-    let v3 = std::fs::read(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/data/sample-v3.slmap"
-    ))
-    .unwrap();
-    assert_eq!(&v3[8..12], &3u32.to_le_bytes());
-    assert_eq!(v3.len(), 1191);
-    assert_eq!(
-        crc32fast::hash(&v3),
-        0x1621_0851,
-        "the version 3 golden file"
-    );
-    let map = Map::from_bytes(&v3, &Limits::default()).unwrap();
+    let map = older_golden("sample-v3.slmap", 3, 1191, 0x1621_0851);
     assert_eq!(map, common::sample_map_with_scans(2));
     assert!(map.paths.is_empty());
 }
@@ -59,59 +47,32 @@ fn a_version_3_file_reads_as_the_same_map_without_paths() {
 fn paths_that_break_the_rules_are_refused() {
     let cases: Vec<(Map, &str)> = vec![
         (
-            {
-                let mut m = common::sample_map_with_paths(2);
-                m.paths[1].submap = 3;
-                m
-            },
+            edited(common::sample_map_with_paths, |m| m.paths[1].submap = 3),
             "path 1 belongs to submap 3",
         ),
         (
-            {
-                let mut m = common::sample_map_with_paths(2);
-                m.paths[1].submap = 0;
-                m
-            },
+            edited(common::sample_map_with_paths, |m| m.paths[1].submap = 0),
             "path 1 belongs to submap 0: the paths' submaps must increase",
         ),
         (
-            {
-                let mut m = common::sample_map_with_paths(2);
-                m.paths[0].points[2][1] = f32::INFINITY;
-                m
-            },
+            edited(common::sample_map_with_paths, |m| {
+                m.paths[0].points[2][1] = f32::INFINITY
+            }),
             "path 0 (submap 0) holds a position that is not finite",
         ),
         (
-            {
-                let mut m = common::sample_map_with_paths(2);
-                m.paths[0].points = vec![[0.0, 0.0]; slam_map::MAX_PATH_POINTS + 1];
-                m
-            },
+            edited(common::sample_map_with_paths, |m| {
+                m.paths[0].points = vec![[0.0, 0.0]; slam_map::MAX_PATH_POINTS + 1]
+            }),
             "more than 4096",
         ),
     ];
-    for (m, why) in cases {
-        let e = m.to_bytes().unwrap_err().to_string();
-        assert!(e.contains(why), "{why:?} not in {e:?}");
-    }
+    assert_refused(cases);
 }
 
 #[test]
 fn a_version_2_file_reads_as_the_same_map_without_scans() {
-    let v2 = std::fs::read(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/data/sample-v2.slmap"
-    ))
-    .unwrap();
-    assert_eq!(&v2[8..12], &2u32.to_le_bytes());
-    assert_eq!(v2.len(), 1154);
-    assert_eq!(
-        crc32fast::hash(&v2),
-        0x8bb6_1dfd,
-        "the version 2 golden file"
-    );
-    let map = Map::from_bytes(&v2, &Limits::default()).unwrap();
+    let map = older_golden("sample-v2.slmap", 2, 1154, 0x8bb6_1dfd);
     assert_eq!(map, common::sample_map(2));
     assert!(map.scans.is_empty());
 }
@@ -120,59 +81,32 @@ fn a_version_2_file_reads_as_the_same_map_without_scans() {
 fn scans_that_break_the_rules_are_refused() {
     let cases: Vec<(Map, &str)> = vec![
         (
-            {
-                let mut m = common::sample_map_with_scans(2);
-                m.scans[1].submap = 3;
-                m
-            },
+            edited(common::sample_map_with_scans, |m| m.scans[1].submap = 3),
             "scan 1 belongs to submap 3",
         ),
         (
-            {
-                let mut m = common::sample_map_with_scans(2);
-                m.scans[1].submap = 0;
-                m
-            },
+            edited(common::sample_map_with_scans, |m| m.scans[1].submap = 0),
             "scan 1 belongs to submap 0: the scans' submaps must increase",
         ),
         (
-            {
-                let mut m = common::sample_map_with_scans(2);
-                m.scans[0].points[1][0] = f32::NAN;
-                m
-            },
+            edited(common::sample_map_with_scans, |m| {
+                m.scans[0].points[1][0] = f32::NAN
+            }),
             "scan 0 (submap 0) holds a point that is not finite",
         ),
         (
-            {
-                let mut m = common::sample_map_with_scans(2);
-                m.scans[0].points = vec![[0.0, 0.0]; slam_map::MAX_SCAN_POINTS + 1];
-                m
-            },
+            edited(common::sample_map_with_scans, |m| {
+                m.scans[0].points = vec![[0.0, 0.0]; slam_map::MAX_SCAN_POINTS + 1]
+            }),
             "more than 65536",
         ),
     ];
-    for (m, why) in cases {
-        let e = m.to_bytes().unwrap_err().to_string();
-        assert!(e.contains(why), "{why:?} not in {e:?}");
-    }
+    assert_refused(cases);
 }
 
 #[test]
 fn a_version_1_file_reads_as_the_same_map_of_one_drive() {
-    let v1 = std::fs::read(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/data/sample-v1.slmap"
-    ))
-    .unwrap();
-    assert_eq!(&v1[8..12], &1u32.to_le_bytes());
-    assert_eq!(v1.len(), 1152);
-    assert_eq!(
-        crc32fast::hash(&v1),
-        0x37a4_762a,
-        "the version 1 golden file"
-    );
-    let map = Map::from_bytes(&v1, &Limits::default()).unwrap();
+    let map = older_golden("sample-v1.slmap", 1, 1152, 0x37a4_762a);
     assert_eq!(map, common::sample_map(2));
     assert!(map.drive_starts.is_empty() && map.joins.is_empty());
 }
@@ -242,6 +176,32 @@ fn drives_and_joins_that_break_the_rules_are_refused() {
             "join 0: its transform or covariance is not finite",
         ),
     ];
+    assert_refused(cases);
+}
+
+/// An older version's golden file in tests/data: its version field, length and CRC as
+/// pinned, read as a map.
+fn older_golden(name: &str, version: u32, len: usize, crc: u32) -> Map {
+    let bytes = std::fs::read(format!("{}/tests/data/{name}", env!("CARGO_MANIFEST_DIR"))).unwrap();
+    assert_eq!(&bytes[8..12], &version.to_le_bytes());
+    assert_eq!(bytes.len(), len);
+    assert_eq!(
+        crc32fast::hash(&bytes),
+        crc,
+        "the version {version} golden file"
+    );
+    Map::from_bytes(&bytes, &Limits::default()).unwrap()
+}
+
+/// `base(2)` changed by `edit`.
+fn edited(base: fn(usize) -> Map, edit: impl FnOnce(&mut Map)) -> Map {
+    let mut m = base(2);
+    edit(&mut m);
+    m
+}
+
+/// Each map is refused on writing, with its reason in the error.
+fn assert_refused(cases: Vec<(Map, &str)>) {
     for (m, why) in cases {
         let e = m.to_bytes().unwrap_err().to_string();
         assert!(e.contains(why), "{why:?} not in {e:?}");

@@ -88,10 +88,6 @@ pub struct Pipeline {
     rotation_start_s: Option<f64>,
     summary: PipelineSummary,
     filter_started: bool,
-    /// Whether the filter's clock has started (its first odometry sample, radar odometry's
-    /// first registration, or a start at the truth's pose): before it the filter's pose
-    /// has no time, and nothing is published or recorded for the trajectory.
-    clock_started: bool,
     scan_match: RadarOdometryStage,
     /// The gyro's samples waiting for the radar's clock (radar only with a gyro).
     gyro: Option<super::gyro::GyroQueue>,
@@ -193,7 +189,6 @@ impl Pipeline {
             rotation_start_s: None,
             summary: PipelineSummary::default(),
             filter_started: false,
-            clock_started: false,
             scan_match: RadarOdometryStage::new(
                 settings.scan_match,
                 settings.radar_drives,
@@ -666,9 +661,7 @@ impl Pipeline {
         // Nothing is published before the filter's clock starts (on the radar alone, the
         // first rotation before a registration): its pose would carry no time (0.0). A
         // filter started at the truth's pose has its clock from the start.
-        self.clock_started |=
-            self.ekf.held_odometry().is_some() || self.ekf.state().time_s() != 0.0;
-        let clock_started = self.clock_started;
+        let clock_started = self.ekf.held_odometry().is_some() || self.ekf.state().time_s() != 0.0;
         // Localising: nothing is published in the map's frame before the fix.
         if let Some((pose, cov)) = self.pose_to_publish().filter(|_| clock_started) {
             let published = PoseSample {
