@@ -133,7 +133,20 @@ pub struct RawOdometry {
     /// prediction that repeats the last rotation's motion. Default false. See slam-node's
     /// README, "Radar only".
     pub radar_odometry_compose: bool,
+    /// Earlier rotations' clouds each rotation is registered against besides the previous
+    /// one's, kept where the registrations placed them (0 to 8). Unset: 3 when radar
+    /// odometry drives the prediction (`source = "none"`), where its errors add up rotation
+    /// by rotation, and 0 when it is fused with wheel odometry. See slam-node's README,
+    /// "Radar only".
+    pub radar_odometry_keyframes: Option<i64>,
+    /// A rotation's cloud becomes a keyframe when the vehicle ended it at least this far
+    /// from where the newest keyframe's rotation ended, m >= 0. Default 0 (every rotation).
+    pub radar_odometry_keyframe_spacing_m: f64,
 }
+
+/// Keyframes radar odometry registers against at most (`[odometry] radar_odometry_keyframes`):
+/// each adds a cloud to the reference built every rotation.
+pub const MAX_RADAR_ODOMETRY_KEYFRAMES: u64 = 8;
 
 impl Default for RawOdometry {
     fn default() -> Self {
@@ -161,6 +174,8 @@ impl Default for RawOdometry {
             radar_odometry_sigma_m: 0.05,
             radar_odometry_sigma_rad: 0.003,
             radar_odometry_compose: false,
+            radar_odometry_keyframes: None,
+            radar_odometry_keyframe_spacing_m: 0.0,
         }
     }
 }
@@ -241,6 +256,11 @@ pub struct OdometrySettings {
     pub radar_odometry_sigma_rad: PositiveF64,
     /// Radar only: registrations composed onto the pose, not fused as updates.
     pub radar_odometry_compose: bool,
+    /// Earlier rotations' clouds registered against besides the previous one's (`None`:
+    /// chosen by what drives the prediction).
+    pub radar_odometry_keyframes: Option<u64>,
+    /// Distance between keyframes, m.
+    pub radar_odometry_keyframe_spacing_m: NonNegativeF64,
 }
 
 impl Default for OdometrySettings {
@@ -418,6 +438,16 @@ impl RawOdometry {
                 PositiveF64::new(self.radar_odometry_sigma_rad),
             ),
             radar_odometry_compose: self.radar_odometry_compose,
+            radar_odometry_keyframes: self.radar_odometry_keyframes.map(|k| {
+                c.check(
+                    "odometry.radar_odometry_keyframes",
+                    values::count(k, MAX_RADAR_ODOMETRY_KEYFRAMES),
+                )
+            }),
+            radar_odometry_keyframe_spacing_m: c.check(
+                "odometry.radar_odometry_keyframe_spacing_m",
+                NonNegativeF64::new(self.radar_odometry_keyframe_spacing_m),
+            ),
         }
     }
 }
@@ -467,6 +497,8 @@ impl From<&OdometrySettings> for RawOdometry {
             radar_odometry_sigma_m: s.radar_odometry_sigma_m.get(),
             radar_odometry_sigma_rad: s.radar_odometry_sigma_rad.get(),
             radar_odometry_compose: s.radar_odometry_compose,
+            radar_odometry_keyframes: s.radar_odometry_keyframes.map(values::as_i64),
+            radar_odometry_keyframe_spacing_m: s.radar_odometry_keyframe_spacing_m.get(),
         }
     }
 }

@@ -217,6 +217,9 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[detector]\npoint_min_snr_db = -3.0", "detector.point_min_snr_db", "got -3"),
     ("[radar]\nmodel = \"cts 350\"", "radar.model", "must be a radar model's name"),
     ("[radar]\nmodel = \"\"", "radar.model", "must not be empty"),
+    ("[odometry]\nradar_odometry_keyframes = 9", "odometry.radar_odometry_keyframes", "must be in [0, 8], got 9"),
+    ("[odometry]\nradar_odometry_keyframes = -1", "odometry.radar_odometry_keyframes", "must be in [0, 8], got -1"),
+    ("[odometry]\nradar_odometry_keyframe_spacing_m = -1.0", "odometry.radar_odometry_keyframe_spacing_m", "got -1"),
     // the gyro of radar-only driving, and the simulator's
     ("[gyro]\nsource = \"tcp\"", "gyro.source", "only used when the radar drives the filter"),
     ("[gyro]\naddress = \"127.0.0.1:0\"", "gyro.address", "is only used with gyro.source = \"tcp\""),

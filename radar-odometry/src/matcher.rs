@@ -3,12 +3,13 @@
 //! end of a rotation the cloud registered against the previous rotation's, giving the
 //! vehicle's motion between the two with a covariance and how well the scene pinned it.
 //! The cloud is then placed again along the motion registered, and that is the next
-//! rotation's reference.
+//! rotation's reference, with the clouds of up to [`ScanMatchSettings::keyframes`] earlier
+//! rotations placed along the motions registered since.
 //!
 //! Memory: two clouds of at most `points_per_azimuth` x azimuths points (16 bytes each),
-//! with each return as seen (24 bytes), bounded by [`MAX_POINTS`], and over the previous
-//! cloud a k-d tree (for the normals) and a pair grid of at most 2^18 cells, rebuilt once a
-//! rotation.
+//! with each return as seen (24 bytes), bounded by [`MAX_POINTS`], the keyframes' clouds
+//! (at most [`MAX_KEYFRAMES`]), and over the reference a k-d tree (for the normals) and a
+//! pair grid of at most 2^18 cells, rebuilt once a rotation.
 
 use nalgebra::{Matrix3, Vector3};
 use radar_model::geometry::Pose2;
@@ -20,6 +21,8 @@ use crate::register::{
 
 /// Points a rotation's cloud holds at most, whatever the radar's geometry.
 pub const MAX_POINTS: usize = 1 << 15;
+/// Keyframes kept at most, whatever [`ScanMatchSettings::keyframes`] asks.
+pub const MAX_KEYFRAMES: usize = 8;
 /// A registration pairing under this share of what recent ones paired is retried from
 /// other headings ([`ScanMatcher`]'s `follow`).
 pub const TURN_PAIRED_SHARE: f64 = 0.7;
@@ -104,6 +107,15 @@ pub struct ScanMatchSettings {
     /// rotation, beyond ICP's basin), and a registration over less than [`SLOW_MOTION_M`]
     /// gives its heading at least [`SLOW_HEADING_SIGMA_RAD`].
     pub turn_known: bool,
+    /// Earlier rotations' clouds registered against besides the previous rotation's (0:
+    /// the previous rotation's alone). Each is kept where the caller settled the motion
+    /// since, so a rotation registered against them measures its pose against clouds
+    /// several rotations old, and the registration's error does not add up rotation by
+    /// rotation over the span they cover.
+    pub keyframes: usize,
+    /// A rotation's cloud becomes a keyframe when the vehicle ended it at least this far
+    /// (m) from where the newest keyframe's rotation ended.
+    pub keyframe_spacing_m: f64,
 }
 
 impl Default for ScanMatchSettings {
@@ -124,6 +136,8 @@ impl Default for ScanMatchSettings {
             search_m: 6.0,
             deskew: false,
             turn_known: false,
+            keyframes: 0,
+            keyframe_spacing_m: 0.0,
         }
     }
 }
@@ -245,6 +259,37 @@ pub struct ScanMatcher {
     paired_share: Option<f64>,
     /// The heading change the last registration measured (rad; 0 after a failed one).
     last_turn_rad: f64,
+    /// Earlier rotations' clouds ([`ScanMatchSettings::keyframes`]), oldest first, in the
+    /// frame `previous_motion` starts from (the previous rotation's mark): the motion the
+    /// caller settles on places them in the previous rotation's frame at the next
+    /// rotation's end.
+    keyframes: Vec<Keyframe>,
+    /// The previous rotation's end in the frame the keyframes are kept in, as registered
+    /// (the caller's estimate where the registration failed): the keyframes are placed by
+    /// the registrations alone, never by the motion the caller settles on, which fuses
+    /// each registration with a prediction made from the ones before it (placed along it,
+    /// a registration's correction of the last one's error comes back as an error of the
+    /// next, and the two feed each other).
+    keyframe_motion: Option<Pose2>,
+}
+
+/// An earlier rotation's cloud kept to register against ([`ScanMatchSettings::keyframes`]).
+#[derive(Debug, Clone)]
+struct Keyframe {
+    /// The vehicle's pose at that rotation's end, in the frame the keyframes are kept in.
+    origin: Pose2,
+    /// Its points in the same frame.
+    points: Vec<[f64; 2]>,
+}
+
+impl Keyframe {
+    /// The keyframe in the frame at `frame` (a pose in the one it is kept in).
+    fn moved_to(&self, frame: &Pose2) -> Self {
+        Self {
+            origin: frame.between(&self.origin),
+            points: in_frame_of(frame, &self.points),
+        }
+    }
 }
 
 impl ScanMatcher {
@@ -350,6 +395,8 @@ impl ScanMatcher {
             self.previous = None;
             self.previous_seen = None;
             self.previous_motion = None;
+            self.keyframes.clear();
+            self.keyframe_motion = None;
             return None;
         };
         let mut local = in_frame_of(&end, &points);
@@ -370,14 +417,32 @@ impl ScanMatcher {
             (sensor, fractions)
         });
         let mut out = None;
+        // The keyframes in the previous rotation's frame, along the motion registered
+        // (none without one, or when searching: a search registers the previous cloud as
+        // it was seen).
+        let keyframes: Vec<Keyframe> = match (self.keyframe_motion.take(), search) {
+            (Some(m), false) if self.previous.is_some() => {
+                self.keyframes.iter().map(|k| k.moved_to(&m)).collect()
+            }
+            _ => Vec::new(),
+        };
+        self.keyframes.clear();
         // Replaced by this rotation's cloud below, whatever the registration does.
         self.previous_seen = None;
         self.previous_motion = None;
         // Placed along the caller's estimate (none when searching: where each was seen).
         let mut motion = (!search).then_some(end);
         if let Some(points) = self.previous.take() {
+            let mut all = Vec::with_capacity(
+                points.len() + keyframes.iter().map(|k| k.points.len()).sum::<usize>(),
+            );
+            all.extend_from_slice(&points);
+            for k in &keyframes {
+                all.extend_from_slice(&k.points);
+            }
+            self.keyframes = self.next_keyframes(keyframes, points);
             let reference = &ReferenceCloud::new(
-                points,
+                all,
                 self.settings.normal_radius_m,
                 self.settings.pair_gate_m,
             );
@@ -431,6 +496,7 @@ impl ScanMatcher {
             }
         }
         self.reference_placed = placed;
+        self.keyframe_motion = motion;
         self.previous = (!local.is_empty()).then_some(local);
         self.previous_seen = as_seen;
         self.previous_motion = motion;
@@ -487,6 +553,28 @@ impl ScanMatcher {
         self.previous = Some(place_along(&motion, sensor, fractions));
         self.previous_motion = Some(motion);
         self.reference_placed = true;
+    }
+
+    /// The keyframes the next rotation registers against (in the previous rotation's
+    /// frame, as `older` is): the newest [`ScanMatchSettings::keyframes`] of `older` and
+    /// the previous rotation's cloud `previous` when it ended far enough from the newest.
+    fn next_keyframes(&self, mut older: Vec<Keyframe>, previous: Vec<[f64; 2]>) -> Vec<Keyframe> {
+        let s = &self.settings;
+        if s.keyframes == 0 {
+            return Vec::new();
+        }
+        let spaced = older
+            .last()
+            .is_none_or(|k| k.origin.x.hypot(k.origin.y) >= s.keyframe_spacing_m);
+        if spaced {
+            older.push(Keyframe {
+                origin: Pose2::new(0.0, 0.0, 0.0),
+                points: previous,
+            });
+        }
+        let excess = older.len().saturating_sub(s.keyframes.min(MAX_KEYFRAMES));
+        older.drain(..excess);
+        older
     }
 
     /// Pairs a registration of `points` points needs: [`ScanMatchSettings::min_pairs`], or
@@ -1124,5 +1212,74 @@ mod tests {
         assert_eq!(known.turned, guessed.turned, "{known:?} {guessed:?}");
         assert_eq!(known.retries, 2 * known.turned, "{known:?}");
         assert_eq!(guessed.retries, 8 * guessed.turned, "{guessed:?}");
+    }
+
+    /// The pose a drive of `rotations` along the town ends at, chained from the motions
+    /// registered with `keyframes`, each rotation's returns jittered along their beams by
+    /// up to 0.3 m (speckle), the caller settling on the registered motion; and the true
+    /// pose it should be.
+    fn jittered_drive(keyframes: usize, rotations: usize) -> (Pose2, Pose2) {
+        let mut m = ScanMatcher::new(ScanMatchSettings {
+            keyframes,
+            ..dense()
+        });
+        let world = town();
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        let mut jitter = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            0.6 * ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
+        };
+        let step = Pose2::new(1.2, 0.0, 0.004);
+        let mut truth = Pose2::new(-40.0, 0.0, 0.0);
+        let mut chained = truth;
+        let mut held = step;
+        for _ in 0..rotations {
+            truth = truth.compose(&step);
+            for (bearing, returns) in scan(&world, &truth) {
+                let noisy: Vec<Return> = returns
+                    .iter()
+                    .map(|r| Return {
+                        range_m: r.range_m + jitter(),
+                        strength_db: r.strength_db,
+                    })
+                    .collect();
+                m.add_azimuth(Some(held), 0.0, bearing, &noisy);
+            }
+            let end = RotationEnd {
+                pose: held,
+                since_s: 0.0,
+                until_s: 0.0,
+            };
+            if let Some(r) = m.end_rotation(Some(end), false) {
+                held = r.motion;
+            }
+            chained = chained.compose(&held);
+            m.place_reference(held);
+        }
+        (chained, truth)
+    }
+
+    #[test]
+    fn registered_against_keyframes_the_errors_do_not_add_up_rotation_by_rotation() {
+        let error = |keyframes| {
+            let (end, truth) = jittered_drive(keyframes, 50);
+            (
+                (end.x - truth.x).hypot(end.y - truth.y),
+                radar_model::geometry::wrap_angle(end.theta - truth.theta).abs(),
+            )
+        };
+        let (alone_m, alone_rad) = error(0);
+        let (kept_m, kept_rad) = error(3);
+        eprintln!("previous alone: {alone_m:.3} m {alone_rad:.5} rad; with 3 keyframes: {kept_m:.3} m {kept_rad:.5} rad");
+        assert!(
+            kept_rad < 0.5 * alone_rad,
+            "heading {kept_rad} against {alone_rad}"
+        );
+        assert!(
+            kept_m < 0.6 * alone_m,
+            "position {kept_m} against {alone_m}"
+        );
     }
 }

@@ -64,6 +64,12 @@ pub struct GlobalSettings {
     /// submaps overlap the new one over different lengths): 0.25, not the verifier's own
     /// rival ratio.
     pub max_conflict_ratio: f64,
+    /// A place descriptor's closure that moves the new frame farther than the rival
+    /// separation from where the chain of submaps puts it is held until the next submap
+    /// of the drive is verified where it implies: a jump a repeated street (a block over,
+    /// out of the scan's own reach, where [`crate::scans::fits_itself`] cannot tell) fits
+    /// once fits the next submap there only where the repetition goes on.
+    pub confirm_place_jumps: bool,
 }
 
 impl Default for GlobalSettings {
@@ -79,6 +85,7 @@ impl Default for GlobalSettings {
             place: PlaceSearch::default(),
             scans: ScanAlignSettings::default(),
             max_conflict_ratio: 0.25,
+            confirm_place_jumps: true,
         }
     }
 }
@@ -164,6 +171,10 @@ pub struct AddReport {
     pub conflicting: usize,
     /// Closures dropped because the solve left them outside their own uncertainty.
     pub rejected_after_solve: usize,
+    /// A place closure jumping from the chain was held for the next submap to confirm.
+    pub held: bool,
+    /// The held closure of the previous submap was not confirmed by this one: dropped.
+    pub unconfirmed: bool,
     /// The solve failed and the previous solution stands.
     pub solve_failed: bool,
     /// Time spent verifying and solving (ms).
@@ -187,6 +198,10 @@ pub struct GlobalStats {
     pub conflicting: u64,
     /// Closures dropped after the solve.
     pub rejected_after_solve: u64,
+    /// Place closures jumping from the chain held for the next submap to confirm.
+    pub held: u64,
+    /// Of which the next submap did not confirm (dropped).
+    pub unconfirmed: u64,
     /// Failed solves.
     pub failed_solves: u64,
     /// Longest add (verification and solve), ms.
@@ -231,6 +246,9 @@ pub struct GlobalMap {
     pub(crate) drive: Vec<usize>,
     /// The joins of later drives to earlier ones (see [`crate::resume`]).
     pub(crate) joins: Vec<LoopClosure>,
+    /// A place closure of the newest submap held for the next one to confirm
+    /// ([`GlobalSettings::confirm_place_jumps`]).
+    pub(crate) held: Option<LoopClosure>,
 }
 
 impl GlobalMap {
@@ -250,6 +268,7 @@ impl GlobalMap {
             places: Places::default(),
             drive: vec![0],
             joins: Vec::new(),
+            held: None,
         }
     }
 
@@ -434,6 +453,36 @@ impl GlobalMap {
         let Some(newest) = self.submaps.get(k).cloned() else {
             return;
         };
+        if let Some(held) = self.held.take() {
+            match self.confirm(&held, k, &newest) {
+                Some(next) => {
+                    info!(
+                        from = held.from,
+                        to = held.to,
+                        next_from = next.from,
+                        "a place closure jumping from the chain is confirmed by the next submap"
+                    );
+                    report.accepted.push(held);
+                    report.accepted.push(next);
+                    // The new submap's place is described for later ones to find, as
+                    // after any closure the prior found.
+                    if s.place.enabled {
+                        let points = self.place_points(k);
+                        self.places.skip(points, &s.place);
+                    }
+                    return;
+                }
+                None => {
+                    info!(
+                        from = held.from,
+                        to = held.to,
+                        "a place closure jumping from the chain is not confirmed by the next submap: dropped"
+                    );
+                    report.unconfirmed = true;
+                    self.stats.unconfirmed += 1;
+                }
+            }
+        }
         let (cn, rn) = self.discs[k];
         // (earlier submap, alignment, from a place descriptor)
         let mut verified: Vec<(usize, Alignment, bool)> = Vec::new();
@@ -556,7 +605,7 @@ impl GlobalMap {
         }
         verified.truncate(1);
         for (i, a, from_place) in verified {
-            report.accepted.push(LoopClosure {
+            let closure = LoopClosure {
                 from: i,
                 to: k,
                 transform: a.transform,
@@ -566,8 +615,88 @@ impl GlobalMap {
                 dof: a.dof,
                 rival_matches: a.rival_matches,
                 from_place,
-            });
+            };
+            if from_place && self.jumps(&closure) {
+                info!(
+                    from = i,
+                    to = k,
+                    "a place closure jumps from the chain beyond its uncertainty: held for the next submap to confirm"
+                );
+                report.held = true;
+                self.stats.held += 1;
+                self.held = Some(closure);
+                return;
+            }
+            report.accepted.push(closure);
         }
+    }
+
+    /// Whether closure `l` (from a place descriptor) is held for the next submap to confirm
+    /// ([`GlobalSettings::confirm_place_jumps`]): within one drive, where it puts its
+    /// later frame farther from the chain's than the rival separation and three standard
+    /// deviations of the chain's relative position. Within those the chain's own
+    /// uncertainty explains it, and [`Self::not_repeating`] has tried the move on the
+    /// earlier scan.
+    fn jumps(&self, l: &LoopClosure) -> bool {
+        let s = &self.settings;
+        if !s.confirm_place_jumps || self.other_drive(l.from, l.to) {
+            return false;
+        }
+        let (z, cov) = self.relative(l.from, l.to);
+        let shift = compose(&z, &inverse(&l.transform));
+        let sigma_m = (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt();
+        let distance_m = shift.x.hypot(shift.y);
+        let allowed_m = s.align.rival_separation_m.max(3.0 * sigma_m);
+        // NaN jumps.
+        distance_m.is_nan() || distance_m > allowed_m
+    }
+
+    /// The next submap `k`'s confirmation of `held` (a closure of submap `k - 1` that
+    /// [`Self::jumps`]): `k` verified against the held closure's earlier submap or either
+    /// neighbour, from where the held closure and the chain edge between `k - 1` and `k`
+    /// put it, within the place search's prior window, and implying a frame for `k` within
+    /// the rival separation of that. The closure with the most matches, `None` when none
+    /// is verified there (the held one is then dropped).
+    fn confirm(&self, held: &LoopClosure, k: usize, newest: &FrozenSubmap) -> Option<LoopClosure> {
+        let s = &self.settings;
+        if held.to + 1 != k || self.other_drive(held.to, k) {
+            return None;
+        }
+        let step = self.submaps.get(held.to)?.end_pose;
+        let predicted = compose(&held.transform, &step);
+        let window = Matrix3::from_diagonal(&nalgebra::Vector3::new(
+            s.place.prior_sigma_m.powi(2),
+            s.place.prior_sigma_m.powi(2),
+            s.place.prior_sigma_rad.powi(2),
+        ));
+        let sep = s.align.rival_separation_m;
+        [
+            held.from.checked_sub(1),
+            Some(held.from),
+            Some(held.from + 1),
+        ]
+        .into_iter()
+        .flatten()
+        .filter(|&c| c + 1 < held.to && !self.other_drive(c, k))
+        .filter_map(|c| {
+            // Frame `held.from` in frame `c`: neighbours along the chain.
+            let (rel, _) = self.relative(c, held.from);
+            let prior = compose(&rel, &predicted);
+            let a = self.verify(c, k, newest, &prior, &window).ok()?;
+            let off = crate::se2::between(&prior, &a.transform);
+            (off.x.hypot(off.y) <= sep && off.theta.abs() <= 0.1 * sep).then_some(LoopClosure {
+                from: c,
+                to: k,
+                transform: a.transform,
+                covariance: a.covariance,
+                matches: a.matches.len(),
+                nis: a.nis,
+                dof: a.dof,
+                rival_matches: a.rival_matches,
+                from_place: true,
+            })
+        })
+        .max_by_key(|l| l.matches)
     }
 
     /// Describes the new submap `k` and offers the verifier the earlier submaps its place

@@ -21,9 +21,14 @@ const STEP_M: f64 = 50.0;
 
 /// True frames every 50 m around the square, then three more along the first side.
 fn true_frames() -> Vec<Pose2> {
+    true_frames_then(4)
+}
+
+/// True frames every 50 m around the square, then `then - 1` more around it again.
+fn true_frames_then(then: usize) -> Vec<Pose2> {
     let per_side = (SIDE_M / STEP_M) as usize;
     let mut out = Vec::new();
-    for n in 0..(4 * per_side + 4) {
+    for n in 0..(4 * per_side + then) {
         let side = (n / per_side) % 4;
         let d = STEP_M * (n % per_side) as f64;
         let (x, y) = match side {
@@ -44,11 +49,15 @@ fn true_frames() -> Vec<Pose2> {
 /// Submaps seeing the posts within 60 m of their frame, chained with a heading bias of
 /// `bias_rad` per submap and a covariance that knows nothing of it.
 fn submaps(bias_rad: f64, seed: u64) -> (Vec<FrozenSubmap>, Vec<Pose2>) {
+    submaps_along(true_frames(), bias_rad, seed)
+}
+
+/// [`submaps`] along `frames`.
+fn submaps_along(frames: Vec<Pose2>, bias_rad: f64, seed: u64) -> (Vec<FrozenSubmap>, Vec<Pose2>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let posts: Vec<[f64; 2]> = (0..1400)
         .map(|_| [rng.gen_range(-70.0..470.0), rng.gen_range(-70.0..470.0)])
         .collect();
-    let frames = true_frames();
     let noise = Normal::new(0.0, 0.1).unwrap();
     let mut out = Vec::new();
     for k in 0..frames.len() - 1 {
@@ -130,4 +139,51 @@ fn places_close_the_loop_the_drifted_prior_cannot_reach() {
     // The first closure comes from a place; once it has pulled the frames back, the pose
     // prior is good again and the uncertainty search finds the next submaps' returns.
     assert!(from_places >= 1, "{from_places} of {with} from places");
+}
+
+/// The square driven once and then once more (the chain's heading biased as in [`run`]),
+/// submap 32 (back at the start) seeing what submap `alias` saw, in its own frame: a
+/// street that looks, once, like one 200 m away. Every closure is
+/// returned with its error against the truth (m).
+fn run_with_an_alias(alias: usize, confirm: bool) -> (Vec<(usize, usize, f64)>, u64) {
+    let (mut maps, frames) = submaps_along(true_frames_then(12), 0.02, 4);
+    maps[32].features = maps[alias].features.clone();
+    let mut g = GlobalMap::new(GlobalSettings {
+        confirm_place_jumps: confirm,
+        ..GlobalSettings::default()
+    });
+    for m in maps {
+        g.add_submap(Arc::new(m));
+    }
+    let loops = g
+        .loops()
+        .iter()
+        .map(|l| {
+            let truth = between(&frames[l.from], &frames[l.to]);
+            let error = (truth.x - l.transform.x).hypot(truth.y - l.transform.y);
+            (l.from, l.to, error)
+        })
+        .collect();
+    (loops, g.stats().unconfirmed)
+}
+
+#[test]
+fn a_place_closure_jumping_from_the_chain_waits_for_the_next_submap_to_confirm_it() {
+    // Held for confirmation, the alias is dropped: the next submap is not where it says.
+    let (loops, unconfirmed) = run_with_an_alias(4, true);
+    assert!(unconfirmed >= 1, "the alias was not held: {loops:?}");
+    assert!(
+        loops.iter().all(|l| l.2 < 0.5),
+        "a false closure entered the graph: {loops:?}"
+    );
+    assert!(
+        loops.iter().any(|l| l.1 > 32),
+        "the true return after the alias closes: {loops:?}"
+    );
+    // Taken at once, it enters the graph.
+    let (taken, _) = run_with_an_alias(4, false);
+    assert!(
+        taken.iter().any(|l| l.2 > 50.0),
+        "the alias was not even found: {taken:?}"
+    );
 }

@@ -456,7 +456,7 @@ impl fmt::Display for Submaps<'_> {
         let g = &sm.global;
         writeln!(
             f,
-            "  submaps: {} (largest {} features when closed), {} features frozen in {:.1} kB; global layer: {} loop closures from {} candidates ({} dropped as conflicting, {} after the solve, {} failed solves), {} solutions used, slowest join {:.1} ms",
+            "  submaps: {} (largest {} features when closed), {} features frozen in {:.1} kB; global layer: {} loop closures from {} candidates ({} dropped as conflicting, {} after the solve, {} place jumps held for the next submap and {} of them unconfirmed, {} failed solves), {} solutions used, slowest join {:.1} ms",
             sm.submaps,
             sm.largest_submap_features,
             sm.frozen_features,
@@ -465,6 +465,8 @@ impl fmt::Display for Submaps<'_> {
             g.candidates,
             g.conflicting,
             g.rejected_after_solve,
+            g.held,
+            g.unconfirmed,
             g.failed_solves,
             sm.solutions,
             g.max_add_ms

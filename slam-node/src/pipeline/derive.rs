@@ -437,6 +437,10 @@ pub fn effective_config(
     Ok((effective, over))
 }
 
+/// Keyframes radar odometry registers against when it drives the prediction and
+/// `[odometry] radar_odometry_keyframes` is unset.
+pub const DRIVING_KEYFRAMES: usize = 3;
+
 impl PipelineSettings {
     /// The settings for a radar of profile `choice` from configuration `c` (which writes
     /// `written`) and what the source knows (`facts`): derived once, logged once.
@@ -466,6 +470,17 @@ impl PipelineSettings {
         s.radar_drives = s.scan_match.enabled
             && (facts.radar_only
                 || effective.odometry.source == config::odometry::OdometrySource::None);
+        if effective.odometry.radar_odometry_keyframes.is_none()
+            && s.radar_drives
+            && effective.map.mode != config::MapMode::Localise
+        {
+            // Driving, the registrations are the odometry and their errors add up rotation
+            // by rotation: registered against the last few rotations too, they add up more
+            // slowly (slam-node/README.md, "Radar only"). Fused with wheel odometry, none;
+            // localising, none either: the map's registrations hold the pose, and the
+            // keyframes' cost (p99 13 -> 21 ms) would take the tracker under 60 Hz.
+            s.scan_match.keyframes = DRIVING_KEYFRAMES;
+        }
         if s.radar_drives {
             // What drives the filter is the radar's motion, whatever model a source's own
             // odometry meant.

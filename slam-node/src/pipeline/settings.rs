@@ -351,6 +351,11 @@ impl PipelineSettings {
                 enabled: c.odometry.radar_odometry,
                 sigma_xy_m: c.odometry.radar_odometry_sigma_m.get(),
                 sigma_theta_rad: c.odometry.radar_odometry_sigma_rad.get(),
+                keyframes: c
+                    .odometry
+                    .radar_odometry_keyframes
+                    .map_or(0, |k| usize::try_from(k).unwrap_or(0)),
+                keyframe_spacing_m: c.odometry.radar_odometry_keyframe_spacing_m.get(),
                 ..ScanMatchSettings::default()
             },
             radar_drives: false,
