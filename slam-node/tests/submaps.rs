@@ -87,6 +87,7 @@ fn options(limits: SubmapLimits) -> SubmapOptions {
     SubmapOptions {
         limits,
         global: slam_graph::GlobalSettings::default(),
+        scan_max_turn_rad: None,
     }
 }
 

@@ -441,6 +441,11 @@ pub fn effective_config(
 /// `[odometry] radar_odometry_keyframes` is unset.
 pub const DRIVING_KEYFRAMES: usize = 3;
 
+/// On the radar alone (no gyro), a rotation whose heading in its submap's frame is more than
+/// this (rad) from the frame's is not added to the submap's scan
+/// ([`super::settings::SubmapOptions::scan_max_turn_rad`]).
+pub const RADAR_ALONE_SCAN_MAX_TURN_RAD: f64 = 0.5;
+
 impl PipelineSettings {
     /// The settings for a radar of profile `choice` from configuration `c` (which writes
     /// `written`) and what the source knows (`facts`): derived once, logged once.
@@ -480,6 +485,15 @@ impl PipelineSettings {
             // localising, none either: the map's registrations hold the pose, and the
             // keyframes' cost (p99 13 -> 21 ms) would take the tracker under 60 Hz.
             s.scan_match.keyframes = DRIVING_KEYFRAMES;
+        }
+        let gyro = facts.gyro || effective.gyro.source != config::gyro::GyroSource::None;
+        if s.radar_drives && !gyro {
+            // The radar alone loses a degree or two of each junction's turn: a submap's scan
+            // gathered on through one is bent, and closures aligning it put the frames
+            // degrees off; the scan stops at the turn (slam-node/README.md, "Radar only").
+            if let Some(o) = s.submaps.as_mut() {
+                o.scan_max_turn_rad = Some(RADAR_ALONE_SCAN_MAX_TURN_RAD);
+            }
         }
         if s.radar_drives {
             // What drives the filter is the radar's motion, whatever model a source's own

@@ -124,6 +124,9 @@ pub struct SubmapOptions {
     pub limits: slam_filter::SubmapLimits,
     /// The global layer.
     pub global: slam_graph::GlobalSettings,
+    /// A rotation whose heading in the submap's frame differs from the frame's by more than
+    /// this (rad) is not added to the submap's scan (`None`: every rotation is).
+    pub scan_max_turn_rad: Option<f64>,
 }
 
 impl SubmapOptions {
@@ -147,6 +150,7 @@ impl SubmapOptions {
                 max_features: s.max_features.get(),
             },
             global,
+            scan_max_turn_rad: None,
         })
     }
 }

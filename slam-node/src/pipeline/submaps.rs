@@ -358,7 +358,11 @@ impl SubmapRun {
     /// Adds a rotation's registered cloud (in the vehicle's frame at the rotation's end) to
     /// the current submap's scan, placed by `pose`, the filter's pose in the submap then.
     pub fn add_scan(&mut self, pose: &Pose2, cloud: &[[f64; 2]]) {
-        if self.options.global.scans.enabled {
+        let straight = self
+            .options
+            .scan_max_turn_rad
+            .is_none_or(|max| pose.theta.abs() <= max);
+        if self.options.global.scans.enabled && straight {
             self.scan.add(pose, cloud);
         }
     }
@@ -746,5 +750,44 @@ fn placed(frame: &Pose2, f: FeatureEstimate) -> FeatureEstimate {
         y_m: y,
         position_cov: r * f.position_cov * r.transpose(),
         ..f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(max_turn: Option<f64>) -> SubmapRun {
+        SubmapRun::new(SubmapOptions {
+            limits: slam_filter::SubmapLimits::UNBOUNDED,
+            global: slam_graph::GlobalSettings::default(),
+            scan_max_turn_rad: max_turn,
+        })
+        .expect("the global layer's thread")
+    }
+
+    /// A wall 10 m ahead, 2 m wide, sampled every 0.1 m.
+    fn wall() -> Vec<[f64; 2]> {
+        (0..20).map(|i| [10.0, -1.0 + 0.1 * f64::from(i)]).collect()
+    }
+
+    #[test]
+    fn the_scan_stops_at_a_turn_when_asked() {
+        let straight = Pose2::new(20.0, 0.0, 0.1);
+        let turned = Pose2::new(40.0, 5.0, 0.8);
+        let mut trimmed = run(Some(0.5));
+        trimmed.add_scan(&straight, &wall());
+        let before = trimmed.scan.cells();
+        assert!(before > 0, "a rotation within the turn limit is kept");
+        trimmed.add_scan(&turned, &wall());
+        assert_eq!(
+            trimmed.scan.cells(),
+            before,
+            "a rotation past the turn is not"
+        );
+        let mut whole = run(None);
+        whole.add_scan(&straight, &wall());
+        whole.add_scan(&turned, &wall());
+        assert!(whole.scan.cells() > before, "without a limit both are kept");
     }
 }
