@@ -141,6 +141,23 @@ pub struct LoopClosure {
     pub from_place: bool,
 }
 
+impl LoopClosure {
+    /// The closure of submap `to` to submap `from` that alignment `a` verified.
+    fn verified(from: usize, to: usize, a: &Alignment, from_place: bool) -> Self {
+        Self {
+            from,
+            to,
+            transform: a.transform,
+            covariance: a.covariance,
+            matches: a.matches.len(),
+            nis: a.nis,
+            dof: a.dof,
+            rival_matches: a.rival_matches,
+            from_place,
+        }
+    }
+}
+
 /// The optimised frames.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GlobalSolution {
@@ -605,17 +622,7 @@ impl GlobalMap {
         }
         verified.truncate(1);
         for (i, a, from_place) in verified {
-            let closure = LoopClosure {
-                from: i,
-                to: k,
-                transform: a.transform,
-                covariance: a.covariance,
-                matches: a.matches.len(),
-                nis: a.nis,
-                dof: a.dof,
-                rival_matches: a.rival_matches,
-                from_place,
-            };
+            let closure = LoopClosure::verified(i, k, &a, from_place);
             if from_place && self.jumps(&closure) {
                 info!(
                     from = i,
@@ -684,17 +691,8 @@ impl GlobalMap {
             let prior = compose(&rel, &predicted);
             let a = self.verify(c, k, newest, &prior, &window).ok()?;
             let off = crate::se2::between(&prior, &a.transform);
-            (off.x.hypot(off.y) <= sep && off.theta.abs() <= 0.1 * sep).then_some(LoopClosure {
-                from: c,
-                to: k,
-                transform: a.transform,
-                covariance: a.covariance,
-                matches: a.matches.len(),
-                nis: a.nis,
-                dof: a.dof,
-                rival_matches: a.rival_matches,
-                from_place: true,
-            })
+            (off.x.hypot(off.y) <= sep && off.theta.abs() <= 0.1 * sep)
+                .then(|| LoopClosure::verified(c, k, &a, true))
         })
         .max_by_key(|l| l.matches)
     }
