@@ -135,9 +135,9 @@ pub struct RawOdometry {
     pub radar_odometry_compose: bool,
     /// Earlier rotations' clouds each rotation is registered against besides the previous
     /// one's, kept where the registrations placed them (0 to 8). Unset: 3 when radar
-    /// odometry drives the prediction (`source = "none"`), where its errors add up rotation
-    /// by rotation, and 0 when it is fused with wheel odometry. See slam-node's README,
-    /// "Radar only".
+    /// odometry alone drives the prediction (`source = "none"`, no gyro), where its errors
+    /// add up rotation by rotation, and 0 with a gyro, with wheel odometry or localising.
+    /// See slam-node's README, "Radar only".
     pub radar_odometry_keyframes: Option<i64>,
     /// A rotation's cloud becomes a keyframe when the vehicle ended it at least this far
     /// from where the newest keyframe's rotation ended, m >= 0. Default 0 (every rotation).

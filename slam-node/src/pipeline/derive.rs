@@ -475,18 +475,20 @@ impl PipelineSettings {
         s.radar_drives = s.scan_match.enabled
             && (facts.radar_only
                 || effective.odometry.source == config::odometry::OdometrySource::None);
+        let gyro = facts.gyro || effective.gyro.source != config::gyro::GyroSource::None;
         if effective.odometry.radar_odometry_keyframes.is_none()
             && s.radar_drives
+            && !gyro
             && effective.map.mode != config::MapMode::Localise
         {
-            // Driving, the registrations are the odometry and their errors add up rotation
-            // by rotation: registered against the last few rotations too, they add up more
-            // slowly (slam-node/README.md, "Radar only"). Fused with wheel odometry, none;
-            // localising, none either: the map's registrations hold the pose, and the
-            // keyframes' cost (p99 13 -> 21 ms) would take the tracker under 60 Hz.
+            // Driving on the radar alone, the registrations are the odometry and their
+            // errors add up rotation by rotation: registered against the last few rotations
+            // too, they add up more slowly (slam-node/README.md, "Radar only"). Fused with
+            // wheel odometry, none; with a gyro, none either (the gyro turns the prediction
+            // and the registrations teach its bias: with keyframes two drives of three
+            // drifted more); localising, none (the map's registrations hold the pose).
             s.scan_match.keyframes = DRIVING_KEYFRAMES;
         }
-        let gyro = facts.gyro || effective.gyro.source != config::gyro::GyroSource::None;
         if s.radar_drives && !gyro {
             // The radar alone loses a degree or two of each junction's turn: a submap's scan
             // gathered on through one is bent, and closures aligning it put the frames
