@@ -501,7 +501,7 @@ impl PipelineSettings {
             // What drives the filter is the radar's motion, whatever model a source's own
             // odometry meant.
             s.motion = super::settings::motion_model(&effective);
-            if facts.gyro || effective.gyro.source != config::gyro::GyroSource::None {
+            if gyro {
                 s.gyro = Some(super::gyro::GyroUse {
                     max_yaw_rate_rad_s: effective.gyro.max_yaw_rate_rad_s.get(),
                 });
