@@ -37,6 +37,9 @@ pub struct ScanMatchCounts {
     /// Registrations run from those other headings (two per heading tried; with a gyro
     /// one heading either side, otherwise four).
     pub retries: u64,
+    /// Registrations run again on the cloud placed along the motion the first found (it was
+    /// far from the estimate the cloud had been placed along: a turn's onset or end).
+    pub replaced: u64,
     /// Whether radar odometry drove the filter's prediction (no wheel odometry).
     pub drives: bool,
     /// On the radar alone without a gyro: rotations whose registration turned more than

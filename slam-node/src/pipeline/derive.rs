@@ -490,6 +490,10 @@ impl PipelineSettings {
             s.scan_match.keyframes = DRIVING_KEYFRAMES;
         }
         if s.radar_drives && !gyro {
+            // The prediction is the last rotation's motion held, which places a turn's
+            // onset straight: the cloud is placed again along the motion registered and
+            // registered once more (slam-node/README.md, "Radar only").
+            s.scan_match.replace = true;
             // The radar alone loses a degree or two of each junction's turn: a submap's scan
             // gathered on through one is bent, and closures aligning it put the frames
             // degrees off; the scan stops at the turn (slam-node/README.md, "Radar only").

@@ -139,6 +139,7 @@ impl RadarOdometryStage {
             searched: m.searched,
             turned: m.turned,
             retries: m.retries,
+            replaced: m.replaced,
             ..self.counts
         }
     }
