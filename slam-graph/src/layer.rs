@@ -683,18 +683,18 @@ impl GlobalMap {
         // against submap 12, 222 m from it: the only confirmation over 40 runs).
         [held.from.checked_sub(1), Some(held.from + 1)]
             .into_iter()
-        .flatten()
-        .filter(|&c| c + 1 < held.to && !self.other_drive(c, k))
-        .filter_map(|c| {
-            // Frame `held.from` in frame `c`: neighbours along the chain.
-            let (rel, _) = self.relative(c, held.from);
-            let prior = compose(&rel, &predicted);
-            let a = self.verify(c, k, newest, &prior, &window).ok()?;
-            let off = crate::se2::between(&prior, &a.transform);
-            (off.x.hypot(off.y) <= sep && off.theta.abs() <= 0.1 * sep)
-                .then(|| LoopClosure::verified(c, k, &a, true))
-        })
-        .max_by_key(|l| l.matches)
+            .flatten()
+            .filter(|&c| c + 1 < held.to && !self.other_drive(c, k))
+            .filter_map(|c| {
+                // Frame `held.from` in frame `c`: neighbours along the chain.
+                let (rel, _) = self.relative(c, held.from);
+                let prior = compose(&rel, &predicted);
+                let a = self.verify(c, k, newest, &prior, &window).ok()?;
+                let off = crate::se2::between(&prior, &a.transform);
+                (off.x.hypot(off.y) <= sep && off.theta.abs() <= 0.1 * sep)
+                    .then(|| LoopClosure::verified(c, k, &a, true))
+            })
+            .max_by_key(|l| l.matches)
     }
 
     /// Describes the new submap `k` and offers the verifier the earlier submaps its place
