@@ -549,7 +549,21 @@ impl GlobalMap {
                 search_cov[(d, d)] = search_cov[(d, d)].min(cap);
             }
             match self.verify(i, k, &newest, &z, &search_cov) {
-                Ok(a) => verified.push((i, a, false)),
+                Ok(a) => {
+                    let off = crate::se2::between(&z, &a.transform);
+                    tracing::debug!(
+                        candidate = i,
+                        submap = k,
+                        off_x_m = off.x,
+                        off_y_m = off.y,
+                        off_theta_rad = off.theta,
+                        sigma_x_m = search_cov[(0, 0)].sqrt(),
+                        sigma_y_m = search_cov[(1, 1)].sqrt(),
+                        matches = a.matches.len(),
+                        "loop closure verified from the prior: where it lands from the prior"
+                    );
+                    verified.push((i, a, false));
+                }
                 Err(r) => {
                     tracing::debug!(candidate = i, submap = k, refusal = ?r, "loop closure refused");
                     report.refused.push((i, r));
