@@ -70,6 +70,11 @@ pub struct GlobalSettings {
     /// out of the scan's own reach, where [`crate::scans::fits_itself`] cannot tell) fits
     /// once fits the next submap there only where the repetition goes on.
     pub confirm_place_jumps: bool,
+    /// A closure from the pose prior that moves the new frame farther than the rival
+    /// separation from where the chain of submaps puts it is held likewise: after a long
+    /// stretch the prior's window spans a street's repeats (parked cars every 6 m), and
+    /// the verifier may take the one beside the true place.
+    pub confirm_prior_slides: bool,
 }
 
 impl Default for GlobalSettings {
@@ -86,6 +91,7 @@ impl Default for GlobalSettings {
             scans: ScanAlignSettings::default(),
             max_conflict_ratio: 0.25,
             confirm_place_jumps: true,
+            confirm_prior_slides: true,
         }
     }
 }
@@ -188,7 +194,8 @@ pub struct AddReport {
     pub conflicting: usize,
     /// Closures dropped because the solve left them outside their own uncertainty.
     pub rejected_after_solve: usize,
-    /// A place closure jumping from the chain was held for the next submap to confirm.
+    /// A closure moving the new frame from the chain (a place jump, a prior slide) was held
+    /// for the next submap to confirm.
     pub held: bool,
     /// The held closure of the previous submap was not confirmed by this one: dropped.
     pub unconfirmed: bool,
@@ -215,7 +222,8 @@ pub struct GlobalStats {
     pub conflicting: u64,
     /// Closures dropped after the solve.
     pub rejected_after_solve: u64,
-    /// Place closures jumping from the chain held for the next submap to confirm.
+    /// Closures moving the new frame from the chain (place jumps, prior slides) held for
+    /// the next submap to confirm.
     pub held: u64,
     /// Of which the next submap did not confirm (dropped).
     pub unconfirmed: u64,
@@ -477,7 +485,7 @@ impl GlobalMap {
                         from = held.from,
                         to = held.to,
                         next_from = next.from,
-                        "a place closure jumping from the chain is confirmed by the next submap"
+                        "a held closure is confirmed by the next submap"
                     );
                     report.accepted.push(held);
                     report.accepted.push(next);
@@ -493,7 +501,7 @@ impl GlobalMap {
                     info!(
                         from = held.from,
                         to = held.to,
-                        "a place closure jumping from the chain is not confirmed by the next submap: dropped"
+                        "a held closure is not confirmed by the next submap: dropped"
                     );
                     report.unconfirmed = true;
                     self.stats.unconfirmed += 1;
@@ -637,11 +645,17 @@ impl GlobalMap {
         verified.truncate(1);
         for (i, a, from_place) in verified {
             let closure = LoopClosure::verified(i, k, &a, from_place);
-            if from_place && self.jumps(&closure) {
+            let held = if from_place {
+                self.jumps(&closure)
+            } else {
+                self.slides(&closure)
+            };
+            if held {
                 info!(
                     from = i,
                     to = k,
-                    "a place closure jumps from the chain beyond its uncertainty: held for the next submap to confirm"
+                    from_place,
+                    "a closure moves the frame from the chain farther than a repeat: held for the next submap to confirm"
                 );
                 report.held = true;
                 self.stats.held += 1;
@@ -663,21 +677,39 @@ impl GlobalMap {
         if !s.confirm_place_jumps || self.other_drive(l.from, l.to) {
             return false;
         }
-        let (z, cov) = self.relative(l.from, l.to);
-        let shift = compose(&z, &inverse(&l.transform));
-        let sigma_m = (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt();
-        let distance_m = shift.x.hypot(shift.y);
+        let (distance_m, sigma_m) = self.moved_from_chain(l);
         let allowed_m = s.align.rival_separation_m.max(3.0 * sigma_m);
         // NaN jumps.
         distance_m.is_nan() || distance_m > allowed_m
     }
 
+    /// Whether closure `l` (from the pose prior) is held for the next submap to confirm
+    /// ([`GlobalSettings::confirm_prior_slides`]): within one drive, where it puts its
+    /// later frame farther from the chain's than the rival separation.
+    fn slides(&self, l: &LoopClosure) -> bool {
+        let s = &self.settings;
+        if !s.confirm_prior_slides || self.other_drive(l.from, l.to) {
+            return false;
+        }
+        let (distance_m, _) = self.moved_from_chain(l);
+        distance_m.is_nan() || distance_m > s.align.rival_separation_m
+    }
+
+    /// How far closure `l` puts its later frame from where the chain puts it (m), and the
+    /// standard deviation of the chain's relative position (m).
+    fn moved_from_chain(&self, l: &LoopClosure) -> (f64, f64) {
+        let (z, cov) = self.relative(l.from, l.to);
+        let shift = compose(&z, &inverse(&l.transform));
+        let sigma_m = (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt();
+        (shift.x.hypot(shift.y), sigma_m)
+    }
+
     /// The next submap `k`'s confirmation of `held` (a closure of submap `k - 1` that
-    /// [`Self::jumps`]): `k` verified against either neighbour of the held closure's
-    /// earlier submap, from where the held closure and the chain edge between `k - 1` and `k`
-    /// put it, within the place search's prior window, and implying a frame for `k` within
-    /// the rival separation of that. The closure with the most matches, `None` when none
-    /// is verified there (the held one is then dropped).
+    /// [`Self::jumps`] or [`Self::slides`]): `k` verified against either neighbour of the
+    /// held closure's earlier submap, from where the held closure and the chain edge
+    /// between `k - 1` and `k` put it, within the place search's prior window, and
+    /// implying a frame for `k` within the rival separation of that. The closure with the
+    /// most matches, `None` when none is verified there (the held one is then dropped).
     fn confirm(&self, held: &LoopClosure, k: usize, newest: &FrozenSubmap) -> Option<LoopClosure> {
         let s = &self.settings;
         if held.to + 1 != k || self.other_drive(held.to, k) {

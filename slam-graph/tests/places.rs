@@ -148,10 +148,38 @@ fn places_close_the_loop_the_drifted_prior_cannot_reach() {
 fn run_with_an_alias(alias: usize, confirm: bool) -> (Vec<(usize, usize, f64)>, u64) {
     let (mut maps, frames) = submaps_along(true_frames_then(12), 0.02, 4);
     maps[32].features = maps[alias].features.clone();
-    let mut g = GlobalMap::new(GlobalSettings {
+    let settings = GlobalSettings {
         confirm_place_jumps: confirm,
         ..GlobalSettings::default()
-    });
+    };
+    closures_against_truth(maps, &frames, settings)
+}
+
+/// The square driven once and then once more on an exact chain, submap 31 (the first to
+/// see the start again, where the chain's uncertainty has grown over the whole square)
+/// seeing its posts 6 m along the street from where they are, as a street whose parked
+/// cars repeat every 6 m may fit: every closure with its error against the truth (m), and
+/// the closures held and not confirmed.
+fn run_with_a_slide(confirm: bool) -> (Vec<(usize, usize, f64)>, u64) {
+    let (mut maps, frames) = submaps_along(true_frames_then(12), 0.0, 4);
+    for f in &mut maps[31].features {
+        f.xy[0] -= 6.0;
+    }
+    let settings = GlobalSettings {
+        confirm_prior_slides: confirm,
+        ..GlobalSettings::default()
+    };
+    closures_against_truth(maps, &frames, settings)
+}
+
+/// The closures a layer with `settings` finds over `maps`, each with its error against the
+/// true `frames` (m), and the closures it held and did not confirm.
+fn closures_against_truth(
+    maps: Vec<FrozenSubmap>,
+    frames: &[Pose2],
+    settings: GlobalSettings,
+) -> (Vec<(usize, usize, f64)>, u64) {
+    let mut g = GlobalMap::new(settings);
     for m in maps {
         g.add_submap(Arc::new(m));
     }
@@ -165,6 +193,27 @@ fn run_with_an_alias(alias: usize, confirm: bool) -> (Vec<(usize, usize, f64)>, 
         })
         .collect();
     (loops, g.stats().unconfirmed)
+}
+
+#[test]
+fn a_prior_closure_sliding_along_the_street_waits_for_the_next_submap_to_confirm_it() {
+    // Held for confirmation, the slide is dropped: the next submap is where it is.
+    let (loops, unconfirmed) = run_with_a_slide(true);
+    assert!(unconfirmed >= 1, "the slide was not held: {loops:?}");
+    assert!(
+        loops.iter().all(|l| l.2 < 0.5),
+        "a false closure entered the graph: {loops:?}"
+    );
+    assert!(
+        loops.iter().any(|l| l.1 > 31),
+        "the true return after the slide closes: {loops:?}"
+    );
+    // Taken at once, it enters the graph.
+    let (taken, _) = run_with_a_slide(false);
+    assert!(
+        taken.iter().any(|l| l.1 == 31 && l.2 > 5.0),
+        "the slide was not even found: {taken:?}"
+    );
 }
 
 #[test]

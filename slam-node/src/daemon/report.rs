@@ -456,7 +456,7 @@ impl fmt::Display for Submaps<'_> {
         let g = &sm.global;
         writeln!(
             f,
-            "  submaps: {} (largest {} features when closed), {} features frozen in {:.1} kB; global layer: {} loop closures from {} candidates ({} dropped as conflicting, {} after the solve, {} place jumps held for the next submap and {} of them unconfirmed, {} failed solves), {} solutions used, slowest join {:.1} ms",
+            "  submaps: {} (largest {} features when closed), {} features frozen in {:.1} kB; global layer: {} loop closures from {} candidates ({} dropped as conflicting, {} after the solve, {} closures held for the next submap (place jumps, prior slides) and {} of them unconfirmed, {} failed solves), {} solutions used, slowest join {:.1} ms",
             sm.submaps,
             sm.largest_submap_features,
             sm.frozen_features,
