@@ -153,7 +153,14 @@ fn the_vehicle_example_points_at_the_real_radar() {
 #[test]
 fn the_test_example_binds_ephemeral_loopback_ports_and_runs_as_fast_as_possible() {
     let c = Config::preset(Preset::Test).unwrap();
-    for addr in [c.sim.bind, c.sim.odometry_bind] {
+    // Every port the preset binds, the simulator's gyro and the live view included (their
+    // defaults are the fixed 6319 and 8765, which a test must never take).
+    for addr in [
+        c.sim.bind,
+        c.sim.odometry_bind,
+        c.sim.gyro.bind,
+        c.output.foxglove.bind,
+    ] {
         assert!(addr.ip().is_loopback(), "{addr}");
         assert_eq!(addr.port(), 0, "{addr}");
     }
