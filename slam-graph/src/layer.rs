@@ -271,8 +271,8 @@ pub struct GlobalMap {
     pub(crate) drive: Vec<usize>,
     /// The joins of later drives to earlier ones (see [`crate::resume`]).
     pub(crate) joins: Vec<LoopClosure>,
-    /// A place closure of the newest submap held for the next one to confirm
-    /// ([`GlobalSettings::confirm_place_jumps`]).
+    /// A closure of the newest submap held for the next one to confirm
+    /// ([`GlobalSettings::confirm_place_jumps`], [`GlobalSettings::confirm_prior_slides`]).
     pub(crate) held: Option<LoopClosure>,
 }
 
@@ -645,12 +645,7 @@ impl GlobalMap {
         verified.truncate(1);
         for (i, a, from_place) in verified {
             let closure = LoopClosure::verified(i, k, &a, from_place);
-            let held = if from_place {
-                self.jumps(&closure)
-            } else {
-                self.slides(&closure)
-            };
-            if held {
+            if self.held_for_confirmation(&closure) {
                 info!(
                     from = i,
                     to = k,
@@ -666,46 +661,39 @@ impl GlobalMap {
         }
     }
 
-    /// Whether closure `l` (from a place descriptor) is held for the next submap to confirm
-    /// ([`GlobalSettings::confirm_place_jumps`]): within one drive, where it puts its
-    /// later frame farther from the chain's than the rival separation and three standard
-    /// deviations of the chain's relative position. Within those the chain's own
+    /// Whether closure `l` is held for the next submap to confirm: within one drive, where
+    /// it puts its later frame farther from the chain's than the rival separation and, for
+    /// a place descriptor's closure ([`GlobalSettings::confirm_place_jumps`]), three
+    /// standard deviations of the chain's relative position: within those the chain's own
     /// uncertainty explains it, and [`Self::not_repeating`] has tried the move on the
-    /// earlier scan.
-    fn jumps(&self, l: &LoopClosure) -> bool {
+    /// earlier scan. A closure from the pose prior ([`GlobalSettings::confirm_prior_slides`])
+    /// was searched for within the chain's uncertainty, so only the rival separation, a
+    /// street's repeat, is allowed it.
+    fn held_for_confirmation(&self, l: &LoopClosure) -> bool {
         let s = &self.settings;
-        if !s.confirm_place_jumps || self.other_drive(l.from, l.to) {
+        let asked = if l.from_place {
+            s.confirm_place_jumps
+        } else {
+            s.confirm_prior_slides
+        };
+        if !asked || self.other_drive(l.from, l.to) {
             return false;
         }
-        let (distance_m, sigma_m) = self.moved_from_chain(l);
-        let allowed_m = s.align.rival_separation_m.max(3.0 * sigma_m);
-        // NaN jumps.
+        let (z, cov) = self.relative(l.from, l.to);
+        let shift = compose(&z, &inverse(&l.transform));
+        let distance_m = shift.x.hypot(shift.y);
+        let allowed_m = if l.from_place {
+            let sigma_m = (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt();
+            s.align.rival_separation_m.max(3.0 * sigma_m)
+        } else {
+            s.align.rival_separation_m
+        };
+        // NaN is held.
         distance_m.is_nan() || distance_m > allowed_m
     }
 
-    /// Whether closure `l` (from the pose prior) is held for the next submap to confirm
-    /// ([`GlobalSettings::confirm_prior_slides`]): within one drive, where it puts its
-    /// later frame farther from the chain's than the rival separation.
-    fn slides(&self, l: &LoopClosure) -> bool {
-        let s = &self.settings;
-        if !s.confirm_prior_slides || self.other_drive(l.from, l.to) {
-            return false;
-        }
-        let (distance_m, _) = self.moved_from_chain(l);
-        distance_m.is_nan() || distance_m > s.align.rival_separation_m
-    }
-
-    /// How far closure `l` puts its later frame from where the chain puts it (m), and the
-    /// standard deviation of the chain's relative position (m).
-    fn moved_from_chain(&self, l: &LoopClosure) -> (f64, f64) {
-        let (z, cov) = self.relative(l.from, l.to);
-        let shift = compose(&z, &inverse(&l.transform));
-        let sigma_m = (cov[(0, 0)] + cov[(1, 1)]).max(0.0).sqrt();
-        (shift.x.hypot(shift.y), sigma_m)
-    }
-
     /// The next submap `k`'s confirmation of `held` (a closure of submap `k - 1` that
-    /// [`Self::jumps`] or [`Self::slides`]): `k` verified against either neighbour of the
+    /// [`Self::held_for_confirmation`]): `k` verified against either neighbour of the
     /// held closure's earlier submap, from where the held closure and the chain edge
     /// between `k - 1` and `k` put it, within the place search's prior window, and
     /// implying a frame for `k` within the rival separation of that. The closure with the
