@@ -981,6 +981,9 @@ pub struct GlobalLayer {
     latest: Option<Arc<GlobalSolution>>,
     reports: Vec<AddReport>,
     refused_sends: u64,
+    /// Submaps handed over, and solutions received for them.
+    submitted: u64,
+    joined: u64,
 }
 
 /// Frozen submaps queued for the layer's thread at most (past it a submap is refused and
@@ -1019,6 +1022,8 @@ impl GlobalLayer {
             latest: None,
             reports: Vec::new(),
             refused_sends: 0,
+            submitted: 0,
+            joined: 0,
         })
     }
 
@@ -1038,7 +1043,10 @@ impl GlobalLayer {
             return false;
         };
         match tx.try_send(ToLayer::Submap(submap, scan)) {
-            Ok(()) => true,
+            Ok(()) => {
+                self.submitted += 1;
+                true
+            }
             Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {
                 self.refused_sends += 1;
                 warn!("the global layer's queue is full or its thread is gone: a submap was not joined");
@@ -1050,10 +1058,31 @@ impl GlobalLayer {
     /// The newest solution, without waiting (`None` until the first arrives).
     pub fn poll(&mut self) -> Option<Arc<GlobalSolution>> {
         while let Ok((s, report)) = self.solutions.try_recv() {
-            self.latest = Some(s);
-            self.reports.push(report);
+            self.take(s, report);
         }
         self.latest.clone()
+    }
+
+    fn take(&mut self, solution: Arc<GlobalSolution>, report: AddReport) {
+        self.latest = Some(solution);
+        self.reports.push(report);
+        self.joined += 1;
+    }
+
+    /// Waits, up to `timeout` in all, until the layer has joined every submap handed over
+    /// (its solutions then come from [`Self::poll`] at once): for a run paced by its
+    /// pipeline (a simulator as fast as possible), where the layer would otherwise fall
+    /// submaps behind the simulated time. `false` if the time ran out or the thread is gone.
+    pub fn wait_for_joins(&mut self, timeout: std::time::Duration) -> bool {
+        let until = Instant::now() + timeout;
+        while self.joined < self.submitted {
+            let left = until.saturating_duration_since(Instant::now());
+            match self.solutions.recv_timeout(left) {
+                Ok((s, report)) => self.take(s, report),
+                Err(_) => return false,
+            }
+        }
+        true
     }
 
     /// Reports of every submap joined so far (drained).

@@ -11,7 +11,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use slam_filter::{FeatureId, FrozenSubmap, SubmapFeature};
 use slam_graph::se2::{between, compose, inverse, transform_point};
-use slam_graph::{GlobalMap, GlobalSettings};
+use slam_graph::{GlobalLayer, GlobalMap, GlobalSettings};
 
 /// True frames every 25 m around a 100 m x 100 m square, back to the start.
 fn true_frames() -> Vec<Pose2> {
@@ -90,6 +90,28 @@ fn final_error(loops: bool) -> (f64, usize) {
     let truth = frames.last().unwrap();
     let truth = compose(&Pose2::new(0.0, 0.0, 0.0), truth);
     ((last.x - truth.x).hypot(last.y - truth.y), g.loops().len())
+}
+
+/// The layer on its thread, waited for after each submap (as a run paced by its pipeline
+/// does), gives after every submap exactly the solution the synchronous map gives: the loop
+/// closures land at the submap that found them, whatever the thread's timing.
+#[test]
+fn a_layer_waited_for_gives_each_submap_s_solution_at_once() {
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let (maps, _) = submaps(0.006, &mut rng);
+    let mut sync = GlobalMap::new(GlobalSettings::default());
+    let mut layer = GlobalLayer::spawn(GlobalSettings::default()).expect("the layer's thread");
+    for m in maps {
+        let m = Arc::new(m);
+        sync.add_submap(Arc::clone(&m));
+        assert!(layer.submit(m));
+        assert!(layer.wait_for_joins(std::time::Duration::from_secs(30)));
+        let solution = layer.poll().expect("a solution");
+        assert_eq!(solution.frames, sync.graph().nodes().to_vec());
+    }
+    assert!(!sync.loops().is_empty(), "the return closes a loop");
+    // Nothing more to wait for.
+    assert!(layer.wait_for_joins(std::time::Duration::ZERO));
 }
 
 #[test]

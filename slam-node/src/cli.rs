@@ -327,13 +327,17 @@ fn embedded_sim(
     options.gyro_bind = (config.gyro.source != config::gyro::GyroSource::None)
         .then(|| std::net::SocketAddr::from(([127, 0, 0, 1], 0)));
     if args.fast {
+        // As fast as possible the clock starts at the scene's start time (or the embedded
+        // simulator's fixed one), not at the wall clock's: the same command gives the same
+        // run, to the last bit, on any day. In real time it starts now, for live consumers.
         options.pacing = sim_sensor::settings::Pacing::AsFastAsPossible;
+    } else {
+        let now_ns = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
+            .unwrap_or(0);
+        options.start_time_ns = Some(now_ns);
     }
-    let now_ns = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
-        .unwrap_or(0);
-    options.start_time_ns = Some(now_ns);
     Ok(slam_node::daemon::EmbeddedSim::new(options))
 }
 

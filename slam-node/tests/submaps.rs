@@ -88,6 +88,7 @@ fn options(limits: SubmapLimits) -> SubmapOptions {
         limits,
         global: slam_graph::GlobalSettings::default(),
         scan_max_turn_rad: None,
+        wait_for_joins: false,
     }
 }
 

@@ -22,6 +22,10 @@ use super::ekf::DaemonEkf;
 use super::settings::SubmapOptions;
 use crate::output::{MapFeature, MapSnapshot, PoseSample};
 
+/// How long a run paced by its pipeline waits for the global layer to join a submap
+/// ([`SubmapOptions::wait_for_joins`]) before going on without the solution.
+const JOIN_WAIT: std::time::Duration = std::time::Duration::from_secs(60);
+
 /// What the submaps did over a run.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SubmapSummary {
@@ -412,7 +416,16 @@ impl SubmapRun {
         let scan = (self.options.global.scans.enabled && !scan.is_empty()).then_some(scan);
         self.scans.push(scan.clone().map(Arc::new));
         if let Some(layer) = self.layer.as_mut() {
-            layer.submit_with_scan(Arc::clone(&frozen), scan);
+            if layer.submit_with_scan(Arc::clone(&frozen), scan)
+                && self.options.wait_for_joins
+                && !layer.wait_for_joins(JOIN_WAIT)
+            {
+                warn!(
+                    submap = k,
+                    waited_s = JOIN_WAIT.as_secs_f64(),
+                    "the global layer has not joined the submap: going on without its solution"
+                );
+            }
         }
         info!(
             submap = k,
@@ -425,6 +438,10 @@ impl SubmapRun {
         self.summary.submaps = self.frames.len();
         self.driven_m = 0.0;
         self.last_local = Some(Pose2::new(0.0, 0.0, 0.0));
+        if self.options.wait_for_joins {
+            // The solution waited for, installed from this rotation on.
+            self.poll();
+        }
     }
 
     /// Every feature in the world: the frozen submaps' through their frames, then the
@@ -762,6 +779,7 @@ mod tests {
             limits: slam_filter::SubmapLimits::UNBOUNDED,
             global: slam_graph::GlobalSettings::default(),
             scan_max_turn_rad: max_turn,
+            wait_for_joins: false,
         })
         .expect("the global layer's thread")
     }

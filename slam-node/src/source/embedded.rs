@@ -24,6 +24,10 @@ use crate::pipeline::{Pipeline, SceneTruth, SettingsRecipe, SourceFacts, TruthOr
 /// format), written when `[output] ground_truth` is true.
 pub const GROUND_TRUTH_JSONL: &str = "ground-truth.jsonl";
 
+/// Where the embedded simulator's clock starts when neither the options nor the scene say
+/// (2024-01-01T00:00:00Z, Unix ns): runs as fast as possible are then reproducible.
+pub const EMBEDDED_START_UNIX_NS: u64 = 1_704_067_200_000_000_000;
+
 /// The simulator to start in this process.
 #[derive(Debug, Clone)]
 pub struct EmbeddedSim {
@@ -190,19 +194,27 @@ pub async fn start(
         .output
         .ground_truth
         .then(|| out_dir.join(GROUND_TRUTH_JSONL));
-    let start_ns = *options
-        .start_time_ns
-        .get_or_insert(1_704_067_200_000_000_000);
     let sim_sensor::settings::SourceSpec::Scene(scene) = options.source.clone() else {
         return Err(SourceError::NotAScene);
     };
+    // The clock's start: the options' (the wall clock's now in real time), else the
+    // scene's, else a fixed one, so that a run as fast as possible is reproducible.
+    let start_ns = *options
+        .start_time_ns
+        .get_or_insert(scene.start_time_ns.unwrap_or(EMBEDDED_START_UNIX_NS));
     let settings = embedded_settings(recipe, &scene, keep_configured_compensation)?.settings;
     let motion = settings.motion;
     // Radar only (`[odometry] source = "none"`): the simulator's odometry port is not read.
     let radar_only = settings.radar_drives;
     let start_s = start_ns as f64 * 1e-9;
     let horizon = max_stream_s.unwrap_or(600.0) + 30.0;
-    let build_settings = settings.clone();
+    let fast = options.pacing == sim_sensor::settings::Pacing::AsFastAsPossible;
+    let mut build_settings = settings.clone();
+    // Paced by the pipeline, the global layer's solutions are waited for at each switch, as
+    // if the layer kept up with the simulated time as it keeps up with a radar's.
+    if let Some(o) = build_settings.submaps.as_mut() {
+        o.wait_for_joins = fast;
+    }
     let scene_name = scene.name.clone();
     let (truth_overlay, pipeline) = unless_stopped(
         stop,
@@ -224,7 +236,6 @@ pub async fn start(
         }),
     )
     .await??;
-    let fast = options.pacing == sim_sensor::settings::Pacing::AsFastAsPossible;
     let handle = unless_stopped(stop, tokio::spawn(SimServer::spawn(options))).await??;
     info!(radar = %handle.local_addr(), odometry = ?handle.odometry_addr(), scene = %scene_name, "embedded simulator started");
     driver_settings.address = handle.local_addr();
