@@ -646,6 +646,11 @@ fn sigterm_ends_a_run_like_ctrl_c_with_its_outputs_and_summary() {
 /// Four seconds of the embedded simulator with `config` (written into `dir`), outputs in
 /// `dir/out`: the run must succeed; its stdout.
 fn four_embedded_seconds(dir: &std::path::Path, config: &str) -> String {
+    embedded_seconds(dir, config, "4", &[])
+}
+
+/// [`four_embedded_seconds`] for `seconds` of stream, with `extra` arguments.
+fn embedded_seconds(dir: &std::path::Path, config: &str, seconds: &str, extra: &[&str]) -> String {
     let file = dir.join("run.toml");
     std::fs::write(&file, config).unwrap();
     let run = slam_node()
@@ -655,9 +660,10 @@ fn four_embedded_seconds(dir: &std::path::Path, config: &str) -> String {
             "--embedded-sim",
             "--fast",
             "--duration",
-            "4",
+            seconds,
             "--no-figures",
         ])
+        .args(extra)
         .args(["--progress-every", "0", "--out"])
         .arg(dir.join("out"))
         .output()
@@ -683,33 +689,21 @@ fn the_same_fast_command_writes_the_same_trajectories_to_the_last_bit() {
         env!("CARGO_MANIFEST_DIR"),
         "/../sim-sensor/scenes/urban-street.toml"
     );
+    let config =
+        "[odometry]\nsource = \"none\"\n\n[submaps]\nenabled = true\nmax_distance_m = 10.0\n";
     let runs: Vec<Vec<String>> = (0..2)
         .map(|_| {
             let dir = tempfile::tempdir().unwrap();
-            let config = dir.path().join("run.toml");
-            std::fs::write(
-                &config,
-                "[odometry]\nsource = \"none\"\n\n[submaps]\nenabled = true\nmax_distance_m = 10.0\n",
-            )
-            .unwrap();
+            embedded_seconds(dir.path(), config, "6", &["--scene", scene]);
             let out = dir.path().join("out");
-            let run = slam_node()
-                .arg("--config")
-                .arg(&config)
-                .args(["--embedded-sim", "--scene", scene, "--fast", "--duration", "6"])
-                .args(["--no-figures", "--progress-every", "0", "--out"])
-                .arg(&out)
-                .output()
-                .unwrap();
-            assert!(
-                run.status.success(),
-                "{}",
-                String::from_utf8_lossy(&run.stderr)
-            );
-            ["trajectory.tum", "trajectory-online.tum", "trajectory-odometry.tum"]
-                .iter()
-                .map(|f| std::fs::read_to_string(out.join(f)).unwrap_or_else(|e| panic!("{f}: {e}")))
-                .collect()
+            [
+                "trajectory.tum",
+                "trajectory-online.tum",
+                "trajectory-odometry.tum",
+            ]
+            .iter()
+            .map(|f| std::fs::read_to_string(out.join(f)).unwrap_or_else(|e| panic!("{f}: {e}")))
+            .collect()
         })
         .collect();
     let poses = tum_poses_of(&runs[0][0]);
