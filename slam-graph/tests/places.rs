@@ -195,19 +195,31 @@ fn closures_against_truth(
     (loops, g.stats().unconfirmed)
 }
 
-#[test]
-fn a_prior_closure_sliding_along_the_street_waits_for_the_next_submap_to_confirm_it() {
-    // Held for confirmation, the slide is dropped: the next submap is where it is.
-    let (loops, unconfirmed) = run_with_a_slide(true);
-    assert!(unconfirmed >= 1, "the slide was not held: {loops:?}");
+/// What a held false closure leaves (`loops` with their errors against the truth, and the
+/// closures not confirmed): it was held and dropped, no false closure entered the graph,
+/// and the true return closes at a submap after `after`.
+fn assert_held_and_dropped(
+    loops: &[(usize, usize, f64)],
+    unconfirmed: u64,
+    after: usize,
+    what: &str,
+) {
+    assert!(unconfirmed >= 1, "the {what} was not held: {loops:?}");
     assert!(
         loops.iter().all(|l| l.2 < 0.5),
         "a false closure entered the graph: {loops:?}"
     );
     assert!(
-        loops.iter().any(|l| l.1 > 31),
-        "the true return after the slide closes: {loops:?}"
+        loops.iter().any(|l| l.1 > after),
+        "the true return after the {what} closes: {loops:?}"
     );
+}
+
+#[test]
+fn a_prior_closure_sliding_along_the_street_waits_for_the_next_submap_to_confirm_it() {
+    // Held for confirmation, the slide is dropped: the next submap is where it is.
+    let (loops, unconfirmed) = run_with_a_slide(true);
+    assert_held_and_dropped(&loops, unconfirmed, 31, "slide");
     // Taken at once, it enters the graph.
     let (taken, _) = run_with_a_slide(false);
     assert!(
@@ -220,15 +232,7 @@ fn a_prior_closure_sliding_along_the_street_waits_for_the_next_submap_to_confirm
 fn a_place_closure_jumping_from_the_chain_waits_for_the_next_submap_to_confirm_it() {
     // Held for confirmation, the alias is dropped: the next submap is not where it says.
     let (loops, unconfirmed) = run_with_an_alias(4, true);
-    assert!(unconfirmed >= 1, "the alias was not held: {loops:?}");
-    assert!(
-        loops.iter().all(|l| l.2 < 0.5),
-        "a false closure entered the graph: {loops:?}"
-    );
-    assert!(
-        loops.iter().any(|l| l.1 > 32),
-        "the true return after the alias closes: {loops:?}"
-    );
+    assert_held_and_dropped(&loops, unconfirmed, 32, "alias");
     // Taken at once, it enters the graph.
     let (taken, _) = run_with_an_alias(4, false);
     assert!(

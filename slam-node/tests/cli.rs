@@ -389,6 +389,11 @@ fn ctrl_c_while_a_large_scene_is_being_built_stops_the_process_at_once() {
 /// TUM lines as (t, x, y, theta).
 fn tum_poses(path: &std::path::Path) -> Vec<(f64, f64, f64, f64)> {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    tum_poses_of(&text)
+}
+
+/// The poses of a TUM trajectory's `text`.
+fn tum_poses_of(text: &str) -> Vec<(f64, f64, f64, f64)> {
     text.lines()
         .filter_map(slam_node::output::trajectory::parse_tum_line)
         .collect()
@@ -720,12 +725,6 @@ fn the_same_fast_command_writes_the_same_trajectories_to_the_last_bit() {
         (1_704_067_200.0..1_704_067_300.0).contains(&first.0),
         "{first:?}"
     );
-}
-
-fn tum_poses_of(text: &str) -> Vec<(f64, f64, f64, f64)> {
-    text.lines()
-        .filter_map(slam_node::output::trajectory::parse_tum_line)
-        .collect()
 }
 
 #[test]
