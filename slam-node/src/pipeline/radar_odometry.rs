@@ -83,12 +83,16 @@ pub struct RadarOdometryStage {
 
 impl RadarOdometryStage {
     /// A stage with `settings`; `drives` when there is no other odometry, with `gyro` when
-    /// a gyro gives the turn (`super::gyro`).
+    /// a gyro gives the turn (`super::gyro`). Unless the radar drives alone, the filter
+    /// learns a bias from the registrations' turns (a gyro's, wheel odometry's steering
+    /// offset): a slow registration's heading is then given at least
+    /// `radar_odometry::SLOW_HEADING_SIGMA_RAD`.
     pub fn new(settings: ScanMatchSettings, drives: bool, motion: MotionModel, gyro: bool) -> Self {
         let gyro = drives && gyro;
         Self {
             matcher: ScanMatcher::new(ScanMatchSettings {
                 turn_known: settings.turn_known || gyro,
+                slow_heading_floor: settings.slow_heading_floor || gyro || !drives,
                 ..settings
             }),
             counts: ScanMatchCounts {
@@ -506,6 +510,27 @@ mod tests {
             MotionModel::Bicycle { wheelbase_m: 2.7 },
             false,
         )
+    }
+
+    /// A slow registration's heading is floored wherever the filter learns a bias from the
+    /// registrations' turns: with wheel odometry (the stage does not drive) and with a gyro,
+    /// not on the radar alone.
+    #[test]
+    fn a_slow_registration_s_heading_is_floored_unless_the_radar_drives_alone() {
+        let floored = |drives: bool, gyro: bool| {
+            RadarOdometryStage::new(
+                ScanMatchSettings::default(),
+                drives,
+                MotionModel::Bicycle { wheelbase_m: 2.7 },
+                gyro,
+            )
+            .matcher
+            .settings()
+            .slow_heading_floor
+        };
+        assert!(floored(false, false), "wheel odometry");
+        assert!(floored(true, true), "radar and a gyro");
+        assert!(!floored(true, false), "the radar alone");
     }
 
     fn registered(weak: bool) -> RotationMotion {
