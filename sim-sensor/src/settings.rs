@@ -85,6 +85,10 @@ impl Default for OdometryNoise {
     }
 }
 
+/// A fixed start for the simulator's clock (2024-01-01T00:00:00Z, Unix ns): for runs that
+/// must repeat to the last bit (tests, the embedded simulator as fast as possible).
+pub const FIXED_START_UNIX_NS: u64 = 1_704_067_200_000_000_000;
+
 /// Everything one simulator instance needs.
 #[derive(Debug, Clone)]
 pub struct SimOptions {
@@ -176,14 +180,14 @@ impl SimOptions {
     }
 
     /// For tests: both ports on `127.0.0.1:0`, as fast as the client reads, and a fixed
-    /// start time (2024-01-01T00:00:00Z) so timestamps are reproducible.
+    /// start time ([`FIXED_START_UNIX_NS`]) so timestamps are reproducible.
     pub fn for_tests(scene: Scene) -> Self {
         let mut options = Self::new(SourceSpec::Scene(Box::new(scene)));
         options.bind = SocketAddr::from(([127, 0, 0, 1], 0));
         options.odometry_bind = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
         options.gyro_bind = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
         options.pacing = Pacing::AsFastAsPossible;
-        options.start_time_ns = Some(1_704_067_200_000_000_000);
+        options.start_time_ns = Some(FIXED_START_UNIX_NS);
         options
     }
 

@@ -25,8 +25,8 @@ use crate::pipeline::{Pipeline, SceneTruth, SettingsRecipe, SourceFacts, TruthOr
 pub const GROUND_TRUTH_JSONL: &str = "ground-truth.jsonl";
 
 /// Where the embedded simulator's clock starts when neither the options nor the scene say
-/// (2024-01-01T00:00:00Z, Unix ns): runs as fast as possible are then reproducible.
-pub const EMBEDDED_START_UNIX_NS: u64 = 1_704_067_200_000_000_000;
+/// (the simulator's fixed start): runs as fast as possible are then reproducible.
+pub const EMBEDDED_START_UNIX_NS: u64 = sim_sensor::settings::FIXED_START_UNIX_NS;
 
 /// The simulator to start in this process.
 #[derive(Debug, Clone)]
