@@ -271,12 +271,31 @@ pub fn reference_scan(points: Vec<[f64; 2]>, settings: &ScanAlignSettings) -> Sc
 
 /// Points of `cloud`, placed by `t`, within `max_m` of `reference`'s surface.
 fn inliers(reference: &ReferenceCloud, cloud: &[[f64; 2]], t: &Pose2, max_m: f64) -> usize {
-    // The nearest point within a cell and a half; the surface distance decides.
-    count_placed(cloud, t, |q| {
-        reference
-            .surface_distance(q, max_m + 1.5)
-            .is_some_and(|(_, d)| d <= max_m)
-    })
+    inlier_flags(reference, cloud, t, max_m)
+        .into_iter()
+        .filter(|&inlying| inlying)
+        .count()
+}
+
+/// Whether each point of `cloud`, moved by `t`, is an inlier: within `max_m` of the
+/// reference's surface (the nearest point within a cell and a half; the surface distance
+/// decides).
+fn inlier_flags(
+    reference: &ReferenceCloud,
+    cloud: &[[f64; 2]],
+    t: &Pose2,
+    max_m: f64,
+) -> Vec<bool> {
+    let (sn, cs) = t.theta.sin_cos();
+    cloud
+        .iter()
+        .map(|p| {
+            let q = [t.x + cs * p[0] - sn * p[1], t.y + sn * p[0] + cs * p[1]];
+            reference
+                .surface_distance(&q, max_m + 1.5)
+                .is_some_and(|(_, d)| d <= max_m)
+        })
+        .collect()
 }
 
 /// How many points of `cloud`, moved by `t`, have a point of `reference` within `reach_m`.
@@ -302,6 +321,8 @@ struct Searched {
     inlying: usize,
     /// The most inliers of a refinement that ended elsewhere.
     rival: usize,
+    /// That refinement's transform.
+    rival_pose: Option<Pose2>,
     /// The points within the reference's reach once placed ([`ScanAlignSettings::coverage_m`]).
     covered: usize,
     /// The search's best score over the sampled points within reach.
@@ -385,21 +406,21 @@ fn search_and_refine(
     let Some((reg, inlying)) = refined.first().copied() else {
         return Err(Refusal::TooFewMatches(0));
     };
-    let rival = refined
+    let (rival, rival_pose) = refined
         .iter()
         .skip(1)
         .filter(|(r, _)| {
             (r.pose.x - reg.pose.x).hypot(r.pose.y - reg.pose.y) > s.rival_separation_m
                 || wrap_angle(r.pose.theta - reg.pose.theta).abs() > 0.1 * s.rival_separation_m
         })
-        .map(|(_, n)| *n)
-        .max()
-        .unwrap_or(0);
+        .max_by_key(|(_, n)| *n)
+        .map_or((0, None), |(r, n)| (*n, Some(r.pose)));
     let covered = covered(&reference.cloud, current, &reg.pose, s.coverage_m).max(1);
     Ok(Searched {
         reg,
         inlying,
         rival,
+        rival_pose,
         covered,
         score,
     })
@@ -446,10 +467,33 @@ pub fn align_scans(
         reg,
         inlying,
         rival,
+        rival_pose,
         covered,
         score,
     } = search_and_refine(reference, current, prior, prior_cov, s)?;
     if rival as f64 >= s.max_rival_ratio * inlying as f64 {
+        if let Some(r) = rival_pose {
+            let on = |t: &Pose2| inlier_flags(&reference.cloud, current, t, s.inlier_m);
+            let (a, b) = (on(&reg.pose), on(&r));
+            let best_only = a.iter().zip(&b).filter(|(x, y)| **x && !**y).count();
+            let rival_only = a.iter().zip(&b).filter(|(x, y)| !**x && **y).count();
+            tracing::debug!(
+                best_x = reg.pose.x,
+                best_y = reg.pose.y,
+                best_theta = reg.pose.theta,
+                rival_x = r.x,
+                rival_y = r.y,
+                rival_theta = r.theta,
+                best = inlying,
+                rival,
+                best_only,
+                rival_only,
+                prior_x = prior.x,
+                prior_y = prior.y,
+                prior_sigma_m = (prior_cov[(0, 0)] + prior_cov[(1, 1)]).max(0.0).sqrt(),
+                "scan closure: a rival"
+            );
+        }
         return Err(Refusal::Ambiguous {
             best: inlying,
             rival,

@@ -159,6 +159,7 @@ impl StreetSpec {
             tree_spacing_m: self.tree_spacing_m,
             pole_spacing_m: self.pole_spacing_m,
             parked_fraction: self.parked_fraction,
+            parked_variation: false,
         }
     }
 
@@ -266,7 +267,19 @@ pub struct SideStyle {
     pub pole_spacing_m: f64,
     /// Share of 6 m kerb slots holding a parked vehicle.
     pub parked_fraction: f64,
+    /// Parked vehicles as a real street's (see [`PARKED_LENGTH_M`]) rather than one 4.5 m
+    /// car centred in every occupied slot. Drawn from a stream of their own, so the rest of
+    /// the layout is the same either way.
+    pub parked_variation: bool,
 }
+
+/// With [`SideStyle::parked_variation`], a parked vehicle's length (m), drawn uniformly: a
+/// small hatchback to an estate or a van.
+pub const PARKED_LENGTH_M: [f64; 2] = [3.7, 5.3];
+/// ... its offset from the parking lane's centre line, at most (m) ...
+pub const PARKED_LATERAL_M: f64 = 0.25;
+/// ... and its heading off the kerb's, at most (degrees); it stands anywhere in its slot.
+pub const PARKED_SKEW_DEG: f64 = 3.0;
 
 impl SideStyle {
     /// Lines one block side from `a` to `b` (counter-clockwise round the block: the street
@@ -345,14 +358,28 @@ impl SideStyle {
             let p = at(s, kerb - 0.3);
             out.features.push((FeatureKind::LampPost, p[0], p[1]));
         });
-        // Parked vehicles in 6 m slots in the parking lane.
+        // Parked vehicles in 6 m slots in the parking lane. A slot's occupancy is drawn from
+        // the layout's stream; with `parked_variation` the vehicle's length and place in its
+        // slot from a stream of their own (the same side's state, another stream), so the
+        // layout after it is unchanged and identically dressed blocks stay identical.
         let slots = (len / 6.0).floor() as usize;
         let heading = u[1].atan2(u[0]).to_degrees() + 180.0;
+        let mut own = rng.clone();
+        own.set_stream(!rng.get_stream());
         for k in 0..slots {
             if rng.gen_bool(self.parked_fraction) {
                 let mut v = object(ObjectKind::Vehicle);
-                v.at = Some(at(k as f64 * 6.0 + 3.0, kerb + 1.1));
+                let (mut along, mut off) = (k as f64 * 6.0 + 3.0, kerb + 1.1);
                 v.heading_deg = heading;
+                if self.parked_variation {
+                    let length = own.gen_range(PARKED_LENGTH_M[0]..=PARKED_LENGTH_M[1]);
+                    let room = 0.5 * (6.0 - length).max(0.0);
+                    along += own.gen_range(-room..=room);
+                    off += own.gen_range(-PARKED_LATERAL_M..=PARKED_LATERAL_M);
+                    v.heading_deg += own.gen_range(-PARKED_SKEW_DEG..=PARKED_SKEW_DEG);
+                    v.length_m = Some(length);
+                }
+                v.at = Some(at(along, off));
                 out.objects.push(v);
             }
         }
@@ -362,6 +389,77 @@ impl SideStyle {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One block side 300 m long, dressed from `seed` with or without parked variation.
+    fn side(variation: bool, seed: u64) -> Street {
+        let style = SideStyle {
+            pavement_m: 3.5,
+            setback_max_m: 2.0,
+            gap_probability: 0.3,
+            hedge_probability: 0.2,
+            fence_probability: 0.3,
+            tree_spacing_m: 20.0,
+            pole_spacing_m: 25.0,
+            parked_fraction: 0.85,
+            parked_variation: variation,
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        rng.set_stream(7);
+        let mut out = Street::default();
+        style.dress(&mut rng, [0.0, 0.0], [300.0, 0.0], &mut out);
+        out
+    }
+
+    #[test]
+    fn parked_variation_moves_and_sizes_the_cars_in_their_slots_and_leaves_the_rest_alone() {
+        let (comb, real) = (side(false, 3), side(true, 3));
+        assert_eq!(comb.features, real.features);
+        let others = |s: &Street| -> Vec<ObjectSpec> {
+            s.objects
+                .iter()
+                .filter(|o| o.kind != ObjectKind::Vehicle)
+                .cloned()
+                .collect()
+        };
+        assert_eq!(others(&comb), others(&real));
+        let cars = |s: &Street| -> Vec<ObjectSpec> {
+            s.objects
+                .iter()
+                .filter(|o| o.kind == ObjectKind::Vehicle)
+                .cloned()
+                .collect()
+        };
+        let (a, b) = (cars(&comb), cars(&real));
+        assert_eq!(a.len(), b.len());
+        assert!(a.len() > 30, "{} cars", a.len());
+        let mut along_off_slot = Vec::new();
+        for (c, r) in a.iter().zip(&b) {
+            // The comb: one default-length car centred in its slot.
+            let [cx, cy] = c.at.expect("placed");
+            assert_eq!(c.length_m, None);
+            assert!(((cx - 3.0) / 6.0 - ((cx - 3.0) / 6.0).round()).abs() < 1e-9);
+            // The street: the same slot, a length in range, wholly inside its slot.
+            let [rx, ry] = r.at.expect("placed");
+            let length = r.length_m.expect("a drawn length");
+            assert!((PARKED_LENGTH_M[0]..=PARKED_LENGTH_M[1]).contains(&length));
+            assert!(rx - 0.5 * length >= cx - 3.0 - 1e-9 && rx + 0.5 * length <= cx + 3.0 + 1e-9);
+            assert!((ry - cy).abs() <= PARKED_LATERAL_M + 1e-9);
+            assert!((r.heading_deg - c.heading_deg).abs() <= PARKED_SKEW_DEG + 1e-9);
+            along_off_slot.push(rx - cx);
+        }
+        // Not a comb any more: the cars' offsets in their slots spread over most of the
+        // room there is (a comb's are all 0).
+        let n = along_off_slot.len() as f64;
+        let mean = along_off_slot.iter().sum::<f64>() / n;
+        let sd = (along_off_slot
+            .iter()
+            .map(|d| (d - mean).powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt();
+        assert!(sd > 0.25, "offsets' spread {sd} m");
+        assert_eq!(real, side(true, 3), "the same seed, the same street");
+    }
 
     #[test]
     fn the_same_seed_gives_the_same_grid_and_another_seed_another() {

@@ -432,6 +432,7 @@ impl SubmapRun {
             features,
             scan_points,
             driven_m = self.driven_m,
+            end_s = frozen.end_s,
             "submap closed; the next starts at the vehicle"
         );
         self.frozen.push(frozen);

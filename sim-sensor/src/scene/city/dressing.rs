@@ -45,6 +45,12 @@ pub struct DressingSpec {
     pub pole_spacing_m: f64,
     /// Share of 6 m kerb slots holding a parked vehicle.
     pub parked_fraction: f64,
+    /// Each parked vehicle 3.7-5.3 m long, anywhere in its slot, up to 0.25 m off the
+    /// parking lane's centre line and 3 degrees off the kerb (`street::PARKED_LENGTH_M` and
+    /// after), as on a real street; off (the default, the urban street's), one 4.5 m car
+    /// centred in every occupied slot: a comb of 6 m period that a street's scans align to
+    /// one slot off as well as on.
+    pub parked_variation: bool,
     /// Moving vehicles on the grid's streets.
     pub moving_vehicles: u32,
     /// Clutter scatterers per m^2 on the streets (road surface, kerbs, railings, bins).
@@ -63,6 +69,7 @@ impl Default for DressingSpec {
             tree_spacing_m: 20.0,
             pole_spacing_m: 25.0,
             parked_fraction: 0.5,
+            parked_variation: false,
             moving_vehicles: 60,
             street_clutter_per_m2: 1.0,
             block_clutter_per_m2: 1.0,
@@ -124,6 +131,7 @@ impl DressingSpec {
             tree_spacing_m: self.tree_spacing_m,
             pole_spacing_m: self.pole_spacing_m,
             parked_fraction: self.parked_fraction,
+            parked_variation: self.parked_variation,
         };
         let [px, py] = city.pitch_m();
         let half = city.carriageway_half_m + city.pavement_m;
