@@ -298,6 +298,7 @@ impl PipelineSettings {
             speed_scale_walk_per_sqrt_s: c.odometry.speed_scale_walk_per_sqrt_s.get(),
             steer_bias_walk_rad_per_sqrt_s: c.odometry.steer_bias_walk_rad_per_sqrt_s.get(),
             speed_scale_from_landmarks: c.odometry.speed_scale_from_landmarks,
+            steer_bias_from_landmarks: c.odometry.steer_bias_from_landmarks,
             material_variance_per_s: f.sigma_u.get().max(f.sigma_v.get()).powi(2),
             feature_wander_m: f.sigma_wander_m.get(),
             feature_wander_length_m: f.wander_length_m.get(),
