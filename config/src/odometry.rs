@@ -120,9 +120,11 @@ pub struct RawOdometry {
     /// is not). `slam-node --replay-dir` sets it false with its radar odometry. Default true.
     pub speed_scale_from_landmarks: bool,
     /// The same for the steering offset (`steer_bias_std_rad`): whether landmark updates
-    /// may move it, or only radar odometry's registrations may. Default true; with radar
-    /// odometry on and the key not written, the daemon sets it false (on the realistic city
-    /// the map's updates pulled the offset 0.0003 rad off, 0.64 degrees every 100 m).
+    /// may move it, or only radar odometry's registrations may. Default true. False suits
+    /// long drives where the map's features are not true points (the realistic city: the
+    /// map pulled the offset 0.0003 rad off, 0.64 degrees every 100 m); true suits a short
+    /// drive from a standstill, whose slow registrations are biased (slam-node/README.md,
+    /// "The point-feature map pulls the steering offset").
     pub steer_bias_from_landmarks: bool,
     /// Radar odometry: register each rotation's detections (walls and fences included)
     /// against the previous rotation's and give the measured motion to the filter, an update

@@ -429,12 +429,6 @@ pub fn effective_config(
         if !written.has("odometry.speed_scale_from_landmarks") {
             o.speed_scale_from_landmarks = false;
         }
-        // The steering offset likewise: the map's features that are not true points pull
-        // it one way (slam-node/README.md, "The point-feature map pulls the steering
-        // offset"), and every later prediction turns with it.
-        if !written.has("odometry.steer_bias_from_landmarks") {
-            o.steer_bias_from_landmarks = false;
-        }
     }
     let effective = raw.validate().map_err(|errors| SettingsError::Profile {
         profile: profile.name,
@@ -741,7 +735,14 @@ mod tests {
         assert!(s.scan_match.enabled);
         assert_eq!(s.filter.speed_scale_std, RADAR_ODOMETRY_SPEED_SCALE_STD);
         assert!(!s.filter.speed_scale_from_landmarks);
-        assert!(!s.filter.steer_bias_from_landmarks);
+        // The steering offset is learned from the map as well unless a configuration says
+        // otherwise (slam-node/README.md, "The point-feature map pulls the steering offset").
+        assert!(s.filter.steer_bias_from_landmarks);
+        let d = derive_from(
+            "[odometry]\nsteer_bias_from_landmarks = false\n",
+            &profile::CTS350X,
+        );
+        assert!(!d.settings.filter.steer_bias_from_landmarks);
         // A configuration that writes a lower threshold gets it (no max() with a constant).
         let d = derive_from("[detector]\npoint_min_snr_db = 20.0\n", &profile::CTS350X);
         assert_eq!(d.settings.detector.landmarks.min_snr_db, 20.0);
