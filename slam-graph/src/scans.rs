@@ -476,7 +476,8 @@ pub fn align_scans(
         score,
     } = search_and_refine(reference, current, prior, prior_cov, s)?;
     if rival as f64 >= s.max_rival_ratio * inlying as f64 {
-        if let Some(r) = rival_pose {
+        // For the log only (two passes over the scan): what each transform alone explains.
+        if let Some(r) = rival_pose.filter(|_| tracing::enabled!(tracing::Level::DEBUG)) {
             let on = |t: &Pose2| inlier_flags(&reference.cloud, current, t, s.inlier_m);
             let (a, b) = (on(&reg.pose), on(&r));
             let best_only = a.iter().zip(&b).filter(|(x, y)| **x && !**y).count();
