@@ -182,9 +182,9 @@ impl ScanAccumulator {
     /// refused (counted).
     pub fn add(&mut self, pose: &Pose2, cloud: &[[f64; 2]]) {
         self.rotation += 1;
-        let (s, c) = pose.theta.sin_cos();
+        let place = placer(pose);
         for p in cloud {
-            let q = [pose.x + c * p[0] - s * p[1], pose.y + s * p[0] + c * p[1]];
+            let q = place(p);
             if !(q[0].is_finite() && q[1].is_finite()) {
                 continue;
             }
@@ -275,31 +275,29 @@ pub fn reference_scan(points: Vec<[f64; 2]>, settings: &ScanAlignSettings) -> Sc
 
 /// Points of `cloud`, placed by `t`, within `max_m` of `reference`'s surface.
 fn inliers(reference: &ReferenceCloud, cloud: &[[f64; 2]], t: &Pose2, max_m: f64) -> usize {
-    inlier_flags(reference, cloud, t, max_m)
-        .into_iter()
-        .filter(|&inlying| inlying)
-        .count()
+    count_placed(cloud, t, |q| is_inlier(reference, q, max_m))
 }
 
-/// Whether each point of `cloud`, moved by `t`, is an inlier: within `max_m` of the
-/// reference's surface (the nearest point within a cell and a half; the surface distance
-/// decides).
+/// Whether each point of `cloud`, moved by `t`, is an inlier (see [`inliers`]).
 fn inlier_flags(
     reference: &ReferenceCloud,
     cloud: &[[f64; 2]],
     t: &Pose2,
     max_m: f64,
 ) -> Vec<bool> {
-    let (sn, cs) = t.theta.sin_cos();
+    let place = placer(t);
     cloud
         .iter()
-        .map(|p| {
-            let q = [t.x + cs * p[0] - sn * p[1], t.y + sn * p[0] + cs * p[1]];
-            reference
-                .surface_distance(&q, max_m + 1.5)
-                .is_some_and(|(_, d)| d <= max_m)
-        })
+        .map(|p| is_inlier(reference, &place(p), max_m))
         .collect()
+}
+
+/// Whether `q` lies within `max_m` of `reference`'s surface: the nearest point within a
+/// cell and a half; the surface distance decides.
+fn is_inlier(reference: &ReferenceCloud, q: &[f64; 2], max_m: f64) -> bool {
+    reference
+        .surface_distance(q, max_m + 1.5)
+        .is_some_and(|(_, d)| d <= max_m)
 }
 
 /// How many points of `cloud`, moved by `t`, have a point of `reference` within `reach_m`.
@@ -309,11 +307,15 @@ fn covered(reference: &ReferenceCloud, cloud: &[[f64; 2]], t: &Pose2, reach_m: f
 
 /// How many points of `cloud`, moved by `t`, satisfy `keep`.
 fn count_placed(cloud: &[[f64; 2]], t: &Pose2, keep: impl Fn(&[f64; 2]) -> bool) -> usize {
+    let place = placer(t);
+    cloud.iter().filter(|p| keep(&place(p))).count()
+}
+
+/// A point moved by `t` (its sine and cosine taken once for a whole cloud).
+fn placer(t: &Pose2) -> impl Fn(&[f64; 2]) -> [f64; 2] {
     let (sn, cs) = t.theta.sin_cos();
-    cloud
-        .iter()
-        .filter(|p| keep(&[t.x + cs * p[0] - sn * p[1], t.y + sn * p[0] + cs * p[1]]))
-        .count()
+    let (x, y) = (t.x, t.y);
+    move |p| [x + cs * p[0] - sn * p[1], y + sn * p[0] + cs * p[1]]
 }
 
 /// The correlative search and ICP refinements of [`align_scans`], before its tests.
@@ -552,11 +554,11 @@ pub fn align_scans(
         return Err(Refusal::FarFromPrior(d2));
     }
     // The matches: each inlier of `current` with its point of `reference`.
-    let (sn, cs) = t.theta.sin_cos();
+    let place = placer(&t);
     let mut matches = Vec::new();
     let mut nis = 0.0;
     for (j, p) in current.iter().enumerate() {
-        let q = [t.x + cs * p[0] - sn * p[1], t.y + sn * p[0] + cs * p[1]];
+        let q = place(p);
         if let Some((i, d)) = reference.cloud.surface_distance(&q, s.inlier_m) {
             if d <= s.inlier_m {
                 matches.push((i, j));
@@ -641,14 +643,21 @@ mod tests {
             .collect()
     }
 
-    #[test]
-    fn the_scans_of_a_street_seen_twice_give_the_transform_between_the_submaps() {
-        let mut rng = ChaCha8Rng::seed_from_u64(7);
+    /// The same street looked at twice (`seed`'s noise), the second look from `truth`: the
+    /// settings, the first look as a reference and the second in its own frame.
+    fn two_looks(seed: u64, truth: &Pose2) -> (ScanAlignSettings, ScanReference, Vec<[f64; 2]>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let s = ScanAlignSettings::default();
         let a = street(&mut rng, 80.0);
-        let truth = Pose2::new(3.0, -1.5, 0.08);
-        let b = moved(&street(&mut rng, 80.0), &truth);
+        let b = moved(&street(&mut rng, 80.0), truth);
         let reference = reference_scan(a, &s);
+        (s, reference, b)
+    }
+
+    #[test]
+    fn the_scans_of_a_street_seen_twice_give_the_transform_between_the_submaps() {
+        let truth = Pose2::new(3.0, -1.5, 0.08);
+        let (s, reference, b) = two_looks(7, &truth);
         // The prior 2 m and 0.03 rad off, as a place descriptor leaves it.
         let prior = Pose2::new(4.6, -0.4, 0.05);
         let cov = Matrix3::from_diagonal(&Vector3::new(4.0, 4.0, 0.0025));
@@ -678,12 +687,8 @@ mod tests {
         // After two kilometres on the radar alone the chain's relative pose may be 30 m
         // off with a 12 m standard deviation: the search reaches three sigmas (up to
         // `max_window_m`), and the street's cross street and posts pin the slide.
-        let mut rng = ChaCha8Rng::seed_from_u64(11);
-        let s = ScanAlignSettings::default();
-        let a = street(&mut rng, 80.0);
         let truth = Pose2::new(3.0, -1.5, 0.02);
-        let b = moved(&street(&mut rng, 80.0), &truth);
-        let reference = reference_scan(a, &s);
+        let (s, reference, b) = two_looks(11, &truth);
         let prior = Pose2::new(33.0, 2.0, 0.04);
         let cov = Matrix3::from_diagonal(&Vector3::new(144.0, 144.0, 0.0025));
         let r = align_scans(&reference, &b, &prior, &cov, &AlignSettings::default(), &s)
