@@ -321,7 +321,11 @@ pub fn run_pipeline(
     let mut stalled_since: Option<Instant> = None;
     let mut first_time_s: Option<f64> = None;
     if inputs.odometry.is_none() {
-        error!("no odometry source: the filter will not run (no motion is fabricated); detection and diagnostics only");
+        if pipeline.settings().radar_drives {
+            info!("no odometry source: radar odometry drives the filter (the radar alone)");
+        } else {
+            error!("no odometry source: the filter will not run (no motion is fabricated); detection and diagnostics only");
+        }
     }
     loop {
         if control.stop.load(Ordering::Relaxed) {
