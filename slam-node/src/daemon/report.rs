@@ -359,8 +359,8 @@ impl fmt::Display for RadarOdometry<'_> {
         };
         writeln!(
             f,
-            "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated; {} retried from other headings (through a turn, or few pairs: {} more registrations); {} run again on the cloud placed along the motion found (far from the estimate it was placed along)",
-            m.tried, m.failed, m.applied, m.gated, m.turned, m.retries, m.replaced
+            "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated; {} retried from other headings (through a turn, or few pairs: {} more registrations; {} of them so few that they were also tried from starts along the track); {} run again on the cloud placed along the motion found (far from the estimate it was placed along)",
+            m.tried, m.failed, m.applied, m.gated, m.turned, m.retries, m.along, m.replaced
         )?;
         if m.drives {
             writeln!(

@@ -35,8 +35,11 @@ pub struct ScanMatchCounts {
     /// Registrations retried from other headings (they paired few points: a turn's onset).
     pub turned: u64,
     /// Registrations run from those other headings (two per heading tried; with a gyro
-    /// one heading either side, otherwise four).
+    /// one heading either side, otherwise four) and from starts along the track.
     pub retries: u64,
+    /// Of the retried, those that paired so few that they were also tried from starts
+    /// along the track (a braking or accelerating vehicle the held speed missed).
+    pub along: u64,
     /// Registrations run again on the cloud placed along the motion the first found (it was
     /// far from the estimate the cloud had been placed along: a turn's onset or end).
     pub replaced: u64,

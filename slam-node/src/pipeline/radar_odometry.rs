@@ -143,6 +143,7 @@ impl RadarOdometryStage {
             searched: m.searched,
             turned: m.turned,
             retries: m.retries,
+            along: m.along,
             replaced: m.replaced,
             ..self.counts
         }
