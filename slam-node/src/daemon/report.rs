@@ -365,8 +365,8 @@ impl fmt::Display for RadarOdometry<'_> {
         if m.drives {
             writeln!(
                 f,
-                "  radar only: radar odometry drove the prediction; {} registrations searched for the motion (no estimate), {} weakly constrained (the scene did not pin the motion in one direction: the pose's uncertainty grew along it), {} turned away from the held motion (a turn's onset or end: the heading's process noise widened)",
-                m.searched, m.weak, m.manoeuvres
+                "  radar only: radar odometry drove the prediction; {} registrations searched for the motion (no estimate), {} weakly constrained (the scene did not pin the motion in one direction: the pose's uncertainty grew along it), {} turned away from the held motion (a turn's onset or end: the heading's process noise widened), {} with no beam for the filter (its clock brought to the rotation's end by the motion held)",
+                m.searched, m.weak, m.manoeuvres, m.still_clock
             )?;
         } else if m.weak > 0 {
             writeln!(

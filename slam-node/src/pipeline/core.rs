@@ -845,6 +845,7 @@ impl Pipeline {
         let end_s = self
             .last_time_s
             .unwrap_or_else(|| self.ekf.state().time_s());
+        self.advance_a_still_clock(end_s);
         if let Some(sample) = self.scan_match.end_rotation(
             &mut self.ekf,
             self.truth.as_ref(),
@@ -867,6 +868,32 @@ impl Pipeline {
             self.ekf.mark_motion();
         }
         self.stats.on_registration(ms(started, Instant::now()));
+    }
+
+    /// On the radar alone the filter's clock moves with the beams it updates from and the
+    /// odometry each registration gives; a rotation with no beam for the filter (a street
+    /// without point-like returns) left it at the last mark, the registration measured a
+    /// motion over no time, its odometry sample carried the same time, the gate found the
+    /// odometry stale a second later and refused every beam after: the filter never moved
+    /// again. Such a rotation's end is reached by the motion held, before the registration,
+    /// so that it measures the rotation's motion. A rotation with a beam is untouched.
+    fn advance_a_still_clock(&mut self, end_s: f64) {
+        if !self.settings.radar_drives {
+            return;
+        }
+        let (Some(mark_s), Some(held)) = (
+            self.ekf.motion_tally().map(|t| t.since_s),
+            self.ekf.held_odometry(),
+        ) else {
+            return;
+        };
+        if self.ekf.state().time_s() <= mark_s && end_s > mark_s {
+            self.apply_odometry(OdometrySample {
+                timestamp_s: end_s,
+                ..held
+            });
+            self.scan_match.note_still_clock();
+        }
     }
 
     /// Counts, for every feature mapped before this rotation began and in the radar's view

@@ -45,6 +45,9 @@ pub struct ScanMatchCounts {
     pub replaced: u64,
     /// Whether radar odometry drove the filter's prediction (no wheel odometry).
     pub drives: bool,
+    /// Driving: rotations with no beam for the filter, whose end the filter's clock was
+    /// brought to by the motion held before the registration.
+    pub still_clock: u64,
     /// On the radar alone without a gyro: rotations whose registration turned more than
     /// `MANOEUVRE_HEADING_RAD` away from the held motion (a turn's onset or end), whose
     /// heading process noise was widened by the difference.

@@ -133,6 +133,12 @@ impl RadarOdometryStage {
         self.matcher.last_cloud()
     }
 
+    /// Counts a rotation with no beam for the filter, whose end the caller reached by the
+    /// motion held ([`ScanMatchCounts::still_clock`]).
+    pub fn note_still_clock(&mut self) {
+        self.counts.still_clock += 1;
+    }
+
     /// What it did so far.
     pub fn counts(&self) -> ScanMatchCounts {
         let m = self.matcher.counts();
