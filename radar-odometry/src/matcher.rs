@@ -161,6 +161,9 @@ pub struct ScanMatchSettings {
     /// A rotation's cloud becomes a keyframe when the vehicle ended it at least this far
     /// (m) from where the newest keyframe's rotation ended.
     pub keyframe_spacing_m: f64,
+    /// A registration pairing under this share of what recent ones paired is also tried
+    /// from starts along the track ([`ALONG_RETRIES`]); [`ALONG_PAIRED_SHARE`] by default.
+    pub along_paired_share: f64,
 }
 
 impl Default for ScanMatchSettings {
@@ -185,6 +188,7 @@ impl Default for ScanMatchSettings {
             slow_heading_floor: false,
             keyframes: 0,
             keyframe_spacing_m: 0.0,
+            along_paired_share: ALONG_PAIRED_SHARE,
         }
     }
 }
@@ -699,7 +703,7 @@ impl ScanMatcher {
         // Few pairs: the estimate may be as far off along the track as off in heading (a
         // vehicle braking into a junction while the held speed goes on), beyond ICP's
         // basin, where the returns of a street pair with the wrong posts and cars.
-        let along: &[f64] = if share < ALONG_PAIRED_SHARE * typical {
+        let along: &[f64] = if share < self.settings.along_paired_share * typical {
             &ALONG_RETRIES
         } else {
             &[]
@@ -1265,13 +1269,18 @@ mod tests {
     }
 
     /// A vehicle braking into a junction: the caller's estimate (the last rotation's speed
-    /// held) runs 2 m past where the vehicle stopped, beyond ICP's basin along a street,
-    /// where the fronts and posts pair with the wrong ones. The registration from the
-    /// estimate pairs too few, and the starts along the track find the motion.
+    /// held) runs 2 m past where the vehicle is, beyond ICP's basin along a street, where
+    /// the fronts and posts pair with the wrong ones. The registration from the estimate
+    /// pairs fewer, and the starts along the track find the motion. (This street's walls
+    /// still pair most of a cloud so far off: the starts are asked for at 0.7 of the pairs,
+    /// not the default half, which the realistic city's sparser scans fall under.)
     #[test]
     fn a_registration_far_off_along_the_track_is_found_from_starts_along_it() {
         let world = town();
-        let settings = dense();
+        let settings = ScanMatchSettings {
+            along_paired_share: TURN_PAIRED_SHARE,
+            ..dense()
+        };
         let mut m = ScanMatcher::new(settings);
         let rotation = |m: &mut ScanMatcher, truth: &Pose2, estimate: Pose2| {
             placed_rotation(m, &world, truth, estimate)
@@ -1291,7 +1300,7 @@ mod tests {
             (got.motion.x - 0.5).abs() < 0.02 && got.motion.y.abs() < 0.02,
             "{got:?} for a true 0.5 m"
         );
-        assert!(m.counts().turned >= 1, "{:?}", m.counts());
+        assert!(m.counts().along >= 1, "{:?}", m.counts());
     }
 
     /// For a filter that learns a bias from the turns (a gyro's, a steering offset), a
