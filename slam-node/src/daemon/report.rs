@@ -199,6 +199,13 @@ struct PoseError<'a>(&'a PoseErrorStats);
 impl fmt::Display for PoseError<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let p = self.0;
+        if p.samples == 0 {
+            // Zeros here would read as a perfect run: say that nothing was scored.
+            return writeln!(
+                f,
+                "  pose error vs truth: not scored: the filter estimated no pose against the truth (it never started, or no rotation had both; see the radar odometry and refused beams lines)"
+            );
+        }
         writeln!(
             f,
             "  pose error vs truth: RMS {:.3} m, max {:.3} m, final {:.3} m / {:.2} deg; inside own 3-sigma in {:.1}% of {} rotations; mean NEES {:.2} (3 dof)",
@@ -261,6 +268,13 @@ struct Materials<'a>(&'a MapScore);
 impl fmt::Display for Materials<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let m = self.0;
+        if m.matched == 0 {
+            // No mapped feature matches a scene feature: nothing to compare.
+            return writeln!(
+                f,
+                "  materials: not scored (no mapped feature matches a scene feature)"
+            );
+        }
         writeln!(
             f,
             "  materials: mean |rho - true| {:.3} (initial guess {:.3}), mean |alpha - true| {:.3} (initial {:.3}); L {:.2} dB (true {}); rho with the rho/L offset removed: mean error {}",
@@ -368,6 +382,13 @@ impl fmt::Display for RadarOdometry<'_> {
                 "  radar only: radar odometry drove the prediction; {} registrations searched for the motion (no estimate), {} weakly constrained (the scene did not pin the motion in one direction: the pose's uncertainty grew along it), {} turned away from the held motion (a turn's onset or end: the heading's process noise widened), {} with no beam for the filter (its clock brought to the rotation's end by the motion held)",
                 m.searched, m.weak, m.manoeuvres, m.still_clock
             )?;
+            if m.tried > 0 && m.failed == m.tried {
+                writeln!(
+                    f,
+                    "  radar only: NO POSE: every registration failed ({} of {}), so the filter never started and nothing was mapped; the returns did not repeat from rotation to rotation closely enough to pair (a scene of sparse point targets, an open field)",
+                    m.failed, m.tried
+                )?;
+            }
         } else if m.weak > 0 {
             writeln!(
                 f,
@@ -471,7 +492,14 @@ impl fmt::Display for Submaps<'_> {
             sm.solutions,
             g.max_add_ms
         )?;
-        if let Some(o) = &sm.optimised {
+        if sm.optimised.as_ref().is_some_and(|o| o.poses < 2) {
+            // The start pose alone (or nothing) scores zeros that would read as a perfect
+            // trajectory.
+            writeln!(
+                f,
+                "  global trajectory vs truth (trajectory.tum, final frames): not scored: no pose after the start pose had a true pose at its time"
+            )?;
+        } else if let Some(o) = &sm.optimised {
             writeln!(
                 f,
                 "  global trajectory vs truth (trajectory.tum, final frames): RMS {:.3} m, max {:.3} m, final {:.3} m / {:.2} deg, heading RMS {:.2} deg; mean NEES {:.2}, inside 99% bound {:.1}%; drift over 100-800 m segments {} on {:.0} m driven; loop closures true {} / false {}",
@@ -970,4 +998,32 @@ pub fn recording_line(rec: &crate::output::RecordingSummary) -> String {
         rec.write_ms.iter().copied().fold(0.0, f64::max),
         mean(&rec.processing_ms),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run whose filter never started must not read as a perfect one.
+    #[test]
+    fn a_run_with_no_pose_says_so_instead_of_printing_zeros() {
+        let text = PoseError(&PoseErrorStats::default()).to_string();
+        assert!(text.contains("not scored"), "{text}");
+        assert!(!text.contains("RMS 0.000"), "{text}");
+
+        let counts = ScanMatchCounts {
+            drives: true,
+            tried: 40,
+            failed: 40,
+            ..ScanMatchCounts::default()
+        };
+        let text = RadarOdometry(&counts).to_string();
+        assert!(text.contains("NO POSE"), "{text}");
+        let working = ScanMatchCounts {
+            failed: 1,
+            applied: 39,
+            ..counts
+        };
+        assert!(!RadarOdometry(&working).to_string().contains("NO POSE"));
+    }
 }

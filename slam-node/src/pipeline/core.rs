@@ -108,6 +108,10 @@ pub struct Pipeline {
     online_before_mapping: Option<usize>,
     /// Stream time of the last warning about a burst of targets.
     burst_warned_s: f64,
+    /// The time of the last pose published: a rotation that did not move the filter's clock
+    /// (radar alone, before the first registration starts it) publishes nothing, rather than
+    /// the same pose at the same time again.
+    last_published_s: Option<f64>,
 }
 
 fn filter_at(
@@ -202,6 +206,7 @@ impl Pipeline {
             cpu_mark: None,
             last_map_save_s: None,
             burst_warned_s: f64::NEG_INFINITY,
+            last_published_s: None,
             settings,
         })
     }
@@ -661,9 +666,15 @@ impl Pipeline {
         // Nothing is published before the filter's clock starts (on the radar alone, the
         // first rotation before a registration): its pose would carry no time (0.0). A
         // filter started at the truth's pose has its clock from the start.
-        let clock_started = self.ekf.held_odometry().is_some() || self.ekf.state().time_s() != 0.0;
+        let now_s = self.ekf.state().time_s();
+        let clock_started = self.ekf.held_odometry().is_some() || now_s != 0.0;
+        let clock_moved = self.last_published_s != Some(now_s);
         // Localising: nothing is published in the map's frame before the fix.
-        if let Some((pose, cov)) = self.pose_to_publish().filter(|_| clock_started) {
+        if let Some((pose, cov)) = self
+            .pose_to_publish()
+            .filter(|_| clock_started && clock_moved)
+        {
+            self.last_published_s = Some(now_s);
             let published = PoseSample {
                 timestamp_s: self.ekf.state().time_s(),
                 x_m: pose.x,
@@ -716,8 +727,13 @@ impl Pipeline {
             events.push(OutputEvent::Map(map));
         }
         events.push(OutputEvent::Rotation(Box::new(d)));
-        // The submap closes after this rotation's pose was published in it.
-        if let Some(s) = self.submaps.as_mut().filter(|_| clock_started) {
+        // The submap closes after this rotation's pose was published in it (a rotation that
+        // did not move the filter's clock adds nothing to it).
+        if let Some(s) = self
+            .submaps
+            .as_mut()
+            .filter(|_| clock_started && clock_moved)
+        {
             let t = self.ekf.state().time_s();
             s.end_rotation(&mut self.ekf, t);
             self.summary.current_submap = s.current();
