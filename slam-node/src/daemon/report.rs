@@ -652,6 +652,13 @@ impl fmt::Display for Refusals<'_> {
                 s.burst_beams
             )?;
         }
+        if s.still_clock_caught_up > 0 {
+            writeln!(
+                f,
+                "  rotations with no beam for the filter: {} (their ends reached with the odometry received)",
+                s.still_clock_caught_up
+            )?;
+        }
         if run.far_ahead_of_odometry > 0 {
             writeln!(
                 f,

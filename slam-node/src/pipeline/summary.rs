@@ -112,6 +112,9 @@ pub struct PipelineSummary {
     /// Beams not used because they came in a burst of targets far above the learned rate
     /// (the filter's burst guard: a swamped receiver, interference).
     pub burst_beams: u64,
+    /// Rotations with no beam for the filter whose end was reached with the odometry
+    /// received (wheel odometry, a recording's; `PipelineCore::catch_up_a_still_clock`).
+    pub still_clock_caught_up: u64,
     /// The submap the filter runs in now (0 with one dense map); poses in progress lines
     /// are in its frame.
     pub current_submap: usize,

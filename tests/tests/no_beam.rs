@@ -1,0 +1,93 @@
+//! A radar that gives the filter nothing for a while, with wheel odometry: the filter's
+//! clock moved only when a beam took the odometry received up to its time, so rotations
+//! with no beam for the filter left the pose where it was and published nothing new (a
+//! straight road lined only with lamp posts: 18 beams in 561 rotations, 14 poses in 140 s).
+//! Such a rotation's end is now reached with the odometry received.
+
+use std::path::Path;
+
+use e2e_tests::test_options as options;
+use sim_sensor::settings::Pacing;
+use sim_sensor::SimOptions;
+use slam_node::daemon::{run_daemon, EmbeddedSim, Simulator};
+
+/// Lamp posts along both sides of a straight road, 6-10 m out, every 10 m; 10 m/s; the
+/// CTS350-X-like unit, realistic rendering.
+fn posts_scene() -> String {
+    let mut text = String::from(
+        "name = \"posts\"\nseed = 3\nloss_db = 0.0\n[radar]\npreset = \"cts350x-400\"\n\
+         [realism]\n[motion]\nmodel = \"bicycle\"\nwheelbase_m = 2.7\n\
+         [start]\nx_m = 0.0\ny_m = 0.0\ntheta_deg = 0.0\n\
+         [[control]]\nt_s = 0.0\nspeed_mps = 10.0\nsteer_rad = 0.0\n",
+    );
+    for i in 0..40 {
+        let x = -50.0 + 10.0 * f64::from(i);
+        for y in [7.0 + f64::from(i % 3), -6.5 - f64::from(i % 4)] {
+            text.push_str(&format!(
+                "[[features]]\nkind = \"lamp-post\"\nx_m = {x}\ny_m = {y}\n"
+            ));
+        }
+    }
+    text
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn rotations_with_no_beam_still_move_the_pose_on_wheel_odometry() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let work = tempfile::tempdir().expect("a folder");
+    let scene_path = work.path().join("posts.toml");
+    std::fs::write(&scene_path, posts_scene()).expect("the scene written");
+    let scene = sim_sensor::scene::Scene::load(&scene_path).expect("the posts");
+    // The realistic city's wheel-odometry configuration, its scene given directly.
+    let text: String = std::fs::read_to_string(root.join("config/examples/realistic-city.toml"))
+        .expect("the shipped configuration")
+        .lines()
+        .filter(|l| !l.starts_with("scene ="))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let config = config::Config::from_toml_str(&text).expect("the configuration");
+    let mut sim = SimOptions::for_tests(scene);
+    sim.pacing = Pacing::AsFastAsPossible;
+    let mut opts = options(config, Some(&text), work.path());
+    opts.max_stream_s = Some(10.0);
+    opts.simulator = Some(Simulator {
+        sim: EmbeddedSim::new(sim),
+        recorded: None,
+    });
+    let report = run_daemon(opts, None).await.expect("the run");
+    let s = &report.run.summary;
+    assert!(
+        s.beams < s.rotations / 2,
+        "the scene was meant to give the filter few beams: {} in {} rotations",
+        s.beams,
+        s.rotations
+    );
+    assert!(
+        s.still_clock_caught_up + 5 >= s.rotations.saturating_sub(s.beams),
+        "{} rotations caught up of {} rotations, {} beams",
+        s.still_clock_caught_up,
+        s.rotations,
+        s.beams
+    );
+    // A pose a rotation, each later than the last.
+    let times: Vec<f64> = std::fs::read_to_string(work.path().join("trajectory-online.tum"))
+        .expect("the online trajectory")
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .filter_map(|l| l.split_whitespace().next()?.parse().ok())
+        .collect();
+    assert!(
+        times.len() as u64 + 3 >= s.rotations,
+        "{} poses in {} rotations",
+        times.len(),
+        s.rotations
+    );
+    assert!(
+        times.windows(2).all(|w| w[1] > w[0]),
+        "times not increasing"
+    );
+    // The pose follows the vehicle: 10 m/s for 10 s.
+    let online = s.online.as_ref().expect("the online pose was scored");
+    assert!(online.length_m > 80.0, "{} m driven", online.length_m);
+    assert!(online.final_m < 10.0, "final error {} m", online.final_m);
+}
