@@ -190,3 +190,33 @@ pub fn test_options(config: config::Config, written: Option<&str>, out: &Path) -
         written: Some(written.map(config::written_keys).unwrap_or_default()),
     }
 }
+
+/// `seconds` of `scene` on the embedded simulator (every port on 127.0.0.1:0, as fast as
+/// the machine goes) through the shipped configuration `config/examples/<config>`, its
+/// `scene =` line dropped so that the simulator takes `scene` directly; outputs in `out`.
+pub async fn shipped_config_on_scene(
+    config: &str,
+    scene: sim_sensor::scene::Scene,
+    seconds: f64,
+    out: &Path,
+) -> DaemonReport {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../config/examples")
+        .join(config);
+    let text: String = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .lines()
+        .filter(|l| !l.starts_with("scene ="))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let parsed = config::Config::from_toml_str(&text).expect("the shipped configuration");
+    let mut sim = SimOptions::for_tests(scene);
+    sim.pacing = Pacing::AsFastAsPossible;
+    let mut opts = test_options(parsed, Some(&text), out);
+    opts.max_stream_s = Some(seconds);
+    opts.simulator = Some(slam_node::daemon::Simulator {
+        sim: EmbeddedSim::new(sim),
+        recorded: None,
+    });
+    run_daemon(opts, None).await.expect("the run")
+}

@@ -4,12 +4,7 @@
 //! straight road lined only with lamp posts: 18 beams in 561 rotations, 14 poses in 140 s).
 //! Such a rotation's end is now reached with the odometry received.
 
-use std::path::Path;
-
-use e2e_tests::test_options as options;
-use sim_sensor::settings::Pacing;
-use sim_sensor::SimOptions;
-use slam_node::daemon::{run_daemon, EmbeddedSim, Simulator};
+use e2e_tests::shipped_config_on_scene;
 
 /// Lamp posts along both sides of a straight road, 6-10 m out, every 10 m; 10 m/s; the
 /// CTS350-X-like unit, realistic rendering.
@@ -33,28 +28,12 @@ fn posts_scene() -> String {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn rotations_with_no_beam_still_move_the_pose_on_wheel_odometry() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let work = tempfile::tempdir().expect("a folder");
     let scene_path = work.path().join("posts.toml");
     std::fs::write(&scene_path, posts_scene()).expect("the scene written");
     let scene = sim_sensor::scene::Scene::load(&scene_path).expect("the posts");
     // The realistic city's wheel-odometry configuration, its scene given directly.
-    let text: String = std::fs::read_to_string(root.join("config/examples/realistic-city.toml"))
-        .expect("the shipped configuration")
-        .lines()
-        .filter(|l| !l.starts_with("scene ="))
-        .map(|l| format!("{l}\n"))
-        .collect();
-    let config = config::Config::from_toml_str(&text).expect("the configuration");
-    let mut sim = SimOptions::for_tests(scene);
-    sim.pacing = Pacing::AsFastAsPossible;
-    let mut opts = options(config, Some(&text), work.path());
-    opts.max_stream_s = Some(10.0);
-    opts.simulator = Some(Simulator {
-        sim: EmbeddedSim::new(sim),
-        recorded: None,
-    });
-    let report = run_daemon(opts, None).await.expect("the run");
+    let report = shipped_config_on_scene("realistic-city.toml", scene, 10.0, work.path()).await;
     let s = &report.run.summary;
     assert!(
         s.beams < s.rotations / 2,

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use e2e_tests::{oxford_dir, test_options as options};
+use e2e_tests::{oxford_dir, shipped_config_on_scene, test_options as options};
 use sim_sensor::settings::Pacing;
 use sim_sensor::SimOptions;
 use slam_node::daemon::replay::OdometryErrors;
@@ -195,23 +195,8 @@ async fn rotations_with_no_beam_for_the_filter_do_not_stop_its_clock() {
     std::fs::write(&scene_path, bare).expect("the scene written");
     let scene = sim_sensor::scene::Scene::load(&scene_path).expect("the bare city");
     // The shipped radar-only configuration, its scene given to the simulator directly.
-    let text: String =
-        std::fs::read_to_string(root.join("config/examples/realistic-city-radar-only.toml"))
-            .expect("the shipped configuration")
-            .lines()
-            .filter(|l| !l.starts_with("scene ="))
-            .map(|l| format!("{l}\n"))
-            .collect();
-    let config = config::Config::from_toml_str(&text).expect("the configuration");
-    let mut sim = SimOptions::for_tests(scene);
-    sim.pacing = Pacing::AsFastAsPossible;
-    let mut opts = options(config, Some(&text), work.path());
-    opts.max_stream_s = Some(25.0);
-    opts.simulator = Some(Simulator {
-        sim: EmbeddedSim::new(sim),
-        recorded: None,
-    });
-    let report = run_daemon(opts, None).await.expect("the run");
+    let report =
+        shipped_config_on_scene("realistic-city-radar-only.toml", scene, 25.0, work.path()).await;
     let s = &report.run.summary;
     let m = s.scan_match.expect("radar odometry ran");
     assert!(m.drives, "{m:?}");
@@ -244,23 +229,8 @@ async fn a_radar_alone_that_never_registers_says_so_and_writes_no_poses() {
     let work = tempfile::tempdir().expect("a folder");
     let scene = sim_sensor::scene::Scene::load(&root.join("sim-sensor/scenes/city-drive.toml"))
         .expect("the point-target city");
-    let text: String =
-        std::fs::read_to_string(root.join("config/examples/realistic-city-radar-only.toml"))
-            .expect("the shipped configuration")
-            .lines()
-            .filter(|l| !l.starts_with("scene ="))
-            .map(|l| format!("{l}\n"))
-            .collect();
-    let config = config::Config::from_toml_str(&text).expect("the configuration");
-    let mut sim = SimOptions::for_tests(scene);
-    sim.pacing = Pacing::AsFastAsPossible;
-    let mut opts = options(config, Some(&text), work.path());
-    opts.max_stream_s = Some(5.0);
-    opts.simulator = Some(Simulator {
-        sim: EmbeddedSim::new(sim),
-        recorded: None,
-    });
-    let report = run_daemon(opts, None).await.expect("the run");
+    let report =
+        shipped_config_on_scene("realistic-city-radar-only.toml", scene, 5.0, work.path()).await;
     let s = &report.run.summary;
     let m = s.scan_match.expect("radar odometry ran");
     assert!(m.drives && m.tried > 5 && m.failed == m.tried, "{m:?}");
