@@ -645,7 +645,7 @@ impl Pipeline {
             return;
         }
         self.count_reobservations();
-        self.catch_up_a_still_clock();
+        self.reach_a_still_clocks_end();
         self.register_rotation();
         let front_end = &self.front_end;
         match self
@@ -862,7 +862,6 @@ impl Pipeline {
         let end_s = self
             .last_time_s
             .unwrap_or_else(|| self.ekf.state().time_s());
-        self.advance_a_still_clock(end_s);
         if let Some(sample) = self.scan_match.end_rotation(
             &mut self.ekf,
             self.truth.as_ref(),
@@ -887,57 +886,47 @@ impl Pipeline {
         self.stats.on_registration(ms(started, Instant::now()));
     }
 
-    /// On the radar alone the filter's clock moves with the beams it updates from and the
-    /// odometry each registration gives; a rotation with no beam for the filter (a street
-    /// without point-like returns) left it at the last mark, the registration measured a
-    /// motion over no time, its odometry sample carried the same time, the gate found the
-    /// odometry stale a second later and refused every beam after: the filter never moved
-    /// again. Such a rotation's end is reached by the motion held, before the registration,
-    /// so that it measures the rotation's motion. A rotation with a beam is untouched.
-    fn advance_a_still_clock(&mut self, end_s: f64) {
-        if !self.settings.radar_drives {
-            return;
-        }
-        let (Some(mark_s), Some(held)) = (
-            self.ekf.motion_tally().map(|t| t.since_s),
-            self.ekf.held_odometry(),
-        ) else {
-            return;
-        };
-        if self.ekf.state().time_s() <= mark_s && end_s > mark_s {
-            self.apply_odometry(OdometrySample {
-                timestamp_s: end_s,
-                ..held
-            });
-            self.scan_match.note_still_clock();
-        }
-    }
-
-    /// With odometry of its own (wheels, a recording's), the filter's clock moves when a beam
-    /// takes the odometry received up to its time. A rotation with no beam for the filter (an
-    /// open field, a radar that sees nothing point-like, a burst that blinds it) left it at
-    /// the last rotation's end: the registration measured a motion over no time and the pose
-    /// was published again at that time (the lamp posts of a straight road, 18 beams in
-    /// 561 rotations: 14 poses in 140 s). Such a rotation's end is reached with the odometry
-    /// received up to its last azimuth. A rotation with a beam is untouched; on the radar
-    /// alone [`Self::advance_a_still_clock`] does this with the motion held.
-    fn catch_up_a_still_clock(&mut self) {
-        let (false, Some(last_s), Some(end_s)) = (
-            self.settings.radar_drives,
-            self.last_published_s,
-            self.last_time_s,
-        ) else {
+    /// The filter's clock moves when a beam takes the odometry up to its time. A rotation
+    /// with no beam for the filter (a street without point-like returns, an open field, a
+    /// burst that blinds the radar) left it at the last rotation's end: the registration
+    /// measured a motion over no time and the pose was published again at that time. Such a
+    /// rotation's end is reached here, before the registration; a rotation with a beam is
+    /// untouched.
+    /// - On the radar alone, with the motion held: the registration's odometry sample had
+    ///   carried the same time, the gate found the odometry stale a second later and refused
+    ///   every beam after, and the filter never moved again.
+    /// - With odometry of its own (wheels, a recording's), with the odometry received up to
+    ///   the rotation's last azimuth: the lamp posts of a straight road, 18 beams in 561
+    ///   rotations, gave 14 poses in 140 s.
+    fn reach_a_still_clocks_end(&mut self) {
+        let Some(end_s) = self.last_time_s else {
             return;
         };
-        if self.ekf.state().time_s() > last_s {
-            return;
-        }
-        let before = self.ekf.state().time_s();
-        while let Some(s) = self.gate.next_until(end_s) {
-            self.apply_odometry(s);
-        }
-        if self.ekf.state().time_s() > before {
-            self.summary.still_clock_caught_up += 1;
+        let now_s = self.ekf.state().time_s();
+        if self.settings.radar_drives {
+            if !self.scan_match.enabled() {
+                return;
+            }
+            let (Some(mark_s), Some(held)) = (
+                self.ekf.motion_tally().map(|t| t.since_s),
+                self.ekf.held_odometry(),
+            ) else {
+                return;
+            };
+            if now_s <= mark_s && end_s > mark_s {
+                self.apply_odometry(OdometrySample {
+                    timestamp_s: end_s,
+                    ..held
+                });
+                self.scan_match.note_still_clock();
+            }
+        } else if self.last_published_s.is_some_and(|last_s| now_s <= last_s) {
+            while let Some(s) = self.gate.next_until(end_s) {
+                self.apply_odometry(s);
+            }
+            if self.ekf.state().time_s() > now_s {
+                self.summary.still_clock_caught_up += 1;
+            }
         }
     }
 

@@ -113,7 +113,7 @@ pub struct PipelineSummary {
     /// (the filter's burst guard: a swamped receiver, interference).
     pub burst_beams: u64,
     /// Rotations with no beam for the filter whose end was reached with the odometry
-    /// received (wheel odometry, a recording's; `PipelineCore::catch_up_a_still_clock`).
+    /// received (wheel odometry, a recording's; `PipelineCore::reach_a_still_clocks_end`).
     pub still_clock_caught_up: u64,
     /// The submap the filter runs in now (0 with one dense map); poses in progress lines
     /// are in its frame.
