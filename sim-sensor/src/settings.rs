@@ -182,13 +182,23 @@ impl SimOptions {
     /// For tests: both ports on `127.0.0.1:0`, as fast as the client reads, and a fixed
     /// start time ([`FIXED_START_UNIX_NS`]) so timestamps are reproducible.
     pub fn for_tests(scene: Scene) -> Self {
-        let mut options = Self::new(SourceSpec::Scene(Box::new(scene)));
-        options.bind = SocketAddr::from(([127, 0, 0, 1], 0));
-        options.odometry_bind = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
-        options.gyro_bind = Some(SocketAddr::from(([127, 0, 0, 1], 0)));
-        options.pacing = Pacing::AsFastAsPossible;
-        options.start_time_ns = Some(FIXED_START_UNIX_NS);
-        options
+        Self {
+            start_time_ns: Some(FIXED_START_UNIX_NS),
+            ..Self::for_tests_from(SourceSpec::Scene(Box::new(scene)))
+        }
+    }
+
+    /// For tests, any source: every port on `127.0.0.1:0` (never the radar's fixed ports)
+    /// and as fast as the client reads.
+    pub fn for_tests_from(source: SourceSpec) -> Self {
+        let any = SocketAddr::from(([127, 0, 0, 1], 0));
+        Self {
+            bind: any,
+            odometry_bind: Some(any),
+            gyro_bind: Some(any),
+            pacing: Pacing::AsFastAsPossible,
+            ..Self::new(source)
+        }
     }
 
     /// Builds options from config's validated `[sim]` section (reading the scene file when

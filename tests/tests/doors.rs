@@ -94,16 +94,14 @@ async fn the_replay_the_vehicle_configuration_and_its_mcap_recording_agree() {
 
     // Door 2: the simulator's replay over TCP, a vehicle configuration of two keys and the
     // odometry file, recorded as MCAP.
-    let mut server = SimOptions::new(SourceSpec::PolarScans {
-        dir: dir.clone(),
-        format: None,
-    });
-    // Every port on 127.0.0.1:0 or none: `SimOptions::new` defaults to the radar's fixed
-    // ports (6317-6319), which a test must never take.
-    server.bind = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
-    server.odometry_bind = None;
-    server.gyro_bind = None;
-    server.pacing = Pacing::AsFastAsPossible;
+    let server = SimOptions {
+        odometry_bind: None,
+        gyro_bind: None,
+        ..SimOptions::for_tests_from(SourceSpec::PolarScans {
+            dir: dir.clone(),
+            format: None,
+        })
+    };
     let handle = SimServer::spawn(server).await.expect("the simulator");
     let text = format!(
         "[radar]\naddress = \"{}\"\n[odometry]\nsource = \"file\"\npath = \"{}\"\nmotion_model = \"bicycle\"\nwheelbase_m = 2.7\n",
