@@ -130,12 +130,13 @@ fn a_gyro_foresees_a_swerve_that_radar_odometry_alone_lags() {
     let gyro = gyro.expect("gyro figures");
     assert!(gyro.counts.applied > 1000, "{gyro:?}");
     assert_eq!(gyro.counts.refused, 0);
-    // Measured: 0.183 m and 0.0115 rad alone (registered against keyframes), 0.415 m and
-    // 0.0079 rad with the gyro (which uses none). Before the keyframes: 0.504 m and 0.0140
-    // rad alone. The gyro foresees the swerve's turn; the keyframes hold the position over
-    // it on the radar alone.
+    // Measured: 0.157 m and 0.0099 rad alone (registered against keyframes, with the
+    // onset probes), 0.419 m and 0.0078 rad with the gyro (which uses neither). Before the
+    // onset probes: 0.183 m and 0.0115 rad alone; before the keyframes 0.504 m and 0.0140
+    // rad. The gyro foresees the swerve's turn; the probes find most of each onset the
+    // radar alone missed, and the keyframes hold the position over it.
     assert!(
-        heading_gyro < 0.75 * heading_alone && pos_gyro < 0.5 && pos_alone < 0.5,
+        heading_gyro < 0.9 * heading_alone && pos_gyro < 0.5 && pos_alone < 0.5,
         "with the gyro {pos_gyro} m {heading_gyro} rad, without {pos_alone} m {heading_alone} rad"
     );
 }

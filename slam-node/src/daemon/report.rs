@@ -376,6 +376,13 @@ impl fmt::Display for RadarOdometry<'_> {
             "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated; {} retried from other headings (through a turn, or few pairs: {} more registrations; {} of them so few that they were also tried from starts along the track); {} run again on the cloud placed along the motion found (far from the estimate it was placed along)",
             m.tried, m.failed, m.applied, m.gated, m.turned, m.retries, m.along, m.replaced
         )?;
+        if m.onsets > 0 || m.probed > 0 {
+            writeln!(
+                f,
+                "  radar odometry's turn probes: {} registrations taken from headings either side of the held motion (a turn's onset it missed), {} run again along a swept registration's turn",
+                m.onsets, m.probed
+            )?;
+        }
         if m.drives {
             writeln!(
                 f,

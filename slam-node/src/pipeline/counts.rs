@@ -43,6 +43,12 @@ pub struct ScanMatchCounts {
     /// Registrations run again on the cloud placed along the motion the first found (it was
     /// far from the estimate the cloud had been placed along: a turn's onset or end).
     pub replaced: u64,
+    /// Registrations taken from a probe for a turn's onset from headings either side of
+    /// the held motion (`radar_odometry::ONSET_SEED_RAD`; the radar alone, without a gyro).
+    pub onsets: u64,
+    /// Registrations run again along a swept probe's motion, which found a turn the rigid
+    /// registration stopped short of (`radar_odometry::SWEPT_PROBE_RAD`).
+    pub probed: u64,
     /// Whether radar odometry drove the filter's prediction (no wheel odometry).
     pub drives: bool,
     /// Driving: rotations with no beam for the filter, whose end the filter's clock was

@@ -494,6 +494,10 @@ impl PipelineSettings {
             // onset straight: the cloud is placed again along the motion registered and
             // registered once more (slam-node/README.md, "Radar only").
             s.scan_match.replace = true;
+            // The same prediction misses the onset itself: the rotation swept through it
+            // is bent only late and registered near straight; probes from headings either
+            // side and a swept registration find it (slam-node/README.md, "Radar only").
+            s.scan_match.onset_probes = true;
             // The radar alone loses a degree or two of each junction's turn: a submap's scan
             // gathered on through one is bent, and closures aligning it put the frames
             // degrees off; the scan stops at the turn (slam-node/README.md, "Radar only").

@@ -151,6 +151,8 @@ impl RadarOdometryStage {
             retries: m.retries,
             along: m.along,
             replaced: m.replaced,
+            onsets: m.onsets,
+            probed: m.probed,
             ..self.counts
         }
     }
