@@ -562,8 +562,7 @@ impl ScanMatcher {
                     Some((sensor, fractions))
                         if onset_probes && !search && start.theta != end.theta =>
                     {
-                        let placed = place_along(&start, sensor, fractions);
-                        register(reference, &placed, start, gate, min_pairs)
+                        register_along(reference, &start, sensor, fractions, gate, min_pairs)
                     }
                     _ => register(reference, &local, start, gate, min_pairs),
                 },
@@ -589,10 +588,16 @@ impl ScanMatcher {
                             if (swept.pose.theta - r.pose.theta).abs() > SWEPT_PROBE_RAD =>
                         {
                             self.counts.probed += 1;
-                            let placed = place_along(&swept.pose, sensor, fractions);
                             Some(
-                                register(reference, &placed, swept.pose, gate, min_pairs)
-                                    .unwrap_or(r),
+                                register_along(
+                                    reference,
+                                    &swept.pose,
+                                    sensor,
+                                    fractions,
+                                    gate,
+                                    min_pairs,
+                                )
+                                .unwrap_or(r),
                             )
                         }
                         _ => Some(r),
@@ -611,8 +616,10 @@ impl ScanMatcher {
                         && replace_needed(&r.pose, &end) =>
                 {
                     self.counts.replaced += 1;
-                    let again = place_along(&r.pose, sensor, fractions);
-                    Some(register(reference, &again, r.pose, gate, min_pairs).unwrap_or(r))
+                    Some(
+                        register_along(reference, &r.pose, sensor, fractions, gate, min_pairs)
+                            .unwrap_or(r),
+                    )
                 }
                 (reg, _) => reg,
             };
@@ -775,7 +782,7 @@ impl ScanMatcher {
             let probe = [ONSET_SEED_RAD, -ONSET_SEED_RAD]
                 .iter()
                 .filter_map(|d| fit(Pose2::new(end.x, end.y, end.theta + d)))
-                .max_by(|a, b| a.pairs.cmp(&b.pairs).then(b.rms_m.total_cmp(&a.rms_m)));
+                .max_by(better_paired);
             return match probe {
                 Some(p)
                     if p.pairs as f64
@@ -821,7 +828,7 @@ impl ScanMatcher {
             )
             .filter_map(fit)
             .chain(first)
-            .max_by(|a, b| a.pairs.cmp(&b.pairs).then(b.rms_m.total_cmp(&a.rms_m)))
+            .max_by(better_paired)
     }
 
     /// The registration (`fit` from a start) with the most pairs (then the smallest
@@ -847,7 +854,7 @@ impl ScanMatcher {
             .iter()
             .flat_map(|theta| (-n..=n).map(move |k| (k, *theta)))
             .filter_map(|(k, theta)| fit(Pose2::new(end.x + f64::from(k) * step, end.y, theta)))
-            .max_by(|a, b| a.pairs.cmp(&b.pairs).then(b.rms_m.total_cmp(&a.rms_m)))
+            .max_by(better_paired)
     }
 
     fn measured(&self, reg: Registration, searched: bool) -> Option<RotationMotion> {
@@ -882,6 +889,25 @@ impl ScanMatcher {
 /// was placed along to place it again and register once more.
 fn replace_needed(found: &Pose2, placed: &Pose2) -> bool {
     (found.theta - placed.theta).sin().abs() > REPLACE_HEADING_RAD
+}
+
+/// Orders registrations by pairs, then by the smaller residual: the greatest is the one kept
+/// among starts.
+fn better_paired(a: &Registration, b: &Registration) -> std::cmp::Ordering {
+    a.pairs.cmp(&b.pairs).then(b.rms_m.total_cmp(&a.rms_m))
+}
+
+/// The returns `sensor` placed along `motion` ([`place_along`]) and registered from it.
+fn register_along(
+    reference: &ReferenceCloud,
+    motion: &Pose2,
+    sensor: &[[f64; 2]],
+    fractions: &[f64],
+    gate_m: f64,
+    min_pairs: usize,
+) -> Option<Registration> {
+    let placed = place_along(motion, sensor, fractions);
+    register(reference, &placed, *motion, gate_m, min_pairs)
 }
 
 /// The returns `sensor` (each in the sensor's frame when swept, `fractions` of the way
