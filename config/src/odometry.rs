@@ -140,6 +140,15 @@ pub struct RawOdometry {
     /// prediction that repeats the last rotation's motion. Default false. See slam-node's
     /// README, "Radar only".
     pub radar_odometry_compose: bool,
+    /// With odometry of its own: each rotation's returns are placed for the registration
+    /// with the turn the previous rotation's were placed with (held over this rotation's
+    /// span), not the odometry's, while the odometry turns within 0.01 rad of it; the
+    /// odometry's translation, and its start, are kept. A registration follows about half
+    /// of the heading error of the motion its cloud is placed along, and two rotations
+    /// placed alike cancel it on a steady road. Default true; the radar alone places along
+    /// the held motion anyway. See slam-node's README, "Radar odometry placed with its
+    /// reference's turn".
+    pub radar_odometry_place_held: bool,
     /// Earlier rotations' clouds each rotation is registered against besides the previous
     /// one's, kept where the registrations placed them (0 to 8). Unset: 3 when radar
     /// odometry alone drives the prediction (`source = "none"`, no gyro), where its errors
@@ -182,6 +191,7 @@ impl Default for RawOdometry {
             radar_odometry_sigma_m: 0.05,
             radar_odometry_sigma_rad: 0.003,
             radar_odometry_compose: false,
+            radar_odometry_place_held: true,
             radar_odometry_keyframes: None,
             radar_odometry_keyframe_spacing_m: 0.0,
         }
@@ -266,6 +276,9 @@ pub struct OdometrySettings {
     pub radar_odometry_sigma_rad: PositiveF64,
     /// Radar only: registrations composed onto the pose, not fused as updates.
     pub radar_odometry_compose: bool,
+    /// With odometry of its own, each rotation placed with the turn its reference was
+    /// placed with.
+    pub radar_odometry_place_held: bool,
     /// Earlier rotations' clouds registered against besides the previous one's (`None`:
     /// chosen by what drives the prediction).
     pub radar_odometry_keyframes: Option<u64>,
@@ -449,6 +462,7 @@ impl RawOdometry {
                 PositiveF64::new(self.radar_odometry_sigma_rad),
             ),
             radar_odometry_compose: self.radar_odometry_compose,
+            radar_odometry_place_held: self.radar_odometry_place_held,
             radar_odometry_keyframes: self.radar_odometry_keyframes.map(|k| {
                 c.check(
                     "odometry.radar_odometry_keyframes",
@@ -509,6 +523,7 @@ impl From<&OdometrySettings> for RawOdometry {
             radar_odometry_sigma_m: s.radar_odometry_sigma_m.get(),
             radar_odometry_sigma_rad: s.radar_odometry_sigma_rad.get(),
             radar_odometry_compose: s.radar_odometry_compose,
+            radar_odometry_place_held: s.radar_odometry_place_held,
             radar_odometry_keyframes: s.radar_odometry_keyframes.map(values::as_i64),
             radar_odometry_keyframe_spacing_m: s.radar_odometry_keyframe_spacing_m.get(),
         }

@@ -16,7 +16,7 @@ use radar_model::geometry::Pose2;
 
 use crate::cloud::ReferenceCloud;
 use crate::register::{
-    along, covariance, in_frame_of, register, register_swept, Constraint, Registration,
+    along, covariance, exp, in_frame_of, log, register, register_swept, Constraint, Registration,
 };
 
 /// Points a rotation's cloud holds at most, whatever the radar's geometry.
@@ -85,6 +85,19 @@ pub const ONSET_PAIRS_SIGMAS: f64 = 1.0;
 /// Only a probe: swept alone, only the late returns pin the motion, and the drives drifted
 /// more (slam-node/README.md, "Radar only").
 pub const SWEPT_PROBE_RAD: f64 = 0.006;
+/// With [`ScanMatchSettings::place_held`], the turn the reference was placed with is held
+/// over this rotation only when the two rotations' spans differ by at most this factor
+/// either way; otherwise the cloud is placed along the caller's estimate. The filter's
+/// clock ends a rotation at its last beam, so spans scatter (a quarter second, 45 ms RMS on
+/// the realistic city, a few milliseconds at worst when two rotation ends fall together).
+pub const HELD_SPAN_RATIO: f64 = 2.0;
+/// With [`ScanMatchSettings::place_held`], the turn is held only while the caller's
+/// estimate turns within this (rad) of it: on a steady road the estimate's noise (3.9 mrad
+/// RMS a rotation with the realistic city's wheel odometry); beyond, the estimate foresees
+/// a turn's onset or end that the held turn would miss (held through the city's junctions
+/// too, the registrations of a turn's first and last rotations erred 20-23 mrad RMS
+/// against 4 placed along the wheel odometry).
+pub const HELD_TURN_MAX_RAD: f64 = 0.01;
 /// Pairs a registration needs at least, however few points a rotation has.
 pub const MIN_PAIRS_FLOOR: usize = 12;
 /// A weak registration's standard deviation along its weak direction (m): no information.
@@ -184,6 +197,22 @@ pub struct ScanMatchSettings {
     /// from the result probes for a turn the rigid one stopped short of
     /// ([`SWEPT_PROBE_RAD`]). Three more registrations a rotation. Off by default.
     pub onset_probes: bool,
+    /// Whether the cloud is placed with the turn its reference was placed with (the
+    /// previous rotation's, as the caller settled it, held over this rotation's span)
+    /// instead of the caller's estimate's, while the two are within [`HELD_TURN_MAX_RAD`];
+    /// the estimate's translation is kept, and it is still where the registration starts.
+    /// A registration of a cloud placed along a motion errs by about half of that
+    /// motion's heading error (the early returns were seen from near the mark, whatever
+    /// the motion), and a reference placed along a motion turns it by about half of the
+    /// reference's, the other way: placed alike, the two cancel on a steady road. For a
+    /// caller whose estimate is noisy within a rotation: with the realistic city's wheel
+    /// odometry (steering noise 0.01 rad at 20 Hz) the estimate's heading over a rotation
+    /// erred 3.9 mrad RMS on straight road, and the registrations' followed it by 0.50 of
+    /// it (3.2 mrad RMS); placed with the held turn, by 0.18 (1.6 mrad RMS, as on the
+    /// radar alone, whose estimate is the held motion already). Off by default; slam-node
+    /// turns it on when odometry of its own drives the filter (`[odometry]
+    /// radar_odometry_place_held`).
+    pub place_held: bool,
     /// Earlier rotations' clouds registered against besides the previous rotation's (0:
     /// the previous rotation's alone). Each is kept where the caller settled the motion
     /// since, so a rotation registered against them measures its pose against clouds
@@ -217,6 +246,7 @@ impl Default for ScanMatchSettings {
             deskew: false,
             replace: false,
             onset_probes: false,
+            place_held: false,
             turn_known: false,
             slow_heading_floor: false,
             keyframes: 0,
@@ -300,6 +330,9 @@ pub struct MatcherCounts {
     pub onsets: u64,
     /// Registrations run again along a swept probe's motion ([`SWEPT_PROBE_RAD`]).
     pub probed: u64,
+    /// Rotations placed with the turn their reference was placed with
+    /// ([`ScanMatchSettings::place_held`]).
+    pub held: u64,
 }
 
 /// A rotation's returns in the sensor's frame when each was swept, and how far through the
@@ -344,6 +377,8 @@ pub struct ScanMatcher {
     /// The motion the previous rotation's returns are placed along (the frame at its end in
     /// the frame at the mark before it).
     previous_motion: Option<Pose2>,
+    /// The previous rotation's span (s): its mark to its end, on the caller's clock.
+    previous_span_s: Option<f64>,
     /// Whether they were placed along a motion (registered, or the caller's estimate), not
     /// swept from where the caller had none.
     reference_placed: bool,
@@ -512,6 +547,30 @@ impl ScanMatcher {
             let fractions: Vec<f64> = seen.iter().map(|p| (p.time_s - since_s) / span).collect();
             (sensor, fractions)
         });
+        // Placed as the reference was: the turn it was placed with, held over this
+        // rotation's span, while the estimate's is near it.
+        let span_s = until_s - since_s;
+        if let (true, false, Some(motion), Some(previous_s), Some((sensor, fractions))) = (
+            self.settings.place_held,
+            search,
+            self.previous_motion,
+            self.previous_span_s,
+            as_seen.as_ref(),
+        ) {
+            let ratio = span_s / previous_s;
+            if (1.0 / HELD_SPAN_RATIO..=HELD_SPAN_RATIO).contains(&ratio) {
+                // The turn held, the translation the caller's (a speed change between
+                // rotations is measured by the odometry; held, it shifted the Oxford scans'
+                // registrations 4 cm a rotation along the track).
+                let turn = log(&along(&motion, ratio))[2];
+                let moved = log(&end);
+                if (moved[2] - turn).abs() <= HELD_TURN_MAX_RAD {
+                    local = place_along(&exp([moved[0], moved[1], turn]), sensor, fractions);
+                    self.counts.held += 1;
+                }
+            }
+        }
+        self.previous_span_s = (span_s > 0.0).then_some(span_s);
         let mut out = None;
         // The keyframes in the previous rotation's frame, along the motion registered
         // (none without one, or when searching: a search registers the previous cloud as
@@ -1234,6 +1293,60 @@ mod tests {
             swept < 0.008,
             "swept, the heading reaches the turn: {swept} rad (as placed {bent})"
         );
+    }
+
+    /// A straight drive down the town; on the fourth rotation the caller places its
+    /// returns either straight or along a motion turning 0.02 rad over the rotation (its
+    /// estimate's noise within the rotation, as a steering sensor's), and starts the
+    /// registration from the straight motion either way. Registered as the caller placed
+    /// them, the heading found moves with the placement; placed with the turn the reference
+    /// was placed with ([`ScanMatchSettings::place_held`]), the registration is the same,
+    /// to the bit, wherever the caller placed them. An estimate that itself turns beyond
+    /// [`HELD_TURN_MAX_RAD`] from the held turn is not held.
+    #[test]
+    fn a_cloud_placed_as_its_reference_was_does_not_depend_on_the_caller_s_placement() {
+        let world = town();
+        let straight = Pose2::new(2.5, 0.0, 0.0);
+        let bent = crate::register::exp([2.5, 0.0, 0.02]);
+        let run_from = |place_held: bool, placed_along: &Pose2, estimate: &Pose2| {
+            let mut m = ScanMatcher::new(ScanMatchSettings {
+                place_held,
+                ..dense()
+            });
+            let mut start = Pose2::new(-10.0, 0.0, 0.0);
+            for k in 0..3 {
+                sweep_rotation(&mut m, &world, &mut start, &straight, &straight, k);
+            }
+            let before = m.counts().held;
+            let t0 = 0.75;
+            feed_swept(&mut m, &world, &start, &straight, placed_along, t0);
+            let end = RotationEnd {
+                pose: *estimate,
+                since_s: t0,
+                until_s: t0 + 0.25,
+            };
+            let got = m.end_rotation(Some(end), false).expect("registers");
+            (got.motion, m.counts().held - before)
+        };
+        let run =
+            |place_held: bool, placed_along: &Pose2| run_from(place_held, placed_along, &straight);
+        let (as_placed_straight, none) = run(false, &straight);
+        let (as_placed_bent, _) = run(false, &bent);
+        let (held_straight, placed) = run(true, &straight);
+        let (held_bent, _) = run(true, &bent);
+        let moved = (as_placed_bent.theta - as_placed_straight.theta).abs();
+        assert!(
+            moved > 0.002 && none == 0,
+            "as the caller placed them, the heading moves with the placement: {moved} rad"
+        );
+        assert!(
+            held_straight == held_bent && placed == 1,
+            "placed as the reference was, the registration is the same: {held_straight:?} against {held_bent:?} ({placed} placed held)"
+        );
+        // An estimate turning beyond `HELD_TURN_MAX_RAD` of the held turn (a turn's onset
+        // the odometry foresaw) places the cloud along itself.
+        let (_, foreseen) = run_from(true, &bent, &bent);
+        assert_eq!(foreseen, 0, "a turn the estimate foresees is not held");
     }
 
     /// A turn's onset halfway through a rotation, which the caller's estimate (straight on)

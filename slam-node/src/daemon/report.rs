@@ -383,6 +383,13 @@ impl fmt::Display for RadarOdometry<'_> {
                 m.onsets, m.probed
             )?;
         }
+        if m.held > 0 {
+            writeln!(
+                f,
+                "  radar odometry placed {} rotations with the turn their reference was placed with (held), not the odometry's (the two within 0.01 rad)",
+                m.held
+            )?;
+        }
         if m.drives {
             writeln!(
                 f,

@@ -49,6 +49,10 @@ pub struct ScanMatchCounts {
     /// Registrations run again along a swept probe's motion, which found a turn the rigid
     /// registration stopped short of (`radar_odometry::SWEPT_PROBE_RAD`).
     pub probed: u64,
+    /// Rotations placed with the turn their reference was placed with, not the filter's
+    /// prediction's (`radar_odometry::ScanMatchSettings::place_held`: with odometry of its
+    /// own, whose noise within a rotation would bend the cloud).
+    pub held: u64,
     /// Whether radar odometry drove the filter's prediction (no wheel odometry).
     pub drives: bool,
     /// Driving: rotations with no beam for the filter, whose end the filter's clock was

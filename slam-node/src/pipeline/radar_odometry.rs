@@ -153,6 +153,7 @@ impl RadarOdometryStage {
             replaced: m.replaced,
             onsets: m.onsets,
             probed: m.probed,
+            held: m.held,
             ..self.counts
         }
     }
