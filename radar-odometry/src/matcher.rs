@@ -530,7 +530,6 @@ impl ScanMatcher {
             self.keyframe_motion = None;
             return None;
         };
-        let mut local = in_frame_of(&end, &points);
         // Whether `local` is placed along a motion: the caller's estimate, or below the
         // motion registered.
         let mut placed = !search;
@@ -547,29 +546,17 @@ impl ScanMatcher {
             let fractions: Vec<f64> = seen.iter().map(|p| (p.time_s - since_s) / span).collect();
             (sensor, fractions)
         });
-        // Placed as the reference was: the turn it was placed with, held over this
-        // rotation's span, while the estimate's is near it.
         let span_s = until_s - since_s;
-        if let (true, false, Some(motion), Some(previous_s), Some((sensor, fractions))) = (
-            self.settings.place_held,
-            search,
-            self.previous_motion,
-            self.previous_span_s,
-            as_seen.as_ref(),
-        ) {
-            let ratio = span_s / previous_s;
-            if (1.0 / HELD_SPAN_RATIO..=HELD_SPAN_RATIO).contains(&ratio) {
-                // The turn held, the translation the caller's (a speed change between
-                // rotations is measured by the odometry; held, it shifted the Oxford scans'
-                // registrations 4 cm a rotation along the track).
-                let turn = log(&along(&motion, ratio))[2];
-                let moved = log(&end);
-                if (moved[2] - turn).abs() <= HELD_TURN_MAX_RAD {
-                    local = place_along(&exp([moved[0], moved[1], turn]), sensor, fractions);
-                    self.counts.held += 1;
-                }
+        let held = (!search)
+            .then(|| self.held_placement(&end, span_s))
+            .flatten();
+        let mut local = match (held, as_seen.as_ref()) {
+            (Some(motion), Some((sensor, fractions))) => {
+                self.counts.held += 1;
+                place_along(&motion, sensor, fractions)
             }
-        }
+            _ => in_frame_of(&end, &points),
+        };
         self.previous_span_s = (span_s > 0.0).then_some(span_s);
         let mut out = None;
         // The keyframes in the previous rotation's frame, along the motion registered
@@ -768,6 +755,31 @@ impl ScanMatcher {
         self.previous = Some(place_along(&motion, sensor, fractions));
         self.previous_motion = Some(motion);
         self.reference_placed = true;
+    }
+
+    /// With [`ScanMatchSettings::place_held`], the motion this rotation's returns are placed
+    /// along instead of the caller's estimate `end` (over `span_s`): the estimate's
+    /// translation with the turn the reference was placed with, held over this span, when
+    /// the spans are alike ([`HELD_SPAN_RATIO`]) and the estimate's turn is within
+    /// [`HELD_TURN_MAX_RAD`] of it (a turn's onset or end the estimate foresaw is kept). The
+    /// translation is the estimate's: a speed held from the last rotation is wrong where the
+    /// vehicle accelerates (it shifted the Oxford scans' registrations 4 cm a rotation
+    /// along the track).
+    fn held_placement(&self, end: &Pose2, span_s: f64) -> Option<Pose2> {
+        let (true, Some(motion), Some(previous_s)) = (
+            self.settings.place_held,
+            self.previous_motion,
+            self.previous_span_s,
+        ) else {
+            return None;
+        };
+        let ratio = span_s / previous_s;
+        if !(1.0 / HELD_SPAN_RATIO..=HELD_SPAN_RATIO).contains(&ratio) {
+            return None;
+        }
+        let turn = ratio * log(&motion)[2];
+        let moved = log(end);
+        ((moved[2] - turn).abs() <= HELD_TURN_MAX_RAD).then(|| exp([moved[0], moved[1], turn]))
     }
 
     /// The keyframes the next rotation registers against (in the previous rotation's

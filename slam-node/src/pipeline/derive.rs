@@ -509,8 +509,6 @@ impl PipelineSettings {
             // The prediction is the held motion already (or a gyro's turn): the
             // registration places the cloud along it.
             s.scan_match.place_held = false;
-        }
-        if s.radar_drives {
             // What drives the filter is the radar's motion, whatever model a source's own
             // odometry meant.
             s.motion = super::settings::motion_model(&effective);
