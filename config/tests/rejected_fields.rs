@@ -252,6 +252,7 @@ const ALWAYS_VALID_WHEN_PARSED: &[&str] = &[
     "odometry.radar_odometry",
     "odometry.radar_odometry_compose",
     "odometry.radar_odometry_place_held",
+    "odometry.radar_odometry_probe_start",
     "odometry.speed_scale_from_landmarks",
     "odometry.steer_bias_from_landmarks",
     "detector.points_only",

@@ -145,6 +145,32 @@ fn registrations_alone_learn_a_speed_scale_and_a_steering_offset() {
     assert!(with < 0.2 * without, "with registrations {with} m");
 }
 
+/// A steering offset learned from registrations, then forgotten (the caller found them
+/// not independent of the prediction): its variance is its prior's again, its mean and the
+/// rest of the state as they were, the covariance healthy; forgetting again changes
+/// nothing, and a filter that does not estimate the offset is untouched.
+#[test]
+fn a_forgotten_steering_offset_has_its_prior_variance_and_keeps_its_mean() {
+    let (_, mut f) = drive(learning(), true);
+    let ([k, b], [sk, sb]) = f.odometry_bias().expect("estimated");
+    assert!(sb < 0.002, "learned: {b} +- {sb}");
+    let pose = f.pose();
+    f.forget_steer_bias();
+    let ([k2, b2], [sk2, sb2]) = f.odometry_bias().expect("estimated");
+    assert_eq!((k2, b2, sk2), (k, b, sk));
+    assert!((sb2 - learning().steer_bias_std_rad).abs() < 1e-12, "{sb2}");
+    assert_eq!(f.pose(), pose);
+    assert_healthy(&f);
+    let before = f.state().covariance().into_owned();
+    f.forget_steer_bias();
+    assert_eq!(f.state().covariance().into_owned(), before);
+
+    let mut plain = filter(FilterSettings::default());
+    let before = plain.state().covariance().into_owned();
+    plain.forget_steer_bias();
+    assert_eq!(plain.state().covariance().into_owned(), before);
+}
+
 #[test]
 fn without_a_mark_a_measurement_changes_nothing() {
     let mut f = filter(FilterSettings::default());

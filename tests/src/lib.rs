@@ -220,3 +220,23 @@ pub async fn shipped_config_on_scene(
     });
     run_daemon(opts, None).await.expect("the run")
 }
+
+/// Lamp posts along both sides of a straight road, 6-10 m out, every 10 m; 10 m/s; the
+/// CTS350-X-like unit, realistic rendering.
+pub fn lamp_post_road() -> String {
+    let mut text = String::from(
+        "name = \"posts\"\nseed = 3\nloss_db = 0.0\n[radar]\npreset = \"cts350x-400\"\n\
+         [realism]\n[motion]\nmodel = \"bicycle\"\nwheelbase_m = 2.7\n\
+         [start]\nx_m = 0.0\ny_m = 0.0\ntheta_deg = 0.0\n\
+         [[control]]\nt_s = 0.0\nspeed_mps = 10.0\nsteer_rad = 0.0\n",
+    );
+    for i in 0..40 {
+        let x = -50.0 + 10.0 * f64::from(i);
+        for y in [7.0 + f64::from(i % 3), -6.5 - f64::from(i % 4)] {
+            text.push_str(&format!(
+                "[[features]]\nkind = \"lamp-post\"\nx_m = {x}\ny_m = {y}\n"
+            ));
+        }
+    }
+    text
+}

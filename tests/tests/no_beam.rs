@@ -4,33 +4,13 @@
 //! straight road lined only with lamp posts: 18 beams in 561 rotations, 14 poses in 140 s).
 //! Such a rotation's end is now reached with the odometry received.
 
-use e2e_tests::shipped_config_on_scene;
-
-/// Lamp posts along both sides of a straight road, 6-10 m out, every 10 m; 10 m/s; the
-/// CTS350-X-like unit, realistic rendering.
-fn posts_scene() -> String {
-    let mut text = String::from(
-        "name = \"posts\"\nseed = 3\nloss_db = 0.0\n[radar]\npreset = \"cts350x-400\"\n\
-         [realism]\n[motion]\nmodel = \"bicycle\"\nwheelbase_m = 2.7\n\
-         [start]\nx_m = 0.0\ny_m = 0.0\ntheta_deg = 0.0\n\
-         [[control]]\nt_s = 0.0\nspeed_mps = 10.0\nsteer_rad = 0.0\n",
-    );
-    for i in 0..40 {
-        let x = -50.0 + 10.0 * f64::from(i);
-        for y in [7.0 + f64::from(i % 3), -6.5 - f64::from(i % 4)] {
-            text.push_str(&format!(
-                "[[features]]\nkind = \"lamp-post\"\nx_m = {x}\ny_m = {y}\n"
-            ));
-        }
-    }
-    text
-}
+use e2e_tests::{lamp_post_road, shipped_config_on_scene};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn rotations_with_no_beam_still_move_the_pose_on_wheel_odometry() {
     let work = tempfile::tempdir().expect("a folder");
     let scene_path = work.path().join("posts.toml");
-    std::fs::write(&scene_path, posts_scene()).expect("the scene written");
+    std::fs::write(&scene_path, lamp_post_road()).expect("the scene written");
     let scene = sim_sensor::scene::Scene::load(&scene_path).expect("the posts");
     // The realistic city's wheel-odometry configuration, its scene given directly.
     let report = shipped_config_on_scene("realistic-city.toml", scene, 10.0, work.path()).await;

@@ -100,6 +100,20 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         self.state.inflate_pose_covariance(variances);
     }
 
+    /// Raises the steering offset's variance back to its prior's
+    /// ([`crate::FilterSettings::steer_bias_std_rad`]) where it is below: for a caller that
+    /// has found the measurements it learned the offset from were not independent of the
+    /// prediction (registrations that stayed at the heading they started from), so what they
+    /// taught is not known. The mean and the correlations are kept; the variance is added
+    /// to, so the covariance stays positive definite. Nothing without an estimated offset.
+    pub fn forget_steer_bias(&mut self) {
+        let prior = self.settings.steer_bias_std_rad.powi(2);
+        let now = self.state.odometry_bias_covariance()[(1, 1)];
+        if self.state.estimates_odometry_bias() && prior > now {
+            self.state.walk_odometry_bias([0.0, prior - now]);
+        }
+    }
+
     /// Sets the pose to the pose at the last mark composed with `measured` (the pose at
     /// the state's time in the mark's frame, with covariance `cov`), as odometry drives a
     /// pose: for when the measurement *is* the odometry (radar odometry on the radar alone),

@@ -390,6 +390,15 @@ impl fmt::Display for RadarOdometry<'_> {
                 m.held
             )?;
         }
+        if m.start_probed > 0 {
+            writeln!(
+                f,
+                "  radar odometry's start probes: {} registrations run again from headings 5 mrad either side; they followed {:.2} of their start's heading on the mean; {} where the scene did not pin the heading (the last ten or so followed more than 0.6 of it on the average, from the start until under 0.35: their heading and the motion across the track not used; found so within the first 20, the steering offset's variance put back to its prior)",
+                m.start_probed,
+                m.start_follow_permille as f64 / 1000.0 / m.start_probed as f64,
+                m.start_unpinned
+            )?;
+        }
         if m.drives {
             writeln!(
                 f,

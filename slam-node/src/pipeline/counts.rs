@@ -53,6 +53,16 @@ pub struct ScanMatchCounts {
     /// prediction's (`radar_odometry::ScanMatchSettings::place_held`: with odometry of its
     /// own, whose noise within a rotation would bend the cloud).
     pub held: u64,
+    /// Registrations run again from headings either side of their result
+    /// (`radar_odometry::ScanMatchSettings::start_probe`: with odometry of its own).
+    pub start_probed: u64,
+    /// The share of their start's heading the probed registrations followed, summed in
+    /// thousandths.
+    pub start_follow_permille: u64,
+    /// Of those, the ones that said nothing of the heading nor across the track: recent
+    /// registrations had followed more than `radar_odometry::START_FOLLOW_UNPINNED` of their
+    /// start's heading on the average (the scene does not pin the heading).
+    pub start_unpinned: u64,
     /// Whether radar odometry drove the filter's prediction (no wheel odometry).
     pub drives: bool,
     /// Driving: rotations with no beam for the filter, whose end the filter's clock was

@@ -509,6 +509,9 @@ impl PipelineSettings {
             // The prediction is the held motion already (or a gyro's turn): the
             // registration places the cloud along it.
             s.scan_match.place_held = false;
+            // Its start is the held motion, not a sensor's: the radar's own turn is the
+            // only one there is (and its probes re-place the cloud along each start).
+            s.scan_match.start_probe = false;
             // What drives the filter is the radar's motion, whatever model a source's own
             // odometry meant.
             s.motion = super::settings::motion_model(&effective);

@@ -154,6 +154,9 @@ impl RadarOdometryStage {
             onsets: m.onsets,
             probed: m.probed,
             held: m.held,
+            start_probed: m.start_probed,
+            start_follow_permille: m.start_follow_permille,
+            start_unpinned: m.start_unpinned,
             ..self.counts
         }
     }
@@ -215,6 +218,13 @@ impl RadarOdometryStage {
         if let (Some(m), Some(tally)) = (measured.as_ref(), tally) {
             self.score(m, &tally, ekf.state().time_s(), truth);
             self.warn_if_weak(m, ekf.state().time_s());
+            self.warn_if_start_followed(m, ekf.state().time_s());
+            if m.unpinned_from_start {
+                // What the registrations before it taught the steering offset came from
+                // the same scene, from the few that pinned by chance: its variance goes
+                // back to its prior.
+                ekf.forget_steer_bias();
+            }
             // Driving, the registration is the odometry: it is not gated against a
             // prediction that only repeats the last rotation's motion (a turn's onset would
             // be refused, and then every registration after it).
@@ -413,6 +423,24 @@ impl RadarOdometryStage {
         );
     }
 
+    /// A WARN (on the first, then rarer) when registrations have followed their start's
+    /// heading so far on the recent average that this one's heading says nothing: the scene
+    /// does not pin the heading (posts and poles smeared across the beam, few surfaces).
+    fn warn_if_start_followed(&self, m: &RotationMotion, time_s: f64) {
+        if !m.heading_unpinned {
+            return;
+        }
+        let unpinned = self.matcher.counts().start_unpinned;
+        if worth_logging(unpinned) {
+            warn!(
+                time_s,
+                share_followed = m.start_follow,
+                unpinned,
+                "radar odometry's registrations stay at the heading they start from (the scene does not pin the heading: returns smeared across the beam, few surfaces): they are not used for the heading, and the odometry alone turns the pose"
+            );
+        }
+    }
+
     fn warn_if_weak(&self, m: &RotationMotion, time_s: f64) {
         if !m.weak {
             return;
@@ -562,6 +590,9 @@ mod tests {
             },
             weak,
             searched: false,
+            start_follow: None,
+            heading_unpinned: false,
+            unpinned_from_start: false,
         }
     }
 

@@ -371,6 +371,7 @@ impl PipelineSettings {
                     .map_or(0, |k| usize::try_from(k).unwrap_or(0)),
                 keyframe_spacing_m: c.odometry.radar_odometry_keyframe_spacing_m.get(),
                 place_held: c.odometry.radar_odometry_place_held,
+                start_probe: c.odometry.radar_odometry_probe_start,
                 ..ScanMatchSettings::default()
             },
             radar_drives: false,
