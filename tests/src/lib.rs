@@ -221,6 +221,16 @@ pub async fn shipped_config_on_scene(
     run_daemon(opts, None).await.expect("the run")
 }
 
+/// `seconds` of [`lamp_post_road`] through the realistic city's wheel-odometry
+/// configuration (`config/examples/realistic-city.toml`, its scene given directly), the
+/// scene and the outputs in `out`.
+pub async fn on_the_lamp_post_road(seconds: f64, out: &Path) -> DaemonReport {
+    let scene_path = out.join("posts.toml");
+    std::fs::write(&scene_path, lamp_post_road()).expect("the scene written");
+    let scene = sim_sensor::scene::Scene::load(&scene_path).expect("the posts");
+    shipped_config_on_scene("realistic-city.toml", scene, seconds, out).await
+}
+
 /// Lamp posts along both sides of a straight road, 6-10 m out, every 10 m; 10 m/s; the
 /// CTS350-X-like unit, realistic rendering.
 pub fn lamp_post_road() -> String {

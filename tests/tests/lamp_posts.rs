@@ -8,15 +8,12 @@
 //! start probes (`[odometry] radar_odometry_probe_start`) find that they follow their
 //! start, and they are no longer used for the heading or across the track.
 
-use e2e_tests::{lamp_post_road, shipped_config_on_scene};
+use e2e_tests::on_the_lamp_post_road;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_road_of_lamp_posts_does_not_make_the_pose_confidently_wrong() {
     let work = tempfile::tempdir().expect("a folder");
-    let scene_path = work.path().join("posts.toml");
-    std::fs::write(&scene_path, lamp_post_road()).expect("the scene written");
-    let scene = sim_sensor::scene::Scene::load(&scene_path).expect("the posts");
-    let report = shipped_config_on_scene("realistic-city.toml", scene, 20.0, work.path()).await;
+    let report = on_the_lamp_post_road(20.0, work.path()).await;
     let s = &report.run.summary;
     let m = s.scan_match.as_ref().expect("radar odometry ran");
     assert!(

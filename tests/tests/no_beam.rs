@@ -4,16 +4,12 @@
 //! straight road lined only with lamp posts: 18 beams in 561 rotations, 14 poses in 140 s).
 //! Such a rotation's end is now reached with the odometry received.
 
-use e2e_tests::{lamp_post_road, shipped_config_on_scene};
+use e2e_tests::on_the_lamp_post_road;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn rotations_with_no_beam_still_move_the_pose_on_wheel_odometry() {
     let work = tempfile::tempdir().expect("a folder");
-    let scene_path = work.path().join("posts.toml");
-    std::fs::write(&scene_path, lamp_post_road()).expect("the scene written");
-    let scene = sim_sensor::scene::Scene::load(&scene_path).expect("the posts");
-    // The realistic city's wheel-odometry configuration, its scene given directly.
-    let report = shipped_config_on_scene("realistic-city.toml", scene, 10.0, work.path()).await;
+    let report = on_the_lamp_post_road(10.0, work.path()).await;
     let s = &report.run.summary;
     assert!(
         s.beams < s.rotations / 2,
