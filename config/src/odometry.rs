@@ -157,7 +157,7 @@ pub struct RawOdometry {
     /// until they follow under 0.35, their heading and the motion across the track are not
     /// used (found so within the first 20 registrations, the steering offset learned from
     /// the ones before is forgotten); a WARN and the summary say so. Default false: on the
-    /// Oxford scans the share a registration follows measured 0.15-0.96 a rotation (0.55 on
+    /// Oxford scans the share a registration follows measured 0.10-0.96 a rotation (0.55 on
     /// the mean, against 0.18 on the realistic city and 0.73 on a road of lamp posts), and
     /// with the evaluation's biased odometry their registrations were taken as unpinned
     /// from the first (final error 0.086 -> 0.514 m). The realistic city's examples turn it

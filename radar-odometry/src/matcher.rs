@@ -110,7 +110,7 @@ pub const START_FOLLOW_WEIGHT: f64 = 0.1;
 /// 200 s drive, its median 0.15, and over ten drives of 470 s it passed 0.6 once on three
 /// of them (0.61-0.67 at the peak); on a straight road lined only with lamp posts it was
 /// above 0.6 in 97 % of the rotations, its median 0.73. On the eight Oxford scans a
-/// rotation's share was 0.15-0.96, 0.55 on the mean: too close to tell (see
+/// rotation's share was 0.10-0.96, 0.55 on the mean: too close to tell (see
 /// `[odometry] radar_odometry_probe_start`, off by default).
 pub const START_FOLLOW_UNPINNED: f64 = 0.6;
 /// Once above [`START_FOLLOW_UNPINNED`], the recent average must fall below this for the
