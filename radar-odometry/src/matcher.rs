@@ -459,11 +459,10 @@ pub struct ScanMatcher {
     paired_share: Option<f64>,
     /// The heading change the last registration measured (rad; 0 after a failed one).
     last_turn_rad: f64,
-    /// The recent average of the share of their start's heading registrations followed
+    /// The last probed registration's recent average of the share of their start's heading
+    /// registrations followed, and whether it was taken as unpinned
     /// ([`ScanMatchSettings::start_probe`]).
-    start_follow: Option<f64>,
-    /// Whether the last probed registration was taken as unpinned.
-    unpinned: bool,
+    start_follow: Option<StartFollow>,
     /// Earlier rotations' clouds ([`ScanMatchSettings::keyframes`]), oldest first, in the
     /// frame `previous_motion` starts from (the previous rotation's mark): the motion the
     /// caller settles on places them in the previous rotation's frame at the next
@@ -1062,29 +1061,27 @@ impl ScanMatcher {
         // came from other scenes: forgotten at each of the realistic city's brief episodes
         // (one a drive on three drives of ten, the average just over 0.6), the offset
         // relearned cost the check layout's seed 3 1.07 % against 0.77.
-        let share = match self.start_follow {
-            Some(a) => a + START_FOLLOW_WEIGHT * (k - a),
-            None => k,
-        };
-        self.start_follow = Some(share);
+        let last = self.start_follow;
+        let share = last.map_or(k, |a| a.share + START_FOLLOW_WEIGHT * (k - a.share));
         // Once unpinned, until the average falls well below: a rotation's share is noisy
         // (on the lamp-post road a tenth of them measured under 0.2), and the average
         // dipping under the threshold for a few rotations let them teach the steering
         // offset again.
-        let unpinned =
-            share > START_FOLLOW_UNPINNED || (self.unpinned && share > START_FOLLOW_PINNED);
+        let unpinned = share > START_FOLLOW_UNPINNED
+            || (last.is_some_and(|a| a.unpinned) && share > START_FOLLOW_PINNED);
         let from_start = unpinned
             && self.counts.start_unpinned == 0
             && self.counts.start_probed < START_FOLLOW_EARLY;
-        self.unpinned = unpinned;
         self.counts.start_probed += 1;
         self.counts.start_follow_permille += (k * 1000.0).round() as u64;
         self.counts.start_unpinned += u64::from(unpinned);
-        StartFollow {
+        let follow = StartFollow {
             share,
             unpinned,
             from_start,
-        }
+        };
+        self.start_follow = Some(follow);
+        follow
     }
 }
 

@@ -386,17 +386,23 @@ impl fmt::Display for RadarOdometry<'_> {
         if m.held > 0 {
             writeln!(
                 f,
-                "  radar odometry placed {} rotations with the turn their reference was placed with (held), not the odometry's (the two within 0.01 rad)",
-                m.held
+                "  radar odometry placed {} rotations with the turn their reference was placed with (held), not the odometry's (the two within {} rad)",
+                m.held,
+                radar_odometry::matcher::HELD_TURN_MAX_RAD
             )?;
         }
         if m.start_probed > 0 {
+            // The thresholds from the library, so the line says what the code does.
             writeln!(
                 f,
-                "  radar odometry's start probes: {} registrations run again from headings 5 mrad either side; they followed {:.2} of their start's heading on the mean; {} where the scene did not pin the heading (the last ten or so followed more than 0.6 of it on the average, from the start until under 0.35: their heading and the motion across the track not used; found so within the first 20, the steering offset's variance put back to its prior)",
+                "  radar odometry's start probes: {} registrations run again from headings {} mrad either side; they followed {:.2} of their start's heading on the mean; {} where the scene did not pin the heading (once the last ten or so followed more than {} of it on the average, until under {}: their heading and the motion across the track not used; found so within the first {}, the steering offset's variance put back to its prior)",
                 m.start_probed,
+                1000.0 * radar_odometry::matcher::START_PROBE_RAD,
                 m.start_follow_permille as f64 / 1000.0 / m.start_probed as f64,
-                m.start_unpinned
+                m.start_unpinned,
+                radar_odometry::matcher::START_FOLLOW_UNPINNED,
+                radar_odometry::matcher::START_FOLLOW_PINNED,
+                radar_odometry::matcher::START_FOLLOW_EARLY
             )?;
         }
         if m.drives {
