@@ -149,13 +149,14 @@ pub struct RawOdometry {
     /// the held motion anyway. See slam-node's README, "Radar odometry placed with its
     /// reference's turn".
     pub radar_odometry_place_held: bool,
-    /// With odometry of its own: each registration is run again from headings 5 mrad
-    /// either side of its result, to measure the share of its start's heading it follows.
+    /// With odometry of its own: registrations are run again from headings 5 mrad either
+    /// side of their result, to measure the share of its start's heading each follows (the
+    /// first ten, then every fourth while recent ones follow under 0.3 of it).
     /// Where the scene does not pin the heading (posts and poles smeared across the beam) a
     /// registration stays where it starts and would return the odometry's own heading as
     /// if measured: once the recent ones follow more than 0.6 of it on the average, and
     /// until they follow under 0.35, their heading and the motion across the track are not
-    /// used (found so within the first 20 registrations, the steering offset learned from
+    /// used (found so within the first 20 probed, the steering offset learned from
     /// the ones before is forgotten); a WARN and the summary say so. Default false: on the
     /// Oxford scans the share a registration follows measured 0.10-0.96 a rotation (0.55 on
     /// the mean, against 0.18 on the realistic city and 0.73 on a road of lamp posts), and

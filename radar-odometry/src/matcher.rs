@@ -101,14 +101,30 @@ pub const HELD_TURN_MAX_RAD: f64 = 0.01;
 /// With [`ScanMatchSettings::start_probe`], each registration is run again from headings
 /// this far either side of its result (rad).
 pub const START_PROBE_RAD: f64 = 0.005;
-/// The newest rotation's weight in the recent average of the share of their start's heading
-/// registrations followed (about the last ten rotations; from the first rotation's).
+/// With [`ScanMatchSettings::start_probe`], after the first [`START_PROBE_DENSE_FIRST`]
+/// probes and while the recent average of the share followed is under
+/// [`START_PROBE_SPARSE_BELOW`] (and not unpinned), only every this many registrations is
+/// probed: a probe is two more registrations (on the realistic city with wheel odometry,
+/// probing every rotation took the pipeline's CPU from 7.0 to 10.4 ms a rotation at the
+/// median).
+pub const START_PROBE_SPARSE_EVERY: usize = 4;
+/// See [`START_PROBE_SPARSE_EVERY`]: the first this many registrations are all probed, so
+/// that the average is of the scene, not of its first few rotations, before the caller
+/// learns its biases from them.
+pub const START_PROBE_DENSE_FIRST: u64 = 10;
+/// See [`START_PROBE_SPARSE_EVERY`]: a scene this far below [`START_FOLLOW_UNPINNED`] is
+/// probed sparsely. Entering a road where each rotation follows 0.75 of its start, an
+/// average of 0.1 reaches this in 4 probes (16 rotations), then the threshold in 11 more.
+pub const START_PROBE_SPARSE_BELOW: f64 = 0.3;
+/// The newest probe's weight in the recent average of the share of their start's heading
+/// registrations followed (about the last ten probes; from the first probe's).
 pub const START_FOLLOW_WEIGHT: f64 = 0.1;
 /// Registrations that followed more than this share of their start's heading on the recent
 /// average say nothing of the heading, nor across the track: the scene does not pin the
 /// heading. On the realistic city with wheel odometry that average stayed under 0.52 over a
-/// 200 s drive, its median 0.15, and over ten drives of 470 s it passed 0.6 once on three
-/// of them (0.61-0.67 at the peak); on a straight road lined only with lamp posts it was
+/// 200 s drive, its median 0.15, and over ten drives of 470 s, every rotation probed, it
+/// passed 0.6 once on three of them (0.61-0.67 at the peak; probed sparsely,
+/// [`START_PROBE_SPARSE_EVERY`], never); on a straight road lined only with lamp posts it was
 /// above 0.6 in 97 % of the rotations, its median 0.73. On the eight Oxford scans a
 /// rotation's share was 0.10-0.96, 0.55 on the mean: too close to tell (see
 /// `[odometry] radar_odometry_probe_start`, off by default).
@@ -258,7 +274,8 @@ pub struct ScanMatchSettings {
     /// half of two drives), and the heading alone made uninformative left the motion across
     /// the track to teach the steering offset (NEES 50 on the lamp-post road). For a caller
     /// whose estimate comes from a sensor of its own (the registration starts from it); two
-    /// more registrations a rotation. Off by default.
+    /// more registrations on every [`START_PROBE_SPARSE_EVERY`]th rotation where the scene
+    /// pins the heading, on every one where it may not. Off by default.
     pub start_probe: bool,
     /// Earlier rotations' clouds registered against besides the previous rotation's (0:
     /// the previous rotation's alone). Each is kept where the caller settled the motion
@@ -463,6 +480,8 @@ pub struct ScanMatcher {
     /// registrations followed, and whether it was taken as unpinned
     /// ([`ScanMatchSettings::start_probe`]).
     start_follow: Option<StartFollow>,
+    /// Registrations since the last one probed ([`START_PROBE_SPARSE_EVERY`]).
+    unprobed: usize,
     /// Earlier rotations' clouds ([`ScanMatchSettings::keyframes`]), oldest first, in the
     /// frame `previous_motion` starts from (the previous rotation's mark): the motion the
     /// caller settles on places them in the previous rotation's frame at the next
@@ -693,7 +712,9 @@ impl ScanMatcher {
                 self.follow(&fit, local.len(), end)
             };
             let follow = match (&reg, self.settings.start_probe && !search) {
-                (Some(r), true) => Some(self.start_followed(share_of_start_followed(&fit, r))),
+                (Some(r), true) if self.start_probe_due() => {
+                    Some(self.start_followed(share_of_start_followed(&fit, r)))
+                }
                 _ => None,
             };
             // A turn the rigid registration stopped short of: a swept registration from
@@ -1046,6 +1067,21 @@ impl ScanMatcher {
             heading_unpinned: follow.is_some_and(|f| f.unpinned),
             unpinned_from_start: follow.is_some_and(|f| f.from_start),
         })
+    }
+
+    /// Whether this registration is probed ([`START_PROBE_SPARSE_EVERY`]): the first
+    /// [`START_PROBE_DENSE_FIRST`], then every one while unpinned or near it, else every few.
+    fn start_probe_due(&mut self) -> bool {
+        let sparse = self.counts.start_probed >= START_PROBE_DENSE_FIRST
+            && self
+                .start_follow
+                .is_some_and(|a| !a.unpinned && a.share < START_PROBE_SPARSE_BELOW);
+        if sparse && self.unprobed + 1 < START_PROBE_SPARSE_EVERY {
+            self.unprobed += 1;
+            return false;
+        }
+        self.unprobed = 0;
+        true
     }
 
     /// The recent average of the share of their start's heading registrations followed,
@@ -1552,6 +1588,45 @@ mod tests {
         assert!(k < 0.1, "the street: {k}");
         // Neither start registers: nothing says the heading is pinned.
         assert_eq!(share_of_start_followed(&|_| None, &found), 1.0);
+    }
+
+    /// Probed on every registration for the first [`START_PROBE_DENSE_FIRST`], then on every
+    /// [`START_PROBE_SPARSE_EVERY`]th while the recent share is low, and on every one once
+    /// it is near the threshold or over it.
+    #[test]
+    fn a_scene_that_pins_the_heading_is_probed_every_few_registrations_and_one_that_may_not_every_one(
+    ) {
+        let mut m = ScanMatcher::new(ScanMatchSettings {
+            start_probe: true,
+            ..dense()
+        });
+        for _ in 0..START_PROBE_DENSE_FIRST {
+            assert!(
+                m.start_probe_due(),
+                "the first registrations are all probed"
+            );
+            m.start_followed(0.05);
+        }
+        let due: Vec<bool> = (0..8).map(|_| m.start_probe_due()).collect();
+        assert_eq!(due, [false, false, false, true, false, false, false, true]);
+        // Registrations that start to follow their start: the average passes 0.3 at the
+        // fourth probe, and from then every registration is probed.
+        let mut probes = 0;
+        while m
+            .start_follow
+            .is_some_and(|a| a.share < START_PROBE_SPARSE_BELOW)
+        {
+            if m.start_probe_due() {
+                m.start_followed(0.9);
+                probes += 1;
+            }
+        }
+        assert_eq!(probes, 4);
+        assert!((0..10).all(|_| m.start_probe_due()));
+        // Unpinned, until pinned again: every one.
+        while !m.start_followed(0.9).unpinned {}
+        assert!(m.start_followed(0.2).unpinned);
+        assert!((0..5).all(|_| m.start_probe_due()));
     }
 
     /// With [`ScanMatchSettings::start_probe`]: registrations that follow their start's

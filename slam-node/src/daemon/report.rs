@@ -395,9 +395,12 @@ impl fmt::Display for RadarOdometry<'_> {
             // The thresholds from the library, so the line says what the code does.
             writeln!(
                 f,
-                "  radar odometry's start probes: {} registrations run again from headings {} mrad either side; they followed {:.2} of their start's heading on the mean; {} where the scene did not pin the heading (once the last ten or so followed more than {} of it on the average, until under {}: their heading and the motion across the track not used; found so within the first {}, the steering offset's variance put back to its prior)",
+                "  radar odometry's start probes: {} registrations run again from headings {} mrad either side (every {}th after the first {}, while recent ones followed under {} of their start); they followed {:.2} of their start's heading on the mean; {} where the scene did not pin the heading (once the last ten or so followed more than {} of it on the average, until under {}: their heading and the motion across the track not used; found so within the first {}, the steering offset's variance put back to its prior)",
                 m.start_probed,
                 1000.0 * radar_odometry::matcher::START_PROBE_RAD,
+                radar_odometry::matcher::START_PROBE_SPARSE_EVERY,
+                radar_odometry::matcher::START_PROBE_DENSE_FIRST,
+                radar_odometry::matcher::START_PROBE_SPARSE_BELOW,
                 m.start_follow_permille as f64 / 1000.0 / m.start_probed as f64,
                 m.start_unpinned,
                 radar_odometry::matcher::START_FOLLOW_UNPINNED,
