@@ -346,14 +346,15 @@ mod tests {
 
     #[test]
     fn a_tcp_gyro_with_radar_only_driving_is_accepted() {
+        // Parsed only, never connected to: a documentation address (RFC 5737), not a local port.
         let c = crate::Config::from_toml_str(
-            "[odometry]\nsource = \"none\"\n[gyro]\nsource = \"tcp\"\naddress = \"127.0.0.1:7000\"\n",
+            "[odometry]\nsource = \"none\"\n[gyro]\nsource = \"tcp\"\naddress = \"192.0.2.1:7000\"\n",
         )
         .unwrap();
         assert_eq!(
             c.gyro.source,
             GyroSource::Tcp {
-                address: "127.0.0.1:7000".parse().unwrap()
+                address: "192.0.2.1:7000".parse().unwrap()
             }
         );
         let c = crate::Config::from_toml_str(

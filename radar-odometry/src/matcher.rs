@@ -711,10 +711,9 @@ impl ScanMatcher {
             } else {
                 self.follow(&fit, local.len(), end)
             };
-            let follow = match (&reg, self.settings.start_probe && !search) {
-                (Some(r), true) if self.start_probe_due() => {
-                    Some(self.start_followed(share_of_start_followed(&fit, r)))
-                }
+            let probe = self.settings.start_probe && !search && reg.is_some();
+            let follow = match (&reg, probe && self.start_probe_due()) {
+                (Some(r), true) => Some(self.start_followed(share_of_start_followed(&fit, r))),
                 _ => None,
             };
             // A turn the rigid registration stopped short of: a swept registration from
