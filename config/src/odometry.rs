@@ -133,7 +133,10 @@ pub struct RawOdometry {
     pub radar_odometry: bool,
     /// Standard deviation of one registration's translation, each axis, m > 0. Default 0.05.
     pub radar_odometry_sigma_m: f64,
-    /// Standard deviation of one registration's rotation, rad > 0. Default 0.003.
+    /// Standard deviation of one registration's rotation, rad > 0. Default 0.003; unset
+    /// where radar odometry runs beside wheel odometry (not localising), 0.0015: registered
+    /// against keyframes too, so placed they err 1.6 mrad (slam-node's
+    /// `FUSED_SIGMA_RAD`).
     pub radar_odometry_sigma_rad: f64,
     /// Radar only (`source = "none"`): the registration is composed onto the pose at the
     /// previous rotation, as odometry drives a pose, instead of fused as an update with a
@@ -161,15 +164,16 @@ pub struct RawOdometry {
     /// Oxford scans the share a registration follows measured 0.10-0.96 a rotation (0.55 on
     /// the mean, against 0.18 on the realistic city and 0.73 on a road of lamp posts), and
     /// with the evaluation's biased odometry their registrations were taken as unpinned
-    /// from the first (final error 0.086 -> 0.514 m). The realistic city's examples turn it
-    /// on. The radar alone has no other heading, and does not probe. See slam-node's README,
-    /// "A registration that stays where it starts".
+    /// from the first (final error 0.086 -> 0.514 m). The realistic city's examples and
+    /// `vehicle.toml` turn it on. The radar alone has no other heading, and does not probe.
+    /// See slam-node's README, "A registration that stays where it starts".
     pub radar_odometry_probe_start: bool,
     /// Earlier rotations' clouds each rotation is registered against besides the previous
     /// one's, kept where the registrations placed them (0 to 8). Unset: 3 when radar
     /// odometry alone drives the prediction (`source = "none"`, no gyro), where its errors
-    /// add up rotation by rotation, and 0 with a gyro, with wheel odometry or localising.
-    /// See slam-node's README, "Radar only".
+    /// add up rotation by rotation, and beside wheel odometry; 0 with a gyro or localising.
+    /// See slam-node's README, "Radar only" and "The user's configuration on the realistic
+    /// city".
     pub radar_odometry_keyframes: Option<i64>,
     /// A rotation's cloud becomes a keyframe when the vehicle ended it at least this far
     /// from where the newest keyframe's rotation ended, m >= 0. Default 0 (every rotation).

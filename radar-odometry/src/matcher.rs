@@ -380,6 +380,7 @@ pub struct RotationMotion {
 
 /// What the matcher did so far.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct MatcherCounts {
     /// Registrations tried (a rotation with a previous one to register against).
     pub tried: u64,

@@ -17,10 +17,11 @@ async fn a_road_of_lamp_posts_does_not_make_the_pose_confidently_wrong() {
     let s = &report.run.summary;
     let m = s.scan_match.as_ref().expect("radar odometry ran");
     assert!(
-        m.start_probed > 60 && m.start_unpinned * 4 >= m.start_probed * 3,
+        m.registrations.start_probed > 60
+            && m.registrations.start_unpinned * 4 >= m.registrations.start_probed * 3,
         "the registrations were found to stay where they start: {} of {} probed",
-        m.start_unpinned,
-        m.start_probed
+        m.registrations.start_unpinned,
+        m.registrations.start_probed
     );
     let pose = s.pose.as_ref().expect("the pose was scored");
     let nees = pose.nees_sum / pose.samples.max(1) as f64;

@@ -366,6 +366,7 @@ struct RadarOdometry<'a>(&'a ScanMatchCounts);
 impl fmt::Display for RadarOdometry<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let m = self.0;
+        let r = &m.registrations;
         let mean_nis = if m.applied > 0 {
             format!("{:.2}", m.nis_sum / m.applied as f64)
         } else {
@@ -374,35 +375,35 @@ impl fmt::Display for RadarOdometry<'_> {
         writeln!(
             f,
             "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated; {} retried from other headings (through a turn, or few pairs: {} more registrations; {} of them so few that they were also tried from starts along the track); {} run again on the cloud placed along the motion found (far from the estimate it was placed along)",
-            m.tried, m.failed, m.applied, m.gated, m.turned, m.retries, m.along, m.replaced
+            r.tried, r.failed, m.applied, m.gated, r.turned, r.retries, r.along, r.replaced
         )?;
-        if m.onsets > 0 || m.probed > 0 {
+        if r.onsets > 0 || r.probed > 0 {
             writeln!(
                 f,
                 "  radar odometry's turn probes: {} registrations taken from headings either side of the held motion (a turn's onset it missed), {} run again along a swept registration's turn",
-                m.onsets, m.probed
+                r.onsets, r.probed
             )?;
         }
-        if m.held > 0 {
+        if r.held > 0 {
             writeln!(
                 f,
                 "  radar odometry placed {} rotations with the turn their reference was placed with (held), not the odometry's (the two within {} rad)",
-                m.held,
+                r.held,
                 radar_odometry::matcher::HELD_TURN_MAX_RAD
             )?;
         }
-        if m.start_probed > 0 {
+        if r.start_probed > 0 {
             // The thresholds from the library, so the line says what the code does.
             writeln!(
                 f,
                 "  radar odometry's start probes: {} registrations run again from headings {} mrad either side (every {}th after the first {}, while recent ones followed under {} of their start); they followed {:.2} of their start's heading on the mean; {} where the scene did not pin the heading (once the last ten or so followed more than {} of it on the average, until under {}: their heading and the motion across the track not used; found so within the first {}, the steering offset's variance put back to its prior)",
-                m.start_probed,
+                r.start_probed,
                 1000.0 * radar_odometry::matcher::START_PROBE_RAD,
                 radar_odometry::matcher::START_PROBE_SPARSE_EVERY,
                 radar_odometry::matcher::START_PROBE_DENSE_FIRST,
                 radar_odometry::matcher::START_PROBE_SPARSE_BELOW,
-                m.start_follow_permille as f64 / 1000.0 / m.start_probed as f64,
-                m.start_unpinned,
+                r.start_follow_permille as f64 / 1000.0 / r.start_probed as f64,
+                r.start_unpinned,
                 radar_odometry::matcher::START_FOLLOW_UNPINNED,
                 radar_odometry::matcher::START_FOLLOW_PINNED,
                 radar_odometry::matcher::START_FOLLOW_EARLY
@@ -412,20 +413,20 @@ impl fmt::Display for RadarOdometry<'_> {
             writeln!(
                 f,
                 "  radar only: radar odometry drove the prediction; {} registrations searched for the motion (no estimate), {} weakly constrained (the scene did not pin the motion in one direction: the pose's uncertainty grew along it), {} turned away from the held motion (a turn's onset or end: the heading's process noise widened), {} with no beam for the filter (its clock brought to the rotation's end by the motion held)",
-                m.searched, m.weak, m.manoeuvres, m.still_clock
+                r.searched, r.weak, m.manoeuvres, m.still_clock
             )?;
-            if m.tried > 0 && m.failed == m.tried {
+            if r.tried > 0 && r.failed == r.tried {
                 writeln!(
                     f,
                     "  radar only: NO POSE: every registration failed ({} of {}), so the filter never started and nothing was mapped; the returns did not repeat from rotation to rotation closely enough to pair (a scene of sparse point targets, an open field)",
-                    m.failed, m.tried
+                    r.failed, r.tried
                 )?;
             }
-        } else if m.weak > 0 {
+        } else if r.weak > 0 {
             writeln!(
                 f,
                 "  radar odometry: {} registrations weakly constrained (the scene did not pin the motion in one direction)",
-                m.weak
+                r.weak
             )?;
         }
         if let Some([x, y, h]) = m.truth_error() {
@@ -1052,14 +1053,20 @@ mod tests {
 
         let counts = ScanMatchCounts {
             drives: true,
-            tried: 40,
-            failed: 40,
+            registrations: radar_odometry::MatcherCounts {
+                tried: 40,
+                failed: 40,
+                ..Default::default()
+            },
             ..ScanMatchCounts::default()
         };
         let text = RadarOdometry(&counts).to_string();
         assert!(text.contains("NO POSE"), "{text}");
         let working = ScanMatchCounts {
-            failed: 1,
+            registrations: radar_odometry::MatcherCounts {
+                failed: 1,
+                ..counts.registrations
+            },
             applied: 39,
             ..counts
         };

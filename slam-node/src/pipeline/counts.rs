@@ -2,6 +2,7 @@
 //! not take, and what radar odometry did. Plain counters, a leaf: the stages that count and
 //! the summary that reports both import them from here.
 
+use radar_odometry::MatcherCounts;
 use serde::Serialize;
 use slam_filter::MotionOutcome;
 
@@ -19,50 +20,14 @@ pub struct RefusalCounts {
 /// What radar odometry did over a run.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct ScanMatchCounts {
-    /// Registrations tried (a rotation with a previous one to register against).
-    pub tried: u64,
-    /// Registrations with too few pairs.
-    pub failed: u64,
+    /// What the registrations did (tried, failed, retried, probed ...): the matcher's own
+    /// counts, flattened into the summary's JSON.
+    #[serde(flatten)]
+    pub registrations: MatcherCounts,
     /// Measurements the filter applied.
     pub applied: u64,
     /// Measurements the filter's gate refused.
     pub gated: u64,
-    /// Registrations the scene pinned weakly in one direction (their covariance is large
-    /// along it).
-    pub weak: u64,
-    /// Registrations that searched over starts (no motion estimate).
-    pub searched: u64,
-    /// Registrations retried from other headings (they paired few points: a turn's onset).
-    pub turned: u64,
-    /// Registrations run from those other headings (two per heading tried; with a gyro
-    /// one heading either side, otherwise four) and from starts along the track.
-    pub retries: u64,
-    /// Of the retried, those that paired so few that they were also tried from starts
-    /// along the track (a braking or accelerating vehicle the held speed missed).
-    pub along: u64,
-    /// Registrations run again on the cloud placed along the motion the first found (it was
-    /// far from the estimate the cloud had been placed along: a turn's onset or end).
-    pub replaced: u64,
-    /// Registrations taken from a probe for a turn's onset from headings either side of
-    /// the held motion (`radar_odometry::ONSET_SEED_RAD`; the radar alone, without a gyro).
-    pub onsets: u64,
-    /// Registrations run again along a swept probe's motion, which found a turn the rigid
-    /// registration stopped short of (`radar_odometry::SWEPT_PROBE_RAD`).
-    pub probed: u64,
-    /// Rotations placed with the turn their reference was placed with, not the filter's
-    /// prediction's (`radar_odometry::ScanMatchSettings::place_held`: with odometry of its
-    /// own, whose noise within a rotation would bend the cloud).
-    pub held: u64,
-    /// Registrations run again from headings either side of their result
-    /// (`radar_odometry::ScanMatchSettings::start_probe`: with odometry of its own).
-    pub start_probed: u64,
-    /// The share of their start's heading the probed registrations followed, summed in
-    /// thousandths.
-    pub start_follow_permille: u64,
-    /// Of those, the ones that said nothing of the heading nor across the track: recent
-    /// registrations had followed more than `radar_odometry::START_FOLLOW_UNPINNED` of their
-    /// start's heading on the average (the scene does not pin the heading).
-    pub start_unpinned: u64,
     /// Whether radar odometry drove the filter's prediction (no wheel odometry).
     pub drives: bool,
     /// Driving: rotations with no beam for the filter, whose end the filter's clock was

@@ -25,6 +25,16 @@ pub const RADAR_ODOMETRY_SPEED_SCALE_STD: f64 = 0.05;
 /// The same for the steering offset (rad): 0.02 rad/s of yaw rate at 7 m/s on a 2.7 m
 /// wheelbase is 0.0077 rad.
 pub const RADAR_ODOMETRY_STEER_BIAS_STD_RAD: f64 = 0.01;
+/// Standard deviation of one registration's heading (rad) when radar odometry runs beside
+/// wheel odometry and the configuration writes none: each rotation is placed with the turn
+/// its reference was placed with and registered against the last few rotations as well
+/// ([`DRIVING_KEYFRAMES`]), and so placed the registrations err 1.6 mrad RMS on the
+/// realistic city (the configuration default, 3 mrad, is for one registration against the
+/// previous rotation alone). Through `config/examples/vehicle.toml` on the realistic city,
+/// with three keyframes, 3 mrad gave 1.16 / 1.06 % odometry drift on the two layouts,
+/// 1.5 mrad 0.90 / 0.74 % (slam-node/README.md, "The user's configuration on the
+/// realistic city").
+pub const FUSED_SIGMA_RAD: f64 = 0.0015;
 /// Radar only: the process model's input is the vehicle's motion over the last rotation,
 /// held for the next; its standard deviation is the change of speed a car makes over a
 /// rotation (1 m/s^2 for 0.25 s), as m/s.
@@ -429,6 +439,14 @@ pub fn effective_config(
         if !written.has("odometry.speed_scale_from_landmarks") {
             o.speed_scale_from_landmarks = false;
         }
+        // Registered against keyframes too (see `PipelineSettings::derive`), a registration's
+        // heading is known better than the default's one-rotation figure; localising, the
+        // map's registrations hold the pose and keep the default.
+        if !written.has("odometry.radar_odometry_sigma_rad")
+            && c.map.mode != config::MapMode::Localise
+        {
+            o.radar_odometry_sigma_rad = FUSED_SIGMA_RAD;
+        }
     }
     let effective = raw.validate().map_err(|errors| SettingsError::Profile {
         profile: profile.name,
@@ -477,16 +495,19 @@ impl PipelineSettings {
                 || effective.odometry.source == config::odometry::OdometrySource::None);
         let gyro = facts.gyro || effective.gyro.source != config::gyro::GyroSource::None;
         if effective.odometry.radar_odometry_keyframes.is_none()
-            && s.radar_drives
+            && s.scan_match.enabled
             && !gyro
             && effective.map.mode != config::MapMode::Localise
         {
             // Driving on the radar alone, the registrations are the odometry and their
             // errors add up rotation by rotation: registered against the last few rotations
             // too, they add up more slowly (slam-node/README.md, "Radar only"). Fused with
-            // wheel odometry, none; with a gyro, none either (the gyro turns the prediction
-            // and the registrations teach its bias: with keyframes two drives of three
-            // drifted more); localising, none (the map's registrations hold the pose).
+            // wheel odometry, the same: through `config/examples/vehicle.toml` the realistic
+            // city's two layouts drifted 1.10 / 1.31 % without them and 0.90 / 0.74 % with,
+            // the urban street 1.17 m RMS against 0.28 m (slam-node/README.md, "The user's
+            // configuration on the realistic city"). With a gyro, none (the gyro turns the prediction and the
+            // registrations teach its bias: with keyframes two drives of three drifted
+            // more); localising, none (the map's registrations hold the pose).
             s.scan_match.keyframes = DRIVING_KEYFRAMES;
         }
         if s.radar_drives && !gyro {
@@ -748,6 +769,16 @@ mod tests {
         // The steering offset is learned from the map as well unless a configuration says
         // otherwise (slam-node/README.md, "The point-feature map pulls the steering offset").
         assert!(s.filter.steer_bias_from_landmarks);
+        // Beside wheel odometry the registrations run against keyframes too, their heading
+        // taken at 1.5 mrad; a configuration that writes either key gets it.
+        assert_eq!(s.scan_match.keyframes, DRIVING_KEYFRAMES);
+        assert_eq!(s.scan_match.sigma_theta_rad, FUSED_SIGMA_RAD);
+        let d = derive_from(
+            "[odometry]\nradar_odometry_keyframes = 0\nradar_odometry_sigma_rad = 0.003\n",
+            &profile::CTS350X,
+        );
+        assert_eq!(d.settings.scan_match.keyframes, 0);
+        assert_eq!(d.settings.scan_match.sigma_theta_rad, 0.003);
         let d = derive_from(
             "[odometry]\nsteer_bias_from_landmarks = false\n",
             &profile::CTS350X,

@@ -141,22 +141,8 @@ impl RadarOdometryStage {
 
     /// What it did so far.
     pub fn counts(&self) -> ScanMatchCounts {
-        let m = self.matcher.counts();
         ScanMatchCounts {
-            tried: m.tried,
-            failed: m.failed,
-            weak: m.weak,
-            searched: m.searched,
-            turned: m.turned,
-            retries: m.retries,
-            along: m.along,
-            replaced: m.replaced,
-            onsets: m.onsets,
-            probed: m.probed,
-            held: m.held,
-            start_probed: m.start_probed,
-            start_follow_permille: m.start_follow_permille,
-            start_unpinned: m.start_unpinned,
+            registrations: self.matcher.counts(),
             ..self.counts
         }
     }
@@ -419,6 +405,8 @@ impl RadarOdometryStage {
             iterations = m.registration.iterations,
             weakest = m.constraint.weakest,
             searched = m.searched,
+            start_follow_average = m.start_follow.unwrap_or(-1.0),
+            heading_sigma_rad = m.covariance[(2, 2)].max(0.0).sqrt(),
             "radar odometry registration"
         );
     }
