@@ -11,6 +11,10 @@ use crate::values::{Capacity, OpenProbability, PositiveF64};
 /// The most features one submap may be set to hold.
 pub const MAX_SUBMAP_FEATURES: usize = 5000;
 
+/// The most submaps back a near link may reach (`[submaps] near_links`): each costs a scan
+/// registration a submap on the global layer's thread.
+pub const MAX_NEAR_LINKS: u64 = 8;
+
 /// `[submaps]` as written in the file.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
@@ -41,6 +45,13 @@ pub struct RawSubmaps {
     /// the few point features a city of extended objects leaves. Needs radar odometry;
     /// without it the features verify as before. Default true.
     pub scan_loop_closure: bool,
+    /// Each submap's scan is also registered against the scans of the submaps two to this
+    /// many before it, where the chain puts them within 120 m, and each registration that
+    /// agrees with the chain is an edge of the global graph (a near link, not a loop
+    /// closure): the heading the chain gathers through a junction, where a rotation's
+    /// registration pairs few returns, is measured over the whole street. Needs
+    /// `scan_loop_closure`. 0 or 1: none. Default 3.
+    pub near_links: i64,
 }
 
 impl Default for RawSubmaps {
@@ -55,6 +66,7 @@ impl Default for RawSubmaps {
             search_sigmas: 3.0,
             place_recognition: true,
             scan_loop_closure: true,
+            near_links: 3,
         }
     }
 }
@@ -80,6 +92,8 @@ pub struct SubmapSettings {
     pub place_recognition: bool,
     /// Loop closures verified by the submaps' scans where they have them.
     pub scan_loop_closure: bool,
+    /// Near links: submaps back (0 or 1: none).
+    pub near_links: u64,
 }
 
 impl Default for SubmapSettings {
@@ -148,6 +162,10 @@ impl RawSubmaps {
             ),
             place_recognition: self.place_recognition,
             scan_loop_closure: self.scan_loop_closure,
+            near_links: c.check(
+                "submaps.near_links",
+                crate::values::count(self.near_links, MAX_NEAR_LINKS),
+            ),
         }
     }
 }
@@ -163,6 +181,7 @@ impl From<&SubmapSettings> for RawSubmaps {
             max_rival_ratio: s.max_rival_ratio.get(),
             search_sigmas: s.search_sigmas.get(),
             place_recognition: s.place_recognition,
+            near_links: s.near_links as i64,
             scan_loop_closure: s.scan_loop_closure,
         }
     }

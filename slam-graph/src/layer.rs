@@ -75,7 +75,28 @@ pub struct GlobalSettings {
     /// stretch the prior's window spans a street's repeats (parked cars every 6 m), and
     /// the verifier may take the one beside the true place.
     pub confirm_prior_slides: bool,
+    /// Each new submap's scan is also registered against the scans of the submaps two to
+    /// this many before it (the previous one is joined by the chain edge), where the chain
+    /// puts their frames within [`Self::near_reach_m`]: a measurement of the chain over
+    /// 100-150 m with the lever arm of the whole street, which a junction's few pairs a
+    /// rotation do not have. Each verified one that agrees with the chain enters the graph
+    /// as an edge ([`GlobalMap::links`]; not a loop closure). 0 or 1: none.
+    pub near_links: usize,
+    /// See [`Self::near_links`] (m, along the chain between the two frames' origins).
+    pub near_reach_m: f64,
+    /// A near link needs this many pairs (fewer than a loop closure's
+    /// [`ScanAlignSettings::min_pairs`]: two scans 100 m apart along a street share what
+    /// lies between them, and the chain's prior is tight).
+    pub near_min_pairs: usize,
+    /// A near link's covariance is the registration's times this. Its heading errs 2.3
+    /// times its own standard deviation on the realistic city, but four times the
+    /// covariance made the online pose worse and its NEES no better (slam-node/README.md,
+    /// "Near links"): 1.
+    pub near_covariance_scale: f64,
 }
+
+/// See [`GlobalSettings::near_covariance_scale`].
+const NEAR_SCALE: f64 = 1.0;
 
 impl Default for GlobalSettings {
     fn default() -> Self {
@@ -92,6 +113,10 @@ impl Default for GlobalSettings {
             max_conflict_ratio: 0.25,
             confirm_place_jumps: true,
             confirm_prior_slides: true,
+            near_links: 3,
+            near_reach_m: 120.0,
+            near_min_pairs: 100,
+            near_covariance_scale: NEAR_SCALE,
         }
     }
 }
@@ -233,6 +258,10 @@ pub struct GlobalStats {
     pub max_add_ms: f64,
     /// Submaps whose end pose or covariance was unusable (kept as an unknown chain edge).
     pub bad_submaps: u64,
+    /// Links between near submaps' scans tried ([`GlobalSettings::near_links`]).
+    pub near_tried: u64,
+    /// Of which verified and added to the graph.
+    pub near_links: u64,
 }
 
 /// Centre and radius of points (a submap's features, or its scan), in its frame.
@@ -274,6 +303,8 @@ pub struct GlobalMap {
     /// A closure of the newest submap held for the next one to confirm
     /// ([`GlobalSettings::confirm_place_jumps`], [`GlobalSettings::confirm_prior_slides`]).
     pub(crate) held: Option<LoopClosure>,
+    /// The near links in the graph ([`GlobalSettings::near_links`]).
+    pub(crate) links: Vec<LoopClosure>,
 }
 
 impl GlobalMap {
@@ -294,7 +325,14 @@ impl GlobalMap {
             drive: vec![0],
             joins: Vec::new(),
             held: None,
+            links: Vec::new(),
         }
+    }
+
+    /// The near links between submaps two or three apart along a drive
+    /// ([`GlobalSettings::near_links`]), in the graph beside the loop closures.
+    pub fn links(&self) -> &[LoopClosure] {
+        &self.links
     }
 
     /// The joins of later drives to earlier ones (empty unless resumed).
@@ -443,10 +481,11 @@ impl GlobalMap {
         self.drive.push(d);
         self.submaps.push(submap);
         self.stats.submaps = self.submaps.len();
+        let linked = self.settings.loop_closure && self.link_near(k) > 0;
         if self.settings.loop_closure {
             self.close_loops(k, &mut report);
         }
-        if !report.accepted.is_empty() {
+        if !report.accepted.is_empty() || linked {
             self.solve_with_loops(&mut report);
         }
         report.elapsed_ms = started.elapsed().as_secs_f64() * 1e3;
@@ -471,6 +510,95 @@ impl GlobalMap {
         let cov =
             ji * self.covariances[i] * ji.transpose() + jb * self.covariances[j] * jb.transpose();
         (z, 0.5 * (cov + cov.transpose()))
+    }
+
+    /// Registers submap `k`'s scan against the scans of the submaps two to
+    /// [`GlobalSettings::near_links`] before it, from where the chain of submaps puts it,
+    /// and adds each verified registration that agrees with the chain to the graph as an
+    /// edge ([`Self::links`]). How many were added.
+    fn link_near(&mut self, k: usize) -> usize {
+        let s = self.settings;
+        if s.near_links < 2 || !self.scans.get(k).is_some_and(Option::is_some) {
+            return 0;
+        }
+        let bound = ChiSquared::new(3.0)
+            .map(|d| d.inverse_cdf(0.999))
+            .unwrap_or(f64::INFINITY);
+        let mut scans = s.scans;
+        scans.min_pairs = s.near_min_pairs;
+        let mut added = 0;
+        for back in 2..=s.near_links {
+            let Some(i) = k.checked_sub(back) else {
+                break;
+            };
+            // Not across a drive's start: no chain joins two drives.
+            if (i + 1..=k).any(|j| self.drive.get(j) != self.drive.get(i)) {
+                break;
+            }
+            let (Some(Some(earlier)), Some(Some(newer))) = (self.scans.get(i), self.scans.get(k))
+            else {
+                continue;
+            };
+            // The chain from frame i to frame k: the submaps' own end poses, composed.
+            let mut z = Pose2::new(0.0, 0.0, 0.0);
+            let mut cov = Matrix3::zeros();
+            for e in &self.submaps[i..k] {
+                cov = compose_covariance(&z, &cov, &e.end_pose, &e.end_cov);
+                z = compose(&z, &e.end_pose);
+            }
+            if z.x.hypot(z.y) > s.near_reach_m {
+                continue;
+            }
+            self.stats.near_tried += 1;
+            // The search window: the chain's uncertainty, at least 1 m and 20 mrad (a
+            // junction turns the chain by that: slam-node/README.md, "Near links").
+            let mut window = cov;
+            for (d, floor) in [(0, 1.0_f64), (1, 1.0), (2, 0.02)] {
+                window[(d, d)] = window[(d, d)].max(floor * floor);
+            }
+            let a = match align_scans(earlier, newer.points(), &z, &window, &s.align, &scans) {
+                Ok(a) => a,
+                Err(r) => {
+                    tracing::debug!(from = i, to = k, refusal = ?r, "near link refused");
+                    continue;
+                }
+            };
+            let off = nalgebra::Vector3::new(
+                a.transform.x - z.x,
+                a.transform.y - z.y,
+                radar_model::geometry::wrap_angle(a.transform.theta - z.theta),
+            );
+            let covariance = a.covariance * s.near_covariance_scale;
+            let agrees = (window + covariance)
+                .cholesky()
+                .is_some_and(|ch| off.dot(&ch.solve(&off)) <= bound);
+            tracing::debug!(
+                from = i,
+                to = k,
+                off_x_m = off.x,
+                off_y_m = off.y,
+                off_theta_rad = off.z,
+                sigma_theta_rad = covariance[(2, 2)].max(0.0).sqrt(),
+                agrees,
+                "near link"
+            );
+            if !agrees {
+                continue;
+            }
+            self.graph.add_edge(Edge {
+                from: i,
+                to: k,
+                z: a.transform,
+                covariance,
+                kind: EdgeKind::Loop,
+            });
+            let mut link = LoopClosure::verified(i, k, &a, false);
+            link.covariance = covariance;
+            self.links.push(link);
+            self.stats.near_links += 1;
+            added += 1;
+        }
+        added
     }
 
     fn close_loops(&mut self, k: usize, report: &mut AddReport) {

@@ -152,6 +152,11 @@ impl SubmapOptions {
         global.align.max_rival_ratio = s.max_rival_ratio.get();
         global.place.enabled = s.place_recognition;
         global.scans.enabled = s.scan_loop_closure;
+        global.near_links = if s.scan_loop_closure {
+            s.near_links as usize
+        } else {
+            0
+        };
         Some(Self {
             limits: slam_filter::SubmapLimits {
                 max_distance_m: s.max_distance_m.get(),
