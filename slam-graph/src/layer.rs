@@ -213,6 +213,8 @@ pub struct AddReport {
     pub place_candidates: usize,
     /// Closures accepted into the graph.
     pub accepted: Vec<LoopClosure>,
+    /// Near links added to the graph ([`GlobalSettings::near_links`]).
+    pub links: Vec<LoopClosure>,
     /// Refusals, by candidate submap.
     pub refused: Vec<(usize, Refusal)>,
     /// Closures verified one by one but dropped because they disagreed with each other.
@@ -481,7 +483,7 @@ impl GlobalMap {
         self.drive.push(d);
         self.submaps.push(submap);
         self.stats.submaps = self.submaps.len();
-        let linked = self.settings.loop_closure && self.link_near(k) > 0;
+        let linked = self.settings.loop_closure && self.link_near(k, &mut report) > 0;
         if self.settings.loop_closure {
             self.close_loops(k, &mut report);
         }
@@ -516,7 +518,7 @@ impl GlobalMap {
     /// [`GlobalSettings::near_links`] before it, from where the chain of submaps puts it,
     /// and adds each verified registration that agrees with the chain to the graph as an
     /// edge ([`Self::links`]). How many were added.
-    fn link_near(&mut self, k: usize) -> usize {
+    fn link_near(&mut self, k: usize, report: &mut AddReport) -> usize {
         let s = self.settings;
         if s.near_links < 2 || !self.scans.get(k).is_some_and(Option::is_some) {
             return 0;
@@ -594,6 +596,7 @@ impl GlobalMap {
             });
             let mut link = LoopClosure::verified(i, k, &a, false);
             link.covariance = covariance;
+            report.links.push(link.clone());
             self.links.push(link);
             self.stats.near_links += 1;
             added += 1;

@@ -74,7 +74,7 @@ fn a_run_on_submaps_saves_a_map_that_loads_back_as_the_run_reports_it() {
     assert!(submaps >= 3, "a few submaps closed: {submaps}");
     assert_eq!(map.submaps.len(), submaps);
     assert_eq!(map.feature_count(), figure_after(&text, "  map: "));
-    // "saved map: S submaps, F features, L loop closures; B bytes... (N saves)"
+    // "saved map: S submaps, F features, L loop closures and near links; B bytes... (N saves)"
     let line = text
         .lines()
         .find(|l| l.contains("saved map: "))

@@ -866,7 +866,7 @@ impl fmt::Display for SavedMapLine<'_> {
         });
         writeln!(
             f,
-            "  saved map: {} submaps, {} features, {} loop closures{}; {} bytes{per_km} ({} saves, each built in {:.1} ms at most on the pipeline thread){}",
+            "  saved map: {} submaps, {} features, {} loop closures and near links{}; {} bytes{per_km} ({} saves, each built in {:.1} ms at most on the pipeline thread){}",
             c.submaps,
             c.features,
             c.loops,

@@ -961,7 +961,14 @@ impl Pipeline {
         let mut final_loops = None;
         let trajectory = self.submaps.as_mut().map(|s| {
             let (trajectory, map) = s.finish(&mut self.ekf);
-            final_loops = map.as_ref().map(|m| m.loops().to_vec());
+            // The saved map keeps the near links among its loop edges (docs/map-format.md).
+            final_loops = map.as_ref().map(|m| {
+                m.loops()
+                    .iter()
+                    .chain(m.links())
+                    .cloned()
+                    .collect::<Vec<_>>()
+            });
             if let Some(truth) = self.truth.as_ref() {
                 s.score_against(&trajectory, map.as_ref(), |t| truth.pose_at(t));
             }

@@ -152,7 +152,8 @@ pub struct SubmapRun {
     last_local: Option<Pose2>,
     history: Vec<(f64, u32, Pose2, Matrix3<f64>)>,
     summary: SubmapSummary,
-    /// Loop closures the layer reported accepting so far (for a map saved mid-run).
+    /// Loop closures and near links the layer reported adding to its graph so far (for a
+    /// map saved mid-run: the map keeps both among its loop edges, docs/map-format.md).
     loops: Vec<LoopClosure>,
     /// The current submap's scan (radar odometry's clouds), handed over with it.
     scan: ScanAccumulator,
@@ -322,6 +323,7 @@ impl SubmapRun {
         };
         for r in layer.take_reports() {
             self.loops.extend(r.accepted);
+            self.loops.extend(r.links);
         }
         if sol.version <= self.version {
             return;
