@@ -387,7 +387,7 @@ mod tests {
                 "[odometry]\nsource = \"none\"\n[gyro]\nsource = \"file\"\n",
                 "gyro.path",
             ),
-            ("[gyro]\naddress = \"127.0.0.1:1\"\n", "gyro.address"),
+            ("[gyro]\naddress = \"192.0.2.1:7000\"\n", "gyro.address"),
             ("[gyro]\npath = \"x\"\n", "gyro.path"),
             (
                 "[gyro]\nnoise_density_rad_s_per_sqrt_hz = -1.0\n",

@@ -483,8 +483,9 @@ impl GlobalMap {
         self.drive.push(d);
         self.submaps.push(submap);
         self.stats.submaps = self.submaps.len();
-        let linked = self.settings.loop_closure && self.link_near(k, &mut report) > 0;
+        let mut linked = false;
         if self.settings.loop_closure {
+            linked = self.link_near(k, &mut report) > 0;
             self.close_loops(k, &mut report);
         }
         if !report.accepted.is_empty() || linked {

@@ -152,11 +152,8 @@ impl SubmapOptions {
         global.align.max_rival_ratio = s.max_rival_ratio.get();
         global.place.enabled = s.place_recognition;
         global.scans.enabled = s.scan_loop_closure;
-        global.near_links = if s.scan_loop_closure {
-            s.near_links as usize
-        } else {
-            0
-        };
+        // Without scans (`scan_loop_closure = false`) the layer has none to link.
+        global.near_links = s.near_links as usize;
         Some(Self {
             limits: slam_filter::SubmapLimits {
                 max_distance_m: s.max_distance_m.get(),
