@@ -24,7 +24,7 @@ use nalgebra::Matrix3;
 use radar_model::geometry::Pose2;
 use slam_filter::FrozenSubmap;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
-use tracing::{info, warn};
+use tracing::{debug, info, warn};
 
 use crate::align::{align, AlignSettings, Alignment, Refusal};
 use crate::graph::{Edge, EdgeKind, PoseGraph, SolveSettings};
@@ -262,8 +262,10 @@ pub struct GlobalStats {
     pub bad_submaps: u64,
     /// Links between near submaps' scans tried ([`GlobalSettings::near_links`]).
     pub near_tried: u64,
-    /// Of which verified and added to the graph.
+    /// Of which verified and added to the graph (kept by the solve).
     pub near_links: u64,
+    /// Of which verified but dropped after the solve, far outside their covariance.
+    pub near_dropped: u64,
 }
 
 /// Centre and radius of points (a submap's features, or its scan), in its frame.
@@ -588,18 +590,11 @@ impl GlobalMap {
             if !agrees {
                 continue;
             }
-            self.graph.add_edge(Edge {
-                from: i,
-                to: k,
-                z: a.transform,
-                covariance,
-                kind: EdgeKind::Loop,
-            });
+            // An edge once the solve keeps it (`solve_with_loops`: a link the solution leaves
+            // far outside its covariance is dropped, as a closure is).
             let mut link = LoopClosure::verified(i, k, &a, false);
             link.covariance = covariance;
-            report.links.push(link.clone());
-            self.links.push(link);
-            self.stats.near_links += 1;
+            report.links.push(link);
             added += 1;
         }
         added
@@ -1032,23 +1027,24 @@ impl GlobalMap {
         }
     }
 
-    /// Adds the accepted closures as edges and solves; drops closures the solution leaves
-    /// far outside their covariance, and on failure restores the graph as it was.
+    /// Adds the accepted closures and the near links as edges and solves; drops the closure
+    /// or link the solution leaves farthest outside its covariance (0.999 chi-square) and
+    /// solves again until none is, and on failure restores the graph as it was.
     fn solve_with_loops(&mut self, report: &mut AddReport) {
         let before = self.graph.clone();
         let bound = ChiSquared::new(3.0)
             .map(|d| d.inverse_cdf(0.999))
             .unwrap_or(f64::INFINITY);
         let mut kept = report.accepted.clone();
+        let mut links = std::mem::take(&mut report.links);
         loop {
             self.graph = before.clone();
-            for l in &kept {
-                let a = l.covariance;
+            for l in kept.iter().chain(&links) {
                 self.graph.add_edge(Edge {
                     from: l.from,
                     to: l.to,
                     z: l.transform,
-                    covariance: a,
+                    covariance: l.covariance,
                     kind: EdgeKind::Loop,
                 });
             }
@@ -1063,11 +1059,23 @@ impl GlobalMap {
                         })
                         .max_by(|a, b| a.1.total_cmp(&b.1));
                     if let Some((idx, chi2)) = worst.filter(|(_, c)| *c > bound) {
-                        warn!(chi2, bound, "a loop closure ends far outside its own uncertainty after the solve: dropped");
-                        kept.remove(idx);
-                        report.rejected_after_solve += 1;
-                        self.stats.rejected_after_solve += 1;
-                        if kept.is_empty() {
+                        if idx < kept.len() {
+                            warn!(chi2, bound, "a loop closure ends far outside its own uncertainty after the solve: dropped");
+                            kept.remove(idx);
+                            report.rejected_after_solve += 1;
+                            self.stats.rejected_after_solve += 1;
+                        } else {
+                            let l = links.remove(idx - kept.len());
+                            debug!(
+                                from = l.from,
+                                to = l.to,
+                                chi2,
+                                bound,
+                                "a near link ends far outside its own uncertainty after the solve: dropped"
+                            );
+                            self.stats.near_dropped += 1;
+                        }
+                        if kept.is_empty() && links.is_empty() {
                             self.graph = before;
                             return;
                         }
@@ -1081,8 +1089,11 @@ impl GlobalMap {
                     }
                     self.stats.loops += kept.len() as u64;
                     self.stats.place_loops += kept.iter().filter(|l| l.from_place).count() as u64;
+                    self.stats.near_links += links.len() as u64;
                     self.loops.extend(kept.iter().cloned());
+                    self.links.extend(links.iter().cloned());
                     report.accepted = kept;
+                    report.links = links;
                     return;
                 }
                 Err(e) => {

@@ -510,7 +510,7 @@ impl fmt::Display for Submaps<'_> {
         let g = &sm.global;
         writeln!(
             f,
-            "  submaps: {} (largest {} features when closed), {} features frozen in {:.1} kB; global layer: {} loop closures from {} candidates ({} dropped as conflicting, {} after the solve, {} closures held for the next submap (place jumps, prior slides) and {} of them unconfirmed, {} failed solves), {} solutions used, slowest join {:.1} ms; near links (scans two or three submaps apart, slam-graph's near_links) {} of {} tried",
+            "  submaps: {} (largest {} features when closed), {} features frozen in {:.1} kB; global layer: {} loop closures from {} candidates ({} dropped as conflicting, {} after the solve, {} closures held for the next submap (place jumps, prior slides) and {} of them unconfirmed, {} failed solves), {} solutions used, slowest join {:.1} ms; near links (scans two or three submaps apart, slam-graph's near_links) {} of {} tried ({} more verified but dropped after the solve, far outside their covariance)",
             sm.submaps,
             sm.largest_submap_features,
             sm.frozen_features,
@@ -525,7 +525,8 @@ impl fmt::Display for Submaps<'_> {
             sm.solutions,
             g.max_add_ms,
             g.near_links,
-            g.near_tried
+            g.near_tried,
+            g.near_dropped
         )?;
         if sm.optimised.as_ref().is_some_and(|o| o.poses < 2) {
             // The start pose alone (or nothing) scores zeros that would read as a perfect
