@@ -1076,7 +1076,10 @@ impl GlobalMap {
                             self.stats.near_dropped += 1;
                         }
                         if kept.is_empty() && links.is_empty() {
+                            // Nothing left to add: the report names none (the daemon saves
+                            // what it names among the map's loop edges).
                             self.graph = before;
+                            report.accepted.clear();
                             return;
                         }
                         continue;
