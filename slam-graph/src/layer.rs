@@ -213,7 +213,7 @@ pub struct AddReport {
     pub place_candidates: usize,
     /// Closures accepted into the graph.
     pub accepted: Vec<LoopClosure>,
-    /// Near links added to the graph ([`GlobalSettings::near_links`]).
+    /// Near links added to the graph, those the solve kept ([`GlobalSettings::near_links`]).
     pub links: Vec<LoopClosure>,
     /// Refusals, by candidate submap.
     pub refused: Vec<(usize, Refusal)>,
@@ -337,6 +337,12 @@ impl GlobalMap {
     /// ([`GlobalSettings::near_links`]), in the graph beside the loop closures.
     pub fn links(&self) -> &[LoopClosure] {
         &self.links
+    }
+
+    /// Every edge of the graph besides the chain and the joins: the loop closures, then
+    /// the near links (what a saved map keeps as its loop edges, docs/map-format.md).
+    pub fn loop_edges(&self) -> impl Iterator<Item = &LoopClosure> {
+        self.loops.iter().chain(&self.links)
     }
 
     /// The joins of later drives to earlier ones (empty unless resumed).
@@ -485,12 +491,11 @@ impl GlobalMap {
         self.drive.push(d);
         self.submaps.push(submap);
         self.stats.submaps = self.submaps.len();
-        let mut linked = false;
         if self.settings.loop_closure {
-            linked = self.link_near(k, &mut report) > 0;
+            self.link_near(k, &mut report);
             self.close_loops(k, &mut report);
         }
-        if !report.accepted.is_empty() || linked {
+        if !report.accepted.is_empty() || !report.links.is_empty() {
             self.solve_with_loops(&mut report);
         }
         report.elapsed_ms = started.elapsed().as_secs_f64() * 1e3;
@@ -519,19 +524,18 @@ impl GlobalMap {
 
     /// Registers submap `k`'s scan against the scans of the submaps two to
     /// [`GlobalSettings::near_links`] before it, from where the chain of submaps puts it,
-    /// and adds each verified registration that agrees with the chain to the graph as an
-    /// edge ([`Self::links`]). How many were added.
-    fn link_near(&mut self, k: usize, report: &mut AddReport) -> usize {
+    /// and puts each verified registration that agrees with the chain in `report.links`, for
+    /// the solve to add to the graph as an edge ([`Self::links`]) or drop.
+    fn link_near(&mut self, k: usize, report: &mut AddReport) {
         let s = self.settings;
         if s.near_links < 2 || !self.scans.get(k).is_some_and(Option::is_some) {
-            return 0;
+            return;
         }
         let bound = ChiSquared::new(3.0)
             .map(|d| d.inverse_cdf(0.999))
             .unwrap_or(f64::INFINITY);
         let mut scans = s.scans;
         scans.min_pairs = s.near_min_pairs;
-        let mut added = 0;
         for back in 2..=s.near_links {
             let Some(i) = k.checked_sub(back) else {
                 break;
@@ -595,9 +599,7 @@ impl GlobalMap {
             let mut link = LoopClosure::verified(i, k, &a, false);
             link.covariance = covariance;
             report.links.push(link);
-            added += 1;
         }
-        added
     }
 
     fn close_loops(&mut self, k: usize, report: &mut AddReport) {

@@ -233,12 +233,7 @@ impl Map {
         // The near links are edges of the graph like the loop closures (a later frame in an
         // earlier one's, with a covariance) and are saved among them, so that a resumed
         // graph solves to the same frames (docs/map-format.md, `loops`).
-        let edges: Vec<LoopClosure> = global
-            .loops()
-            .iter()
-            .chain(global.links())
-            .cloned()
-            .collect();
+        let edges: Vec<LoopClosure> = global.loop_edges().cloned().collect();
         let (map, report) = Map::from_parts(meta, parts, &edges)?;
         let scans = (0..global.submaps().len()).filter_map(|k| global.scan(k).map(|p| (k, p)));
         Ok((map.with_scans(scans)?, report))

@@ -962,13 +962,9 @@ impl Pipeline {
         let trajectory = self.submaps.as_mut().map(|s| {
             let (trajectory, map) = s.finish(&mut self.ekf);
             // The saved map keeps the near links among its loop edges (docs/map-format.md).
-            final_loops = map.as_ref().map(|m| {
-                m.loops()
-                    .iter()
-                    .chain(m.links())
-                    .cloned()
-                    .collect::<Vec<_>>()
-            });
+            final_loops = map
+                .as_ref()
+                .map(|m| m.loop_edges().cloned().collect::<Vec<_>>());
             if let Some(truth) = self.truth.as_ref() {
                 s.score_against(&trajectory, map.as_ref(), |t| truth.pose_at(t));
             }
