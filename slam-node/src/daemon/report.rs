@@ -436,6 +436,13 @@ impl fmt::Display for RadarOdometry<'_> {
                 m.truth_compared, x.0, x.1, y.0, y.1, h.0, h.1
             )?;
         }
+        if let Some(c) = m.chained {
+            writeln!(
+                f,
+                "  radar odometry alone (each rotation's registered motion chained from the first, nothing fused): drift over 100-800 m segments {:.2}% and {:.3} deg/100 m ({} segments)",
+                c.translation_percent, c.rotation_deg_per_100m, c.segments
+            )?;
+        }
         Ok(())
     }
 }

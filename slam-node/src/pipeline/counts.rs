@@ -46,6 +46,24 @@ pub struct ScanMatchCounts {
     pub truth_error_sum: [f64; 3],
     /// Sum of its squares.
     pub truth_error_sq_sum: [f64; 3],
+    /// Radar odometry alone against the truth (with ground truth, over 100 m or more):
+    /// each registration's motion chained from the first, nothing fused.
+    pub chained: Option<ChainedDrift>,
+}
+
+/// KITTI-style drift (`slam_filter::drift`) of radar odometry's own trajectory: each
+/// registration's motion chained from the first (the odometry's prediction over a rotation
+/// whose registration failed), against the truth chained over the same intervals. What the
+/// registrations alone would give, as the radar odometry literature scores its methods,
+/// beside the filter's odometry that fuses them with the map and the prediction.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ChainedDrift {
+    /// Mean translation error over the segments (% of their length).
+    pub translation_percent: f64,
+    /// Mean rotation error (deg per 100 m).
+    pub rotation_deg_per_100m: f64,
+    /// Segments averaged.
+    pub segments: usize,
 }
 
 impl ScanMatchCounts {
