@@ -439,8 +439,8 @@ impl fmt::Display for RadarOdometry<'_> {
         if let Some(c) = m.chained {
             writeln!(
                 f,
-                "  radar odometry alone (each rotation's registered motion chained from the first, nothing fused): drift over 100-800 m segments {:.2}% and {:.3} deg/100 m ({} segments)",
-                c.translation_percent, c.rotation_deg_per_100m, c.segments
+                "  radar odometry alone (each rotation's registered motion chained from the first, nothing fused): drift over 100-800 m segments {}",
+                drift_figures(c.translation_percent, c.rotation_deg_per_100m, c.segments)
             )?;
         }
         Ok(())
@@ -583,12 +583,14 @@ impl fmt::Display for Submaps<'_> {
 /// KITTI-style drift of a trajectory: translation and rotation over 100-800 m segments.
 fn drift_text(o: &crate::pipeline::submaps::TrajectoryScore) -> String {
     match (o.drift_percent, o.drift_deg_per_100m) {
-        (Some(t), Some(r)) => format!(
-            "{t:.2}% and {r:.3} deg/100 m ({} segments)",
-            o.drift_segments
-        ),
+        (Some(t), Some(r)) => drift_figures(t, r, o.drift_segments),
         _ => "n/a (shorter drive)".to_string(),
     }
+}
+
+/// Drift over 100-800 m segments as every summary line gives it.
+fn drift_figures(percent: f64, deg_per_100m: f64, segments: usize) -> String {
+    format!("{percent:.2}% and {deg_per_100m:.3} deg/100 m ({segments} segments)")
 }
 
 /// A trajectory against the truth, as the radar odometry literature scores one: printed

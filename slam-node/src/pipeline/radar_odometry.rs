@@ -207,13 +207,18 @@ impl RadarOdometryStage {
         });
         let measured = self.matcher.end_rotation(end, self.drives && self.lost);
         self.lost = self.drives && measured.is_none();
-        if let (Some(t), Some(tally)) = (truth, tally.as_ref()) {
+        // With ground truth, the true motion over the same interval (scores only).
+        let true_rel = tally
+            .as_ref()
+            .zip(truth)
+            .and_then(|(tally, t)| true_motion(t, tally.since_s, until_s));
+        if let Some(tally) = tally.as_ref() {
             let motion = measured.as_ref().map_or(tally.rel, |m| m.motion);
-            self.chain_motion(motion, true_motion(t, tally.since_s, until_s));
+            self.chain_motion(motion, true_rel);
         }
         let mut applied = None;
         if let (Some(m), Some(tally)) = (measured.as_ref(), tally) {
-            self.score(m, &tally, ekf.state().time_s(), truth);
+            self.score(m, &tally, until_s, true_rel);
             self.warn_if_weak(m, ekf.state().time_s());
             self.warn_if_start_followed(m, ekf.state().time_s());
             if m.unpinned_from_start {
@@ -383,7 +388,7 @@ impl RadarOdometryStage {
             return;
         };
         let origin = Pose2::new(0.0, 0.0, 0.0);
-        let (last, last_truth) = self.chain.last().copied().unwrap_or((origin, origin));
+        let &(last, last_truth) = self.chain.last().unwrap_or(&(origin, origin));
         if self.chain.is_empty() {
             self.chain.push((origin, origin));
         }
@@ -396,12 +401,9 @@ impl RadarOdometryStage {
         m: &RotationMotion,
         tally: &slam_filter::motion_tally::MotionTally,
         now_s: f64,
-        truth: Option<&TruthObserver>,
+        truth: Option<Pose2>,
     ) {
-        // With ground truth, the true motion over the same interval (scores only).
-        let truth = truth
-            .and_then(|t| true_motion(t, tally.since_s, now_s))
-            .map(|rel| [rel.x, rel.y, rel.theta]);
+        let truth = truth.map(|rel| [rel.x, rel.y, rel.theta]);
         let motion = m.motion;
         if let Some(t) = truth {
             self.counts.record_truth_error([
