@@ -55,9 +55,9 @@ pub const MANOEUVRE_HEADING_RAD: f64 = 0.01;
 /// good part of itself from one rotation to the next as it begins, eases and ends; the
 /// prediction holds the last rotation's turn and, weighed at the straight road's turn
 /// noise, kept about half of each change [`MANOEUVRE_HEADING_RAD`] let through (at a
-/// turn's end, rotations turning 30, 10, 5 mrad against a held 65, 31, 10 lost the
-/// registrations' heading by 5, 2, 1 mrad each, all in the turn's sense: check layout,
-/// seed 2). On a straight road or a gentle curve nothing changes: the whole held turn
+/// turn's end, rotations turning 31 and then 10 mrad against a held 65 and 31 lost the
+/// registrations' heading by 5.4 and 2.1 mrad, in the turn's sense: check layout, seed
+/// 2). On a straight road or a gentle curve nothing changes: the whole held turn
 /// (not its excess) turned the Oxford scans' last rotation 17 mrad the wrong way. Realistic
 /// city on the radar alone, ten drives (seeds 1-5, both layouts): slam-node/README.md,
 /// "The held turn's own uncertainty".
@@ -752,8 +752,8 @@ mod tests {
     /// On the radar alone, a registration turning 0.05 rad where the filter held the
     /// motion straight (a turn's onset) widens the heading's variance since the mark by
     /// 0.05^2 before it is fused, and is counted; one within the threshold changes nothing;
-    /// while the filter holds a turn, the turn's own share ([`TURN_HEADING_SHARE`]) is
-    /// added as well; with a gyro nothing is widened (the gyro gave the turn).
+    /// while the filter holds a turn beyond the threshold, [`TURN_HEADING_SHARE`] of the
+    /// excess is added as well; with a gyro nothing is widened (the gyro gave the turn).
     #[test]
     fn a_turn_the_held_motion_missed_widens_the_heading_before_the_registration() {
         let widened = |gyro: bool, held_turn: f64, turn: f64| {
