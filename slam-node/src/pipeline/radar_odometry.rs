@@ -417,11 +417,14 @@ impl RadarOdometryStage {
             .push((last.compose(&motion), last_truth.compose(&truth)));
     }
 
+    /// Scores the registration `m` over the rotation from the mark to `until_s` against
+    /// `truth`, the true motion over the same interval (with ground truth), and logs both
+    /// with the prediction it started from (the `radar odometry registration` debug line).
     fn score(
         &mut self,
         m: &RotationMotion,
         tally: &slam_filter::motion_tally::MotionTally,
-        now_s: f64,
+        until_s: f64,
         truth: Option<Pose2>,
     ) {
         let truth = truth.map(|rel| [rel.x, rel.y, rel.theta]);
@@ -435,7 +438,7 @@ impl RadarOdometryStage {
         }
         debug!(
             since_s = tally.since_s,
-            until_s = now_s,
+            until_s,
             truth_x = truth.map(|t| t[0]),
             truth_y = truth.map(|t| t[1]),
             truth_theta = truth.map(|t| t[2]),
