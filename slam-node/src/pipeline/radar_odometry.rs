@@ -419,7 +419,10 @@ impl RadarOdometryStage {
 
     /// Scores the registration `m` over the rotation from the mark to `until_s` against
     /// `truth`, the true motion over the same interval (with ground truth), and logs both
-    /// with the prediction it started from (the `radar odometry registration` debug line).
+    /// with the prediction it started from (the `radar odometry registration` debug line),
+    /// with the matcher's running counts of the paths a registration can take (retried from
+    /// other headings, an onset probe or a swept probe taken, placed again): their changes
+    /// from one line to the next say which path this registration took.
     fn score(
         &mut self,
         m: &RotationMotion,
@@ -429,6 +432,7 @@ impl RadarOdometryStage {
     ) {
         let truth = truth.map(|rel| [rel.x, rel.y, rel.theta]);
         let motion = m.motion;
+        let c = self.matcher.counts();
         if let Some(t) = truth {
             self.counts.record_truth_error([
                 motion.x - t[0],
@@ -455,6 +459,10 @@ impl RadarOdometryStage {
             searched = m.searched,
             start_follow_average = m.start_follow.unwrap_or(-1.0),
             heading_sigma_rad = m.covariance[(2, 2)].max(0.0).sqrt(),
+            turned = c.turned,
+            onsets = c.onsets,
+            probed = c.probed,
+            replaced = c.replaced,
             "radar odometry registration"
         );
     }
