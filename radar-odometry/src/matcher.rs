@@ -153,6 +153,14 @@ pub const SLOW_MOTION_M: f64 = 1.0;
 /// "Wheel odometry and radar odometry"). On the radar alone the registration is the only
 /// turn there is, and is kept at its own covariance.
 pub const SLOW_HEADING_SIGMA_RAD: f64 = 0.01;
+/// With [`ScanMatchSettings::crawl_surfaces_only`], a registration started from a motion
+/// shorter than this (m; each start, the estimate's and the retries') pairs only with the
+/// reference's points on line-like surfaces ([`ReferenceCloud::surfaces_only_within`]): a shift within a pair gate and a half
+/// (0.6 m by default) of the ground's clutter. On the realistic city driven on the radar
+/// alone (ten 12 s starts) the heading 10 s in erred 20.6 mrad RMS as before, 9.5 with this
+/// at 0.9 m, 11.4 at 0.5 m, 7.6 at 1.5 m and 18.2 at 3 m (a surface's points alone pin a
+/// moving vehicle less well than all its returns do).
+pub const CRAWL_SURFACES_ONLY_M: f64 = 0.9;
 
 /// Radar odometry's settings (`[odometry] radar_odometry*` and the radar's profile).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -289,6 +297,11 @@ pub struct ScanMatchSettings {
     /// A registration pairing under this share of what recent ones paired is also tried
     /// from starts along the track ([`ALONG_RETRIES`]); [`ALONG_PAIRED_SHARE`] by default.
     pub along_paired_share: f64,
+    /// Whether a registration started from a motion under [`CRAWL_SURFACES_ONLY_M`] pairs
+    /// only with the reference's points on line-like surfaces (a vehicle pulling away or
+    /// crawling: [`ReferenceCloud::surfaces_only_within`]). Off by default; slam-node turns
+    /// it on when the radar alone drives.
+    pub crawl_surfaces_only: bool,
 }
 
 impl Default for ScanMatchSettings {
@@ -317,6 +330,7 @@ impl Default for ScanMatchSettings {
             keyframes: 0,
             keyframe_spacing_m: 0.0,
             along_paired_share: ALONG_PAIRED_SHARE,
+            crawl_surfaces_only: false,
         }
     }
 }
@@ -408,6 +422,10 @@ pub struct MatcherCounts {
     pub onsets: u64,
     /// Registrations run again along a swept probe's motion ([`SWEPT_PROBE_RAD`]).
     pub probed: u64,
+    /// Rotations at a crawl (the caller's estimate under [`CRAWL_SURFACES_ONLY_M`]) whose
+    /// registrations paired only with the reference's surfaces
+    /// ([`ScanMatchSettings::crawl_surfaces_only`]).
+    pub crawled: u64,
     /// Rotations placed with the turn their reference was placed with
     /// ([`ScanMatchSettings::place_held`]).
     pub held: u64,
@@ -676,11 +694,22 @@ impl ScanMatcher {
                 all.extend_from_slice(&k.points);
             }
             self.keyframes = self.next_keyframes(keyframes, points);
+            let crawl = self.settings.crawl_surfaces_only
+                && !search
+                && end.x.hypot(end.y) < CRAWL_SURFACES_ONLY_M;
+            if crawl {
+                self.counts.crawled += 1;
+            }
             let reference = &ReferenceCloud::new(
                 all,
                 self.settings.normal_radius_m,
                 self.settings.pair_gate_m,
-            );
+            )
+            .surfaces_only_within(if self.settings.crawl_surfaces_only {
+                CRAWL_SURFACES_ONLY_M
+            } else {
+                0.0
+            });
             self.counts.tried += 1;
             let min_pairs = self.min_pairs(local.len());
             let gate = self.settings.pair_gate_m;

@@ -29,9 +29,11 @@ pub struct Registration {
 /// reference are pulled onto the surface, the others onto the nearest point): the pose `T`
 /// of `current`'s frame in `reference`'s frame such that `T (p) ~ q` for paired points,
 /// started at `initial`, by Gauss-Newton with Cauchy weights. Pairs farther apart than the
-/// gate are not paired; the gate narrows from `gate_m` to a fifth of it. `None` when fewer
-/// than `min_pairs` pairs survive, the clouds are empty, or the pairs do not constrain all
-/// three degrees of freedom.
+/// gate are not paired, nor, when `initial` is nearer the reference's origin than its
+/// [`ReferenceCloud::surfaces_only_within`], points whose nearest reference point has no
+/// normal; the gate narrows from `gate_m` to a
+/// fifth of it. `None` when fewer than `min_pairs` pairs survive, the clouds are empty, or
+/// the pairs do not constrain all three degrees of freedom.
 pub fn register(
     reference: &ReferenceCloud,
     current: &[[f64; 2]],
@@ -83,6 +85,7 @@ fn icp(
     if reference.points.is_empty() || current.is_empty() {
         return None;
     }
+    let surfaces_only = initial.x.hypot(initial.y) < reference.surfaces_only_within_m;
     let mut t = initial;
     let mut last = None;
     for it in 0..ITERATIONS {
@@ -136,6 +139,9 @@ fn icp(
             else {
                 continue;
             };
+            if surfaces_only && normal.is_none() {
+                continue;
+            }
             let d = [moved[0] - q[0], moved[1] - q[1]];
             n += 1;
             match normal {
@@ -412,6 +418,70 @@ mod tests {
             reg.pose.y.abs() < 0.01 && reg.pose.theta.abs() < 1e-3,
             "{reg:?}"
         );
+    }
+
+    /// A vehicle crawling 0.3 m down a street whose ground clutter (a scatterer a square
+    /// metre) is seen in a pattern that turns with the sensor, as a parked car's shadow
+    /// over it does: paired with everything, the clutter turns the registration after it;
+    /// paired with the walls only, the motion is found.
+    #[test]
+    fn clutter_that_turns_with_the_sensor_does_not_turn_a_surfaces_only_registration() {
+        let mut walls = Vec::new();
+        for i in 0..267 {
+            let x = -40.0 + 0.3 * f64::from(i);
+            walls.push([x, 9.0]);
+            walls.push([x, -8.5]);
+        }
+        for i in 0..58 {
+            walls.push([36.0, -8.4 + 0.3 * f64::from(i)]);
+        }
+        // Diffuse clutter in the sensor's frame: a jittered grid, a metre apart.
+        let mut seed = 12_345u64;
+        let mut uniform = || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut clutter = Vec::new();
+        for ix in -30..30 {
+            for iy in -7..8 {
+                clutter.push([f64::from(ix) + uniform(), f64::from(iy) + uniform() - 0.5]);
+            }
+        }
+        let turned = in_frame_of(&Pose2::new(0.0, 0.0, -0.01), &clutter);
+        let b = Pose2::new(0.3, 0.0, 0.0);
+        let scan = |pose: &Pose2, clutter: &[[f64; 2]]| {
+            let mut pts = in_frame_of(pose, &walls);
+            pts.extend_from_slice(clutter);
+            pts
+        };
+        let reference_points = scan(&Pose2::new(0.0, 0.0, 0.0), &clutter);
+        let current = scan(&b, &turned);
+        let start = Pose2::new(0.25, 0.0, 0.0);
+        let all = ReferenceCloud::new(reference_points.clone(), 1.5, 0.6);
+        assert!(
+            all.with_normals() < walls.len() + clutter.len() / 10,
+            "the clutter is not line-like: {} normals",
+            all.with_normals()
+        );
+        let biased = register(&all, &current, start, 0.6, 50).expect("registers");
+        let surfaces =
+            ReferenceCloud::new(reference_points.clone(), 1.5, 0.6).surfaces_only_within(0.9);
+        let farther = ReferenceCloud::new(reference_points, 1.5, 0.6).surfaces_only_within(0.2);
+        let unchanged = register(&farther, &current, start, 0.6, 50).expect("registers");
+        assert_eq!(unchanged, biased, "started beyond 0.2 m, everything pairs");
+        let reg = register(&surfaces, &current, start, 0.6, 50).expect("registers");
+        assert!(
+            biased.pose.theta.abs() > 0.003,
+            "the clutter turns it: {biased:?}"
+        );
+        assert!((reg.pose.theta - b.theta).abs() < 5e-4, "{reg:?}");
+        assert!(
+            (reg.pose.x - b.x).abs() < 0.02 && reg.pose.y.abs() < 0.01,
+            "{reg:?}"
+        );
+        assert_eq!(reg.pairs, reg.line_pairs, "only surfaces are paired");
     }
 
     #[test]

@@ -384,6 +384,14 @@ impl fmt::Display for RadarOdometry<'_> {
                 r.onsets, r.probed
             )?;
         }
+        if r.crawled > 0 {
+            writeln!(
+                f,
+                "  radar odometry at a crawl: {} rotations under {} m; their registrations started that short paired with the reference's surfaces only (not the ground's clutter)",
+                r.crawled,
+                radar_odometry::matcher::CRAWL_SURFACES_ONLY_M
+            )?;
+        }
         if r.held > 0 {
             writeln!(
                 f,

@@ -519,6 +519,10 @@ impl PipelineSettings {
             // is bent only late and registered near straight; probes from headings either
             // side and a swept registration find it (slam-node/README.md, "Radar only").
             s.scan_match.onset_probes = true;
+            // Pulling away or crawling, a rotation's shift is within the pair gate of the
+            // ground's clutter, whose shadows turn with the vehicle: the registrations pair
+            // with surfaces only (slam-node/README.md, "The start's crawl").
+            s.scan_match.crawl_surfaces_only = true;
             // The radar alone loses a degree or two of each junction's turn: a submap's scan
             // gathered on through one is bent, and closures aligning it put the frames
             // degrees off; the scan stops at the turn (slam-node/README.md, "Radar only").

@@ -463,6 +463,7 @@ impl RadarOdometryStage {
             onsets = c.onsets,
             probed = c.probed,
             replaced = c.replaced,
+            crawled = c.crawled,
             "radar odometry registration"
         );
     }
