@@ -2,7 +2,8 @@
 //! filter consistency (NEES, NIS), accuracy per shipped scene, whether power in the
 //! observation helps data association, predicted against measured spectra (paper and
 //! textbook spreading, 40 and 60 dB/decade compensation), speed against error over the
-//! knobs that trade them, the real Oxford Radar RobotCar scans, and numerical stability
+//! knobs that trade them, the real Oxford Radar RobotCar scans, the realistic city driven on
+//! the radar alone through the whole daemon, and numerical stability
 //! over a million filter steps. Writes a Markdown report with SVG figures.
 //!
 //! **IO**: reads the Oxford scans from `../shared/data` (when present) and writes the
@@ -34,7 +35,7 @@ use std::time::Instant;
 use report::{write_file, Options, Section};
 
 /// Keys of the sections, in report order.
-pub const SECTION_KEYS: [&str; 8] = [
+pub const SECTION_KEYS: [&str; 9] = [
     "consistency",
     "accuracy",
     "association",
@@ -42,6 +43,7 @@ pub const SECTION_KEYS: [&str; 8] = [
     "spectra",
     "sweep",
     "oxford",
+    "realistic-city",
     "stability",
 ];
 
@@ -65,6 +67,7 @@ fn run_section(key: &str, opts: &Options) -> Result<Section, EvalError> {
         "spectra" => sections::spectra::section(opts),
         "sweep" => sections::sweep::section(opts),
         "oxford" => sections::oxford::section(opts),
+        "realistic-city" => sections::realistic_city::section(opts),
         "stability" => sections::stability::section(opts),
         other => Err(EvalError::Setting(format!(
             "unknown section {other:?}; known: {}",

@@ -25,7 +25,7 @@ struct Args {
     #[arg(long)]
     oxford: Option<PathBuf>,
     /// Run only these sections (comma-separated): consistency, accuracy, association,
-    /// spectra, sweep, oxford, stability.
+    /// association-sweep, spectra, sweep, oxford, realistic-city, stability.
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
     /// Worker threads for independent runs (timed runs always run alone).

@@ -37,6 +37,9 @@ pub struct Budget {
     pub heavy_scene_seconds: f64,
     /// Oxford scans used (at most the 8 recorded).
     pub oxford_scans: usize,
+    /// Simulated seconds of the realistic city's drive on the radar alone (at most the
+    /// route's; 470 is the whole 4.3 km drive).
+    pub city_seconds: f64,
     /// Skip the runs that take minutes in a debug build (the CTS350-X-like scene's
     /// detection runs, the filter over the Oxford scans, the dense-clutter sweep).
     pub skip_heavy: bool,
@@ -62,6 +65,7 @@ impl Budget {
             stability_steps: 1_000_000,
             heavy_scene_seconds: 2.5,
             oxford_scans: 8,
+            city_seconds: 470.0,
             skip_heavy: false,
             jobs: 2,
         }
@@ -84,6 +88,7 @@ impl Budget {
             stability_steps: 20_000,
             heavy_scene_seconds: 1.0,
             oxford_scans: 8,
+            city_seconds: 60.0,
             skip_heavy: false,
             jobs: 2,
         }
@@ -106,6 +111,7 @@ impl Budget {
             stability_steps: 400,
             heavy_scene_seconds: 0.5,
             oxford_scans: 2,
+            city_seconds: 3.0,
             skip_heavy: true,
             jobs: 2,
         }

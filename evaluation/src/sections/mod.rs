@@ -6,6 +6,7 @@ pub mod association;
 pub mod association_sweep;
 pub mod consistency;
 pub mod oxford;
+pub mod realistic_city;
 pub mod spectra;
 pub mod stability;
 pub mod sweep;
