@@ -156,3 +156,33 @@ pub fn run_daemon(
         wall_s: started.elapsed().as_secs_f64(),
     })
 }
+
+/// The whole daemon's options for a run of `config` (with the keys its file wrote,
+/// `written`) against the simulator in this process with `sim`'s options, for `seconds` of
+/// stream, its outputs in `out`: no figures, no progress lines, the configuration's own
+/// detector (what `slam-node --config FILE --embedded-sim --duration S` runs).
+pub fn embedded_run_options(
+    config: config::Config,
+    written: std::collections::BTreeSet<String>,
+    sim: sim_sensor::SimOptions,
+    seconds: f64,
+    out: &std::path::Path,
+) -> slam_node::daemon::DaemonOptions {
+    slam_node::daemon::DaemonOptions {
+        out_dir: out.to_path_buf(),
+        figures: false,
+        progress_every_rotations: 0,
+        max_stream_s: Some(seconds),
+        simulator: Some(slam_node::daemon::Simulator {
+            sim: slam_node::daemon::EmbeddedSim::new(sim),
+            recorded: None,
+        }),
+        mcap: None,
+        keep_configured_compensation: false,
+        spectrum_bearings_deg: Vec::new(),
+        config,
+        stop: Arc::new(std::sync::atomic::AtomicBool::new(false)),
+        detector: None,
+        written: Some(written),
+    }
+}

@@ -14,8 +14,6 @@
 //! to a temporary folder.
 
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 
 use anyhow::Context;
 use clap::Parser;
@@ -65,23 +63,13 @@ fn options(args: &Args, place: bool, out: &std::path::Path) -> anyhow::Result<Da
             .map(|d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
             .unwrap_or(0),
     );
-    Ok(DaemonOptions {
-        out_dir: out.to_path_buf(),
-        figures: false,
-        progress_every_rotations: 0,
-        max_stream_s: Some(args.duration),
-        simulator: Some(slam_node::daemon::Simulator {
-            sim: slam_node::daemon::EmbeddedSim::new(sim),
-            recorded: None,
-        }),
-        mcap: None,
-        keep_configured_compensation: false,
-        spectrum_bearings_deg: Vec::new(),
+    Ok(evaluation::daemon::embedded_run_options(
         config,
-        stop: Arc::new(AtomicBool::new(false)),
-        detector: None,
-        written: Some(written),
-    })
+        written,
+        sim,
+        args.duration,
+        out,
+    ))
 }
 
 fn main() -> anyhow::Result<()> {

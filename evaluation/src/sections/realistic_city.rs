@@ -12,12 +12,10 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
 
 use sim_sensor::scene::Scene;
 use sim_sensor::visits::drive_samples;
-use slam_node::daemon::{run_daemon, DaemonOptions, EmbeddedSim, Simulator};
+use slam_node::daemon::run_daemon;
 
 use crate::city_realism::write_map;
 use crate::error::EvalError;
@@ -199,23 +197,7 @@ fn drive(seconds: f64, out: &Path) -> Result<String, EvalError> {
     sim.odometry_bind = Some(any);
     sim.gyro_bind = (config.gyro.source != config::gyro::GyroSource::None).then_some(any);
     sim.pacing = sim_sensor::settings::Pacing::AsFastAsPossible;
-    let opts = DaemonOptions {
-        out_dir: out.to_path_buf(),
-        figures: false,
-        progress_every_rotations: 0,
-        max_stream_s: Some(seconds),
-        simulator: Some(Simulator {
-            sim: EmbeddedSim::new(sim),
-            recorded: None,
-        }),
-        mcap: None,
-        keep_configured_compensation: false,
-        spectrum_bearings_deg: Vec::new(),
-        config,
-        stop: Arc::new(AtomicBool::new(false)),
-        detector: None,
-        written: Some(written),
-    };
+    let opts = crate::daemon::embedded_run_options(config, written, sim, seconds, out);
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
