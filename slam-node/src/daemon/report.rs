@@ -525,7 +525,7 @@ impl fmt::Display for Submaps<'_> {
         let g = &sm.global;
         writeln!(
             f,
-            "  submaps: {} (largest {} features when closed), {} features frozen in {:.1} kB; global layer: {} loop closures from {} candidates ({} dropped as conflicting, {} after the solve, {} closures held for the next submap (place jumps, prior slides) and {} of them unconfirmed, {} failed solves), {} solutions used, slowest join {:.1} ms; near links (scans two or three submaps apart, slam-graph's near_links) {} of {} tried ({} more verified but dropped after the solve, far outside their covariance)",
+            "  submaps: {} (largest {} features when closed), {} features frozen in {:.1} kB; global layer: {} loop closures from {} candidates ({} dropped as conflicting, {} after the solve, {} closures held for the next submap (place jumps, prior slides) and {} of them unconfirmed, {} failed solves), {} solutions used, slowest join {:.1} ms; near links (each submap's scan against those two to `[submaps] near_links` back that the chain puts within 120 m, slam-graph's near_links) {} of {} tried ({} more verified but dropped after the solve, far outside their covariance)",
             sm.submaps,
             sm.largest_submap_features,
             sm.frozen_features,
