@@ -223,22 +223,36 @@ pub const MAX_TRAJECTORY_BYTES: u64 = 256 << 20;
 /// The positions `(x, y)` of a trajectory in the TUM format (`timestamp x y z qx qy qz qw`
 /// a row, `#` comments), as the daemon writes `trajectory.tum` and `trajectory-online.tum`.
 pub fn read_tum_xy(path: &Path) -> Result<Vec<(f64, f64)>, EvalError> {
+    Ok(read_tum_poses(path)?
+        .into_iter()
+        .map(|p| (p[1], p[2]))
+        .collect())
+}
+
+/// The poses of a trajectory in the TUM format (`timestamp x y z qx qy qz qw` a row, `#`
+/// comments; a rotation about +z, as the daemon writes them): `[time s, x m, y m, heading
+/// rad]` a row. A file that is not a regular file (a FIFO, a device) is refused before it is
+/// opened, and at most [`MAX_TRAJECTORY_BYTES`] are read.
+pub fn read_tum_poses(path: &Path) -> Result<Vec<[f64; 4]>, EvalError> {
     use std::io::Read as _;
     let io = |source| EvalError::Io {
         path: path.to_path_buf(),
         source,
     };
+    let data = |line: usize, reason: String| EvalError::Data {
+        path: path.to_path_buf(),
+        line,
+        reason,
+    };
+    if !std::fs::metadata(path).map_err(io)?.is_file() {
+        return Err(data(0, "not a regular file".into()));
+    }
     let mut text = String::new();
     std::fs::File::open(path)
         .map_err(io)?
         .take(MAX_TRAJECTORY_BYTES + 1)
         .read_to_string(&mut text)
         .map_err(io)?;
-    let data = |line: usize, reason: String| EvalError::Data {
-        path: path.to_path_buf(),
-        line,
-        reason,
-    };
     if text.len() as u64 > MAX_TRAJECTORY_BYTES {
         return Err(data(0, format!("larger than {MAX_TRAJECTORY_BYTES} bytes")));
     }
@@ -258,7 +272,12 @@ pub fn read_tum_xy(path: &Path) -> Result<Vec<(f64, f64)>, EvalError> {
                 .filter(|x| x.is_finite())
                 .ok_or_else(|| data(k + 1, format!("{s:?} is not a finite number")))
         };
-        out.push((num(v[1])?, num(v[2])?));
+        out.push([
+            num(v[0])?,
+            num(v[1])?,
+            num(v[2])?,
+            2.0 * num(v[6])?.atan2(num(v[7])?),
+        ]);
     }
     Ok(out)
 }
@@ -489,6 +508,11 @@ mod tests {
         assert!(matches!(
             read_tum_xy(&path),
             Err(EvalError::Data { line: 1, .. })
+        ));
+        // Not a regular file (here a folder; a FIFO or a device alike): refused unread.
+        assert!(matches!(
+            read_tum_xy(dir.path()),
+            Err(EvalError::Data { line: 0, .. })
         ));
     }
 

@@ -17,7 +17,7 @@ use sim_sensor::scene::Scene;
 use sim_sensor::visits::drive_samples;
 use slam_node::daemon::run_daemon;
 
-use crate::city_realism::write_map;
+use crate::city_realism::{read_tum_poses as read_tum, write_map};
 use crate::error::EvalError;
 use crate::plot::{line_chart, Labels, Series};
 use crate::report::{num, table, Options, Section};
@@ -41,39 +41,6 @@ fn workspace() -> PathBuf {
 
 /// One pose of a TUM file: time (s), x, y (m), heading (rad).
 type TumPose = [f64; 4];
-
-/// A TUM trajectory's rows (`timestamp x y z qx qy qz qw`, `#` comments) as poses.
-fn read_tum(path: &Path) -> Result<Vec<TumPose>, EvalError> {
-    let text = std::fs::read_to_string(path).map_err(|source| EvalError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let mut out = Vec::new();
-    for (k, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let v: Vec<f64> = line
-            .split_whitespace()
-            .map(|s| s.parse::<f64>().ok().filter(|x| x.is_finite()))
-            .collect::<Option<Vec<f64>>>()
-            .ok_or_else(|| EvalError::Data {
-                path: path.to_path_buf(),
-                line: k + 1,
-                reason: "a field is not a finite number".into(),
-            })?;
-        if v.len() != 8 {
-            return Err(EvalError::Data {
-                path: path.to_path_buf(),
-                line: k + 1,
-                reason: format!("{} fields, a TUM row has 8", v.len()),
-            });
-        }
-        out.push([v[0], v[1], v[2], 2.0 * v[6].atan2(v[7])]);
-    }
-    Ok(out)
-}
 
 /// The pairs of `est` and `truth` rows at the same time (within [`SAME_TIME_S`]), each with
 /// its truth row's index; `truth` in time order.
