@@ -20,6 +20,10 @@ pub fn pose_nees(estimate: &Pose2, cov: &Matrix3<f64>, truth: &Pose2) -> Result<
     Ok(e.dot(&ch.solve(&e)))
 }
 
+/// The two-sided 95 % interval of chi-square with 3 dof (its 2.5 % and 97.5 % points): a
+/// consistent filter's pose NEES lies below it in 2.5 % of samples, above it in 2.5 %.
+pub const POSE_NEES_BAND_95: (f64, f64) = (0.2158, 9.3484);
+
 /// NEES of a feature position (2 dof).
 pub fn position_nees(
     estimate: [f64; 2],

@@ -208,14 +208,15 @@ impl fmt::Display for PoseError<'_> {
         }
         writeln!(
             f,
-            "  pose error vs truth: RMS {:.3} m, max {:.3} m, final {:.3} m / {:.2} deg; inside own 3-sigma in {:.1}% of {} rotations; mean NEES {:.2} (3 dof)",
+            "  pose error vs truth: RMS {:.3} m, max {:.3} m, final {:.3} m / {:.2} deg; inside own 3-sigma in {:.1}% of {} rotations; mean NEES {:.2} (3 dof), {}",
             p.rms_position_m(),
             p.max_position_m,
             p.final_position_m,
             p.final_heading_rad.to_degrees(),
             100.0 * p.inside_fraction(),
             p.samples,
-            p.nees_sum / p.samples.max(1) as f64
+            p.nees_sum / p.samples.max(1) as f64,
+            p.nees_band
         )
     }
 }
@@ -553,7 +554,7 @@ impl fmt::Display for Submaps<'_> {
         } else if let Some(o) = &sm.optimised {
             writeln!(
                 f,
-                "  global trajectory vs truth (trajectory.tum, final frames): RMS {:.3} m, max {:.3} m, final {:.3} m / {:.2} deg, heading RMS {:.2} deg; mean NEES {:.2}, inside 99% bound {:.1}%; drift over 100-800 m segments {} on {:.0} m driven; loop closures true {} / false {}",
+                "  global trajectory vs truth (trajectory.tum, final frames): RMS {:.3} m, max {:.3} m, final {:.3} m / {:.2} deg, heading RMS {:.2} deg; mean NEES {:.2}, inside 99% bound {:.1}%, {}; drift over 100-800 m segments {} on {:.0} m driven; loop closures true {} / false {}",
                 o.rms_m,
                 o.max_m,
                 o.final_m,
@@ -561,6 +562,7 @@ impl fmt::Display for Submaps<'_> {
                 o.rms_heading_rad.to_degrees(),
                 o.mean_nees,
                 100.0 * o.inside_99,
+                o.nees_band,
                 drift_text(o),
                 o.length_m,
                 sm.loops_true,

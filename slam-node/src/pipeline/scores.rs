@@ -55,6 +55,65 @@ impl ObservationErrorStats {
     }
 }
 
+/// Where a series of pose NEES (3 dof) falls against
+/// [`slam_filter::health::POSE_NEES_BAND_95`]: the share below says the covariance is too
+/// large (conservative), above too small (optimistic). A mean NEES alone hides which: a
+/// drive half at 0.5 and half at 5.5 averages 3.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct NeesBand {
+    /// Samples below the band.
+    pub below: u64,
+    /// Samples inside it.
+    pub inside: u64,
+    /// Samples above it.
+    pub above: u64,
+}
+
+impl NeesBand {
+    /// Counts one NEES; a non-finite value is not counted.
+    pub fn add(&mut self, nees: f64) {
+        let (lo, hi) = slam_filter::health::POSE_NEES_BAND_95;
+        if !nees.is_finite() {
+            return;
+        }
+        if nees < lo {
+            self.below += 1;
+        } else if nees > hi {
+            self.above += 1;
+        } else {
+            self.inside += 1;
+        }
+    }
+
+    /// Samples counted.
+    pub fn samples(&self) -> u64 {
+        self.below + self.inside + self.above
+    }
+
+    /// Shares below, inside and above the band (zeros before any sample).
+    pub fn shares(&self) -> [f64; 3] {
+        let n = self.samples();
+        if n == 0 {
+            return [0.0; 3];
+        }
+        [self.below, self.inside, self.above].map(|c| c as f64 / n as f64)
+    }
+}
+
+impl std::fmt::Display for NeesBand {
+    /// `inside its two-sided 95% band [0.22, 9.35] in 95.0% of N (2.5% below: conservative,
+    /// 2.5% above: optimistic)`: a consistent filter's shares.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let [below, inside, above] = self.shares().map(|s| 100.0 * s);
+        let (lo, hi) = slam_filter::health::POSE_NEES_BAND_95;
+        write!(
+            f,
+            "inside its two-sided 95% band [{lo:.2}, {hi:.2}] in {inside:.1}% of {} ({below:.1}% below: conservative, {above:.1}% above: optimistic)",
+            self.samples()
+        )
+    }
+}
+
 /// Pose error statistics against truth, accumulated per rotation.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct PoseErrorStats {
@@ -70,6 +129,8 @@ pub struct PoseErrorStats {
     pub inside_3_sigma: u64,
     /// Sum of pose NEES (3 dof).
     pub nees_sum: f64,
+    /// The pose NEES against its two-sided 95 % band.
+    pub nees_band: NeesBand,
     /// Final position error, m.
     pub final_position_m: f64,
     /// Final heading error, rad.
@@ -98,6 +159,9 @@ impl PoseErrorStats {
             self.inside_3_sigma += 1;
         }
         self.nees_sum += nees.unwrap_or(0.0);
+        if let Some(v) = nees {
+            self.nees_band.add(v);
+        }
         self.final_position_m = pos;
         self.final_heading_rad = e[2].abs();
     }
@@ -151,4 +215,52 @@ pub struct MapScore {
     /// Mean |rho 10^(-(L - L_true)/10) - true rho|: received power fixes only
     /// `10 log10 rho - L`, so rho and L share one unobservable offset; this removes it.
     pub mean_rho_error_gauge_fixed: Option<f64>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+    #[test]
+    fn the_nees_band_is_chi_square_3_dof_two_sided_95_percent() {
+        let chi2 = ChiSquared::new(3.0).unwrap();
+        let (lo, hi) = slam_filter::health::POSE_NEES_BAND_95;
+        assert!((chi2.cdf(lo) - 0.025).abs() < 1e-4, "{}", chi2.cdf(lo));
+        assert!((chi2.cdf(hi) - 0.975).abs() < 1e-4, "{}", chi2.cdf(hi));
+    }
+
+    #[test]
+    fn the_nees_band_counts_each_side_and_skips_what_is_not_a_number() {
+        let mut band = NeesBand::default();
+        for v in [0.1, 0.2158, 3.0, 9.3484, 9.4, 50.0, f64::NAN, f64::INFINITY] {
+            band.add(v);
+        }
+        assert_eq!(
+            band,
+            NeesBand {
+                below: 1,
+                inside: 3,
+                above: 2
+            }
+        );
+        assert_eq!(band.shares(), [1.0 / 6.0, 0.5, 1.0 / 3.0]);
+        assert_eq!(NeesBand::default().shares(), [0.0; 3]);
+        let text = band.to_string();
+        assert!(text.contains("50.0% of 6"), "{text}");
+        assert!(text.contains("16.7% below"), "{text}");
+        assert!(text.contains("33.3% above"), "{text}");
+    }
+
+    #[test]
+    fn pose_errors_count_the_nees_against_its_band() {
+        let mut stats = PoseErrorStats::default();
+        let truth = Pose2::new(0.0, 0.0, 0.0);
+        stats.add(&Pose2::new(0.1, 0.0, 0.0), [0.01; 3], &truth, Some(1.0));
+        stats.add(&Pose2::new(3.0, 0.0, 0.0), [0.01; 3], &truth, Some(900.0));
+        stats.add(&Pose2::new(0.0, 0.0, 0.0), [0.01; 3], &truth, None);
+        assert_eq!(stats.nees_band.inside, 1);
+        assert_eq!(stats.nees_band.above, 1);
+        assert_eq!(stats.nees_band.samples(), 2);
+    }
 }

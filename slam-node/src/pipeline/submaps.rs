@@ -78,6 +78,8 @@ pub struct TrajectoryScore {
     pub mean_nees: f64,
     /// Share of poses with NEES inside the 3-dof 99 % bound (11.34).
     pub inside_99: f64,
+    /// The poses' NEES against its two-sided 95 % band.
+    pub nees_band: super::scores::NeesBand,
     /// Mean translational drift over segments of 100, 200, ..., 800 m (% of the segment),
     /// the metric of the radar odometry literature (`slam_filter::drift`, as the KITTI devkit
     /// and the Boreas benchmark define it); `None` when the drive is shorter.
@@ -114,6 +116,7 @@ pub fn score_trajectory(estimate: &[PoseSample], truth: &[Pose2]) -> TrajectoryS
             slam_filter::health::pose_nees(&Pose2::new(e.x_m, e.y_m, e.theta_rad), &cov, t)
         {
             nees += v;
+            s.nees_band.add(v);
             if v <= 11.34 {
                 inside += 1;
             }
