@@ -17,6 +17,7 @@ Reads files only; needs scipy.
 """
 
 import csv
+import signal
 import sys
 
 from scipy.stats import chi2
@@ -74,4 +75,6 @@ def main(dirs):
 
 
 if __name__ == "__main__":
+    # Piped into head: end quietly when the reader stops reading.
+    signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     main(sys.argv[1:])
