@@ -234,28 +234,12 @@ pub fn read_tum_xy(path: &Path) -> Result<Vec<(f64, f64)>, EvalError> {
 /// rad]` a row. A file that is not a regular file (a FIFO, a device) is refused before it is
 /// opened, and at most [`MAX_TRAJECTORY_BYTES`] are read.
 pub fn read_tum_poses(path: &Path) -> Result<Vec<[f64; 4]>, EvalError> {
-    use std::io::Read as _;
-    let io = |source| EvalError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
+    let text = read_bounded_text(path, MAX_TRAJECTORY_BYTES)?;
     let data = |line: usize, reason: String| EvalError::Data {
         path: path.to_path_buf(),
         line,
         reason,
     };
-    if !std::fs::metadata(path).map_err(io)?.is_file() {
-        return Err(data(0, "not a regular file".into()));
-    }
-    let mut text = String::new();
-    std::fs::File::open(path)
-        .map_err(io)?
-        .take(MAX_TRAJECTORY_BYTES + 1)
-        .read_to_string(&mut text)
-        .map_err(io)?;
-    if text.len() as u64 > MAX_TRAJECTORY_BYTES {
-        return Err(data(0, format!("larger than {MAX_TRAJECTORY_BYTES} bytes")));
-    }
     let mut out = Vec::new();
     for (k, line) in text.lines().enumerate() {
         let line = line.trim();
@@ -280,6 +264,35 @@ pub fn read_tum_poses(path: &Path) -> Result<Vec<[f64; 4]>, EvalError> {
         ]);
     }
     Ok(out)
+}
+
+/// The whole of a text file of at most `max_bytes` (the daemon's outputs: a trajectory, a
+/// diagnostics table). A path that is not a regular file (a FIFO, a device) is refused
+/// before it is opened, and no more than `max_bytes + 1` bytes are ever read.
+pub fn read_bounded_text(path: &Path, max_bytes: u64) -> Result<String, EvalError> {
+    use std::io::Read as _;
+    let io = |source| EvalError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let refuse = |reason: String| EvalError::Data {
+        path: path.to_path_buf(),
+        line: 0,
+        reason,
+    };
+    if !std::fs::metadata(path).map_err(io)?.is_file() {
+        return Err(refuse("not a regular file".into()));
+    }
+    let mut text = String::new();
+    std::fs::File::open(path)
+        .map_err(io)?
+        .take(max_bytes + 1)
+        .read_to_string(&mut text)
+        .map_err(io)?;
+    if text.len() as u64 > max_bytes {
+        return Err(refuse(format!("larger than {max_bytes} bytes")));
+    }
+    Ok(text)
 }
 
 /// Draws the city: building fronts, walls, fences and hedges as lines, parked vehicles,

@@ -17,6 +17,7 @@ pub mod daemon;
 pub mod detections;
 pub mod error;
 pub mod metrics;
+pub mod nees_ensemble;
 pub mod plot;
 pub mod record;
 pub mod report;

@@ -70,9 +70,24 @@ pub struct NeesBand {
 }
 
 impl NeesBand {
-    /// Counts one NEES; a non-finite value is not counted.
+    /// Counts one NEES against [`slam_filter::health::POSE_NEES_BAND_95`]; a non-finite
+    /// value is not counted.
     pub fn add(&mut self, nees: f64) {
-        let (lo, hi) = slam_filter::health::POSE_NEES_BAND_95;
+        self.add_against(nees, slam_filter::health::POSE_NEES_BAND_95);
+    }
+
+    /// `values` counted against the band `(lo, hi)` (another band: an ensemble's, of the
+    /// average over runs).
+    pub fn of(values: impl IntoIterator<Item = f64>, band: (f64, f64)) -> Self {
+        let mut counts = Self::default();
+        for v in values {
+            counts.add_against(v, band);
+        }
+        counts
+    }
+
+    /// Counts one value against `(lo, hi)`; a non-finite value is not counted.
+    fn add_against(&mut self, nees: f64, (lo, hi): (f64, f64)) {
         if !nees.is_finite() {
             return;
         }
