@@ -441,8 +441,20 @@ impl fmt::Display for RadarOdometry<'_> {
         if let Some([x, y, h]) = m.truth_error() {
             writeln!(
                 f,
-                "  radar odometry vs the true motion ({} registrations, mean +- std): x {:+.4} +- {:.4} m, y {:+.4} +- {:.4} m, heading {:+.5} +- {:.5} rad",
-                m.truth_compared, x.0, x.1, y.0, y.1, h.0, h.1
+                "  radar odometry vs the true motion ({} registrations, mean +- std): x {:+.4} +- {:.4} m, y {:+.4} +- {:.4} m, heading {:+.5} +- {:.5} rad{}{}",
+                m.truth_compared,
+                x.0,
+                x.1,
+                y.0,
+                y.1,
+                h.0,
+                h.1,
+                m.truth_normalised_rms().map_or(String::new(), |[x, y, h]| format!(
+                    "; each error over the std it was taken with, RMS: x {x:.2}, y {y:.2}, heading {h:.2} (1: as good as the filter was told; above 1: the filter was told better than it got)"
+                )),
+                m.heading_error_lag_one().map_or(String::new(), |r| format!(
+                    "; consecutive heading errors correlated {r:+.2} (lag one; -0.5: each cloud's placement error, cancelling when chained)"
+                ))
             )?;
         }
         if let Some(c) = m.chained {

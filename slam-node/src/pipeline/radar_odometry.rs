@@ -232,6 +232,9 @@ impl RadarOdometryStage {
             self.chain_motion(motion, true_rel);
         }
         let mut applied = None;
+        if measured.is_none() || tally.is_none() {
+            self.counts.break_heading_run();
+        }
         if let (Some(m), Some(tally)) = (measured.as_ref(), tally) {
             self.score(m, &tally, until_s, true_rel);
             self.warn_if_weak(m, ekf.state().time_s());
@@ -434,11 +437,16 @@ impl RadarOdometryStage {
         let motion = m.motion;
         let c = self.matcher.counts();
         if let Some(t) = truth {
-            self.counts.record_truth_error([
-                motion.x - t[0],
-                motion.y - t[1],
-                wrap_angle(motion.theta - t[2]),
-            ]);
+            self.counts.record_truth_error(
+                [
+                    motion.x - t[0],
+                    motion.y - t[1],
+                    wrap_angle(motion.theta - t[2]),
+                ],
+                &m.covariance,
+            );
+        } else {
+            self.counts.break_heading_run();
         }
         debug!(
             since_s = tally.since_s,
