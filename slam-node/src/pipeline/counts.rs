@@ -121,12 +121,11 @@ impl ScanMatchCounts {
     /// registered against the previous one), which cancel when chained. `None` with fewer
     /// than [`MIN_LAG_PAIRS`] pairs or no spread.
     pub fn heading_error_lag_one(&self) -> Option<f64> {
-        if self.heading_lag_pairs < MIN_LAG_PAIRS || self.truth_compared < 2 {
+        if self.heading_lag_pairs < MIN_LAG_PAIRS {
             return None;
         }
-        let n = self.truth_compared as f64;
-        let mean = self.truth_error_sum[2] / n;
-        let var = self.truth_error_sq_sum[2] / n - mean * mean;
+        let (mean, std) = self.truth_error()?[2];
+        let var = std * std;
         // No spread beyond rounding (errors all alike) has nothing to correlate.
         if var <= 1e-9 * mean * mean || var <= 0.0 {
             return None;
