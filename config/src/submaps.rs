@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::check::Checker;
 use crate::error::FieldErrors;
-use crate::values::{Capacity, OpenProbability, PositiveF64};
+use crate::values::{Capacity, OpenProbability, PositiveF64, Probability};
 
 /// The most features one submap may be set to hold.
 pub const MAX_SUBMAP_FEATURES: usize = 5000;
@@ -52,6 +52,17 @@ pub struct RawSubmaps {
     /// registration pairs few returns, is measured over the whole street. Needs
     /// `scan_loop_closure`. 0 or 1: none. Default 3.
     pub near_links: i64,
+    /// A near link enters the graph with the registration's covariance times this (at
+    /// least 1): the registration's covariance counts every paired return as independent,
+    /// and a link's error against the truth is larger than it says (the summary's `graph
+    /// edges vs truth` line). Default 1.
+    pub near_link_covariance_scale: f64,
+    /// A near link, or a loop closure verified by the scans, registers two submaps' scans,
+    /// each its rotations placed by the filter, whose placement error grows along the
+    /// submap to the end pose's: the edge's covariance adds this share of each submap's
+    /// end covariance (1/3: the mean of a random walk), the error the registration's own
+    /// covariance does not hold. In [0, 1]; 0: the registration's alone. Default 1/3.
+    pub scan_smear: f64,
 }
 
 impl Default for RawSubmaps {
@@ -67,6 +78,8 @@ impl Default for RawSubmaps {
             place_recognition: true,
             scan_loop_closure: true,
             near_links: 3,
+            near_link_covariance_scale: 1.0,
+            scan_smear: 1.0 / 3.0,
         }
     }
 }
@@ -94,6 +107,10 @@ pub struct SubmapSettings {
     pub scan_loop_closure: bool,
     /// Near links: submaps back (0 or 1: none).
     pub near_links: u64,
+    /// A near link's covariance over its registration's (at least 1).
+    pub near_link_covariance_scale: PositiveF64,
+    /// Share of each submap's end covariance a scan edge adds, in [0, 1].
+    pub scan_smear: Probability,
 }
 
 impl Default for SubmapSettings {
@@ -143,6 +160,19 @@ impl RawSubmaps {
                 )),
             );
         }
+        let near_link_covariance_scale = c.check(
+            "submaps.near_link_covariance_scale",
+            PositiveF64::new(self.near_link_covariance_scale),
+        );
+        if self.near_link_covariance_scale > 0.0 && self.near_link_covariance_scale < 1.0 {
+            c.fail(
+                "submaps.near_link_covariance_scale",
+                crate::values::ValueError::Rule(format!(
+                    "must be at least 1 (a link surer than its own registration), got {}",
+                    self.near_link_covariance_scale
+                )),
+            );
+        }
         SubmapSettings {
             enabled: self.enabled,
             max_distance_m: c.check(
@@ -166,6 +196,8 @@ impl RawSubmaps {
                 "submaps.near_links",
                 crate::values::count(self.near_links, MAX_NEAR_LINKS),
             ),
+            near_link_covariance_scale,
+            scan_smear: c.check("submaps.scan_smear", Probability::new(self.scan_smear)),
         }
     }
 }
@@ -182,6 +214,8 @@ impl From<&SubmapSettings> for RawSubmaps {
             search_sigmas: s.search_sigmas.get(),
             place_recognition: s.place_recognition,
             near_links: s.near_links as i64,
+            near_link_covariance_scale: s.near_link_covariance_scale.get(),
+            scan_smear: s.scan_smear.get(),
             scan_loop_closure: s.scan_loop_closure,
         }
     }

@@ -598,7 +598,34 @@ impl fmt::Display for Submaps<'_> {
                 g.place_loops
             )?;
         }
+        if let Some(e) = &sm.edges_vs_truth {
+            writeln!(
+                f,
+                "  graph edges vs truth (each edge's error over the std it entered the graph with, RMS x / y / heading; mean NEES, 3 if honest; heading error RMS): chain {}; near links {}; loop closures {}",
+                EdgeText(&e.chain),
+                EdgeText(&e.links),
+                EdgeText(&e.loops)
+            )?;
+        }
         Ok(())
+    }
+}
+
+/// One kind of graph edge against the truth.
+struct EdgeText<'a>(&'a crate::pipeline::submaps::EdgeScore);
+
+impl fmt::Display for EdgeText<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let e = self.0;
+        match (e.normalised_rms(), e.mean_nees(), e.heading_rms_rad()) {
+            (Some([x, y, h]), Some(nees), Some(rms)) => write!(
+                f,
+                "{} edges: {x:.2} / {y:.2} / {h:.2}, NEES {nees:.2}, heading {:.2} mrad",
+                e.count,
+                rms * 1e3
+            ),
+            _ => write!(f, "none"),
+        }
     }
 }
 

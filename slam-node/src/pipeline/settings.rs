@@ -154,6 +154,8 @@ impl SubmapOptions {
         global.scans.enabled = s.scan_loop_closure;
         // Without scans (`scan_loop_closure = false`) the layer has none to link.
         global.near_links = s.near_links as usize;
+        global.near_covariance_scale = s.near_link_covariance_scale.get();
+        global.scan_smear = s.scan_smear.get();
         Some(Self {
             limits: slam_filter::SubmapLimits {
                 max_distance_m: s.max_distance_m.get(),

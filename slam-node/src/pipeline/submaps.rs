@@ -57,6 +57,79 @@ pub struct SubmapSummary {
     pub revisits: Option<slam_graph::RevisitScore>,
     /// Extending a saved map: the closures from this run's submaps to the saved ones.
     pub loops_to_saved: usize,
+    /// The graph's edges against the truth, when it is known: the chain (each submap's
+    /// end pose in its own frame), the near links and the loop closures, each as it
+    /// entered the graph.
+    pub edges_vs_truth: Option<EdgesVsTruth>,
+}
+
+/// The global graph's edges against the truth ([`SubmapSummary::edges_vs_truth`]): how
+/// far each kind of edge is from the true relative pose of its two frames, against the
+/// covariance it was given.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EdgesVsTruth {
+    /// Each submap's end pose in its frame, with the filter's covariance of it.
+    pub chain: EdgeScore,
+    /// Near links ([`slam_graph::GlobalMap::links`]), with the covariance they entered
+    /// the graph with (the registration's times `[submaps] near_link_covariance_scale`).
+    pub links: EdgeScore,
+    /// Loop closures.
+    pub loops: EdgeScore,
+}
+
+/// One kind of edge against the truth ([`EdgesVsTruth`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EdgeScore {
+    /// Edges scored (those whose covariance is positive definite).
+    pub count: usize,
+    /// Sums of (error / its standard deviation)^2 in x, y and heading, in the earlier
+    /// frame.
+    pub normalised_sq_sum: [f64; 3],
+    /// Sum of heading errors squared (rad^2).
+    pub heading_sq_sum: f64,
+    /// Sum of the edges' NEES (3 dof, full covariance).
+    pub nees_sum: f64,
+}
+
+impl EdgeScore {
+    /// Scores one edge: `estimate` with covariance `cov` against the true `truth`, both
+    /// the later frame in the earlier one's. An edge whose covariance is not positive
+    /// definite is not counted.
+    pub fn add(&mut self, estimate: &Pose2, cov: &Matrix3<f64>, truth: &Pose2) {
+        let Ok(nees) = slam_filter::health::pose_nees(estimate, cov, truth) else {
+            return;
+        };
+        let e = [
+            estimate.x - truth.x,
+            estimate.y - truth.y,
+            radar_model::geometry::wrap_angle(estimate.theta - truth.theta),
+        ];
+        self.count += 1;
+        for (d, err) in e.iter().enumerate() {
+            self.normalised_sq_sum[d] += err * err / cov[(d, d)];
+        }
+        self.heading_sq_sum += e[2] * e[2];
+        self.nees_sum += nees;
+    }
+
+    /// RMS of each component's error over its standard deviation (x, y, heading); 1 for
+    /// an edge as good as its covariance says.
+    pub fn normalised_rms(&self) -> Option<[f64; 3]> {
+        (self.count > 0).then(|| {
+            self.normalised_sq_sum
+                .map(|s| (s / self.count as f64).sqrt())
+        })
+    }
+
+    /// RMS heading error (rad).
+    pub fn heading_rms_rad(&self) -> Option<f64> {
+        (self.count > 0).then(|| (self.heading_sq_sum / self.count as f64).sqrt())
+    }
+
+    /// Mean NEES (3 dof: 3 for a consistent edge).
+    pub fn mean_nees(&self) -> Option<f64> {
+        (self.count > 0).then(|| self.nees_sum / self.count as f64)
+    }
 }
 
 /// A whole trajectory against the truth.
@@ -532,6 +605,7 @@ impl SubmapRun {
             truth(map.submaps().get(i - 1)?.end_s)
         };
         self.summary.revisits = Some(revisit_score(map, &est, &tru, &frame_truth));
+        self.summary.edges_vs_truth = Some(edges_vs_truth(map, &frame_truth));
         for l in map.loops() {
             let (Some(a), Some(b)) = (frame_truth(l.from), frame_truth(l.to)) else {
                 continue;
@@ -651,6 +725,28 @@ impl SubmapRun {
         }
         out
     }
+}
+
+/// Every edge of `map`'s graph against the true relative pose of its frames
+/// (`frame_truth(i)`: frame `i`'s true pose).
+fn edges_vs_truth(map: &GlobalMap, frame_truth: &dyn Fn(usize) -> Option<Pose2>) -> EdgesVsTruth {
+    let mut out = EdgesVsTruth::default();
+    let between = |i: usize, j: usize| -> Option<Pose2> {
+        Some(slam_graph::se2::between(&frame_truth(i)?, &frame_truth(j)?))
+    };
+    for (i, s) in map.submaps().iter().enumerate() {
+        if let Some(t) = between(i, i + 1) {
+            out.chain.add(&s.end_pose, &s.end_cov, &t);
+        }
+    }
+    for (score, edges) in [(&mut out.links, map.links()), (&mut out.loops, map.loops())] {
+        for l in edges {
+            if let Some(t) = between(l.from, l.to) {
+                score.add(&l.transform, &l.covariance, &t);
+            }
+        }
+    }
+    out
 }
 
 /// Logs a closure that disagrees with its true transform `t`.
@@ -788,6 +884,27 @@ mod tests {
             wait_for_joins: false,
         })
         .expect("the global layer's thread")
+    }
+
+    /// Two edges, one as good as its covariance says in heading (error one std) and
+    /// one four stds out in x: the normalised RMS, heading RMS and mean NEES are theirs;
+    /// an edge with a broken covariance is not counted.
+    #[test]
+    fn edges_are_scored_against_their_own_covariance() {
+        let cov = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.01, 0.04, 1e-6));
+        let truth = Pose2::new(50.0, 0.0, 0.0);
+        let mut s = EdgeScore::default();
+        assert_eq!(s.mean_nees(), None);
+        s.add(&Pose2::new(50.0, 0.0, 1e-3), &cov, &truth);
+        s.add(&Pose2::new(50.4, 0.0, 0.0), &cov, &truth);
+        s.add(&Pose2::new(50.4, 0.0, 0.0), &Matrix3::zeros(), &truth);
+        assert_eq!(s.count, 2);
+        let [x, y, h] = s.normalised_rms().unwrap();
+        assert!((x - (16.0f64 / 2.0).sqrt()).abs() < 1e-9);
+        assert!(y.abs() < 1e-12);
+        assert!((h - (0.5f64).sqrt()).abs() < 1e-9);
+        assert!((s.mean_nees().unwrap() - 8.5).abs() < 1e-9);
+        assert!((s.heading_rms_rad().unwrap() - 1e-3 / 2f64.sqrt()).abs() < 1e-12);
     }
 
     /// A wall 10 m ahead, 2 m wide, sampled every 0.1 m.
