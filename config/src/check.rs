@@ -10,7 +10,8 @@ use std::time::Duration;
 
 use crate::error::{FieldError, FieldErrors};
 use crate::values::{
-    Capacity, FiniteF64, NonNegativeF64, OpenProbability, PositiveF64, Probability, ValueError,
+    Capacity, FiniteF64, NonNegativeF64, OpenProbability, PlacementShare, PositiveF64, Probability,
+    ValueError,
 };
 
 /// A valid value to carry on with after an invalid field has been recorded.
@@ -33,6 +34,7 @@ placeholder! {
     PositiveF64 => PositiveF64::ONE,
     NonNegativeF64 => NonNegativeF64::ZERO,
     Probability => Probability::HALF,
+    PlacementShare => PlacementShare::ZERO,
     OpenProbability => OpenProbability::HALF,
     Capacity => Capacity::ONE,
     Duration => Duration::from_secs(1),

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::check::Checker;
 use crate::error::FieldErrors;
-use crate::values::{self, NonNegativeF64, PositiveF64, ValueError};
+use crate::values::{self, NonNegativeF64, PlacementShare, PositiveF64, ValueError};
 
 /// The odometry source, as written: `source = "tcp" | "file" | "zenoh" | "none"`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, Serialize)]
@@ -138,6 +138,16 @@ pub struct RawOdometry {
     /// against keyframes too, so placed they err 1.6 mrad (slam-node's
     /// `FUSED_SIGMA_RAD`).
     pub radar_odometry_sigma_rad: f64,
+    /// Share of a registration's covariance that is its two clouds' placement, in
+    /// `[0, 0.45]`: how far each cloud was bent by the motion it was placed along. A
+    /// registration of a rotation against the one before errs by the difference of the two
+    /// clouds' placement errors plus white noise, so consecutive registrations' errors
+    /// correlate by minus this share and cancel when chained; the filter holds the newest
+    /// cloud's placement error in its state (slam-filter's
+    /// `FilterSettings::registration_placement_share`). Default 0: every registration
+    /// independent (measured both ways in slam-node's README, "The registrations' placement
+    /// in the state").
+    pub radar_odometry_placement_share: f64,
     /// Radar only (`source = "none"`): the registration is composed onto the pose at the
     /// previous rotation, as odometry drives a pose, instead of fused as an update with a
     /// prediction that repeats the last rotation's motion. Default false. See slam-node's
@@ -210,6 +220,7 @@ impl Default for RawOdometry {
             radar_odometry: false,
             radar_odometry_sigma_m: 0.05,
             radar_odometry_sigma_rad: 0.003,
+            radar_odometry_placement_share: 0.0,
             radar_odometry_compose: false,
             radar_odometry_place_held: true,
             radar_odometry_probe_start: false,
@@ -295,6 +306,8 @@ pub struct OdometrySettings {
     pub radar_odometry_sigma_m: PositiveF64,
     /// One registration's rotation standard deviation, rad.
     pub radar_odometry_sigma_rad: PositiveF64,
+    /// Share of a registration's covariance that is its clouds' placement, `[0, 0.45]`.
+    pub radar_odometry_placement_share: PlacementShare,
     /// Radar only: registrations composed onto the pose, not fused as updates.
     pub radar_odometry_compose: bool,
     /// With odometry of its own, each rotation placed with the turn its reference was
@@ -485,6 +498,10 @@ impl RawOdometry {
                 "odometry.radar_odometry_sigma_rad",
                 PositiveF64::new(self.radar_odometry_sigma_rad),
             ),
+            radar_odometry_placement_share: c.check(
+                "odometry.radar_odometry_placement_share",
+                PlacementShare::new(self.radar_odometry_placement_share),
+            ),
             radar_odometry_compose: self.radar_odometry_compose,
             radar_odometry_place_held: self.radar_odometry_place_held,
             radar_odometry_probe_start: self.radar_odometry_probe_start,
@@ -547,6 +564,7 @@ impl From<&OdometrySettings> for RawOdometry {
             radar_odometry: s.radar_odometry,
             radar_odometry_sigma_m: s.radar_odometry_sigma_m.get(),
             radar_odometry_sigma_rad: s.radar_odometry_sigma_rad.get(),
+            radar_odometry_placement_share: s.radar_odometry_placement_share.get(),
             radar_odometry_compose: s.radar_odometry_compose,
             radar_odometry_place_held: s.radar_odometry_place_held,
             radar_odometry_probe_start: s.radar_odometry_probe_start,

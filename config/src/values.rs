@@ -145,6 +145,34 @@ impl Probability {
     }
 }
 
+/// A share of a radar registration's covariance that is its clouds' placement, in
+/// `[0, 0.45]` (at 0.5 chained registrations would not drift at all).
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd)]
+pub struct PlacementShare(f64);
+
+impl PlacementShare {
+    /// The largest share.
+    pub const MAX: f64 = 0.45;
+    /// No share: every registration independent.
+    pub const ZERO: Self = Self(0.0);
+    /// Accepts finite values in `[0, 0.45]`.
+    pub fn new(value: f64) -> Result<Self, ValueError> {
+        let value = finite(value)?;
+        if (0.0..=Self::MAX).contains(&value) {
+            Ok(Self(value + 0.0))
+        } else {
+            Err(ValueError::OutOfRange {
+                range: "[0, 0.45]".into(),
+                got: number(value),
+            })
+        }
+    }
+    /// The value.
+    pub const fn get(self) -> f64 {
+        self.0
+    }
+}
+
 /// A probability in the open interval `(0, 1)`: neither impossible nor certain.
 ///
 /// Used where 0 or 1 would make a threshold infinite (false-alarm rates, gate probabilities).

@@ -51,6 +51,8 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[odometry]\nspeed_scale_std = -0.01", "odometry.speed_scale_std", "must be >= 0"),
     ("[odometry]\nradar_odometry_sigma_m = 0.0", "odometry.radar_odometry_sigma_m", "must be > 0, got 0"),
     ("[odometry]\nradar_odometry_sigma_rad = -0.003", "odometry.radar_odometry_sigma_rad", "must be > 0"),
+    ("[odometry]\nradar_odometry_placement_share = 0.5", "odometry.radar_odometry_placement_share", "must be in [0, 0.45], got 0.5"),
+    ("[odometry]\nradar_odometry_placement_share = -0.1", "odometry.radar_odometry_placement_share", "got -0.1"),
     ("[odometry]\nsteer_bias_std_rad = inf", "odometry.steer_bias_std_rad", "must be a finite number"),
     ("[odometry]\nspeed_scale_walk_per_sqrt_s = -1e-4", "odometry.speed_scale_walk_per_sqrt_s", "must be >= 0"),
     ("[odometry]\nsteer_bias_walk_rad_per_sqrt_s = nan", "odometry.steer_bias_walk_rad_per_sqrt_s", "must be a finite number"),

@@ -241,6 +241,14 @@ pub struct FilterSettings {
     pub initial_alpha: f64,
     /// Standard deviation of a new feature's u and v (softmax logits).
     pub initial_material_std: f64,
+    /// Share `s` of a motion measurement's covariance that is its clouds' placement
+    /// ([`crate::Ekf::observe_motion_since_mark`]), in `[0, 0.45]`: a radar registration of
+    /// a cloud against the one before errs by how each was bent by the motion it was placed
+    /// along (`d_k - d_{k-1}`, each of covariance `s R`) plus white noise (`(1 - 2 s) R`),
+    /// so consecutive registrations' errors correlate `-s` and cancel when chained; the
+    /// state holds the newest cloud's placement error. 0 (the default): every measurement
+    /// independent, as before.
+    pub registration_placement_share: f64,
     /// Initial radar loss L (dB).
     pub initial_loss_db: f64,
     /// Standard deviation of the initial loss (dB).
@@ -309,6 +317,7 @@ impl Default for FilterSettings {
             initial_rho: 0.3,
             initial_alpha: 0.3,
             initial_material_std: 2.0,
+            registration_placement_share: 0.0,
             initial_loss_db: 0.0,
             initial_loss_std_db: 10.0,
         }
@@ -339,6 +348,16 @@ pub enum SettingsError {
         name: &'static str,
         /// Offending value.
         value: f64,
+    },
+    /// The value must lie in [0, max].
+    #[error("{name} must lie in [0, {max}], got {value}")]
+    OutOfRange {
+        /// Field name.
+        name: &'static str,
+        /// Offending value.
+        value: f64,
+        /// The largest value allowed.
+        max: f64,
     },
     /// The value must lie in [0, 1].
     #[error("{name} must lie in [0, 1], got {value}")]
@@ -401,6 +420,10 @@ pub enum SettingsError {
         name: &'static str,
     },
 }
+
+/// The largest [`FilterSettings::registration_placement_share`]: at 0.5 a registration
+/// would hold no white noise, and chained registrations no drift at all.
+pub const MAX_PLACEMENT_SHARE: f64 = 0.45;
 
 fn positive(name: &'static str, value: f64) -> Result<(), SettingsError> {
     if value.is_finite() && value > 0.0 {
@@ -546,6 +569,14 @@ impl FilterSettings {
             });
         }
         positive("initial_loss_std_db", self.initial_loss_std_db)?;
+        let share = self.registration_placement_share;
+        if !(0.0..=MAX_PLACEMENT_SHARE).contains(&share) {
+            return Err(SettingsError::OutOfRange {
+                name: "registration_placement_share",
+                value: share,
+                max: MAX_PLACEMENT_SHARE,
+            });
+        }
         Ok(())
     }
 }

@@ -9,8 +9,10 @@
 //! | 4                | odometry speed correction `k` (ratio)     |
 //! | 5                | odometry steering offset `b` (rad)        |
 //! | 6, 7, 8          | the pose at the last motion mark (a clone)|
-//! | 9 + 4 s + 0, 1   | feature in slot `s`: `x_s`, `y_s` (m)     |
-//! | 9 + 4 s + 2, 3   | feature in slot `s`: `u_s`, `v_s`         |
+//! | 9, 10, 11        | the newest registered cloud's placement error (x, y, heading) |
+//! | 12, 13, 14       | the one before it (scratch of the motion update) |
+//! | 15 + 4 s + 0, 1  | feature in slot `s`: `x_s`, `y_s` (m)     |
+//! | 15 + 4 s + 2, 3  | feature in slot `s`: `u_s`, `v_s`         |
 //!
 //! `L` is stored right after the pose (the paper puts it last) so that appending a feature
 //! is a resize that leaves every existing index in place, and removing one shifts only the
@@ -23,7 +25,12 @@
 //! odometry) can be an update on the pose at the mark and the pose now together
 //! (stochastic cloning); the prediction never moves it, the updates correct it through its
 //! correlations like any other element. Before the first mark it is zero with zero variance
-//! and, like unestimated corrections, changes nothing. `(rho, alpha, tau) = softmax(u, v, 0)` (radar-model's `material`), so
+//! and, like unestimated corrections, changes nothing. The placement errors (not in the
+//! paper either) are how far each radar cloud a motion measurement registers is bent by the
+//! motion it was placed along: a registration of cloud `k` against cloud `k - 1` errs by
+//! `d_k - d_{k-1}` plus white noise, so consecutive errors cancel when chained (see
+//! [`crate::FilterSettings::registration_placement_share`]); zero with zero variance, and
+//! unused, unless that share is set. `(rho, alpha, tau) = softmax(u, v, 0)` (radar-model's `material`), so
 //! every value of `u, v` is a valid material and no clamping is ever needed.
 //!
 //! The covariance `P` is symmetric by construction: its lower triangle is always current,
@@ -50,8 +57,14 @@ pub const SPEED_SCALE_INDEX: usize = 4;
 pub const STEER_BIAS_INDEX: usize = 5;
 /// Index of the clone's first element: the pose (x, y, heading) at the last motion mark.
 pub const CLONE_INDEX: usize = 6;
+/// Index of the newest registered cloud's placement error (x, y, heading; see the module
+/// docs).
+pub const PLACEMENT_INDEX: usize = 9;
+/// Index of the placement error of the cloud before it: scratch of
+/// [`crate::Ekf::observe_motion_since_mark`].
+pub const PREVIOUS_PLACEMENT_INDEX: usize = 12;
 /// Index of the first feature's first element.
-pub const FEATURE_BASE: usize = 9;
+pub const FEATURE_BASE: usize = 15;
 /// Elements per feature: x, y, u, v.
 pub const FEATURE_DIM: usize = 4;
 
@@ -122,6 +135,10 @@ pub struct SlamState {
     /// The motion since the last mark, advanced by every prediction step (book-keeping, not
     /// part of the estimate): see [`crate::motion_tally`].
     pub(crate) tally: Option<MotionTally>,
+    /// The pose as predicted (before the updates) at the last mark: the clone's
+    /// linearisation point under first-estimates Jacobians (see
+    /// [`crate::Ekf::observe_motion_since_mark`]).
+    pub(crate) clone_first: Pose2,
     /// How much the pose estimate may have moved relative to the truth since the start
     /// (book-keeping, not part of the estimate): the sum of what every prediction step added
     /// to the pose covariance beyond carrying it along (the inputs' noise and the odometry
@@ -199,6 +216,7 @@ impl SlamState {
             time_s,
             predicted_pose: Pose2::new(pose.x, pose.y, wrap_angle(pose.theta)),
             tally: None,
+            clone_first: Pose2::new(pose.x, pose.y, wrap_angle(pose.theta)),
             pose_churn: Matrix3::zeros(),
             odometer_m: 0.0,
         })
@@ -215,7 +233,7 @@ impl SlamState {
     ) -> Result<Self, FilterError> {
         let n = mean.len();
         if n < FEATURE_BASE || !(n - FEATURE_BASE).is_multiple_of(FEATURE_DIM) {
-            return Err(FilterError::Shape("state length must be 9 + 4 N"));
+            return Err(FilterError::Shape("state length must be 15 + 4 N"));
         }
         if cov.nrows() != n || cov.ncols() != n {
             return Err(FilterError::Shape("covariance must be n x n"));
@@ -247,6 +265,7 @@ impl SlamState {
         Ok(Self {
             predicted_pose: Pose2::new(mean[0], mean[1], mean[2]),
             tally: None,
+            clone_first: Pose2::new(mean[0], mean[1], mean[2]),
             pose_churn: Matrix3::zeros(),
             odometer_m: 0.0,
             mean,
@@ -281,6 +300,7 @@ impl SlamState {
             predicted_pose: Pose2::new(0.0, 0.0, 0.0),
             // A new local frame: the motion since a mark in the old one is not carried.
             tally: None,
+            clone_first: Pose2::new(0.0, 0.0, 0.0),
             // The same book-keeping, turned into the new frame's axes (as the tentative
             // targets' marks are, see `TentativeList::reframe`).
             pose_churn: rotate_pose_block(&self.pose_churn, -self.mean[2]),
@@ -289,7 +309,7 @@ impl SlamState {
         std::mem::replace(self, fresh)
     }
 
-    /// State dimension n = 9 + 4 N.
+    /// State dimension n = 15 + 4 N.
     pub fn dim(&self) -> usize {
         self.mean.len()
     }
@@ -420,12 +440,13 @@ impl SlamState {
     /// pose is. O(n).
     pub(crate) fn clone_pose(&mut self) {
         let n = self.dim();
+        self.clone_first = self.predicted_pose;
         for r in 0..POSE_DIM {
             self.mean[CLONE_INDEX + r] = self.mean[r];
         }
         // Every column but the clone's own: P[c, j] = P[pose, j], read from the lower
         // triangle, written to both.
-        for j in (0..n).filter(|j| !(CLONE_INDEX..FEATURE_BASE).contains(j)) {
+        for j in (0..n).filter(|j| !(CLONE_INDEX..CLONE_INDEX + POSE_DIM).contains(j)) {
             for r in 0..POSE_DIM {
                 let v = self.covariance_entry(r, j);
                 self.cov[(CLONE_INDEX + r, j)] = v;
@@ -435,6 +456,70 @@ impl SlamState {
         for r in 0..POSE_DIM {
             for c in 0..POSE_DIM {
                 self.cov[(CLONE_INDEX + r, CLONE_INDEX + c)] = self.covariance_entry(r, c);
+            }
+        }
+    }
+
+    /// Whether the newest cloud's placement error is in the state (its variance is set:
+    /// see [`Self::shift_placement`]).
+    pub(crate) fn has_placement(&self) -> bool {
+        (0..POSE_DIM).any(|r| self.cov[(PLACEMENT_INDEX + r, PLACEMENT_INDEX + r)] > 0.0)
+    }
+
+    /// Zeroes the block at `index` (3 elements): mean, and rows and columns of P. O(n).
+    fn clear_block(&mut self, index: usize) {
+        let n = self.dim();
+        for r in index..index + POSE_DIM {
+            self.mean[r] = 0.0;
+            for j in 0..n {
+                self.cov[(r, j)] = 0.0;
+                self.cov[(j, r)] = 0.0;
+            }
+        }
+    }
+
+    /// Forgets the newest cloud's placement error: the next motion measurement registers
+    /// against a cloud whose placement the state does not hold (a registration failed or
+    /// was refused, the mark was dropped), so its prior is taken fresh there.
+    pub(crate) fn forget_placement(&mut self) {
+        self.clear_block(PLACEMENT_INDEX);
+    }
+
+    /// Before a motion measurement that models its clouds' placement: the newest cloud's
+    /// placement error (mean, rows and columns of P) moves to the previous one's slot, as
+    /// the reference the measurement registers against; if the state did not hold it, the
+    /// previous slot gets `prior` instead, independent of the rest. The newest slot then
+    /// holds the measured cloud's own placement error, `prior`, independent of everything.
+    /// O(n).
+    pub(crate) fn shift_placement(&mut self, prior: &Matrix3<f64>) {
+        let n = self.dim();
+        let held = self.has_placement();
+        self.clear_block(PREVIOUS_PLACEMENT_INDEX);
+        if held {
+            for r in 0..POSE_DIM {
+                let (a, b) = (PLACEMENT_INDEX + r, PREVIOUS_PLACEMENT_INDEX + r);
+                self.mean[b] = self.mean[a];
+                for j in (0..n).filter(|j| !(PLACEMENT_INDEX..FEATURE_BASE).contains(j)) {
+                    let v = self.covariance_entry(a, j);
+                    self.cov[(b, j)] = v;
+                    self.cov[(j, b)] = v;
+                }
+            }
+            for r in 0..POSE_DIM {
+                for c in 0..POSE_DIM {
+                    let v = self.covariance_entry(PLACEMENT_INDEX + r, PLACEMENT_INDEX + c);
+                    self.cov[(PREVIOUS_PLACEMENT_INDEX + r, PREVIOUS_PLACEMENT_INDEX + c)] = v;
+                }
+            }
+        }
+        self.clear_block(PLACEMENT_INDEX);
+        for r in 0..POSE_DIM {
+            for c in 0..POSE_DIM {
+                let v = 0.5 * (prior[(r, c)] + prior[(c, r)]);
+                self.cov[(PLACEMENT_INDEX + r, PLACEMENT_INDEX + c)] = v;
+                if !held {
+                    self.cov[(PREVIOUS_PLACEMENT_INDEX + r, PREVIOUS_PLACEMENT_INDEX + c)] = v;
+                }
             }
         }
     }

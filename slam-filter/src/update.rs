@@ -331,15 +331,17 @@ fn axpy4(p: &mut [f64], w: [&[f64]; 4], a: [f64; 4]) {
 mod tests {
     use super::*;
 
-    /// A 13-element state (pose, loss, k, b, clone, one feature) with a dense, well
-    /// conditioned covariance, and a 2-row observation of the pose and the feature.
+    /// A state of one feature (pose, loss, k, b, clone, placements, the feature) with a
+    /// dense, well conditioned covariance, and a 2-row observation of the pose and the
+    /// feature.
     fn consider_case() -> (SlamState, LinearisedObservation) {
-        let n = 13;
+        let n = crate::state::FEATURE_BASE + crate::state::FEATURE_DIM;
         let a = DMatrix::from_fn(n, n, |i, j| ((i * 5 + j * 3) as f64 * 0.417).sin() * 0.3);
         let cov = &a * a.transpose() + DMatrix::from_diagonal_element(n, n, 0.05);
         let mean = DVector::from_fn(n, |i, _| (i as f64 * 0.3).cos());
         let state = SlamState::from_parts(mean, cov, 0.0).unwrap();
-        let columns = vec![0, 1, 2, 9, 10];
+        let f = crate::state::FEATURE_BASE;
+        let columns = vec![0, 1, 2, f, f + 1];
         let jacobian = DMatrix::from_fn(2, 5, |r, c| ((r * 5 + c) as f64 * 0.9).cos());
         let obs = LinearisedObservation {
             columns,

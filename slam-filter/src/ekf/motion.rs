@@ -10,7 +10,7 @@ use crate::error::FilterError;
 use crate::motion_tally::{relative_pose, MotionTally};
 use crate::observation::BeamObservationModel;
 use crate::predict::ProcessModel;
-use crate::state::CLONE_INDEX;
+use crate::state::{CLONE_INDEX, PLACEMENT_INDEX, PREVIOUS_PLACEMENT_INDEX};
 use crate::update::{batched_update, LinearisedObservation};
 
 impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
@@ -63,6 +63,10 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         cov: &Matrix3<f64>,
         gate_chi2: f64,
     ) -> Result<MotionOutcome, FilterError> {
+        let share = self.settings.registration_placement_share;
+        if share > 0.0 {
+            return self.observe_motion_with_placement(measured, cov, gate_chi2, share);
+        }
         let Some(MotionInnovation {
             columns,
             h,
@@ -88,6 +92,95 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
         )?;
         self.stats.motion_updates += 1;
         Ok(MotionOutcome::Applied { nis })
+    }
+
+    /// [`Self::observe_motion_since_mark`] when a share `share` of the measurement's
+    /// covariance is its clouds' placement ([`crate::FilterSettings::registration_placement_share`]):
+    /// the measurement is `h(x) + d_k - d_{k-1} + w`, with `d_{k-1}` the reference cloud's
+    /// placement error (held in the state since the last measurement, or a fresh prior of
+    /// `share cov` when the state does not hold it), `d_k` the measured cloud's (prior
+    /// `share cov`, kept in the state for the next measurement) and `w` white noise of
+    /// `(1 - 2 share) cov`. Each measurement alone has the covariance `cov`; consecutive
+    /// ones are correlated `-share` (the placement errors cancel when chained). Gated on the
+    /// innovation before the state changes.
+    fn observe_motion_with_placement(
+        &mut self,
+        measured: Pose2,
+        cov: &Matrix3<f64>,
+        gate_chi2: f64,
+        share: f64,
+    ) -> Result<MotionOutcome, FilterError> {
+        let Some(MotionInnovation {
+            columns, h, mut nu, ..
+        }) = self.motion_innovation(&measured, cov)?
+        else {
+            return Ok(MotionOutcome::NoMark);
+        };
+        let sym = 0.5 * (cov + cov.transpose());
+        let placement = sym * share;
+        let white = sym * (1.0 - 2.0 * share);
+        let held = self.state.has_placement();
+        // The reference's placement error is predicted into the measurement with a minus.
+        if held {
+            for r in 0..3 {
+                nu[r] += self.state.mean[PLACEMENT_INDEX + r];
+            }
+        }
+        // The gate on S = H P H^T + R over the pose, the clone and (held) the reference's
+        // placement, with the measured cloud's placement and the white noise in R (and the
+        // reference's prior when not held).
+        let mut gate_columns: Vec<usize> = columns.to_vec();
+        let mut gate_h = DMatrix::zeros(3, if held { 9 } else { 6 });
+        gate_h.view_mut((0, 0), (3, 6)).copy_from(&h);
+        let mut r_gate = placement + white;
+        if held {
+            gate_columns.extend(PLACEMENT_INDEX..PLACEMENT_INDEX + 3);
+            for r in 0..3 {
+                gate_h[(r, 6 + r)] = -1.0;
+            }
+        } else {
+            r_gate += placement;
+        }
+        let s = &gate_h * self.state.covariance_block(&gate_columns) * gate_h.transpose()
+            + DMatrix::from_fn(3, 3, |r, c| r_gate[(r, c)]);
+        let nis = (0.5 * (&s + s.transpose()))
+            .cholesky()
+            .map(|ch| nu.dot(&ch.solve(&nu)))
+            .ok_or(FilterError::InnovationNotPositiveDefinite { dim: 3 })?;
+        if !nis.is_finite() || nis > gate_chi2 {
+            return Ok(MotionOutcome::Gated { nis });
+        }
+        // The reference's placement to the previous slot, the measured cloud's in the newest.
+        self.state.shift_placement(&placement);
+        let mut all_columns: Vec<usize> = columns.to_vec();
+        all_columns.extend(PLACEMENT_INDEX..PLACEMENT_INDEX + 3);
+        all_columns.extend(PREVIOUS_PLACEMENT_INDEX..PREVIOUS_PLACEMENT_INDEX + 3);
+        let mut jacobian = DMatrix::zeros(3, 12);
+        jacobian.view_mut((0, 0), (3, 6)).copy_from(&h);
+        for r in 0..3 {
+            jacobian[(r, 6 + r)] = 1.0;
+            jacobian[(r, 9 + r)] = -1.0;
+        }
+        batched_update(
+            &mut self.state,
+            &LinearisedObservation {
+                columns: all_columns,
+                jacobian,
+                innovation: nu,
+                noise: DMatrix::from_fn(3, 3, |r, c| white[(r, c)]),
+            },
+        )?;
+        self.stats.motion_updates += 1;
+        Ok(MotionOutcome::Applied { nis })
+    }
+
+    /// Forgets the newest registered cloud's placement error (see
+    /// [`crate::FilterSettings::registration_placement_share`]): for a caller whose next
+    /// motion measurement registers against a cloud the last measurement did not (it failed,
+    /// was refused or was not made), so that the reference's placement is taken from its
+    /// prior, independent of the state. Nothing when the share is zero.
+    pub fn forget_placement(&mut self) {
+        self.state.forget_placement();
     }
 
     /// Adds `variances` (x m^2, y m^2, heading rad^2) to the pose's covariance: process noise
@@ -189,6 +282,17 @@ impl<M: ProcessModel, O: BeamObservationModel> Ekf<M, O> {
             return Ok(None);
         }
         let (predicted, jacobian) = relative_pose(&self.state.clone_pose_mean(), &self.pose());
+        // First-estimates Jacobians: the pose and the clone linearised where they were
+        // predicted, as the propagation between them was (see `crate::predict`); at the
+        // updated estimates the two disagree, and the motion measurement's translation then
+        // tells the filter its global heading, which no motion measurement can (30 simulated
+        // drives with wheels and registrations, `tests/placement_error.rs`: final NEES 40.4
+        // at the updated estimates, 3.1 here).
+        let jacobian = if self.settings.first_estimate_jacobians {
+            relative_pose(&self.state.clone_first, &self.state.predicted_pose).1
+        } else {
+            jacobian
+        };
         let nu = DVector::from_vec(vec![
             measured.x - predicted.x,
             measured.y - predicted.y,

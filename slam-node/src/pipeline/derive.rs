@@ -775,15 +775,25 @@ mod tests {
         // otherwise (slam-node/README.md, "The point-feature map pulls the steering offset").
         assert!(s.filter.steer_bias_from_landmarks);
         // Beside wheel odometry the registrations run against keyframes too, their heading
-        // taken at 1.5 mrad; a configuration that writes either key gets it.
+        // taken at 1.5 mrad, each independent of the last; a configuration that writes any
+        // of the keys gets it.
         assert_eq!(s.scan_match.keyframes, DRIVING_KEYFRAMES);
         assert_eq!(s.scan_match.sigma_theta_rad, FUSED_SIGMA_RAD);
+        assert_eq!(s.filter.registration_placement_share, 0.0);
         let d = derive_from(
-            "[odometry]\nradar_odometry_keyframes = 0\nradar_odometry_sigma_rad = 0.003\n",
+            "[odometry]\nradar_odometry_keyframes = 0\nradar_odometry_sigma_rad = 0.003\n\
+             radar_odometry_placement_share = 0.25\n",
             &profile::CTS350X,
         );
         assert_eq!(d.settings.scan_match.keyframes, 0);
         assert_eq!(d.settings.scan_match.sigma_theta_rad, 0.003);
+        assert_eq!(d.settings.filter.registration_placement_share, 0.25);
+        // Without radar odometry there are no registrations to model.
+        let d = derive_from(
+            "[odometry]\nradar_odometry = false\nradar_odometry_placement_share = 0.25\n",
+            &profile::CTS350X,
+        );
+        assert_eq!(d.settings.filter.registration_placement_share, 0.0);
         let d = derive_from(
             "[odometry]\nsteer_bias_from_landmarks = false\n",
             &profile::CTS350X,

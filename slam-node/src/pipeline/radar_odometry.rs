@@ -235,6 +235,9 @@ impl RadarOdometryStage {
         if measured.is_none() || tally.is_none() {
             self.counts.break_heading_run();
         }
+        // The next registration's reference is this rotation's cloud: its placement error is
+        // in the filter's state only if this registration is applied below.
+        let mut placement_held = false;
         if let (Some(m), Some(tally)) = (measured.as_ref(), tally) {
             self.score(m, &tally, until_s, true_rel);
             self.warn_if_weak(m, ekf.state().time_s());
@@ -265,6 +268,7 @@ impl RadarOdometryStage {
                 Ok(outcome) => {
                     if let MotionOutcome::Applied { .. } = outcome {
                         applied = Some(*m);
+                        placement_held = !self.compose;
                     }
                     if let MotionOutcome::Gated { .. } = outcome {
                         let gated = self.counts.gated + 1;
@@ -282,6 +286,9 @@ impl RadarOdometryStage {
                 }
                 Err(e) => warn!(error = %e, "radar odometry update failed"),
             }
+        }
+        if !placement_held {
+            ekf.forget_placement();
         }
         // The next rotation registers against this one placed along the motion the filter
         // settled on: the frame its next mark stands for.

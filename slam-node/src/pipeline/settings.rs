@@ -303,6 +303,12 @@ impl PipelineSettings {
             steer_bias_walk_rad_per_sqrt_s: c.odometry.steer_bias_walk_rad_per_sqrt_s.get(),
             speed_scale_from_landmarks: c.odometry.speed_scale_from_landmarks,
             steer_bias_from_landmarks: c.odometry.steer_bias_from_landmarks,
+            // Only radar odometry's registrations are motion measurements.
+            registration_placement_share: if c.odometry.radar_odometry {
+                c.odometry.radar_odometry_placement_share.get()
+            } else {
+                0.0
+            },
             material_variance_per_s: f.sigma_u.get().max(f.sigma_v.get()).powi(2),
             feature_wander_m: f.sigma_wander_m.get(),
             feature_wander_length_m: f.wander_length_m.get(),
