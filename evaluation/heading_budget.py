@@ -1,0 +1,158 @@
+#!/usr/bin/env python3
+"""Where a drive's odometry heading error comes from: through the turns or along the
+straights, from the registrations or from the map the filter fuses with them.
+
+Usage: heading_budget.py OUT_DIR [LOG]
+
+OUT_DIR is a run's output directory with `trajectory-odometry.tum` (the online pose without
+the global layer's corrections) and `groundtruth.tum` (a simulated run, or a recording with
+its ground truth). Each rotation's heading error change (estimate minus truth, from one row
+to the next) is counted through a turn when the truth turned more than TURN_RAD in that
+rotation or in one of the TURN_PAD rotations either side, along a straight otherwise; the
+script prints each part's sum and the RMS of its change per stretch.
+
+LOG, the same run's log written with
+`RUST_LOG=info,slam_node::pipeline::radar_odometry=debug`, adds radar odometry's side: its
+`radar odometry registration` lines carry each registration's measured and true motion over
+the same interval. Over every registration the script splits the filter's heading change into
+the registration's error (its measured turn minus the true one) and the rest, the map's pull
+(the filter's turn over the interval minus the registration's): the point features' updates,
+through the pose and through the mark's clone. A straight here is a registration whose true
+turn is under STRAIGHT_RAD.
+
+Reads files only; needs numpy. A file that is missing or has no rows is said so and left out.
+"""
+
+import math
+import os
+import re
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from ate_aligned import paired, tum  # noqa: E402
+
+# A rotation turns (through a junction) when the truth turns more than this (rad).
+TURN_RAD = math.radians(0.5)
+# Rotations either side of a turning one counted with the turn (its onset and end).
+TURN_PAD = 4
+# A registration is along a straight when its true turn is under this (rad).
+STRAIGHT_RAD = 0.002
+# The debug line radar odometry writes for every registration.
+REGISTRATION = "radar odometry registration"
+FIELD = re.compile(r"(\w+)=([-+\w.]+)")
+
+
+def stretches(turning):
+    """The runs of equal flags in `turning`: (start, end, flag), end exclusive."""
+    out, start = [], 0
+    for i in range(1, len(turning) + 1):
+        if i == len(turning) or turning[i] != turning[start]:
+            out.append((start, i, bool(turning[start])))
+            start = i
+    return out
+
+
+def odometry_split(est, gt):
+    """Heading error change through turns and along straights: (turns, straights), each a
+    list of per-stretch changes (deg). `est` and `gt` are paired rows: the rotation into the
+    first one (from the start row the truth lacks) is not scored."""
+    err = np.degrees(np.unwrap(est[:, 3]) - np.unwrap(gt[:, 3]))
+    step = np.abs(np.diff(np.unwrap(gt[:, 3]), prepend=gt[0, 3]))
+    turning = np.convolve((step > TURN_RAD).astype(float), np.ones(2 * TURN_PAD + 1), "same") > 0
+    turns, straights = [], []
+    for start, end, flag in stretches(turning):
+        change = err[end - 1] - err[max(start - 1, 0)]
+        (turns if flag else straights).append(change)
+    return turns, straights
+
+
+def registrations(log):
+    """Each registration's (since_s, until_s, true turn, measured turn) from the debug lines."""
+    rows = []
+    with open(log) as f:
+        for line in f:
+            if REGISTRATION not in line:
+                continue
+            g = dict(FIELD.findall(line))
+            try:
+                rows.append(
+                    tuple(
+                        float(g[k])
+                        for k in ("since_s", "until_s", "truth_theta", "measured_theta")
+                    )
+                )
+            except (KeyError, ValueError):
+                continue  # no truth over this interval
+    return np.array(rows).reshape(-1, 4)
+
+
+def pull_split(est, reg):
+    """Over the registrations whose interval both ends at a row of `est` (the whole estimate,
+    its start row too, which the truth lacks): the registration's
+    heading error and the map's pull, summed along straights and through turns (deg), and
+    how many registrations each."""
+    times = est[:, 0]
+    heading = np.unwrap(est[:, 3])
+    out = {"straight": [0.0, 0.0, 0], "turn": [0.0, 0.0, 0]}
+    for since, until, true_turn, measured in reg:
+        i = int(np.searchsorted(times, since - 1e-4))
+        j = int(np.searchsorted(times, until - 1e-4))
+        if j >= len(times) or abs(times[i] - since) > 1e-3 or abs(times[j] - until) > 1e-3:
+            continue
+        part = out["straight" if abs(true_turn) < STRAIGHT_RAD else "turn"]
+        part[0] += measured - true_turn
+        part[1] += (heading[j] - heading[i]) - measured
+        part[2] += 1
+    return {k: (math.degrees(a), math.degrees(b), n) for k, (a, b, n) in out.items()}
+
+
+def rms(values):
+    return math.sqrt(sum(v * v for v in values) / len(values)) if values else float("nan")
+
+
+def main(argv):
+    if len(argv) not in (2, 3):
+        print(next(l for l in __doc__.splitlines() if l.startswith("Usage:")), file=sys.stderr)
+        return 2
+    out_dir = argv[1]
+    paths = [os.path.join(out_dir, f) for f in ("trajectory-odometry.tum", "groundtruth.tum")]
+    for p in paths:
+        if not os.path.isfile(p):
+            print(f"{p}: missing (a run with ground truth writes it)", file=sys.stderr)
+            return 1
+    try:
+        whole = tum(paths[0])
+        est, gt, _, _ = paired(whole, tum(paths[1]))
+    except (ValueError, IndexError) as e:
+        print(f"{out_dir}: a TUM row cannot be read ({e}): is the run still writing?", file=sys.stderr)
+        return 1
+    if len(est) < 2:
+        print(f"{out_dir}: fewer than two rows with the truth at their time", file=sys.stderr)
+        return 1
+    turns, straights = odometry_split(est, gt)
+    print(
+        f"odometry heading error over {len(est)} rotations: through {len(turns)} turns "
+        f"{sum(turns):+.2f} deg (per turn RMS {rms(turns):.2f}), along {len(straights)} "
+        f"straights {sum(straights):+.2f} deg (per straight RMS {rms(straights):.2f})"
+    )
+    if len(argv) == 3:
+        reg = registrations(argv[2])
+        if len(reg) == 0:
+            print(f"{argv[2]}: no '{REGISTRATION}' lines with the truth (run with "
+                  "RUST_LOG=info,slam_node::pipeline::radar_odometry=debug)", file=sys.stderr)
+            return 1
+        split = pull_split(whole, reg)
+        for name in ("straight", "turn"):
+            r, p, n = split[name]
+            print(
+                f"  {name}s ({n} registrations): registrations' heading error {r:+.2f} deg "
+                f"({1e6 * math.radians(r) / max(n, 1):+.1f} urad each), the map's pull "
+                f"{p:+.2f} deg ({1e6 * math.radians(p) / max(n, 1):+.1f} urad each)"
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

@@ -1,0 +1,132 @@
+#!/usr/bin/env python3
+"""Checks `evaluation/heading_budget.py` on a made-up drive whose heading errors are known.
+
+A drive of 2.5 m rotations along a straight, a 90-degree left turn over ten rotations, and a
+straight again, written as the daemon writes them (the estimate has the start row the truth
+lacks, so the odometry's first rotation is not scored). The estimate's heading errs -20 urad a rotation along the straights (away
+from the turn's padding) and +10 mrad spread over the turn's rotations; its positions follow
+its own heading. Each rotation's registration errs -30 urad along the straights and +1 mrad
+through the turn, and the estimate turns 10 urad more than the registration along the
+straights (the map's pull) and 20 urad less through the turn. The script must give back:
+the odometry's sums through the turn and along the straights, and the registrations' error
+and the pull on each.
+
+Prints one line per check and `N passed, M failed`; exits 1 on any failure.
+"""
+
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "evaluation"))
+import heading_budget  # noqa: E402
+
+results = []
+
+
+def check(name, ok, detail=""):
+    results.append(ok)
+    print(f"{'ok  ' if ok else 'FAIL'} {name}{': ' + detail if detail else ''}")
+
+
+def write_tum(path, rows):
+    with open(path, "w") as f:
+        f.write("# timestamp x y z qx qy qz qw\n")
+        for t, x, y, h in rows:
+            f.write(f"{t:.6f} {x:.9f} {y:.9f} 0 0 0 {math.sin(h / 2):.12f} {math.cos(h / 2):.12f}\n")
+
+
+def main():
+    n, turn_start, turn_len = 400, 200, 10
+    turn_step = (math.pi / 2) / turn_len
+    pad = heading_budget.TURN_PAD
+    t0 = 1_700_000_000.0
+    truth, est, log = [(t0, 0.0, 0.0, 0.0)], [(t0, 0.0, 0.0, 0.0)], []
+    odo_straight = odo_turn = 0.0
+    reg_straight = reg_turn = pull_straight = pull_turn = 0.0
+    for k in range(1, n + 1):
+        turning = turn_start <= k < turn_start + turn_len
+        padded = turn_start - pad <= k < turn_start + turn_len + pad
+        true_turn = turn_step if turning else 0.0
+        odo_error = 0.01 / turn_len if turning else (0.0 if padded else -20e-6)
+        reg_error = 1e-3 / turn_len if turning else -30e-6
+        measured = true_turn + reg_error
+        # The estimate's turn over the rotation: the truth's plus its error; the pull is
+        # what it turned beyond the registration.
+        est_turn = true_turn + odo_error
+        pull = est_turn - measured
+        if padded:
+            odo_turn += odo_error
+        elif k > 1:
+            # The first rotation ends at the truth's first row: nothing before it to pair.
+            odo_straight += odo_error
+        if abs(true_turn) < heading_budget.STRAIGHT_RAD:
+            reg_straight += reg_error
+            pull_straight += pull
+        else:
+            reg_turn += reg_error
+            pull_turn += pull
+        for rows, dh in ((truth, true_turn), (est, est_turn)):
+            t, x, y, h = rows[-1]
+            h2 = h + dh
+            rows.append((t0 + 0.25 * k, x + 2.5 * math.cos(h2), y + 2.5 * math.sin(h2), h2))
+        log.append(
+            f"2026-12-05T00:00:00Z DEBUG slam_node::pipeline::radar_odometry: "
+            f"radar odometry registration since_s={t0 + 0.25 * (k - 1)} until_s={t0 + 0.25 * k} "
+            f"truth_x=2.5 truth_y=0.0 truth_theta={true_turn} measured_x=2.5 measured_y=0.0 "
+            f"measured_theta={measured} pairs=500"
+        )
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        write_tum(out / "groundtruth.tum", truth[1:])
+        write_tum(out / "trajectory-odometry.tum", est)
+        (out / "run.log").write_text("\n".join(log) + "\n")
+        est_rows, gt_rows, _, _ = heading_budget.paired(
+            heading_budget.tum(str(out / "trajectory-odometry.tum")),
+            heading_budget.tum(str(out / "groundtruth.tum")),
+        )
+        turns, straights = heading_budget.odometry_split(est_rows, gt_rows)
+        check("one turn and two straights", len(turns) == 1 and len(straights) == 2,
+              f"{len(turns)} and {len(straights)}")
+        check(
+            "the odometry's error through the turn",
+            abs(sum(turns) - math.degrees(odo_turn)) < 1e-6,
+            f"{sum(turns):.6f} against {math.degrees(odo_turn):.6f} deg",
+        )
+        check(
+            "the odometry's error along the straights",
+            abs(sum(straights) - math.degrees(odo_straight)) < 1e-6,
+            f"{sum(straights):.6f} against {math.degrees(odo_straight):.6f} deg",
+        )
+        split = heading_budget.pull_split(
+            heading_budget.tum(str(out / "trajectory-odometry.tum")),
+            heading_budget.registrations(str(out / "run.log")),
+        )
+        for name, reg, pull, count in (
+            ("straight", reg_straight, pull_straight, n - turn_len),
+            ("turn", reg_turn, pull_turn, turn_len),
+        ):
+            r, p, k = split[name]
+            check(
+                f"{name}s: the registrations' error and the map's pull",
+                abs(r - math.degrees(reg)) < 1e-6 and abs(p - math.degrees(pull)) < 1e-6 and k == count,
+                f"{r:.6f} / {p:.6f} deg over {k} against {math.degrees(reg):.6f} / "
+                f"{math.degrees(pull):.6f} over {count}",
+            )
+        code = heading_budget.main(["heading_budget.py", str(out), str(out / "run.log")])
+        check("the command runs on the files", code == 0, f"exit {code}")
+        missing = heading_budget.main(["heading_budget.py", str(out / "none")])
+        check("a directory without the files is refused", missing == 1, f"exit {missing}")
+        (out / "bad").mkdir()
+        (out / "bad" / "groundtruth.tum").write_text("1.0 2.0\n")
+        (out / "bad" / "trajectory-odometry.tum").write_text("1.0 2.0 3.0\n")
+        bad = heading_budget.main(["heading_budget.py", str(out / "bad")])
+        check("a row that cannot be read is refused", bad == 1, f"exit {bad}")
+    passed = sum(results)
+    print(f"{passed} passed, {len(results) - passed} failed")
+    sys.exit(0 if passed == len(results) else 1)
+
+
+if __name__ == "__main__":
+    main()
