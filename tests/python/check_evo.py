@@ -34,12 +34,7 @@ from evo.tools import file_interface
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "evaluation"))
 from ate_aligned import aligned_ate, paired, tum  # noqa: E402
 
-results = []
-
-
-def check(name, ok, detail=""):
-    results.append(ok)
-    print(f"{'ok  ' if ok else 'FAIL'} {name}{': ' + detail if detail else ''}")
+from checklist import check, finish  # noqa: E402
 
 
 def main():
@@ -77,9 +72,7 @@ def main():
 
     check_made_up_pair()
 
-    failed = results.count(False)
-    print(f"{len(results) - failed} passed, {failed} failed")
-    sys.exit(1 if failed else 0)
+    finish()
 
 
 def check_made_up_pair():

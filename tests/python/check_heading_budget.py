@@ -22,12 +22,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "evaluation"))
 import heading_budget  # noqa: E402
 
-results = []
-
-
-def check(name, ok, detail=""):
-    results.append(ok)
-    print(f"{'ok  ' if ok else 'FAIL'} {name}{': ' + detail if detail else ''}")
+from checklist import check, finish  # noqa: E402
 
 
 def write_tum(path, rows):
@@ -123,9 +118,7 @@ def main():
         (out / "bad" / "trajectory-odometry.tum").write_text("1.0 2.0 3.0\n")
         bad = heading_budget.main(["heading_budget.py", str(out / "bad")])
         check("a row that cannot be read is refused", bad == 1, f"exit {bad}")
-    passed = sum(results)
-    print(f"{passed} passed, {len(results) - passed} failed")
-    sys.exit(0 if passed == len(results) else 1)
+    finish()
 
 
 if __name__ == "__main__":

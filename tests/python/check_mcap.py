@@ -48,12 +48,7 @@ CLOUD_FIELDS = {
     "/slam/detections": ["x", "y", "z", "power_db"],
 }
 
-results = []
-
-
-def check(name, ok, detail=""):
-    results.append(bool(ok))
-    print(f"{'ok  ' if ok else 'FAIL'} {name}{': ' + detail if detail else ''}")
+from checklist import check, finish  # noqa: E402
 
 
 def stamp_s(stamp):
@@ -223,10 +218,7 @@ def main():
     rosbags_poses = with_rosbags(path, counts)
     contents(decoded, rosbags_poses, read_tum(tum_path))
     truncated(path, counts)
-    passed = sum(results)
-    failed = len(results) - passed
-    print(f"{passed} passed, {failed} failed")
-    return 0 if failed == 0 else 1
+    finish()
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ from pathlib import Path
 import zenoh
 from rosbags.typesys import Stores, get_typestore
 
-results = []
+from checklist import check, finish  # noqa: E402
 TYPES = {
     "slam/odometry": "nav_msgs/msg/Odometry",
     "tf": "tf2_msgs/msg/TFMessage",
@@ -41,11 +41,6 @@ TYPES = {
     "slam/map_covariance": "visualization_msgs/msg/MarkerArray",
     "slam/detections": "sensor_msgs/msg/PointCloud2",
 }
-
-
-def check(name, ok, detail=""):
-    results.append(ok)
-    print(f"{'ok  ' if ok else 'FAIL'} {name}{': ' + detail if detail else ''}")
 
 
 def run_daemon(binary, out, name, convention, duration_s):
@@ -169,9 +164,7 @@ def main():
           any("/MP/%/%/slam_node/%slam%odometry/nav_msgs::msg::dds_::Odometry_/"
               + store.hash_rihs01("nav_msgs/msg/Odometry") in t for t in tokens))
 
-    failed = results.count(False)
-    print(f"{len(results) - failed} passed, {failed} failed")
-    sys.exit(1 if failed else 0)
+    finish()
 
 
 if __name__ == "__main__":
