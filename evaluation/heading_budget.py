@@ -20,12 +20,15 @@ the registration's error (its measured turn minus the true one) and the rest, th
 through the pose and through the mark's clone. A straight here is a registration whose true
 turn is under STRAIGHT_RAD.
 
-Reads files only; needs numpy. A file that is missing or has no rows is said so and left out.
+Reads files only; needs numpy. A file that is missing, not a regular file (a FIFO, a device, a
+directory), over its size bound, or has no rows readable is refused with the reason and exit
+1; Ctrl-C stops it with exit 130.
 """
 
 import math
 import os
 import re
+import stat
 import sys
 
 import numpy as np
@@ -42,6 +45,25 @@ STRAIGHT_RAD = 0.002
 # The debug line radar odometry writes for every registration.
 REGISTRATION = "radar odometry registration"
 FIELD = re.compile(r"(\w+)=([-+\w.]+)")
+# Largest TUM file read (bytes): six hours at 4 Hz is about 6 MB.
+MAX_TUM_BYTES = 256 << 20
+# Largest log read (bytes); it is read a line at a time, each line at most MAX_LINE_BYTES.
+MAX_LOG_BYTES = 4 << 30
+MAX_LINE_BYTES = 64 << 10
+
+
+def refused(path, limit):
+    """Why `path` is not read: not a regular file (a directory, a FIFO, a device), or over
+    `limit` bytes; None when it may be read."""
+    try:
+        st = os.stat(path)
+    except OSError as e:
+        return f"cannot be read ({e.strerror})"
+    if not stat.S_ISREG(st.st_mode):
+        return "is not a regular file"
+    if st.st_size > limit:
+        return f"is {st.st_size} bytes, over the {limit} read"
+    return None
 
 
 def stretches(turning):
@@ -71,10 +93,10 @@ def odometry_split(est, gt):
 def registrations(log):
     """Each registration's (since_s, until_s, true turn, measured turn) from the debug lines."""
     rows = []
-    with open(log) as f:
-        for line in f:
+    with open(log, errors="replace") as f:
+        while line := f.readline(MAX_LINE_BYTES):
             if REGISTRATION not in line:
-                continue
+                continue  # a line longer than MAX_LINE_BYTES comes in pieces: none of them is one
             g = dict(FIELD.findall(line))
             try:
                 rows.append(
@@ -119,8 +141,12 @@ def main(argv):
     out_dir = argv[1]
     paths = [os.path.join(out_dir, f) for f in ("trajectory-odometry.tum", "groundtruth.tum")]
     for p in paths:
-        if not os.path.isfile(p):
+        if not os.path.exists(p):
             print(f"{p}: missing (a run with ground truth writes it)", file=sys.stderr)
+            return 1
+        why = refused(p, MAX_TUM_BYTES)
+        if why:
+            print(f"{p}: {why}", file=sys.stderr)
             return 1
     try:
         whole = tum(paths[0])
@@ -138,6 +164,10 @@ def main(argv):
         f"straights {sum(straights):+.2f} deg (per straight RMS {rms(straights):.2f})"
     )
     if len(argv) == 3:
+        why = refused(argv[2], MAX_LOG_BYTES)
+        if why:
+            print(f"{argv[2]}: {why}", file=sys.stderr)
+            return 1
         reg = registrations(argv[2])
         if len(reg) == 0:
             print(f"{argv[2]}: no '{REGISTRATION}' lines with the truth (run with "
@@ -155,4 +185,8 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv))
+    try:
+        sys.exit(main(sys.argv))
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        sys.exit(130)

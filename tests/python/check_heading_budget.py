@@ -9,12 +9,15 @@ its own heading. Each rotation's registration errs -30 urad along the straights 
 through the turn, and the estimate turns 10 urad more than the registration along the
 straights (the map's pull) and 20 urad less through the turn. The script must give back:
 the odometry's sums through the turn and along the straights, and the registrations' error
-and the pull on each.
+and the pull on each. Bad input is refused with exit 1: a missing file, an unreadable row, a
+FIFO or a directory in a file's place, a file over its size bound; a log line over the
+longest read costs that line only.
 
 Prints one line per check and `N passed, M failed`; exits 1 on any failure.
 """
 
 import math
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -118,6 +121,27 @@ def main():
         (out / "bad" / "trajectory-odometry.tum").write_text("1.0 2.0 3.0\n")
         bad = heading_budget.main(["heading_budget.py", str(out / "bad")])
         check("a row that cannot be read is refused", bad == 1, f"exit {bad}")
+        # A FIFO in a file's place is refused, not opened (opening would wait for a writer).
+        (out / "fifo").mkdir()
+        write_tum(out / "fifo" / "trajectory-odometry.tum", est)
+        os.mkfifo(out / "fifo" / "groundtruth.tum")
+        code = heading_budget.main(["heading_budget.py", str(out / "fifo")])
+        check("a FIFO for a file is refused", code == 1, f"exit {code}")
+        code = heading_budget.main(["heading_budget.py", str(out), str(out / "fifo")])
+        check("a directory for the log is refused", code == 1, f"exit {code}")
+        bound = heading_budget.MAX_TUM_BYTES
+        heading_budget.MAX_TUM_BYTES = 1000
+        try:
+            code = heading_budget.main(["heading_budget.py", str(out)])
+        finally:
+            heading_budget.MAX_TUM_BYTES = bound
+        check("a TUM file over its bound is refused", code == 1, f"exit {code}")
+        # A line far longer than the longest read comes in pieces; the registrations after
+        # it are all read.
+        long_log = out / "long.log"
+        long_log.write_text("x" * (3 * heading_budget.MAX_LINE_BYTES) + "\n" + "\n".join(log) + "\n")
+        got = len(heading_budget.registrations(str(long_log)))
+        check("a line over the longest read costs that line only", got == n, f"{got} of {n}")
     finish()
 
 
