@@ -5,16 +5,15 @@
 
 use nalgebra::Matrix3;
 use radar_model::geometry::{wrap_angle, Pose2};
-use radar_model::motion::{ControlInput, MotionModel};
+use radar_model::motion::MotionModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use slam_filter::{Ekf, FilterSettings, MotionOutcome, OdometrySample, RadarBeamModel};
 
-type Filter = Ekf<MotionModel, RadarBeamModel>;
+mod registered_drive;
+use registered_drive::{drive_registered, Filter, T0, WHEELBASE_M};
 
-const T0: f64 = 1_700_000_000.0;
-const WHEELBASE_M: f64 = 2.7;
 /// The measurement's standard deviations (m, rad), as radar odometry's defaults.
 const SIGMA_XY: f64 = 0.05;
 const SIGMA_THETA: f64 = 0.003;
@@ -43,12 +42,9 @@ fn drive_with(
     registrations: bool,
     noisy: bool,
     seed: u64,
-    mut odometry: impl FnMut(u32, &mut ChaCha8Rng) -> ((f64, f64), (f64, f64)),
+    odometry: impl FnMut(u32, &mut ChaCha8Rng) -> ((f64, f64), (f64, f64)),
 ) -> (Filter, Pose2) {
     let mut f = filter(settings);
-    let model = MotionModel::Bicycle {
-        wheelbase_m: WHEELBASE_M,
-    };
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let nxy = Normal::new(0.0, SIGMA_XY).unwrap();
     let nth = Normal::new(0.0, SIGMA_THETA).unwrap();
@@ -57,45 +53,25 @@ fn drive_with(
         SIGMA_XY * SIGMA_XY,
         SIGMA_THETA * SIGMA_THETA,
     ));
-    let mut truth = Pose2::new(0.0, 0.0, 0.0);
-    let mut mark = truth;
-    let dt = 0.05;
-    for i in 0..steps {
-        let t = T0 + f64::from(i) * dt;
-        let ((speed, steer), (read_speed, read_steer)) = odometry(i, &mut rng);
-        f.apply_odometry(OdometrySample {
-            timestamp_s: t,
-            speed_mps: read_speed,
-            steer_rad: read_steer,
-        })
-        .unwrap();
-        if i % 5 == 0 {
-            f.predict_to(t).unwrap();
-            if registrations && f.motion_tally().is_some() {
-                let rel = mark.between(&truth);
-                let measured = if noisy {
-                    Pose2::new(
-                        rel.x + nxy.sample(&mut rng),
-                        rel.y + nxy.sample(&mut rng),
-                        rel.theta + nth.sample(&mut rng),
-                    )
-                } else {
-                    rel
-                };
-                let outcome = f.observe_motion_since_mark(measured, &cov, 16.27).unwrap();
-                assert!(
-                    matches!(outcome, MotionOutcome::Applied { .. }),
-                    "{outcome:?}"
-                );
-            }
-            f.mark_motion();
-            mark = truth;
+    let truth = drive_registered(&mut f, steps, &mut rng, odometry, |f, rel, rng| {
+        if !registrations {
+            return;
         }
-        truth = model
-            .predict(&truth, &ControlInput::new(speed, steer), dt)
-            .unwrap();
-    }
-    f.predict_to(T0 + f64::from(steps) * dt).unwrap();
+        let measured = if noisy {
+            Pose2::new(
+                rel.x + nxy.sample(rng),
+                rel.y + nxy.sample(rng),
+                rel.theta + nth.sample(rng),
+            )
+        } else {
+            rel
+        };
+        let outcome = f.observe_motion_since_mark(measured, &cov, 16.27).unwrap();
+        assert!(
+            matches!(outcome, MotionOutcome::Applied { .. }),
+            "{outcome:?}"
+        );
+    });
     (f, truth)
 }
 

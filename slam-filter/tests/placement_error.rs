@@ -6,17 +6,16 @@
 
 use nalgebra::{Matrix3, Vector3};
 use radar_model::geometry::{wrap_angle, Pose2};
-use radar_model::motion::{ControlInput, MotionModel};
+use radar_model::motion::MotionModel;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use slam_filter::state::{PLACEMENT_INDEX, PREVIOUS_PLACEMENT_INDEX};
-use slam_filter::{Ekf, FilterSettings, MotionOutcome, OdometrySample, RadarBeamModel};
+use slam_filter::{Ekf, FilterSettings, MotionOutcome, RadarBeamModel};
 
-type Filter = Ekf<MotionModel, RadarBeamModel>;
+mod registered_drive;
+use registered_drive::{drive_registered, Filter, T0, WHEELBASE_M};
 
-const T0: f64 = 1_700_000_000.0;
-const WHEELBASE_M: f64 = 2.7;
 /// One registration's standard deviations (m, rad), all of it: placement and white.
 const SIGMA_XY: f64 = 0.01;
 const SIGMA_THETA: f64 = 0.002;
@@ -64,46 +63,30 @@ fn drive(told_share: f64, true_share: f64, seed: u64) -> Drive {
     for (k, v) in d_prev.iter_mut().enumerate() {
         *v = placement[k].sample(&mut rng);
     }
-    let mut truth = Pose2::new(0.0, 0.0, 0.0);
-    let mut mark = truth;
-    let dt = 0.05;
-    let steps = 2000;
-    for i in 0..steps {
-        let t = T0 + f64::from(i) * dt;
-        let (speed, steer) = (8.0, 0.03 * (0.05 * f64::from(i) * dt).sin());
-        f.apply_odometry(OdometrySample {
-            timestamp_s: t,
-            speed_mps: speed + speed_noise.sample(&mut rng),
-            steer_rad: steer + steer_noise.sample(&mut rng),
-        })
-        .unwrap();
-        if i % 5 == 0 {
-            f.predict_to(t).unwrap();
-            if f.motion_tally().is_some() {
-                let rel = mark.between(&truth);
-                let mut e = [0.0; 3];
-                for k in 0..3 {
-                    let d = placement[k].sample(&mut rng);
-                    e[k] = d - d_prev[k] + white[k].sample(&mut rng);
-                    d_prev[k] = d;
-                }
-                let measured = Pose2::new(rel.x + e[0], rel.y + e[1], rel.theta + e[2]);
-                let outcome = f
-                    .observe_motion_since_mark(measured, &cov, f64::INFINITY)
-                    .unwrap();
-                assert!(
-                    matches!(outcome, MotionOutcome::Applied { .. }),
-                    "{outcome:?}"
-                );
-            }
-            f.mark_motion();
-            mark = truth;
+    let odometry = |i: u32, rng: &mut ChaCha8Rng| {
+        let (speed, steer) = (8.0, 0.03 * (0.05 * f64::from(i) * 0.05).sin());
+        let read_speed = speed + speed_noise.sample(rng);
+        (
+            (speed, steer),
+            (read_speed, steer + steer_noise.sample(rng)),
+        )
+    };
+    let truth = drive_registered(&mut f, 2000, &mut rng, odometry, |f, rel, rng| {
+        let mut e = [0.0; 3];
+        for k in 0..3 {
+            let d = placement[k].sample(rng);
+            e[k] = d - d_prev[k] + white[k].sample(rng);
+            d_prev[k] = d;
         }
-        truth = model
-            .predict(&truth, &ControlInput::new(speed, steer), dt)
+        let measured = Pose2::new(rel.x + e[0], rel.y + e[1], rel.theta + e[2]);
+        let outcome = f
+            .observe_motion_since_mark(measured, &cov, f64::INFINITY)
             .unwrap();
-    }
-    f.predict_to(T0 + f64::from(steps) * dt).unwrap();
+        assert!(
+            matches!(outcome, MotionOutcome::Applied { .. }),
+            "{outcome:?}"
+        );
+    });
     let p = f.pose();
     let error = Vector3::new(
         p.x - truth.x,

@@ -794,6 +794,12 @@ mod tests {
             &profile::CTS350X,
         );
         assert_eq!(d.settings.filter.registration_placement_share, 0.0);
+        // The configuration's bound is the filter's: a share the configuration takes, the
+        // filter's validation takes too.
+        assert_eq!(
+            config::values::PlacementShare::MAX,
+            slam_filter::settings::MAX_PLACEMENT_SHARE
+        );
         let d = derive_from(
             "[odometry]\nsteer_bias_from_landmarks = false\n",
             &profile::CTS350X,
