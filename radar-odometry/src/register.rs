@@ -41,8 +41,38 @@ pub fn register(
     gate_m: f64,
     min_pairs: usize,
 ) -> Option<Registration> {
-    icp(reference, current, None, initial, gate_m, min_pairs)
+    icp(reference, current, None, initial, gate_m, min_pairs, 0)
 }
+
+/// [`register`] from `initial` already near (a registration's result, the cloud placed
+/// again): the gate starts narrowed to a fifth of `gate_m`, where [`register`]'s ends,
+/// and saves the iterations that narrow it (ten of at most forty).
+pub fn register_narrowed(
+    reference: &ReferenceCloud,
+    current: &[[f64; 2]],
+    initial: Pose2,
+    gate_m: f64,
+    min_pairs: usize,
+) -> Option<Registration> {
+    icp(
+        reference,
+        current,
+        None,
+        initial,
+        gate_m,
+        min_pairs,
+        NARROWED_AFTER,
+    )
+}
+
+/// ICP's largest number of iterations.
+const ITERATIONS: usize = 40;
+/// Each iteration narrows the gate by this factor, down to [`GATE_FLOOR`] of the gate.
+const GATE_NARROWING: f64 = 0.85;
+/// The narrowest gate, as a share of the gate given.
+const GATE_FLOOR: f64 = 0.2;
+/// The iterations after which the gate is at its narrowest (`0.85^10 < 0.2`).
+const NARROWED_AFTER: usize = 10;
 
 /// [`register`] for a cloud swept while the vehicle moved: `current[i]` is a return in the
 /// sensor's frame at the moment it was swept, `fractions[i]` how far through the motion
@@ -69,10 +99,12 @@ pub fn register_swept(
         initial,
         gate_m,
         min_pairs,
+        0,
     )
 }
 
-/// The ICP of [`register`] and [`register_swept`].
+/// The ICP of [`register`] and [`register_swept`], from iteration `first` of the gate's
+/// narrowing.
 fn icp(
     reference: &ReferenceCloud,
     current: &[[f64; 2]],
@@ -80,16 +112,16 @@ fn icp(
     initial: Pose2,
     gate_m: f64,
     min_pairs: usize,
+    first: usize,
 ) -> Option<Registration> {
-    const ITERATIONS: usize = 40;
     if reference.points.is_empty() || current.is_empty() {
         return None;
     }
     let surfaces_only = initial.x.hypot(initial.y) < reference.surfaces_only_within_m;
     let mut t = initial;
     let mut last = None;
-    for it in 0..ITERATIONS {
-        let gate = gate_m * (0.85f64.powi(it as i32)).max(0.2);
+    for it in first..ITERATIONS {
+        let gate = gate_m * (GATE_NARROWING.powi(it as i32)).max(GATE_FLOOR);
         let gate2 = gate * gate;
         // Cauchy weights with a scale of half the gate: pairs near the gate count little.
         let scale2 = 0.25 * gate2;
@@ -188,7 +220,7 @@ fn icp(
             iterations: it + 1,
             information: h,
         });
-        if step < 1e-6 && gate <= 0.2 * gate_m + 1e-12 {
+        if step < 1e-6 && gate <= GATE_FLOOR * gate_m + 1e-12 {
             break;
         }
     }
@@ -379,6 +411,28 @@ mod tests {
         assert!((reg.pose.y - b.y).abs() < 1e-3, "{reg:?}");
         assert!((reg.pose.theta - b.theta).abs() < 1e-4, "{reg:?}");
         assert!(reg.line_pairs > 0 && reg.line_pairs < reg.pairs, "{reg:?}");
+    }
+
+    /// Started near (within the narrowest gate), the narrowed registration lands where the
+    /// full one does, and the gate is at its narrowest from its first iteration.
+    #[test]
+    fn a_registration_started_near_lands_where_the_full_one_does_narrowed() {
+        assert!(GATE_NARROWING.powi(NARROWED_AFTER as i32) <= GATE_FLOOR);
+        assert!(GATE_NARROWING.powi(NARROWED_AFTER as i32 - 1) > GATE_FLOOR);
+        let world = street();
+        let reference =
+            ReferenceCloud::new(in_frame_of(&Pose2::new(0.0, 0.0, 0.0), &world), 1.5, 0.6);
+        let b = Pose2::new(2.2, 0.05, 0.012);
+        let current = in_frame_of(&b, &world);
+        let start = Pose2::new(2.23, 0.06, 0.011);
+        let full = register(&reference, &current, start, 1.5, 50).expect("registers");
+        let narrowed = register_narrowed(&reference, &current, start, 1.5, 50).expect("registers");
+        for reg in [&full, &narrowed] {
+            assert!((reg.pose.x - b.x).abs() < 1e-3, "{reg:?}");
+            assert!((reg.pose.y - b.y).abs() < 1e-3, "{reg:?}");
+            assert!((reg.pose.theta - b.theta).abs() < 1e-4, "{reg:?}");
+        }
+        assert_eq!(narrowed.pairs, full.pairs);
     }
 
     /// Two walls sampled at fixed bearings from each pose (as a radar samples them): the

@@ -375,8 +375,8 @@ impl fmt::Display for RadarOdometry<'_> {
         };
         writeln!(
             f,
-            "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated; {} retried from other headings (through a turn, or few pairs: {} more registrations; {} of them so few that they were also tried from starts along the track); {} run again on the cloud placed along the motion found (far from the estimate it was placed along)",
-            r.tried, r.failed, m.applied, m.gated, r.turned, r.retries, r.along, r.replaced
+            "  radar odometry: {} registrations tried, {} failed, {} applied (mean NIS {mean_nis}, 3 dof), {} gated; {} retried from other headings (through a turn, or few pairs: {} more registrations; {} of them so few that they were also tried from starts along the track); {} run again on the cloud placed along the motion found (far from the estimate it was placed along: {} of them only in travel)",
+            r.tried, r.failed, m.applied, m.gated, r.turned, r.retries, r.along, r.replaced, r.replaced_along
         )?;
         if r.onsets > 0 || r.probed > 0 {
             writeln!(

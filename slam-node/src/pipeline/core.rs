@@ -194,7 +194,13 @@ impl Pipeline {
             summary: PipelineSummary::default(),
             filter_started: false,
             scan_match: RadarOdometryStage::new(
-                settings.scan_match,
+                // The front end corrects the detections for the radar's range-Doppler
+                // coupling at the speed held: radar odometry reads them again at the speed
+                // it registers.
+                radar_odometry::ScanMatchSettings {
+                    doppler_coupling_s: settings.doppler_range_coupling_s,
+                    ..settings.scan_match
+                },
                 settings.radar_drives,
                 settings.motion,
                 settings.gyro.is_some(),
@@ -429,6 +435,7 @@ impl Pipeline {
                 az.timestamp_s,
                 bearing,
                 self.front_end.detections(),
+                speed,
             );
         }
         let detected = Instant::now();

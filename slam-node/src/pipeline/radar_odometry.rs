@@ -169,7 +169,8 @@ impl RadarOdometryStage {
         }
     }
 
-    /// Adds one azimuth's detections at `bearing_rad` and `time_s`. The sensor is placed
+    /// Adds one azimuth's detections at `bearing_rad` and `time_s`, their ranges corrected
+    /// for the range-Doppler coupling at `corrected_speed_mps`. The sensor is placed
     /// where the filter's motion since the last mark puts it; driving, before the filter has
     /// started, at the origin (the first rotations are not de-skewed).
     pub fn add_azimuth(
@@ -178,13 +179,19 @@ impl RadarOdometryStage {
         time_s: f64,
         bearing_rad: f64,
         detections: &[Detection],
+        corrected_speed_mps: f64,
     ) {
         let sensor = match ekf.motion_since_mark(time_s) {
             None if self.drives && ekf.held_odometry().is_none() => Some(Pose2::new(0.0, 0.0, 0.0)),
             sensor => sensor,
         };
-        self.matcher
-            .add_azimuth(sensor, time_s, bearing_rad, detections);
+        self.matcher.add_azimuth_corrected(
+            sensor,
+            time_s,
+            bearing_rad,
+            detections,
+            corrected_speed_mps,
+        );
     }
 
     /// Closes a rotation whose last azimuth came at `end_s`: registers it and gives the
