@@ -110,15 +110,44 @@ impl PointGrid {
         q: &[f64; 2],
         gate_m: f64,
     ) -> Option<(usize, f64)> {
-        let reach = self.reach(gate_m)?;
-        let (cx, cy) = self.cell_coords(q)?;
+        self.search::<false>(points, q, gate_m).0
+    }
+
+    /// [`PointGrid::nearest_within`]'s answer, and a squared distance within which no other
+    /// point of `points` lies: the second nearest's within the gate, the gate's where there
+    /// is none, 0 where nothing can be said (an empty grid, a non-finite query). A query
+    /// moved by `d` since keeps the same answer while the nearest's distance plus `d` stays
+    /// below that distance's root minus `d` (an iterative registration's next iteration).
+    /// Rows are skipped only once farther than the second nearest, so a query reads more
+    /// cells than [`PointGrid::nearest_within`].
+    pub fn nearest_within_and_clear(
+        &self,
+        points: &[[f64; 2]],
+        q: &[f64; 2],
+        gate_m: f64,
+    ) -> (Option<(usize, f64)>, f64) {
+        self.search::<true>(points, q, gate_m)
+    }
+
+    /// The search of both: with `CLEAR`, the bound that skips rows is the second nearest's
+    /// distance, kept as the second value; without, the nearest's (the second value is 0).
+    fn search<const CLEAR: bool>(
+        &self,
+        points: &[[f64; 2]],
+        q: &[f64; 2],
+        gate_m: f64,
+    ) -> (Option<(usize, f64)>, f64) {
+        let (Some(reach), Some((cx, cy))) = (self.reach(gate_m), self.cell_coords(q)) else {
+            return (None, 0.0);
+        };
+        let mut bound = gate_m * gate_m;
+        let clear = |bound: f64| if CLEAR { bound } else { 0.0 };
         let x0 = (cx - reach).max(0);
         let x1 = (cx + reach).min(self.nx as i64 - 1);
         if x0 > x1 {
-            return None;
+            return (None, clear(bound));
         }
         let mut best: Option<(usize, f64)> = None;
-        let mut bound = gate_m * gate_m;
         for k in 0..=2 * reach {
             // cy, cy + 1, cy - 1, cy + 2, ...
             let iy = if k % 2 == 1 {
@@ -141,13 +170,28 @@ impl PointGrid {
             for &i in &self.order[from..to] {
                 let p = points[i as usize];
                 let d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]);
-                if d2 <= bound && best.is_none_or(|(_, b)| d2 < b) {
-                    best = Some((i as usize, d2));
-                    bound = d2;
+                if d2 > bound {
+                    continue;
+                }
+                match best {
+                    // The first point at the least distance is the answer, ties included.
+                    Some((_, b)) if d2 >= b => {
+                        if CLEAR {
+                            bound = d2;
+                        }
+                    }
+                    _ => {
+                        if !CLEAR {
+                            bound = d2;
+                        } else if let Some((_, b)) = best {
+                            bound = b;
+                        }
+                        best = Some((i as usize, d2));
+                    }
                 }
             }
         }
-        best
+        (best, clear(bound))
     }
 }
 
@@ -228,6 +272,21 @@ mod tests {
                     found.map(|f| f.0),
                     linear.map(|l| l.0),
                     "{query:?} gate {gate}"
+                );
+                // The same answer with the bound on the others: the second nearest within
+                // the gate, or the gate.
+                let (again, clear2) = grid.nearest_within_and_clear(&points, &query, gate);
+                assert_eq!(again, found);
+                let second = points
+                    .iter()
+                    .enumerate()
+                    .filter(|&(i, _)| Some(i) != found.map(|f| f.0))
+                    .map(|(_, p)| (p[0] - query[0]).powi(2) + (p[1] - query[1]).powi(2))
+                    .filter(|&d2| d2 <= gate * gate)
+                    .fold(gate * gate, f64::min);
+                assert!(
+                    (clear2 - second).abs() <= 1e-12,
+                    "{query:?} gate {gate}: {clear2} against {second}"
                 );
             }
         }

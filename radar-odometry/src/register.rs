@@ -120,6 +120,9 @@ fn icp(
     let surfaces_only = initial.x.hypot(initial.y) < reference.surfaces_only_within_m;
     let mut t = initial;
     let mut last = None;
+    // Each return's last grid search, kept while the pose moves too little to change its
+    // answer (see [`Searched`]): the same pairs, far fewer cells read.
+    let mut searched: Vec<Option<Searched>> = vec![None; current.len()];
     for it in first..ITERATIONS {
         let gate = gate_m * (GATE_NARROWING.powi(it as i32)).max(GATE_FLOOR);
         let gate2 = gate * gate;
@@ -136,7 +139,7 @@ fn icp(
         let mut h = Matrix3::<f64>::zeros();
         let mut g = Vector3::<f64>::zeros();
         let (mut n, mut lines, mut sum_r2) = (0usize, 0usize, 0.0);
-        for (i, p) in current.iter().enumerate() {
+        for ((i, p), last_search) in current.iter().enumerate().zip(searched.iter_mut()) {
             // Where the return lands, and how that moves with the pose's x, y and heading.
             let (moved, jx, jy, jt) = match &sweep {
                 Some(sweep) => {
@@ -154,10 +157,28 @@ fn icp(
                 ),
             };
             let nearest = if use_grid {
-                reference
-                    .grid
-                    .nearest_within(&reference.points, &moved, gate)
+                match last_search
+                    .as_ref()
+                    .and_then(|s| s.answer(&reference.points, &moved, gate))
+                {
+                    Some(kept) => kept,
+                    None => {
+                        let (nearest, clear2) = reference.grid.nearest_within_and_clear(
+                            &reference.points,
+                            &moved,
+                            gate,
+                        );
+                        *last_search = Some(Searched {
+                            at: moved,
+                            gate,
+                            nearest,
+                            clear: clear2.sqrt(),
+                        });
+                        nearest
+                    }
+                }
             } else {
+                *last_search = None;
                 let nn = reference.tree.nearest_one::<SquaredEuclidean>(&moved);
                 Some((nn.item as usize, nn.distance))
             };
@@ -225,6 +246,49 @@ fn icp(
         }
     }
     last
+}
+
+/// Beyond the distances' rounding (m): a kept answer needs this much room to spare.
+const KEPT_MARGIN_M: f64 = 1e-9;
+
+/// A return's last grid search in an ICP: where the return was, the gate, the answer, and
+/// the distance within which no other reference point lay
+/// ([`crate::grid::PointGrid::nearest_within_and_clear`]).
+#[derive(Debug, Clone, Copy)]
+struct Searched {
+    at: [f64; 2],
+    gate: f64,
+    nearest: Option<(usize, f64)>,
+    clear: f64,
+}
+
+impl Searched {
+    /// The grid's answer for the return now at `q` with gate `gate` (at most the searched
+    /// one), without searching, where the move from `at` cannot have changed it; `None`
+    /// where a search is needed. The nearest point stays nearest while its distance plus
+    /// the move is below the others' bound minus the move (the triangle inequality, with
+    /// [`KEPT_MARGIN_M`] to spare); where nothing lay within the old gate, nothing lies
+    /// within a new gate narrower by more than the move.
+    fn answer(&self, points: &[[f64; 2]], q: &[f64; 2], gate: f64) -> Option<Option<(usize, f64)>> {
+        if gate > self.gate {
+            return None;
+        }
+        // Not `hypot`: its care for overflow costs more than the search it saves.
+        let (dx, dy) = (q[0] - self.at[0], q[1] - self.at[1]);
+        let moved = (dx * dx + dy * dy).sqrt() + KEPT_MARGIN_M;
+        match self.nearest {
+            None => (gate + moved < self.clear).then_some(None),
+            Some((j, _)) => {
+                let p = points.get(j)?;
+                // The grid's own arithmetic, so that the distance kept is the bits it gives.
+                let d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]);
+                if d2.sqrt() + moved >= self.clear - moved {
+                    return None;
+                }
+                Some((d2 <= gate * gate).then_some((j, d2)))
+            }
+        }
+    }
 }
 
 /// A constant twist from the identity to a pose `T`, in complex form (the plane as complex
@@ -387,6 +451,65 @@ pub fn covariance(
 mod tests {
     use super::*;
     use crate::cloud::tests::street;
+
+    /// A return's kept answer is the grid's own wherever it is kept: queries near a street's
+    /// points (on them, between them, off them), moved by a micrometre to a decimetre, the
+    /// gate narrowed or not. And most small moves are answered without a search.
+    #[test]
+    fn a_kept_pair_is_the_one_a_search_finds() {
+        let world = street();
+        let cloud = ReferenceCloud::new(world.clone(), 1.5, 0.6);
+        let grid = &cloud.grid;
+        let (mut kept, mut small) = (0, 0);
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        let mut uniform = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for (n, p) in world.iter().enumerate().step_by(3) {
+            let q = [
+                p[0] + 0.5 * (uniform() - 0.5),
+                p[1] + 0.5 * (uniform() - 0.5),
+            ];
+            let q = if n % 9 == 0 { *p } else { q };
+            for gate in [0.6, 0.3, 0.12] {
+                let (nearest, clear2) = grid.nearest_within_and_clear(&world, &q, gate);
+                assert_eq!(nearest, grid.nearest_within(&world, &q, gate));
+                let searched = Searched {
+                    at: q,
+                    gate,
+                    nearest,
+                    clear: clear2.sqrt(),
+                };
+                for moved in [1e-6, 1e-4, 1e-3, 1e-2, 0.1] {
+                    let a = std::f64::consts::TAU * uniform();
+                    let to = [q[0] + moved * a.cos(), q[1] + moved * a.sin()];
+                    for narrowed in [gate, 0.85 * gate] {
+                        let Some(answer) = searched.answer(&world, &to, narrowed) else {
+                            continue;
+                        };
+                        kept += 1;
+                        if moved <= 1e-4 {
+                            small += 1;
+                        }
+                        assert_eq!(
+                            answer,
+                            grid.nearest_within(&world, &to, narrowed),
+                            "{q:?} moved {moved} gate {gate} -> {narrowed}"
+                        );
+                    }
+                }
+            }
+        }
+        let tried = world.len().div_ceil(3) * 3 * 2 * 2;
+        assert!(
+            small > tried * 9 / 10,
+            "{small} of {tried} micrometre moves kept"
+        );
+        assert!(kept > small, "{kept} kept");
+    }
 
     #[test]
     fn icp_recovers_a_motion_started_five_per_cent_off() {
