@@ -457,17 +457,13 @@ mod tests {
     /// gate narrowed or not. And most small moves are answered without a search.
     #[test]
     fn a_kept_pair_is_the_one_a_search_finds() {
+        use rand::{Rng, SeedableRng};
         let world = street();
         let cloud = ReferenceCloud::new(world.clone(), 1.5, 0.6);
         let grid = &cloud.grid;
         let (mut kept, mut small) = (0, 0);
-        let mut x = 0x9E37_79B9_7F4A_7C15u64;
-        let mut uniform = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(35);
+        let mut uniform = move || rng.gen::<f64>();
         for (n, p) in world.iter().enumerate().step_by(3) {
             let q = [
                 p[0] + 0.5 * (uniform() - 0.5),
