@@ -18,7 +18,10 @@ the same interval. Over every registration the script splits the filter's headin
 the registration's error (its measured turn minus the true one) and the rest, the map's pull
 (the filter's turn over the interval minus the registration's): the point features' updates,
 through the pose and through the mark's clone. A straight here is a registration whose true
-turn is under STRAIGHT_RAD.
+turn is under STRAIGHT_RAD. It also gives each registration's heading error RMS along the
+straights and turning, the registrations' error summed over each junction's turn (left and
+right apart), and how the errors add up when chained: the variance of the sum of N
+consecutive errors against N independent ones (the placement share's long run).
 
 Reads files only; needs numpy. A file that is missing, not a regular file (a FIFO, a device, a
 directory), over its size bound, or has no rows readable is refused with the reason and exit
@@ -42,6 +45,12 @@ TURN_RAD = math.radians(0.5)
 TURN_PAD = 4
 # A registration is along a straight when its true turn is under this (rad).
 STRAIGHT_RAD = 0.002
+# A run of turning registrations is a junction's turn when it turns at least this (rad).
+TURN_MIN_RAD = math.radians(20.0)
+# Spans (registrations) over which chained heading errors are summed (long_run).
+LONG_RUN_SPANS = (1, 4, 16, 64, 256)
+# A span is reported only with at least this many sums (overlapping) behind it.
+LONG_RUN_MIN_SUMS = 500
 # The debug line radar odometry writes for every registration.
 REGISTRATION = "radar odometry registration"
 FIELD = re.compile(r"(\w+)=([-+\w.]+)")
@@ -130,6 +139,48 @@ def pull_split(est, reg):
     return {k: (math.degrees(a), math.degrees(b), n) for k, (a, b, n) in out.items()}
 
 
+def turn_sums(reg):
+    """Each turn's registrations (a run of registrations whose true turn is at least
+    STRAIGHT_RAD, turning TURN_MIN_RAD or more in all): (true turn, the registrations'
+    heading error summed over it, how many registrations), rad."""
+    out, run = [], []
+    for row in list(reg) + [None]:
+        if row is not None and abs(row[2]) >= STRAIGHT_RAD:
+            run.append(row)
+            continue
+        if run:
+            true = sum(r[2] for r in run)
+            if abs(true) >= TURN_MIN_RAD:
+                out.append((true, sum(r[3] - r[2] for r in run), len(run)))
+            run = []
+    return out
+
+
+def long_run(errors, spans=None):
+    """How the registrations' heading errors add up when chained: for each span N (of
+    LONG_RUN_SPANS, those with at least LONG_RUN_MIN_SUMS sums), the variance of the sum of
+    N consecutive errors (their mean taken out) over N times one error's variance; 1 for
+    independent errors. A registration erring `d_k - d_{k-1} + w` with the placement share
+    `s` (slam-node's `[odometry] radar_odometry_placement_share`) gives
+    `(2 s + N (1 - 2 s)) / N`, so the longest span's ratio `r` asks for the share
+    `(1 - r) / 2`. [(N, ratio)]."""
+    e = np.asarray(errors, dtype=float)
+    if len(e) < 2:
+        return []
+    e = e - e.mean()
+    one = e.var()
+    if one <= 0.0:
+        return []
+    c = np.concatenate([[0.0], np.cumsum(e)])
+    out = []
+    for n in spans or LONG_RUN_SPANS:
+        if len(e) - n + 1 < LONG_RUN_MIN_SUMS:
+            break
+        sums = c[n:] - c[:-n]
+        out.append((n, float(sums.var() / (n * one))))
+    return out
+
+
 def rms(values):
     return math.sqrt(sum(v * v for v in values) / len(values)) if values else float("nan")
 
@@ -180,6 +231,31 @@ def main(argv):
                 f"  {name}s ({n} registrations): registrations' heading error {r:+.2f} deg "
                 f"({1e6 * math.radians(r) / max(n, 1):+.1f} urad each), the map's pull "
                 f"{p:+.2f} deg ({1e6 * math.radians(p) / max(n, 1):+.1f} urad each)"
+            )
+        straight = [r[3] - r[2] for r in reg if abs(r[2]) < STRAIGHT_RAD]
+        turning = [r[3] - r[2] for r in reg if abs(r[2]) >= STRAIGHT_RAD]
+        print(
+            f"  each registration's heading error, RMS: {1e3 * rms(straight):.2f} mrad along "
+            f"straights, {1e3 * rms(turning):.2f} mrad turning"
+        )
+        turns = turn_sums(reg)
+        for name, sign in (("left", 1.0), ("right", -1.0)):
+            sums = [s for s in turns if sign * s[0] > 0]
+            if sums:
+                errs = [math.degrees(s[1]) for s in sums]
+                print(
+                    f"  {name} turns ({len(sums)}, {sum(s[2] for s in sums) / len(sums):.1f} "
+                    f"registrations each): the registrations' heading error summed over a "
+                    f"turn {sum(errs) / len(errs):+.2f} deg on the mean, RMS {rms(errs):.2f} deg"
+                )
+        ratios = long_run([r[3] - r[2] for r in reg])
+        if ratios:
+            text = ", ".join(f"{n}: {r:.3f}" for n, r in ratios)
+            share = (1.0 - ratios[-1][1]) / 2.0
+            print(
+                f"  chained, the heading errors' variance over N registrations against N "
+                f"independent ones: {text} (the placement share that matches the longest "
+                f"span: {share:.2f})"
             )
     return 0
 

@@ -8,8 +8,10 @@ from the turn's padding) and +10 mrad spread over the turn's rotations; its posi
 its own heading. Each rotation's registration errs -30 urad along the straights and +1 mrad
 through the turn, and the estimate turns 10 urad more than the registration along the
 straights (the map's pull) and 20 urad less through the turn. The script must give back:
-the odometry's sums through the turn and along the straights, and the registrations' error
-and the pull on each. Bad input is refused with exit 1: a missing file, an unreadable row, a
+the odometry's sums through the turn and along the straights, the registrations' error
+and the pull on each, and the turn's registrations' error summed. Chained registration
+errors drawn independent, and drawn with a placement share of 0.4, add up over N as the
+model says. Bad input is refused with exit 1: a missing file, an unreadable row, a
 FIFO or a directory in a file's place, a file over its size bound; a log line over the
 longest read costs that line only.
 
@@ -21,6 +23,8 @@ import os
 import sys
 import tempfile
 from pathlib import Path
+
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "evaluation"))
 import heading_budget  # noqa: E402
@@ -112,6 +116,15 @@ def main():
                 f"{r:.6f} / {p:.6f} deg over {k} against {math.degrees(reg):.6f} / "
                 f"{math.degrees(pull):.6f} over {count}",
             )
+        turns = heading_budget.turn_sums(heading_budget.registrations(str(out / "run.log")))
+        check(
+            "one left turn, its registrations' error summed",
+            len(turns) == 1
+            and abs(turns[0][0] - math.pi / 2) < 1e-9
+            and abs(turns[0][1] - 1e-3) < 1e-9
+            and turns[0][2] == turn_len,
+            f"{turns}",
+        )
         code = heading_budget.main(["heading_budget.py", str(out), str(out / "run.log")])
         check("the command runs on the files", code == 0, f"exit {code}")
         missing = heading_budget.main(["heading_budget.py", str(out / "none")])
@@ -142,6 +155,27 @@ def main():
         long_log.write_text("x" * (3 * heading_budget.MAX_LINE_BYTES) + "\n" + "\n".join(log) + "\n")
         got = len(heading_budget.registrations(str(long_log)))
         check("a line over the longest read costs that line only", got == n, f"{got} of {n}")
+    # Chained errors: independent ones add up as N of them; a registration erring
+    # d_k - d_{k-1} + w with the placement share s (var d = s, var w = 1 - 2 s) as
+    # (2 s + N (1 - 2 s)) / N of them, and the longest span gives the share back.
+    rng = np.random.default_rng(35)
+    m, s = 100_000, 0.4
+    white = rng.standard_normal(m)
+    d = math.sqrt(s) * rng.standard_normal(m + 1)
+    placed = d[1:] - d[:-1] + math.sqrt(1.0 - 2.0 * s) * white
+    for name, errors, share in (("independent", white, 0.0), ("placed, share 0.4", placed, s)):
+        ratios = heading_budget.long_run(errors)
+        want = [(2 * share + n * (1 - 2 * share)) / n for n, _ in ratios]
+        check(
+            f"chained {name} errors add up as the model says",
+            [n for n, _ in ratios] == list(heading_budget.LONG_RUN_SPANS)
+            and all(abs(r - w) < 0.1 for (_, r), w in zip(ratios, want)),
+            f"{ratios} against {[round(w, 3) for w in want]}",
+        )
+    few = heading_budget.long_run(white[:600])
+    check("a span with too few sums is not reported", [n for n, _ in few] == [1, 4, 16, 64],
+          f"{few}")
+    check("no errors, no ratios", heading_budget.long_run([]) == [], "")
     finish()
 
 
