@@ -146,7 +146,9 @@ pub struct RawOdometry {
     /// cloud's placement error in its state (slam-filter's
     /// `FilterSettings::registration_placement_share`). Default 0: every registration
     /// independent (measured both ways in slam-node's README, "The registrations' placement
-    /// in the state").
+    /// in the state"); unset on the radar alone (`source = "none"`) without a gyro and not
+    /// localising, 0.2 (slam-node's `RADAR_ALONE_PLACEMENT_SHARE`; slam-node's README,
+    /// "Where the turns' heading error comes from").
     pub radar_odometry_placement_share: f64,
     /// Radar only (`source = "none"`): the registration is composed onto the pose at the
     /// previous rotation, as odometry drives a pose, instead of fused as an update with a
