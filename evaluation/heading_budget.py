@@ -143,20 +143,15 @@ def turn_sums(reg):
     """Each turn's registrations (a run of registrations whose true turn is at least
     STRAIGHT_RAD, turning TURN_MIN_RAD or more in all): (true turn, the registrations'
     heading error summed over it, how many registrations), rad."""
-    out, run = [], []
-    for row in list(reg) + [None]:
-        if row is not None and abs(row[2]) >= STRAIGHT_RAD:
-            run.append(row)
-            continue
-        if run:
-            true = sum(r[2] for r in run)
-            if abs(true) >= TURN_MIN_RAD:
-                out.append((true, sum(r[3] - r[2] for r in run), len(run)))
-            run = []
+    out = []
+    for start, end, turning in stretches(np.abs(reg[:, 2]) >= STRAIGHT_RAD):
+        true = float(reg[start:end, 2].sum())
+        if turning and abs(true) >= TURN_MIN_RAD:
+            out.append((true, float((reg[start:end, 3] - reg[start:end, 2]).sum()), end - start))
     return out
 
 
-def long_run(errors, spans=None):
+def long_run(errors):
     """How the registrations' heading errors add up when chained: for each span N (of
     LONG_RUN_SPANS, those with at least LONG_RUN_MIN_SUMS sums), the variance of the sum of
     N consecutive errors (their mean taken out) over N times one error's variance; 1 for
@@ -173,7 +168,7 @@ def long_run(errors, spans=None):
         return []
     c = np.concatenate([[0.0], np.cumsum(e)])
     out = []
-    for n in spans or LONG_RUN_SPANS:
+    for n in LONG_RUN_SPANS:
         if len(e) - n + 1 < LONG_RUN_MIN_SUMS:
             break
         sums = c[n:] - c[:-n]
@@ -182,7 +177,7 @@ def long_run(errors, spans=None):
 
 
 def rms(values):
-    return math.sqrt(sum(v * v for v in values) / len(values)) if values else float("nan")
+    return math.sqrt(sum(v * v for v in values) / len(values)) if len(values) else float("nan")
 
 
 def main(argv):
@@ -232,11 +227,11 @@ def main(argv):
                 f"({1e6 * math.radians(r) / max(n, 1):+.1f} urad each), the map's pull "
                 f"{p:+.2f} deg ({1e6 * math.radians(p) / max(n, 1):+.1f} urad each)"
             )
-        straight = [r[3] - r[2] for r in reg if abs(r[2]) < STRAIGHT_RAD]
-        turning = [r[3] - r[2] for r in reg if abs(r[2]) >= STRAIGHT_RAD]
+        errors = reg[:, 3] - reg[:, 2]
+        along = np.abs(reg[:, 2]) < STRAIGHT_RAD
         print(
-            f"  each registration's heading error, RMS: {1e3 * rms(straight):.2f} mrad along "
-            f"straights, {1e3 * rms(turning):.2f} mrad turning"
+            f"  each registration's heading error, RMS: {1e3 * rms(errors[along]):.2f} mrad "
+            f"along straights, {1e3 * rms(errors[~along]):.2f} mrad turning"
         )
         turns = turn_sums(reg)
         for name, sign in (("left", 1.0), ("right", -1.0)):
@@ -248,7 +243,7 @@ def main(argv):
                     f"registrations each): the registrations' heading error summed over a "
                     f"turn {sum(errs) / len(errs):+.2f} deg on the mean, RMS {rms(errs):.2f} deg"
                 )
-        ratios = long_run([r[3] - r[2] for r in reg])
+        ratios = long_run(errors)
         if ratios:
             text = ", ".join(f"{n}: {r:.3f}" for n, r in ratios)
             share = (1.0 - ratios[-1][1]) / 2.0

@@ -831,7 +831,11 @@ mod tests {
         assert_eq!(alone(""), RADAR_ALONE_PLACEMENT_SHARE);
         assert_eq!(alone("radar_odometry_placement_share = 0.0\n"), 0.0);
         assert_eq!(alone("radar_odometry_placement_share = 0.35\n"), 0.35);
-        assert_eq!(alone("\n[gyro]\nsource = \"tcp\"\n"), 0.0);
+        // Parsed only, never connected to: a documentation address (RFC 5737).
+        assert_eq!(
+            alone("\n[gyro]\nsource = \"tcp\"\naddress = \"192.0.2.1:7000\"\n"),
+            0.0
+        );
         assert_eq!(alone("\n[map]\nmode = \"localise\"\n"), 0.0);
         // The configuration's bound is the filter's: a share the configuration takes, the
         // filter's validation takes too.
