@@ -31,13 +31,12 @@ directory), over its size bound, or has no rows readable is refused with the rea
 import math
 import os
 import re
-import stat
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from ate_aligned import paired, tum  # noqa: E402
+from ate_aligned import MAX_TUM_BYTES, paired, refused, tum  # noqa: E402
 
 # A rotation turns (through a junction) when the truth turns more than this (rad).
 TURN_RAD = math.radians(0.5)
@@ -54,25 +53,9 @@ LONG_RUN_MIN_SUMS = 500
 # The debug line radar odometry writes for every registration.
 REGISTRATION = "radar odometry registration"
 FIELD = re.compile(r"(\w+)=([-+\w.]+)")
-# Largest TUM file read (bytes): six hours at 4 Hz is about 6 MB.
-MAX_TUM_BYTES = 256 << 20
 # Largest log read (bytes); it is read a line at a time, each line at most MAX_LINE_BYTES.
 MAX_LOG_BYTES = 4 << 30
 MAX_LINE_BYTES = 64 << 10
-
-
-def refused(path, limit):
-    """Why `path` is not read: not a regular file (a directory, a FIFO, a device), or over
-    `limit` bytes; None when it may be read."""
-    try:
-        st = os.stat(path)
-    except OSError as e:
-        return f"cannot be read ({e.strerror})"
-    if not stat.S_ISREG(st.st_mode):
-        return "is not a regular file"
-    if st.st_size > limit:
-        return f"is {st.st_size} bytes, over the {limit} read"
-    return None
 
 
 def stretches(turning):
