@@ -29,14 +29,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "evaluation"))
 import heading_budget  # noqa: E402
 
-from checklist import check, finish  # noqa: E402
-
-
-def write_tum(path, rows):
-    with open(path, "w") as f:
-        f.write("# timestamp x y z qx qy qz qw\n")
-        for t, x, y, h in rows:
-            f.write(f"{t:.6f} {x:.9f} {y:.9f} 0 0 0 {math.sin(h / 2):.12f} {math.cos(h / 2):.12f}\n")
+from checklist import check, finish, write_tum  # noqa: E402
 
 
 def main():
