@@ -18,7 +18,9 @@ file with no partner are counted and left out. (The estimate has one row the tru
 the start pose; paired row by row, as this script did before 2026-11-30, every estimate
 was scored against the truth a rotation later: about 2.3 m at 10 m/s, added to every
 aligned ATE reported with it.)
-Reads files only; needs numpy.
+Reads files only; needs numpy. A file that is missing, not a regular file (a FIFO, a
+device, a directory), over MAX_TUM_BYTES or not readable as TUM rows is refused with the
+reason and exit 1; Ctrl-C stops it with exit 130.
 """
 
 import math
@@ -166,4 +168,8 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        sys.exit(130)
