@@ -66,16 +66,22 @@ def revisits(xy, s, within_m, apart_m):
     return out
 
 
+def along_truth(est, gt, within_m, apart_m):
+    """The rows of `est` and `gt` at the same times, the distance driven at each (m, along
+    the truth), which of them are true revisits, and the rows of each without a partner."""
+    est, gt, lone_e, lone_g = paired(est, gt)
+    if len(est) < 2:
+        raise ValueError("fewer than two poses at the same times")
+    xy = gt[:, 1:3]
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    return est, gt, s, revisits(xy, s, within_m, apart_m), lone_e, lone_g
+
+
 def floor(odo, gt, within_m=10.0, apart_m=300.0):
     """The errors (m) at each paired row of the odometry put back on the truth at the first
     row and at each true revisit, the distance driven since (m), the revisit flags, and the
     rows of each file without a partner."""
-    odo, gt, lone_o, lone_g = paired(odo, gt)
-    if len(odo) < 2:
-        raise ValueError("fewer than two poses at the same times")
-    xy = gt[:, 1:3]
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    hit = revisits(xy, s, within_m, apart_m)
+    odo, gt, s, hit, lone_o, lone_g = along_truth(odo, gt, within_m, apart_m)
     err = np.zeros(len(odo))
     since = np.zeros(len(odo))
     a = 0
@@ -98,12 +104,7 @@ def split(online, gt, within_m=10.0, apart_m=300.0):
     """The online pose's position errors (m) at each paired row, the index of the first true
     revisit (the row count when there is none), the distance driven to it (m), and the rows
     of each file without a partner."""
-    online, gt, lone_o, lone_g = paired(online, gt)
-    if len(online) < 2:
-        raise ValueError("fewer than two poses at the same times")
-    xy = gt[:, 1:3]
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    hit = revisits(xy, s, within_m, apart_m)
+    online, gt, s, hit, lone_o, lone_g = along_truth(online, gt, within_m, apart_m)
     first = int(np.argmax(hit)) if hit.any() else len(hit)
     err = np.hypot(*(online[:, 1:3] - gt[:, 1:3]).T)
     return err, first, float(s[min(first, len(s) - 1)]), lone_o, lone_g
