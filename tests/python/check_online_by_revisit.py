@@ -16,7 +16,6 @@ Prints one line per check and `N passed, M failed`; exits 1 on any failure.
 
 import math
 import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -27,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "evaluation"))
 import online_by_revisit as obr  # noqa: E402
 
-from checklist import check, finish, write_tum  # noqa: E402
+from checklist import check, check_refusals, finish, run_script, write_tum  # noqa: E402
 
 SCRIPT = str(ROOT / "evaluation" / "online_by_revisit.py")
 
@@ -47,8 +46,7 @@ def two_laps():
 
 
 def run(*args):
-    p = subprocess.run([sys.executable, SCRIPT, *args], capture_output=True, text=True, timeout=60)
-    return p.returncode, p.stdout + p.stderr
+    return run_script(SCRIPT, *args)
 
 
 def main():
@@ -108,25 +106,19 @@ def main():
         code, out = run(paths["online"], paths["gt"], "--apart-m", "5000")
         check("command: --apart-m taken (no revisit)", code == 0 and "no true revisit" in out, out.strip().splitlines()[-1] if out.strip() else "")
 
-        bad = os.path.join(d, "bad.tum")
-        with open(bad, "w") as f:
-            f.write("1000.0 1 2\n")
-        fifo = os.path.join(d, "fifo.tum")
-        os.mkfifo(fifo)
-        for name, args in [
-            ("a missing file", (os.path.join(d, "none.tum"), paths["gt"])),
-            ("a directory", (d, paths["gt"])),
-            ("a FIFO", (fifo, paths["gt"])),
-            ("an unreadable row", (bad, paths["gt"])),
-            ("one file", (paths["online"],)),
-            ("a missing odometry file", (paths["online"], paths["gt"], "--odometry", os.path.join(d, "none.tum"))),
-            ("--odometry without a file", (paths["online"], paths["gt"], "--odometry")),
-            ("a negative distance", (paths["online"], paths["gt"], "--revisit-m", "-1")),
-            ("a distance that is not a number", (paths["online"], paths["gt"], "--apart-m", "far")),
-            ("an unknown option", (paths["online"], paths["gt"], "--within", "3")),
-        ]:
-            code, out = run(*args)
-            check(f"refuses {name} with exit 1", code == 1 and "Traceback" not in out, out.strip().splitlines()[0] if out.strip() else "")
+        check_refusals(
+            SCRIPT,
+            d,
+            paths["gt"],
+            [
+                ("one file", (paths["online"],)),
+                ("a missing odometry file", (paths["online"], paths["gt"], "--odometry", os.path.join(d, "none.tum"))),
+                ("--odometry without a file", (paths["online"], paths["gt"], "--odometry")),
+                ("a negative distance", (paths["online"], paths["gt"], "--revisit-m", "-1")),
+                ("a distance that is not a number", (paths["online"], paths["gt"], "--apart-m", "far")),
+                ("an unknown option", (paths["online"], paths["gt"], "--within", "3")),
+            ],
+        )
     finish()
 
 
