@@ -138,14 +138,7 @@ def main():
         args = args[:2]
     if len(args) != 2:
         sys.exit(__doc__)
-    for p in args + ([other] if other else []):
-        why = refused(p, MAX_TUM_BYTES)
-        if why:
-            sys.exit(f"{p}: {why}")
-    try:
-        est, gt = tum(args[0]), tum(args[1])
-    except (OSError, ValueError, IndexError) as e:
-        sys.exit(f"not a TUM trajectory: {e}")
+    est, gt = read_or_exit(args)
     _, _, lone_e, lone_g = paired(est, gt)
     try:
         raw, ate, worst, turn, shift, n = aligned_ate(est, gt)
@@ -157,9 +150,10 @@ def main():
         f"times ({lone_e} estimated and {lone_g} true rows without a partner)"
     )
     if other is not None:
+        (frame,) = read_or_exit([other])
         try:
-            rms, worst, turn = in_frame_of(est, gt, tum(other))
-        except (OSError, ValueError, IndexError) as e:
+            rms, worst, turn = in_frame_of(est, gt, frame)
+        except ValueError as e:
             sys.exit(f"{other}: {e}")
         print(
             f"in the frame that aligns {other} to the truth (turned {turn:.2f} deg): "
@@ -167,9 +161,33 @@ def main():
         )
 
 
-if __name__ == "__main__":
+def read_or_exit(paths):
+    """Each of `paths` read as TUM rows, after `refused`'s checks; a file refused, unreadable
+    or without a pose row ends the run with the reason and exit 1."""
+    for p in paths:
+        why = refused(p, MAX_TUM_BYTES)
+        if why:
+            sys.exit(f"{p}: {why}")
+    rows = []
+    for p in paths:
+        try:
+            r = tum(p)
+        except (OSError, ValueError, IndexError) as e:
+            sys.exit(f"{p}: not a TUM trajectory: {e}")
+        if len(r) == 0:
+            sys.exit(f"{p}: no pose rows")
+        rows.append(r)
+    return rows
+
+
+def run_main(main):
+    """Runs `main`; Ctrl-C ends it with exit 130."""
     try:
         main()
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         sys.exit(130)
+
+
+if __name__ == "__main__":
+    run_main(main)

@@ -35,34 +35,27 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from ate_aligned import MAX_TUM_BYTES, paired, refused, tum  # noqa: E402
+from ate_aligned import paired, read_or_exit, run_main  # noqa: E402
 
 
 def revisits(xy, s, within_m, apart_m):
     """Whether each row's position is within `within_m` of a row driven at least `apart_m`
     before it (`s`: distance driven at each row). A grid of `within_m` cells holds the rows
     far enough back, so each row looks at its nine cells only."""
+
+    def cell(p):
+        return math.floor(p[0] / within_m), math.floor(p[1] / within_m)
+
     cells = {}
     out = np.zeros(len(xy), dtype=bool)
     added = 0
     for i in range(len(xy)):
         while added < i and s[added] <= s[i] - apart_m:
-            key = (math.floor(xy[added, 0] / within_m), math.floor(xy[added, 1] / within_m))
-            cells.setdefault(key, []).append(added)
+            cells.setdefault(cell(xy[added]), []).append(added)
             added += 1
-        cx, cy = math.floor(xy[i, 0] / within_m), math.floor(xy[i, 1] / within_m)
-        found = False
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                for j in cells.get((cx + dx, cy + dy), ()):
-                    if math.hypot(xy[j, 0] - xy[i, 0], xy[j, 1] - xy[i, 1]) < within_m:
-                        found = True
-                        break
-                if found:
-                    break
-            if found:
-                break
-        out[i] = found
+        cx, cy = cell(xy[i])
+        near = (j for dx in (-1, 0, 1) for dy in (-1, 0, 1) for j in cells.get((cx + dx, cy + dy), ()))
+        out[i] = any(math.hypot(*(xy[j] - xy[i])) < within_m for j in near)
     return out
 
 
@@ -82,21 +75,16 @@ def floor(odo, gt, within_m=10.0, apart_m=300.0):
     row and at each true revisit, the distance driven since (m), the revisit flags, and the
     rows of each file without a partner."""
     odo, gt, s, hit, lone_o, lone_g = along_truth(odo, gt, within_m, apart_m)
-    err = np.zeros(len(odo))
-    since = np.zeros(len(odo))
-    a = 0
-    for i in range(len(odo)):
-        if hit[i]:
-            a = i
-        # The odometry's motion from the anchor, in the anchor's frame, from the true anchor.
-        c, sn = math.cos(odo[a, 3]), math.sin(odo[a, 3])
-        dx, dy = odo[i, 1] - odo[a, 1], odo[i, 2] - odo[a, 2]
-        lx, ly = c * dx + sn * dy, -sn * dx + c * dy
-        cg, sg = math.cos(gt[a, 3]), math.sin(gt[a, 3])
-        px = gt[a, 1] + cg * lx - sg * ly
-        py = gt[a, 2] + sg * lx + cg * ly
-        err[i] = math.hypot(px - gt[i, 1], py - gt[i, 2])
-        since[i] = s[i] - s[a]
+    # Each row's anchor: the last revisit at or before it (the first row before any).
+    anchor = np.maximum.accumulate(np.where(hit, np.arange(len(odo)), 0))
+    ho, hg = odo[anchor, 3], gt[anchor, 3]
+    # The odometry's motion from the anchor, in the anchor's frame, placed at the true anchor.
+    dx, dy = odo[:, 1] - odo[anchor, 1], odo[:, 2] - odo[anchor, 2]
+    lx, ly = np.cos(ho) * dx + np.sin(ho) * dy, -np.sin(ho) * dx + np.cos(ho) * dy
+    px = gt[anchor, 1] + np.cos(hg) * lx - np.sin(hg) * ly
+    py = gt[anchor, 2] + np.sin(hg) * lx + np.cos(hg) * ly
+    err = np.hypot(px - gt[:, 1], py - gt[:, 2])
+    since = s - s[anchor]
     return err, since, hit, lone_o, lone_g
 
 
@@ -111,8 +99,8 @@ def split(online, gt, within_m=10.0, apart_m=300.0):
 
 
 def rms(e):
-    """Root mean square of `e`, 0 when empty."""
-    return float(np.sqrt((e**2).mean())) if len(e) else 0.0
+    """Root mean square of `e`."""
+    return float(np.sqrt((e**2).mean()))
 
 
 def main():
@@ -143,17 +131,8 @@ def main():
             i += 1
     if len(files) != 2:
         sys.exit(__doc__)
-    for p in files + ([odometry] if odometry else []):
-        why = refused(p, MAX_TUM_BYTES)
-        if why:
-            sys.exit(f"{p}: {why}")
-    try:
-        online, gt = tum(files[0]), tum(files[1])
-        odo = tum(odometry) if odometry else None
-    except (OSError, ValueError, IndexError) as e:
-        sys.exit(f"not a TUM trajectory: {e}")
-    if any(r.ndim != 2 or len(r) == 0 for r in (online, gt) + ((odo,) if odo is not None else ())):
-        sys.exit("a file has no pose rows")
+    online, gt, *rest = read_or_exit(files + ([odometry] if odometry else []))
+    odo = rest[0] if rest else None
     within, apart = opts["--revisit-m"], opts["--apart-m"]
     try:
         err, first, to_first, lone_o, lone_g = split(online, gt, within, apart)
@@ -164,14 +143,14 @@ def main():
         f"true revisits: within {within:g} m of the path {apart:g} m or more before; "
         f"{n} online poses paired ({lone_o} online and {lone_g} true rows without a partner)"
     )
+    # The first row is never a revisit (nothing was driven before it), so `before` holds a row.
     if first == n:
         print(f"no true revisit: online pose RMS {rms(err):.2f} m, max {err.max():.2f} m")
     else:
         before, after = err[:first], err[first:]
         print(
             f"before the first revisit ({to_first:.0f} m driven, {first} poses): online pose "
-            f"RMS {rms(before):.2f} m, max {before.max() if first else 0.0:.2f} m, "
-            f"{before[-1] if first else 0.0:.2f} m at its end"
+            f"RMS {rms(before):.2f} m, max {before.max():.2f} m, {before[-1]:.2f} m at its end"
         )
         print(f"from the first revisit on ({n - first} poses): RMS {rms(after):.2f} m, max {after.max():.2f} m")
         exact_after = math.sqrt((before**2).sum() / n)
@@ -192,8 +171,4 @@ def main():
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        sys.exit(130)
+    run_main(main)
