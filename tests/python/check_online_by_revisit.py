@@ -9,15 +9,19 @@ of the true displacement from there. Put back on the truth at each revisit, its 
 the first lap (until the path comes within 10 m of the start) must be 1 % of the distance
 from the first true row, and nothing after; with no revisit allowed (--apart-m 5000) 1 % of the
 distance from the start at every row. The odometry carries the start row the truth lacks,
-as the daemon writes it. Bad input is refused with exit 1 and a reason.
+as the daemon writes it. Bad input is refused with exit 1 and a reason; Ctrl-C during a long
+run ends it with exit 130.
 
 Prints one line per check and `N passed, M failed`; exits 1 on any failure.
 """
 
 import math
 import os
+import signal
+import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -105,6 +109,20 @@ def main():
         check("command: the odometry put back at each revisit", f"RMS {rms:.2f} m, max {err.max():.2f} m" in out)
         code, out = run(paths["online"], paths["gt"], "--apart-m", "5000")
         check("command: --apart-m taken (no revisit)", code == 0 and "no true revisit" in out, out.strip().splitlines()[-1] if out.strip() else "")
+
+        # Ctrl-C: a long drive (200,000 rows, read row by row), interrupted while it reads.
+        long_gt = os.path.join(d, "long.tum")
+        n_long = 200_000
+        write_tum(long_gt, [(1000.0 + 0.25 * k, 2.5 * k, 0.0, 0.0) for k in range(n_long)])
+        p = subprocess.Popen([sys.executable, SCRIPT, long_gt, long_gt], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(1.0)
+        p.send_signal(signal.SIGINT)
+        try:
+            _, err_out = p.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            err_out = "did not stop"
+        check("Ctrl-C stops it with exit 130", p.returncode == 130 and "Traceback" not in err_out, f"exit {p.returncode}: {err_out.strip()[:80]}")
 
         check_refusals(
             SCRIPT,
