@@ -9,7 +9,13 @@ the global layer's corrections) and `groundtruth.tum` (a simulated run, or a rec
 its ground truth). Each rotation's heading error change (estimate minus truth, from one row
 to the next) is counted through a turn when the truth turned more than TURN_RAD in that
 rotation or in one of the TURN_PAD rotations either side, along a straight otherwise; the
-script prints each part's sum and the RMS of its change per stretch.
+script prints each part's sum and the RMS of its change per stretch. Along each straight it
+also gives the heading error's rate (its change over the straight's length, mrad per 100 m)
+and what the straights cost the drift: the translation drift over 100-800 m segments (the
+KITTI definition, as slam-filter's `drift` computes it) of the odometry as estimated, of the
+odometry rebuilt from its own motions with each straight's mean heading error per rotation
+taken out (a bias each street holds, as a scene's geometry can give one), and with the
+straights' heading changes exact.
 
 LOG, the same run's log written with
 `RUST_LOG=info,slam_node::pipeline::radar_odometry=debug`, adds radar odometry's side: its
@@ -50,6 +56,9 @@ TURN_MIN_RAD = math.radians(20.0)
 LONG_RUN_SPANS = (1, 4, 16, 64, 256)
 # A span is reported only with at least this many sums (overlapping) behind it.
 LONG_RUN_MIN_SUMS = 500
+# KITTI's segment lengths (m) and the frames between a segment's first frames.
+SEGMENT_LENGTHS_M = (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 700.0, 800.0)
+KITTI_STEP_FRAMES = 10
 # The debug line radar odometry writes for every registration.
 REGISTRATION = "radar odometry registration"
 FIELD = re.compile(r"(\w+)=([-+\w.]+)")
@@ -80,6 +89,89 @@ def odometry_split(est, gt):
         change = err[end - 1] - err[max(start - 1, 0)]
         (turns if flag else straights).append(change)
     return turns, straights
+
+
+def turning_rows(gt):
+    """Whether each row's rotation is counted with a turn (see `odometry_split`)."""
+    step = np.abs(np.diff(np.unwrap(gt[:, 3]), prepend=gt[0, 3]))
+    return np.convolve((step > TURN_RAD).astype(float), np.ones(2 * TURN_PAD + 1), "same") > 0
+
+
+def straight_rates(est, gt):
+    """Each straight's heading error rate: [(length m, error change rad, rate rad/m)], the
+    straights of `odometry_split` with at least one rotation and some travel."""
+    err = np.unwrap(est[:, 3]) - np.unwrap(gt[:, 3])
+    travel = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(gt[:, 1]), np.diff(gt[:, 2])))])
+    out = []
+    for start, end, flag in stretches(turning_rows(gt)):
+        first = max(start - 1, 0)
+        length = travel[end - 1] - travel[first]
+        if not flag and end - 1 > first and length > 0.0:
+            change = err[end - 1] - err[first]
+            out.append((float(length), float(change), float(change / length)))
+    return out
+
+
+def drift_percent(est, gt):
+    """Translation drift over 100-800 m segments (%): the KITTI definition (first frames every
+    KITTI_STEP_FRAMES rows, each segment to the first row at least its length further along
+    the truth), rows paired by index. NaN when the truth travels no more than 100 m."""
+    travel = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(gt[:, 1]), np.diff(gt[:, 2])))])
+
+    def motion(rows, i, j):
+        c, s = math.cos(rows[i, 3]), math.sin(rows[i, 3])
+        dx, dy = rows[j, 1] - rows[i, 1], rows[j, 2] - rows[i, 2]
+        return c * dx + s * dy, -s * dx + c * dy, rows[j, 3] - rows[i, 3]
+
+    errors = []
+    for first in range(0, len(gt), KITTI_STEP_FRAMES):
+        for length in SEGMENT_LENGTHS_M:
+            last = int(np.searchsorted(travel, travel[first] + length))
+            if last >= len(gt):
+                continue
+            tx, ty, _ = motion(gt, first, last)
+            ex, ey, eh = motion(est, first, last)
+            # The estimated motion's inverse composed with the true one: its translation.
+            c, s = math.cos(eh), math.sin(eh)
+            dx, dy = tx - ex, ty - ey
+            errors.append(math.hypot(c * dx + s * dy, -s * dx + c * dy) / length)
+    return 100.0 * float(np.mean(errors)) if errors else float("nan")
+
+
+def rebuilt(est, turn):
+    """`est` rebuilt from its first row with its own motion between rows (in the frame of
+    the row before) but the heading change `turn[k]` into row k+1."""
+    h0 = est[:-1, 3]
+    c, s = np.cos(h0), np.sin(h0)
+    dx, dy = np.diff(est[:, 1]), np.diff(est[:, 2])
+    fwd, side = c * dx + s * dy, -s * dx + c * dy
+    heading = est[0, 3] + np.concatenate([[0.0], np.cumsum(turn)])
+    c, s = np.cos(heading[:-1]), np.sin(heading[:-1])
+    out = est.copy()
+    out[:, 1] = est[0, 1] + np.concatenate([[0.0], np.cumsum(c * fwd - s * side)])
+    out[:, 2] = est[0, 2] + np.concatenate([[0.0], np.cumsum(s * fwd + c * side)])
+    out[:, 3] = heading
+    return out
+
+
+def straights_cost(est, gt):
+    """The drift (%) of the odometry as estimated, with each straight's mean heading error
+    per rotation taken out, and with the straights' heading changes exact."""
+    turn = np.diff(np.unwrap(est[:, 3]))
+    true = np.diff(np.unwrap(gt[:, 3]))
+    # Row k+1's rotation is counted as that row is (see `odometry_split`).
+    turning = turning_rows(gt)[1:]
+    debiased, exact = turn.copy(), turn.copy()
+    for start, end, flag in stretches(turning):
+        if not flag:
+            part = slice(start, end)
+            debiased[part] -= np.mean(turn[part] - true[part])
+            exact[part] = true[part]
+    return (
+        drift_percent(est, gt),
+        drift_percent(rebuilt(est, debiased), gt),
+        drift_percent(rebuilt(est, exact), gt),
+    )
 
 
 def registrations(log):
@@ -192,6 +284,22 @@ def main(argv):
         f"{sum(turns):+.2f} deg (per turn RMS {rms(turns):.2f}), along {len(straights)} "
         f"straights {sum(straights):+.2f} deg (per straight RMS {rms(straights):.2f})"
     )
+    rates = straight_rates(est, gt)
+    if rates:
+        length = sum(r[0] for r in rates)
+        per_100 = [1e5 * r[2] for r in rates]
+        print(
+            f"  along the straights ({length / 1000:.2f} km): the heading error's rate "
+            f"{1e5 * sum(r[1] for r in rates) / length:+.2f} mrad per 100 m over them all, "
+            f"per straight RMS {rms(per_100):.2f} (weighted alike)"
+        )
+    as_is, debiased, exact = straights_cost(est, gt)
+    if not math.isnan(as_is):
+        print(
+            f"  drift over 100-800 m: {as_is:.3f} % as estimated; {debiased:.3f} % with each "
+            f"straight's mean heading error per rotation taken out; {exact:.3f} % with the "
+            f"straights' heading exact"
+        )
     if len(argv) == 3:
         why = refused(argv[2], MAX_LOG_BYTES)
         if why:

@@ -11,7 +11,9 @@ straights (the map's pull) and 20 urad less through the turn. The script must gi
 the odometry's sums through the turn and along the straights, the registrations' error
 and the pull on each, and the turn's registrations' error summed. Chained registration
 errors drawn independent, and drawn with a placement share of 0.4, add up over N as the
-model says. Bad input is refused with exit 1: a missing file, an unreadable row, a
+model says. Each straight's heading error rate; the drift over 100-800 m (KITTI) of drives whose
+answer is known (1 % long, crabbing 5 mrad), none on a drive of 90 m; each straight's bias
+taken out leaves the drift of the same drive built without the straights' errors. Bad input is refused with exit 1: a missing file, an unreadable row, a
 FIFO or a directory in a file's place, a file over its size bound; a log line over the
 longest read costs that line only.
 
@@ -118,6 +120,34 @@ def main():
             and turns[0][2] == turn_len,
             f"{turns}",
         )
+        rates = heading_budget.straight_rates(est_rows, gt_rows)
+        check(
+            "each straight's heading error rate (-20 urad per 2.5 m rotation)",
+            len(rates) == 2 and all(abs(r[2] + 8e-6) < 1e-9 for r in rates),
+            f"{rates}",
+        )
+        as_is, debiased, exact = heading_budget.straights_cost(est_rows, gt_rows)
+        # The same drive with the straights' heading errors left out, built directly: each
+        # rotation's step as the estimate made it (2.5 m along the heading it turned to, in
+        # the frame of the heading before), its turn without the straights' error.
+        clean = [(t0, 0.0, 0.0, 0.0)]
+        for k in range(1, n + 1):
+            turning = turn_start <= k < turn_start + turn_len
+            padded = turn_start - pad <= k < turn_start + turn_len + pad
+            est_turn = turn_step + 0.01 / turn_len if turning else (0.0 if padded else -20e-6)
+            # The first rotation's error is the paired rows' start (not scored, kept).
+            dh = est_turn if turning or k == 1 else 0.0
+            t, x, y, h = clean[-1]
+            fwd, side = 2.5 * math.cos(est_turn), 2.5 * math.sin(est_turn)
+            c, s_ = math.cos(h), math.sin(h)
+            clean.append((t0 + 0.25 * k, x + c * fwd - s_ * side, y + s_ * fwd + c * side, h + dh))
+        # Its rows paired with the truth as the estimate's were (the start row has no partner).
+        want = heading_budget.drift_percent(np.array(clean[1:]), gt_rows)
+        check(
+            "a bias each straight holds, taken out, leaves the straights exact",
+            abs(debiased - exact) < 1e-9 and abs(exact - want) < 1e-9 and abs(as_is - exact) > 1e-3,
+            f"{as_is:.4f} / {debiased:.4f} / {exact:.4f} % against {want:.4f}",
+        )
         code = heading_budget.main(["heading_budget.py", str(out), str(out / "run.log")])
         check("the command runs on the files", code == 0, f"exit {code}")
         missing = heading_budget.main(["heading_budget.py", str(out / "none")])
@@ -148,6 +178,21 @@ def main():
         long_log.write_text("x" * (3 * heading_budget.MAX_LINE_BYTES) + "\n" + "\n".join(log) + "\n")
         got = len(heading_budget.registrations(str(long_log)))
         check("a line over the longest read costs that line only", got == n, f"{got} of {n}")
+    # The drift's definition on drives whose answer is known: 1,000 m straight, the estimate
+    # 1 % long, or crabbing 5 mrad off its heading; 90 m is too short for a segment.
+    line = np.array([(0.25 * k, 2.5 * k, 0.0, 0.0) for k in range(401)])
+    long = line.copy()
+    long[:, 1] *= 1.01
+    crab = line.copy()
+    crab[:, 1], crab[:, 2] = line[:, 1] * math.cos(0.005), line[:, 1] * math.sin(0.005)
+    for name, est_rows, want in (
+        ("1 % long", long, 1.0),
+        ("crabbing 5 mrad", crab, 100.0 * 2.0 * math.sin(0.0025)),
+    ):
+        got = heading_budget.drift_percent(est_rows, line)
+        check(f"drift over 100-800 m of a drive {name}", abs(got - want) < 1e-9, f"{got} against {want}")
+    short = heading_budget.drift_percent(line[:37], line[:37])
+    check("no segment on a drive of 90 m", math.isnan(short), f"{short}")
     # Chained errors: independent ones add up as N of them; a registration erring
     # d_k - d_{k-1} + w with the placement share s (var d = s, var w = 1 - 2 s) as
     # (2 s + N (1 - 2 s)) / N of them, and the longest span gives the share back.
