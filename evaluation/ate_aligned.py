@@ -100,6 +100,11 @@ def alignment(est, gt):
     return r, mb - r @ ma, est, gt
 
 
+def travelled(rows):
+    """The distance driven to each row of `rows` (m, along its x and y), from the first."""
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(rows[:, 1:3], axis=0).T))])
+
+
 def in_frame_of(est, gt, other):
     """(RMS, max, turn in degrees) of the estimate against the truth at the same times,
     moved by the rigid motion that aligns `other` to the truth."""

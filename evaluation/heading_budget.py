@@ -42,7 +42,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from ate_aligned import MAX_TUM_BYTES, paired, refused, tum  # noqa: E402
+from ate_aligned import MAX_TUM_BYTES, paired, refused, travelled, tum  # noqa: E402
 
 # A rotation turns (through a junction) when the truth turns more than this (rad).
 TURN_RAD = math.radians(0.5)
@@ -77,31 +77,29 @@ def stretches(turning):
     return out
 
 
-def odometry_split(est, gt):
-    """Heading error change through turns and along straights: (turns, straights), each a
-    list of per-stretch changes (deg). `est` and `gt` are paired rows: the rotation into the
-    first one (from the start row the truth lacks) is not scored."""
-    err = np.degrees(np.unwrap(est[:, 3]) - np.unwrap(gt[:, 3]))
-    step = np.abs(np.diff(np.unwrap(gt[:, 3]), prepend=gt[0, 3]))
-    turning = np.convolve((step > TURN_RAD).astype(float), np.ones(2 * TURN_PAD + 1), "same") > 0
-    turns, straights = [], []
-    for start, end, flag in stretches(turning):
-        change = err[end - 1] - err[max(start - 1, 0)]
-        (turns if flag else straights).append(change)
-    return turns, straights
-
-
 def turning_rows(gt):
     """Whether each row's rotation is counted with a turn (see `odometry_split`)."""
     step = np.abs(np.diff(np.unwrap(gt[:, 3]), prepend=gt[0, 3]))
     return np.convolve((step > TURN_RAD).astype(float), np.ones(2 * TURN_PAD + 1), "same") > 0
 
 
+def odometry_split(est, gt):
+    """Heading error change through turns and along straights: (turns, straights), each a
+    list of per-stretch changes (deg). `est` and `gt` are paired rows: the rotation into the
+    first one (from the start row the truth lacks) is not scored."""
+    err = np.degrees(np.unwrap(est[:, 3]) - np.unwrap(gt[:, 3]))
+    turns, straights = [], []
+    for start, end, flag in stretches(turning_rows(gt)):
+        change = err[end - 1] - err[max(start - 1, 0)]
+        (turns if flag else straights).append(change)
+    return turns, straights
+
+
 def straight_rates(est, gt):
     """Each straight's heading error rate: [(length m, error change rad, rate rad/m)], the
     straights of `odometry_split` with at least one rotation and some travel."""
     err = np.unwrap(est[:, 3]) - np.unwrap(gt[:, 3])
-    travel = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(gt[:, 1]), np.diff(gt[:, 2])))])
+    travel = travelled(gt)
     out = []
     for start, end, flag in stretches(turning_rows(gt)):
         first = max(start - 1, 0)
@@ -116,7 +114,7 @@ def drift_percent(est, gt):
     """Translation drift over 100-800 m segments (%): the KITTI definition (first frames every
     KITTI_STEP_FRAMES rows, each segment to the first row at least its length further along
     the truth), rows paired by index. NaN when the truth travels no more than 100 m."""
-    travel = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(gt[:, 1]), np.diff(gt[:, 2])))])
+    travel = travelled(gt)
 
     def motion(rows, i, j):
         c, s = math.cos(rows[i, 3]), math.sin(rows[i, 3])

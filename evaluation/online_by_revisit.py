@@ -35,7 +35,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from ate_aligned import paired, read_or_exit, run_main  # noqa: E402
+from ate_aligned import paired, read_or_exit, run_main, travelled  # noqa: E402
 
 
 def revisits(xy, s, within_m, apart_m):
@@ -65,9 +65,8 @@ def along_truth(est, gt, within_m, apart_m):
     est, gt, lone_e, lone_g = paired(est, gt)
     if len(est) < 2:
         raise ValueError("fewer than two poses at the same times")
-    xy = gt[:, 1:3]
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    return est, gt, s, revisits(xy, s, within_m, apart_m), lone_e, lone_g
+    s = travelled(gt)
+    return est, gt, s, revisits(gt[:, 1:3], s, within_m, apart_m), lone_e, lone_g
 
 
 def floor(odo, gt, within_m=10.0, apart_m=300.0):
