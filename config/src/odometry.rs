@@ -190,7 +190,20 @@ pub struct RawOdometry {
     /// A rotation's cloud becomes a keyframe when the vehicle ended it at least this far
     /// from where the newest keyframe's rotation ended, m >= 0. Default 0 (every rotation).
     pub radar_odometry_keyframe_spacing_m: f64,
+    /// Times each registration is run again on its cloud from its own result, its pairs
+    /// chosen afresh around it (0 to 4). A registration follows about a quarter of its
+    /// start's heading error; beside wheel odometry the start is the wheels' motion, whose
+    /// steering noise then comes into the filter twice (the wheels', and the
+    /// registration's share of it). Unset: 2 with odometry of its own (wheels), 0 when the
+    /// radar drives the prediction (its start is the held motion: its registrations follow
+    /// nothing of a sensor's noise). Each run costs a registration. See slam-node's
+    /// README, "The registration run again from its own result".
+    pub radar_odometry_refine_runs: Option<i64>,
 }
+
+/// Registrations run again from their own result at most (`[odometry]
+/// radar_odometry_refine_runs`): each costs a registration a rotation.
+pub const MAX_RADAR_ODOMETRY_REFINE_RUNS: u64 = 4;
 
 /// Keyframes radar odometry registers against at most (`[odometry] radar_odometry_keyframes`):
 /// each adds a cloud to the reference built every rotation.
@@ -228,6 +241,7 @@ impl Default for RawOdometry {
             radar_odometry_probe_start: false,
             radar_odometry_keyframes: None,
             radar_odometry_keyframe_spacing_m: 0.0,
+            radar_odometry_refine_runs: None,
         }
     }
 }
@@ -323,6 +337,9 @@ pub struct OdometrySettings {
     pub radar_odometry_keyframes: Option<u64>,
     /// Distance between keyframes, m.
     pub radar_odometry_keyframe_spacing_m: NonNegativeF64,
+    /// Times each registration is run again from its own result (`None`: chosen by what
+    /// drives the prediction).
+    pub radar_odometry_refine_runs: Option<u64>,
 }
 
 impl Default for OdometrySettings {
@@ -517,6 +534,12 @@ impl RawOdometry {
                 "odometry.radar_odometry_keyframe_spacing_m",
                 NonNegativeF64::new(self.radar_odometry_keyframe_spacing_m),
             ),
+            radar_odometry_refine_runs: self.radar_odometry_refine_runs.map(|k| {
+                c.check(
+                    "odometry.radar_odometry_refine_runs",
+                    values::count(k, MAX_RADAR_ODOMETRY_REFINE_RUNS),
+                )
+            }),
         }
     }
 }
@@ -572,6 +595,7 @@ impl From<&OdometrySettings> for RawOdometry {
             radar_odometry_probe_start: s.radar_odometry_probe_start,
             radar_odometry_keyframes: s.radar_odometry_keyframes.map(values::as_i64),
             radar_odometry_keyframe_spacing_m: s.radar_odometry_keyframe_spacing_m.get(),
+            radar_odometry_refine_runs: s.radar_odometry_refine_runs.map(values::as_i64),
         }
     }
 }

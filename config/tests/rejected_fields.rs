@@ -228,6 +228,8 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[radar]\nmodel = \"\"", "radar.model", "must not be empty"),
     ("[odometry]\nradar_odometry_keyframes = 9", "odometry.radar_odometry_keyframes", "must be in [0, 8], got 9"),
     ("[odometry]\nradar_odometry_keyframes = -1", "odometry.radar_odometry_keyframes", "must be in [0, 8], got -1"),
+    ("[odometry]\nradar_odometry_refine_runs = 5", "odometry.radar_odometry_refine_runs", "must be in [0, 4], got 5"),
+    ("[odometry]\nradar_odometry_refine_runs = -1", "odometry.radar_odometry_refine_runs", "must be in [0, 4], got -1"),
     ("[odometry]\nradar_odometry_keyframe_spacing_m = -1.0", "odometry.radar_odometry_keyframe_spacing_m", "got -1"),
     // the gyro of radar-only driving, and the simulator's
     ("[gyro]\nsource = \"tcp\"", "gyro.source", "only used when the radar drives the filter"),

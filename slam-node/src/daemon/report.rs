@@ -393,6 +393,13 @@ impl fmt::Display for RadarOdometry<'_> {
                 radar_odometry::matcher::CRAWL_SURFACES_ONLY_M
             )?;
         }
+        if r.refined > 0 {
+            writeln!(
+                f,
+                "  radar odometry ran {} registrations again from a registration's own result (`[odometry] radar_odometry_refine_runs`)",
+                r.refined
+            )?;
+        }
         if r.held > 0 {
             writeln!(
                 f,

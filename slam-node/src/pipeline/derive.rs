@@ -482,6 +482,10 @@ pub fn effective_config(
 /// `[odometry] radar_odometry_keyframes` is unset.
 pub const DRIVING_KEYFRAMES: usize = 3;
 
+/// Times each registration is run again from its own result beside odometry of its own
+/// (wheels) when `[odometry] radar_odometry_refine_runs` is unset.
+pub const WHEELS_REFINE_RUNS: usize = 2;
+
 /// On the radar alone (no gyro), a rotation whose heading in its submap's frame is more than
 /// this (rad) from the frame's is not added to the submap's scan
 /// ([`super::settings::SubmapOptions::scan_max_turn_rad`]).
@@ -532,6 +536,14 @@ impl PipelineSettings {
             // registrations teach its bias: with keyframes two drives of three drifted
             // more); localising, none (the map's registrations hold the pose).
             s.scan_match.keyframes = DRIVING_KEYFRAMES;
+        }
+        if effective.odometry.radar_odometry_refine_runs.is_none() && !s.radar_drives {
+            // The registration starts from the wheels' motion and follows a quarter of its
+            // heading error, so the wheels' steering noise comes into the filter twice; run
+            // again from its own result it follows less (slam-node/README.md, "The
+            // registration run again from its own result"). The radar alone starts from the
+            // held motion, whose error its registrations do not follow.
+            s.scan_match.refine_runs = WHEELS_REFINE_RUNS;
         }
         if s.radar_drives && !gyro {
             // The prediction is the last rotation's motion held, which places a turn's
@@ -803,6 +815,21 @@ mod tests {
         assert_eq!(s.scan_match.keyframes, DRIVING_KEYFRAMES);
         assert_eq!(s.scan_match.sigma_theta_rad, FUSED_SIGMA_RAD);
         assert_eq!(s.filter.registration_placement_share, 0.0);
+        // Beside the wheels each registration is run again from its result; on the radar
+        // alone, not; written, the configuration's.
+        assert_eq!(s.scan_match.refine_runs, WHEELS_REFINE_RUNS);
+        let refine = |toml: &str| {
+            derive_from(toml, &profile::CTS350X)
+                .settings
+                .scan_match
+                .refine_runs
+        };
+        assert_eq!(refine("[odometry]\nsource = \"none\"\n"), 0);
+        assert_eq!(refine("[odometry]\nradar_odometry_refine_runs = 1\n"), 1);
+        assert_eq!(
+            refine("[odometry]\nsource = \"none\"\nradar_odometry_refine_runs = 3\n"),
+            3
+        );
         let d = derive_from(
             "[odometry]\nradar_odometry_keyframes = 0\nradar_odometry_sigma_rad = 0.003\n\
              radar_odometry_placement_share = 0.25\n",

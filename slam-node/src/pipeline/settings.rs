@@ -382,6 +382,10 @@ impl PipelineSettings {
                 keyframe_spacing_m: c.odometry.radar_odometry_keyframe_spacing_m.get(),
                 place_held: c.odometry.radar_odometry_place_held,
                 start_probe: c.odometry.radar_odometry_probe_start,
+                refine_runs: c
+                    .odometry
+                    .radar_odometry_refine_runs
+                    .map_or(0, |k| usize::try_from(k).unwrap_or(0)),
                 ..ScanMatchSettings::default()
             },
             radar_drives: false,
