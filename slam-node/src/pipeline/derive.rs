@@ -537,7 +537,10 @@ impl PipelineSettings {
             // more); localising, none (the map's registrations hold the pose).
             s.scan_match.keyframes = DRIVING_KEYFRAMES;
         }
-        if effective.odometry.radar_odometry_refine_runs.is_none() && !s.radar_drives {
+        if effective.odometry.radar_odometry_refine_runs.is_none()
+            && s.scan_match.enabled
+            && !s.radar_drives
+        {
             // The registration starts from the wheels' motion and follows a quarter of its
             // heading error, so the wheels' steering noise comes into the filter twice; run
             // again from its own result it follows less (slam-node/README.md, "The
