@@ -817,6 +817,22 @@ impl ScanMatcher {
                 (Some(r), true) => Some(self.start_followed(share_of_start_followed(&fit, r))),
                 _ => None,
             };
+            // Run again from its own result, its pairs chosen around it
+            // ([`ScanMatchSettings::refine_runs`]), on the cloud as placed: before the steps
+            // below, which place it again along the motion found.
+            let reg = match reg {
+                Some(mut r) if sweep.is_none() && !search => {
+                    for _ in 0..self.settings.refine_runs {
+                        self.counts.refined += 1;
+                        match register(reference, &local, r.pose, gate, min_pairs) {
+                            Some(again) => r = again,
+                            None => break,
+                        }
+                    }
+                    Some(r)
+                }
+                reg => reg,
+            };
             // A turn the rigid registration stopped short of: a swept registration from
             // its result finds a turn the cloud's placement hid, and the cloud placed along
             // that is registered rigidly from it.
@@ -885,21 +901,6 @@ impl ScanMatcher {
                     }
                 }
                 (reg, _) => reg,
-            };
-            // Run again from its own result, its pairs chosen around it
-            // ([`ScanMatchSettings::refine_runs`]).
-            let reg = match reg {
-                Some(mut r) if sweep.is_none() && !search => {
-                    for _ in 0..self.settings.refine_runs {
-                        self.counts.refined += 1;
-                        match register(reference, &local, r.pose, gate, min_pairs) {
-                            Some(again) => r = again,
-                            None => break,
-                        }
-                    }
-                    Some(r)
-                }
-                reg => reg,
             };
             if let (Some(r), false) = (reg.as_ref(), local.is_empty()) {
                 let share = r.pairs as f64 / local.len() as f64;
