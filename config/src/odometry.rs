@@ -194,11 +194,36 @@ pub struct RawOdometry {
     /// chosen afresh around it (0 to 4). A registration follows about a quarter of its
     /// start's heading error; beside wheel odometry the start is the wheels' motion, whose
     /// steering noise then comes into the filter twice (the wheels', and the
-    /// registration's share of it). Unset: 2 with odometry of its own (wheels), 0 when the
-    /// radar drives the prediction (its start is the held motion: its registrations follow
-    /// nothing of a sensor's noise). Each run costs a registration. See slam-node's
-    /// README, "The registration run again from its own result".
+    /// registration's share of it). Unset: 0; beside the wheels the run without hard pairs
+    /// (`radar_odometry_soft_kernel_m`) follows less, for less. Each run costs a
+    /// registration. See slam-node's README, "The registration run again from its own
+    /// result".
     pub radar_odometry_refine_runs: Option<i64>,
+    /// Kernel width (m) of a last registration without hard pairs, from each registration's
+    /// result: every return drawn towards every reference point within three widths,
+    /// weighted by a Gaussian on their distance, so that the pose found moves continuously
+    /// with the pose tried instead of stopping wherever one set of nearest pairs holds it
+    /// (0 to 0.5; 0 for none). Unset: 0.1 with odometry of its own (wheels), 0 when the
+    /// radar drives the prediction (there it costs 2 ms a rotation). It costs about a
+    /// registration. See slam-node's README, "A registration without hard pairs".
+    pub radar_odometry_soft_kernel_m: Option<f64>,
+}
+
+/// The widest kernel of radar odometry's registration without hard pairs (`[odometry]
+/// radar_odometry_soft_kernel_m`), m: its neighbours lie within three widths, 1.5 m, beyond
+/// which a return's neighbours are most of a street's width apart.
+pub const MAX_RADAR_ODOMETRY_SOFT_KERNEL_M: f64 = 0.5;
+
+/// A soft kernel's width: finite, in `[0, MAX_RADAR_ODOMETRY_SOFT_KERNEL_M]`.
+fn soft_kernel(k: f64) -> Result<f64, ValueError> {
+    if k.is_finite() && (0.0..=MAX_RADAR_ODOMETRY_SOFT_KERNEL_M).contains(&k) {
+        Ok(k)
+    } else {
+        Err(ValueError::OutOfRange {
+            range: format!("[0, {MAX_RADAR_ODOMETRY_SOFT_KERNEL_M}]"),
+            got: values::number(k),
+        })
+    }
 }
 
 /// Registrations run again from their own result at most (`[odometry]
@@ -242,6 +267,7 @@ impl Default for RawOdometry {
             radar_odometry_keyframes: None,
             radar_odometry_keyframe_spacing_m: 0.0,
             radar_odometry_refine_runs: None,
+            radar_odometry_soft_kernel_m: None,
         }
     }
 }
@@ -337,9 +363,11 @@ pub struct OdometrySettings {
     pub radar_odometry_keyframes: Option<u64>,
     /// Distance between keyframes, m.
     pub radar_odometry_keyframe_spacing_m: NonNegativeF64,
-    /// Times each registration is run again from its own result (`None`: chosen by what
-    /// drives the prediction).
+    /// Times each registration is run again from its own result (`None`: 0).
     pub radar_odometry_refine_runs: Option<u64>,
+    /// Kernel width (m) of the registration without hard pairs, 0 for none (`None`: chosen
+    /// by what drives the prediction).
+    pub radar_odometry_soft_kernel_m: Option<f64>,
 }
 
 impl Default for OdometrySettings {
@@ -540,6 +568,9 @@ impl RawOdometry {
                     values::count(k, MAX_RADAR_ODOMETRY_REFINE_RUNS),
                 )
             }),
+            radar_odometry_soft_kernel_m: self
+                .radar_odometry_soft_kernel_m
+                .and_then(|k| c.check_ok("odometry.radar_odometry_soft_kernel_m", soft_kernel(k))),
         }
     }
 }
@@ -596,6 +627,7 @@ impl From<&OdometrySettings> for RawOdometry {
             radar_odometry_keyframes: s.radar_odometry_keyframes.map(values::as_i64),
             radar_odometry_keyframe_spacing_m: s.radar_odometry_keyframe_spacing_m.get(),
             radar_odometry_refine_runs: s.radar_odometry_refine_runs.map(values::as_i64),
+            radar_odometry_soft_kernel_m: s.radar_odometry_soft_kernel_m,
         }
     }
 }

@@ -230,6 +230,9 @@ const CASES: &[(&str, &str, &str)] = &[
     ("[odometry]\nradar_odometry_keyframes = -1", "odometry.radar_odometry_keyframes", "must be in [0, 8], got -1"),
     ("[odometry]\nradar_odometry_refine_runs = 5", "odometry.radar_odometry_refine_runs", "must be in [0, 4], got 5"),
     ("[odometry]\nradar_odometry_refine_runs = -1", "odometry.radar_odometry_refine_runs", "must be in [0, 4], got -1"),
+    ("[odometry]\nradar_odometry_soft_kernel_m = 0.6", "odometry.radar_odometry_soft_kernel_m", "must be in [0, 0.5], got 0.6"),
+    ("[odometry]\nradar_odometry_soft_kernel_m = -0.1", "odometry.radar_odometry_soft_kernel_m", "must be in [0, 0.5], got -0.1"),
+    ("[odometry]\nradar_odometry_soft_kernel_m = nan", "odometry.radar_odometry_soft_kernel_m", "must be in [0, 0.5], got NaN"),
     ("[odometry]\nradar_odometry_keyframe_spacing_m = -1.0", "odometry.radar_odometry_keyframe_spacing_m", "got -1"),
     // the gyro of radar-only driving, and the simulator's
     ("[gyro]\nsource = \"tcp\"", "gyro.source", "only used when the radar drives the filter"),

@@ -129,6 +129,48 @@ impl PointGrid {
         self.search::<true>(points, q, gate_m)
     }
 
+    /// The point indices of row `iy`'s cells `x0..=x1` (contiguous in `order`); the caller
+    /// keeps the row and columns inside the grid.
+    fn row(&self, iy: i64, x0: i64, x1: i64) -> &[u32] {
+        let row = iy as usize * self.nx;
+        let from = self.starts[row + x0 as usize] as usize;
+        let to = self.starts[row + x1 as usize + 1] as usize;
+        &self.order[from..to]
+    }
+
+    /// Every point of `points` within `radius_m` of `q`, with its squared distance, into
+    /// `out` (cleared first), in the grid's order; nothing for an empty grid or a
+    /// non-finite query.
+    pub fn within(
+        &self,
+        points: &[[f64; 2]],
+        q: &[f64; 2],
+        radius_m: f64,
+        out: &mut Vec<(usize, f64)>,
+    ) {
+        out.clear();
+        let (Some(reach), Some((cx, cy))) = (self.reach(radius_m), self.cell_coords(q)) else {
+            return;
+        };
+        let r2 = radius_m * radius_m;
+        let x0 = (cx - reach).max(0);
+        let x1 = (cx + reach).min(self.nx as i64 - 1);
+        let y0 = (cy - reach).max(0);
+        let y1 = (cy + reach).min(self.ny as i64 - 1);
+        if x0 > x1 || y0 > y1 {
+            return;
+        }
+        for iy in y0..=y1 {
+            for &i in self.row(iy, x0, x1) {
+                let p = points[i as usize];
+                let d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]);
+                if d2 <= r2 {
+                    out.push((i as usize, d2));
+                }
+            }
+        }
+    }
+
     /// The search of both: with `CLEAR`, the bound that skips rows is the second nearest's
     /// distance, kept as the second value; without, the nearest's (the second value is 0).
     fn search<const CLEAR: bool>(
@@ -164,10 +206,7 @@ impl PointGrid {
             if dy * dy > bound {
                 continue;
             }
-            let row = iy as usize * self.nx;
-            let from = self.starts[row + x0 as usize] as usize;
-            let to = self.starts[row + x1 as usize + 1] as usize;
-            for &i in &self.order[from..to] {
+            for &i in self.row(iy, x0, x1) {
                 let p = points[i as usize];
                 let d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]);
                 if d2 > bound {
@@ -267,6 +306,17 @@ mod tests {
                     .map(|(i, p)| (i, (p[0] - query[0]).powi(2) + (p[1] - query[1]).powi(2)))
                     .filter(|&(_, d2)| d2 <= gate * gate)
                     .min_by(|a, b| a.1.total_cmp(&b.1));
+                // Every point within the gate, as the scan finds them.
+                let mut within = Vec::new();
+                grid.within(&points, &query, gate, &mut within);
+                within.sort_by_key(|w| w.0);
+                let all: Vec<(usize, f64)> = points
+                    .iter()
+                    .enumerate()
+                    .map(|(i, p)| (i, (p[0] - query[0]).powi(2) + (p[1] - query[1]).powi(2)))
+                    .filter(|&(_, d2)| d2 <= gate * gate)
+                    .collect();
+                assert_eq!(within, all, "{query:?} gate {gate}");
                 let found = grid.nearest_within(&points, &query, gate);
                 assert_eq!(
                     found.map(|f| f.0),

@@ -1,7 +1,8 @@
 //! Radar odometry, without IO: a spinning radar's returns, one azimuth at a time, placed in
 //! the vehicle's frame; each rotation's cloud registered against the previous rotation's by
-//! robust point-to-line ICP; the motion between the two with a covariance that grows along
-//! any direction the scene does not pin (an open field, a long bare wall), so that a filter
+//! robust point-to-line ICP (then, where [`ScanMatchSettings::soft_kernel_m`] asks, once more
+//! without hard pairs: [`register_soft`]); the motion between the two with a covariance that
+//! grows along any direction the scene does not pin (an open field, a long bare wall), so that a filter
 //! driven by it grows its uncertainty there instead of being confidently wrong.
 //!
 //! The pieces stand alone: [`register`] two clouds you already have; [`ScanMatcher`] for a
@@ -30,4 +31,6 @@ pub use matcher::{
 pub use place::{
     PlaceDescriptor, PlaceError, PlaceIndex, PlaceMatch, PlaceQuery, PlaceSettings, QueryMatch,
 };
-pub use register::{covariance, in_frame_of, register, Constraint, Registration, HEADING_LENGTH_M};
+pub use register::{
+    covariance, in_frame_of, register, register_soft, Constraint, Registration, HEADING_LENGTH_M,
+};

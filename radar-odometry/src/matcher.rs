@@ -16,8 +16,8 @@ use radar_model::geometry::{wrap_angle, Pose2};
 
 use crate::cloud::ReferenceCloud;
 use crate::register::{
-    along, covariance, exp, in_frame_of, log, register, register_narrowed, register_swept,
-    Constraint, Registration,
+    along, covariance, exp, in_frame_of, log, register, register_narrowed, register_soft,
+    register_swept, Constraint, Registration,
 };
 
 /// Points a rotation's cloud holds at most, whatever the radar's geometry.
@@ -339,6 +339,14 @@ pub struct ScanMatchSettings {
     /// with its start's; run twice more, +0.28 (five times, +0.26: the rest comes some
     /// other way). 0 (the default): run once. Each run costs a registration.
     pub refine_runs: usize,
+    /// Kernel width (m) of a last registration without hard pairs, run on the cloud as
+    /// placed from the result (after [`Self::refine_runs`], before a turn's swept probe and
+    /// the cloud placed again): each return drawn towards every reference point within
+    /// three widths, weighted by a Gaussian on their distance ([`register_soft`]). Nearest
+    /// pairs switch all at once as the pose moves and leave several poses that one pair set
+    /// each holds in place, and which one a registration stops at depends on its start;
+    /// these weights move continuously with the pose. 0 (the default): none.
+    pub soft_kernel_m: f64,
 }
 
 impl Default for ScanMatchSettings {
@@ -370,6 +378,7 @@ impl Default for ScanMatchSettings {
             along_paired_share: ALONG_PAIRED_SHARE,
             crawl_surfaces_only: false,
             refine_runs: 0,
+            soft_kernel_m: 0.0,
         }
     }
 }
@@ -483,6 +492,8 @@ pub struct MatcherCounts {
     /// Registrations run again from a registration's own result
     /// ([`ScanMatchSettings::refine_runs`]).
     pub refined: u64,
+    /// Registrations run again without hard pairs ([`ScanMatchSettings::soft_kernel_m`]).
+    pub softened: u64,
 }
 
 /// A rotation's returns in the sensor's frame when each was swept, and how far through the
@@ -827,6 +838,18 @@ impl ScanMatcher {
                         match register(reference, &local, r.pose, gate, min_pairs) {
                             Some(again) => r = again,
                             None => break,
+                        }
+                    }
+                    if self.settings.soft_kernel_m > 0.0 {
+                        if let Some(soft) = register_soft(
+                            reference,
+                            &local,
+                            r.pose,
+                            self.settings.soft_kernel_m,
+                            min_pairs,
+                        ) {
+                            self.counts.softened += 1;
+                            r = soft;
                         }
                     }
                     Some(r)
@@ -1829,7 +1852,8 @@ mod tests {
     /// point (each return jittered 2 cm, as speckle and the beam's footprint move them),
     /// registrations started a few mrad off in heading stop at headings that depend on
     /// their start; run again from their own results, they land on one heading whatever
-    /// they started from.
+    /// they started from. Run once more without hard pairs
+    /// ([`ScanMatchSettings::soft_kernel_m`]) instead, nearly so.
     #[test]
     fn a_registration_run_again_from_its_result_no_longer_depends_on_its_start() {
         let jittered = |seed: u64| {
@@ -1852,13 +1876,14 @@ mod tests {
         let first = jittered(0x9E37_79B9_7F4A_7C15);
         let second = jittered(0xD1B5_4A32_D192_ED03);
         let truth = Pose2::new(2.5, 0.0, 0.0);
-        let headings = |refine_runs: usize| {
+        let headings = |refine_runs: usize, soft_kernel_m: f64| {
             let mut runs = 0;
             let found: Vec<f64> = [-0.003, -0.002, 0.0, 0.002, 0.003]
                 .iter()
                 .map(|start_error| {
                     let mut m = ScanMatcher::new(ScanMatchSettings {
                         refine_runs,
+                        soft_kernel_m,
                         ..dense()
                     });
                     let origin = Pose2::new(0.0, 0.0, 0.0);
@@ -1866,7 +1891,7 @@ mod tests {
                     let estimate = Pose2::new(truth.x, truth.y, truth.theta + start_error);
                     let got =
                         placed_rotation(&mut m, &second, &truth, estimate).expect("registers");
-                    runs += m.counts().refined;
+                    runs += m.counts().refined + m.counts().softened;
                     got.motion.theta
                 })
                 .collect();
@@ -1874,8 +1899,14 @@ mod tests {
                 - found.iter().copied().fold(f64::MAX, f64::min);
             (spread, found, runs)
         };
-        let (once, once_found, none) = headings(0);
-        let (refined, refined_found, runs) = headings(2);
+        let (once, once_found, none) = headings(0, 0.0);
+        let (refined, refined_found, runs) = headings(2, 0.0);
+        let (soft, soft_found, soft_runs) = headings(0, 0.1);
+        assert_eq!(soft_runs, 5, "one run without hard pairs for each");
+        assert!(
+            soft < once / 5.0 && soft_found.iter().all(|t| t.abs() < 1e-3),
+            "without hard pairs, it hardly does: {soft_found:?} against {once_found:?}"
+        );
         assert_eq!(
             (none, runs),
             (0, 10),

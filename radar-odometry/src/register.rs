@@ -65,6 +65,183 @@ pub fn register_narrowed(
     )
 }
 
+/// A registration without hard pairs, from `initial` already near (a registration's
+/// result): each return of `current` is drawn towards every reference point within
+/// [`SOFT_REACH`] kernel widths of it, each with the weight of a Gaussian kernel of width
+/// `kernel_m` on their distance, normalised over the return's neighbours (onto the
+/// neighbour's surface where it lies on one, else onto the point), with Cauchy weights of
+/// scale `kernel_m` on the residual. Where nearest-neighbour pairs switch all at once as the
+/// pose moves, and leave several poses that each pair set holds in place, these weights
+/// move continuously with the pose, so the pose found depends much less on where it
+/// started. The kernel is fixed: no gate annealing. `None` as [`register`].
+pub fn register_soft(
+    reference: &ReferenceCloud,
+    current: &[[f64; 2]],
+    initial: Pose2,
+    kernel_m: f64,
+    min_pairs: usize,
+) -> Option<Registration> {
+    if reference.points.is_empty() || current.is_empty() || kernel_m.is_nan() || kernel_m <= 0.0 {
+        return None;
+    }
+    let surfaces_only = initial.x.hypot(initial.y) < reference.surfaces_only_within_m;
+    let radius = SOFT_REACH * kernel_m;
+    let radius2 = radius * radius;
+    let use_grid = reference
+        .grid
+        .reach(radius + 0.5 * kernel_m)
+        .is_some_and(|r| r <= GRID_MAX_REACH);
+    let inv_2s2 = 0.5 / (kernel_m * kernel_m);
+    let scale2 = kernel_m * kernel_m;
+    let mut t = initial;
+    let mut last = None;
+    let mut near: Vec<(usize, f64)> = Vec::new();
+    // Each return's neighbours within the radius and a margin, listed where it was: exact
+    // while it has moved less than the margin since (the pose moves millimetres from a
+    // registration's result), so most iterations search nothing.
+    let margin = 0.5 * kernel_m;
+    let listed_r = radius + margin;
+    let mut listed: Vec<Option<([f64; 2], Vec<u32>)>> = vec![None; current.len()];
+    for it in 0..SOFT_ITERATIONS {
+        let (s, c) = t.theta.sin_cos();
+        let mut h = Matrix3::<f64>::zeros();
+        let mut g = Vector3::<f64>::zeros();
+        let (mut n, mut lines, mut sum_r2, mut sum_w) = (0usize, 0usize, 0.0, 0.0f64);
+        for (p, list) in current.iter().zip(listed.iter_mut()) {
+            let moved = [t.x + c * p[0] - s * p[1], t.y + s * p[0] + c * p[1]];
+            let jt = [-s * p[0] - c * p[1], c * p[0] - s * p[1]];
+            let fresh = list.as_ref().is_none_or(|(at, _)| {
+                (moved[0] - at[0]).powi(2) + (moved[1] - at[1]).powi(2) > margin * margin
+            });
+            if fresh {
+                if use_grid {
+                    reference
+                        .grid
+                        .within(&reference.points, &moved, listed_r, &mut near);
+                } else {
+                    near.clear();
+                    near.extend(
+                        reference
+                            .tree
+                            .within_unsorted::<SquaredEuclidean>(&moved, listed_r * listed_r)
+                            .iter()
+                            .map(|nb| (nb.item as usize, nb.distance)),
+                    );
+                }
+                *list = Some((moved, near.iter().map(|&(i, _)| i as u32).collect()));
+            }
+            near.clear();
+            if let Some((_, indices)) = list.as_ref() {
+                for &i in indices {
+                    if let Some(q) = reference.points.get(i as usize) {
+                        let d2 = (q[0] - moved[0]).powi(2) + (q[1] - moved[1]).powi(2);
+                        if d2 <= radius2 {
+                            near.push((i as usize, (-d2 * inv_2s2).exp()));
+                        }
+                    }
+                }
+            }
+            if surfaces_only {
+                near.retain(|&(i, _)| reference.normals.get(i).is_some_and(|n| n.is_some()));
+            }
+            // `near` holds each neighbour's kernel weight.
+            let total: f64 = near.iter().map(|&(_, k)| k).sum();
+            if near.is_empty() || total <= 0.0 {
+                continue;
+            }
+            n += 1;
+            let (mut on_line, mut best) = (false, 0.0);
+            for &(i, kernel) in &near {
+                let (Some(q), Some(normal)) = (reference.points.get(i), reference.normals.get(i))
+                else {
+                    continue;
+                };
+                if kernel > best {
+                    best = kernel;
+                    on_line = normal.is_some();
+                }
+                let share = kernel / total;
+                let d = [moved[0] - q[0], moved[1] - q[1]];
+                match normal {
+                    Some(nv) => {
+                        let r = nv[0] * d[0] + nv[1] * d[1];
+                        let j = Vector3::new(nv[0], nv[1], nv[0] * jt[0] + nv[1] * jt[1]);
+                        let w = share / (1.0 + r * r / scale2);
+                        h += w * j * j.transpose();
+                        g += w * r * j;
+                        sum_r2 += share * r * r;
+                    }
+                    None => {
+                        let r2 = d[0] * d[0] + d[1] * d[1];
+                        let w = share / (1.0 + r2 / scale2);
+                        let jx = Vector3::new(1.0, 0.0, jt[0]);
+                        let jy = Vector3::new(0.0, 1.0, jt[1]);
+                        h += w * (jx * jx.transpose() + jy * jy.transpose());
+                        g += w * (d[0] * jx + d[1] * jy);
+                        sum_r2 += share * r2;
+                    }
+                }
+            }
+            sum_w += 1.0;
+            if on_line {
+                lines += 1;
+            }
+        }
+        let delta;
+        (t, delta) = gauss_newton_step(&t, &h, &g, n, min_pairs)?;
+        last = Some(Registration {
+            pose: t,
+            pairs: n,
+            line_pairs: lines,
+            rms_m: (sum_r2 / sum_w.max(1.0)).sqrt(),
+            iterations: it + 1,
+            information: h,
+        });
+        if delta[0].hypot(delta[1]) + delta[2].abs() < SOFT_CONVERGED {
+            break;
+        }
+    }
+    last
+}
+
+/// The pose `t` moved by the Gauss-Newton step `-H^-1 g` of a registration's normal
+/// equations over `pairs` pairs, and the step; `None` with fewer than `min_pairs` (at least
+/// 3) pairs, an `H` that is not positive definite (the pairs do not pin all three degrees of
+/// freedom), or a step that is not finite.
+fn gauss_newton_step(
+    t: &Pose2,
+    h: &Matrix3<f64>,
+    g: &Vector3<f64>,
+    pairs: usize,
+    min_pairs: usize,
+) -> Option<(Pose2, Vector3<f64>)> {
+    if pairs < min_pairs.max(3) {
+        return None;
+    }
+    let delta = -h.cholesky()?.solve(g);
+    if !delta.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let moved = Pose2::new(
+        t.x + delta[0],
+        t.y + delta[1],
+        wrap_angle(t.theta + delta[2]),
+    );
+    Some((moved, delta))
+}
+
+/// [`register_soft`] stops once an iteration moves the pose by less than this (m + rad).
+const SOFT_CONVERGED: f64 = 1e-5;
+
+/// [`register_soft`]'s neighbours: within this many kernel widths.
+const SOFT_REACH: f64 = 3.0;
+/// [`register_soft`]'s largest number of iterations. Its steps shrink slowly (each return's
+/// weights are held for a step, as mean shift holds them): stopping below 1e-6, runs took
+/// 3 to 30 and more, most 8 to 20. Capped at a dozen, the ten drives beside the wheels
+/// drifted as uncapped did (0.719 % against 0.704-0.721), and on the radar alone a rotation
+/// cost 0.6 ms less.
+const SOFT_ITERATIONS: usize = 12;
+
 /// ICP's largest number of iterations.
 const ITERATIONS: usize = 40;
 /// Each iteration narrows the gate by this factor, down to [`GATE_FLOOR`] of the gate.
@@ -220,18 +397,8 @@ fn icp(
                 }
             }
         }
-        if n < min_pairs.max(3) {
-            return None;
-        }
-        let delta = -h.cholesky()?.solve(&g);
-        if !delta.iter().all(|v| v.is_finite()) {
-            return None;
-        }
-        t = Pose2::new(
-            t.x + delta[0],
-            t.y + delta[1],
-            wrap_angle(t.theta + delta[2]),
-        );
+        let delta;
+        (t, delta) = gauss_newton_step(&t, &h, &g, n, min_pairs)?;
         let step = delta[0].hypot(delta[1]) + delta[2].abs();
         last = Some(Registration {
             pose: t,
@@ -530,6 +697,31 @@ mod tests {
         assert!((reg.pose.y - b.y).abs() < 1e-3, "{reg:?}");
         assert!((reg.pose.theta - b.theta).abs() < 1e-4, "{reg:?}");
         assert!(reg.line_pairs > 0 && reg.line_pairs < reg.pairs, "{reg:?}");
+    }
+
+    /// [`register_soft`] from a start a few centimetres and milliradians off lands on the
+    /// motion, with every return paired, on the street's walls (line pairs) and posts; with
+    /// no reference point within reach it is no registration, and a kernel that is not
+    /// positive is refused.
+    #[test]
+    fn a_registration_without_hard_pairs_recovers_the_motion() {
+        let world = street();
+        let reference =
+            ReferenceCloud::new(in_frame_of(&Pose2::new(0.0, 0.0, 0.0), &world), 1.5, 0.6);
+        let b = Pose2::new(2.2, 0.05, 0.012);
+        let current = in_frame_of(&b, &world);
+        let reg = register_soft(&reference, &current, Pose2::new(2.23, 0.03, 0.009), 0.1, 50)
+            .expect("registers");
+        assert!((reg.pose.x - b.x).abs() < 1e-3, "{reg:?}");
+        assert!((reg.pose.y - b.y).abs() < 1e-3, "{reg:?}");
+        assert!((reg.pose.theta - b.theta).abs() < 1e-4, "{reg:?}");
+        assert!(reg.line_pairs > 0 && reg.line_pairs < reg.pairs, "{reg:?}");
+        assert!(reg.iterations <= SOFT_ITERATIONS, "{reg:?}");
+        let far = Pose2::new(500.0, 0.0, 0.0);
+        assert!(register_soft(&reference, &current, far, 0.1, 50).is_none());
+        for k in [0.0, -0.1, f64::NAN] {
+            assert!(register_soft(&reference, &current, b, k, 50).is_none());
+        }
     }
 
     /// Started near (within the narrowest gate), the narrowed registration lands where the

@@ -400,6 +400,13 @@ impl fmt::Display for RadarOdometry<'_> {
                 r.refined
             )?;
         }
+        if r.softened > 0 {
+            writeln!(
+                f,
+                "  radar odometry ran {} registrations again without hard pairs, each return weighted over its neighbours (`[odometry] radar_odometry_soft_kernel_m`)",
+                r.softened
+            )?;
+        }
         if r.held > 0 {
             writeln!(
                 f,

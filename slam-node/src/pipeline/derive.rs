@@ -482,9 +482,9 @@ pub fn effective_config(
 /// `[odometry] radar_odometry_keyframes` is unset.
 pub const DRIVING_KEYFRAMES: usize = 3;
 
-/// Times each registration is run again from its own result beside odometry of its own
-/// (wheels) when `[odometry] radar_odometry_refine_runs` is unset.
-pub const WHEELS_REFINE_RUNS: usize = 2;
+/// Kernel width (m) of radar odometry's last registration without hard pairs beside odometry
+/// of its own (wheels) when `[odometry] radar_odometry_soft_kernel_m` is unset.
+pub const SOFT_KERNEL_M: f64 = 0.1;
 
 /// On the radar alone (no gyro), a rotation whose heading in its submap's frame is more than
 /// this (rad) from the frame's is not added to the submap's scan
@@ -537,16 +537,18 @@ impl PipelineSettings {
             // more); localising, none (the map's registrations hold the pose).
             s.scan_match.keyframes = DRIVING_KEYFRAMES;
         }
-        if effective.odometry.radar_odometry_refine_runs.is_none()
+        if effective.odometry.radar_odometry_soft_kernel_m.is_none()
             && s.scan_match.enabled
             && !s.radar_drives
         {
-            // The registration starts from the wheels' motion and follows a quarter of its
-            // heading error, so the wheels' steering noise comes into the filter twice; run
-            // again from its own result it follows less (slam-node/README.md, "The
-            // registration run again from its own result"). The radar alone starts from the
-            // held motion, whose error its registrations do not follow.
-            s.scan_match.refine_runs = WHEELS_REFINE_RUNS;
+            // A registration stops wherever one set of nearest pairs holds it, which depends
+            // on its start: beside the wheels it follows their steering noise. Run once more
+            // without hard pairs from its result, it follows less, and it takes the place of
+            // the runs again with hard pairs (`radar_odometry_refine_runs`, 0 unless written).
+            // On the radar alone it costs 2 ms a rotation past issue 35's median, and capped
+            // to pay for itself it drifts more: not there (slam-node/README.md, "A
+            // registration without hard pairs").
+            s.scan_match.soft_kernel_m = SOFT_KERNEL_M;
         }
         if s.radar_drives && !gyro {
             // The prediction is the last rotation's motion held, which places a turn's
@@ -818,20 +820,33 @@ mod tests {
         assert_eq!(s.scan_match.keyframes, DRIVING_KEYFRAMES);
         assert_eq!(s.scan_match.sigma_theta_rad, FUSED_SIGMA_RAD);
         assert_eq!(s.filter.registration_placement_share, 0.0);
-        // Beside the wheels each registration is run again from its result; on the radar
-        // alone, not; written, the configuration's.
-        assert_eq!(s.scan_match.refine_runs, WHEELS_REFINE_RUNS);
-        let refine = |toml: &str| {
-            derive_from(toml, &profile::CTS350X)
-                .settings
-                .scan_match
-                .refine_runs
+        // Beside the wheels each registration is run once more without hard pairs, and not
+        // again with hard pairs; on the radar alone, neither; written, the configuration's.
+        assert_eq!(s.scan_match.refine_runs, 0);
+        assert_eq!(s.scan_match.soft_kernel_m, SOFT_KERNEL_M);
+        let matching = |toml: &str| {
+            let m = derive_from(toml, &profile::CTS350X).settings.scan_match;
+            (m.refine_runs, m.soft_kernel_m)
         };
-        assert_eq!(refine("[odometry]\nsource = \"none\"\n"), 0);
-        assert_eq!(refine("[odometry]\nradar_odometry_refine_runs = 1\n"), 1);
+        assert_eq!(matching("[odometry]\nsource = \"none\"\n"), (0, 0.0));
         assert_eq!(
-            refine("[odometry]\nsource = \"none\"\nradar_odometry_refine_runs = 3\n"),
-            3
+            matching("[odometry]\nsource = \"none\"\nradar_odometry_soft_kernel_m = 0.1\n"),
+            (0, 0.1)
+        );
+        assert_eq!(
+            matching("[odometry]\nradar_odometry_refine_runs = 1\n"),
+            (1, SOFT_KERNEL_M)
+        );
+        assert_eq!(
+            matching(
+                "[odometry]\nsource = \"none\"\nradar_odometry_refine_runs = 3\n\
+                 radar_odometry_soft_kernel_m = 0.0\n"
+            ),
+            (3, 0.0)
+        );
+        assert_eq!(
+            matching("[odometry]\nradar_odometry_soft_kernel_m = 0.2\n"),
+            (0, 0.2)
         );
         let d = derive_from(
             "[odometry]\nradar_odometry_keyframes = 0\nradar_odometry_sigma_rad = 0.003\n\

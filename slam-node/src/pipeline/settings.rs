@@ -386,6 +386,7 @@ impl PipelineSettings {
                     .odometry
                     .radar_odometry_refine_runs
                     .map_or(0, |k| usize::try_from(k).unwrap_or(0)),
+                soft_kernel_m: c.odometry.radar_odometry_soft_kernel_m.unwrap_or(0.0),
                 ..ScanMatchSettings::default()
             },
             radar_drives: false,
