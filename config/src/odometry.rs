@@ -194,7 +194,7 @@ pub struct RawOdometry {
     /// chosen afresh around it (0 to 4). A registration follows about a quarter of its
     /// start's heading error; beside wheel odometry the start is the wheels' motion, whose
     /// steering noise then comes into the filter twice (the wheels', and the
-    /// registration's share of it). Unset: 0; beside the wheels the run without hard pairs
+    /// registration's share of it). Unset: 0; the run without hard pairs
     /// (`radar_odometry_soft_kernel_m`) follows less, for less. Each run costs a
     /// registration. See slam-node's README, "The registration run again from its own
     /// result".
@@ -203,9 +203,9 @@ pub struct RawOdometry {
     /// result: every return drawn towards every reference point within three widths,
     /// weighted by a Gaussian on their distance, so that the pose found moves continuously
     /// with the pose tried instead of stopping wherever one set of nearest pairs holds it
-    /// (0 to 0.5; 0 for none). Unset: 0.1 with odometry of its own (wheels), 0 when the
-    /// radar drives the prediction (there it costs 2 ms a rotation). It costs about a
-    /// registration. See slam-node's README, "A registration without hard pairs".
+    /// (0 to 0.5; 0 for none). Unset: 0.1 whenever radar odometry runs (beside the wheels
+    /// and on the radar alone). It costs about a registration. See slam-node's README, "A
+    /// registration without hard pairs".
     pub radar_odometry_soft_kernel_m: Option<f64>,
 }
 
@@ -365,8 +365,8 @@ pub struct OdometrySettings {
     pub radar_odometry_keyframe_spacing_m: NonNegativeF64,
     /// Times each registration is run again from its own result (`None`: 0).
     pub radar_odometry_refine_runs: Option<u64>,
-    /// Kernel width (m) of the registration without hard pairs, 0 for none (`None`: chosen
-    /// by what drives the prediction).
+    /// Kernel width (m) of the registration without hard pairs, 0 for none (`None`: the
+    /// daemon's default).
     pub radar_odometry_soft_kernel_m: Option<f64>,
 }
 

@@ -482,8 +482,8 @@ pub fn effective_config(
 /// `[odometry] radar_odometry_keyframes` is unset.
 pub const DRIVING_KEYFRAMES: usize = 3;
 
-/// Kernel width (m) of radar odometry's last registration without hard pairs beside odometry
-/// of its own (wheels) when `[odometry] radar_odometry_soft_kernel_m` is unset.
+/// Kernel width (m) of radar odometry's last registration without hard pairs when
+/// `[odometry] radar_odometry_soft_kernel_m` is unset.
 pub const SOFT_KERNEL_M: f64 = 0.1;
 
 /// On the radar alone (no gyro), a rotation whose heading in its submap's frame is more than
@@ -537,16 +537,12 @@ impl PipelineSettings {
             // more); localising, none (the map's registrations hold the pose).
             s.scan_match.keyframes = DRIVING_KEYFRAMES;
         }
-        if effective.odometry.radar_odometry_soft_kernel_m.is_none()
-            && s.scan_match.enabled
-            && !s.radar_drives
-        {
+        if effective.odometry.radar_odometry_soft_kernel_m.is_none() && s.scan_match.enabled {
             // A registration stops wherever one set of nearest pairs holds it, which depends
-            // on its start: beside the wheels it follows their steering noise. Run once more
-            // without hard pairs from its result, it follows less, and it takes the place of
-            // the runs again with hard pairs (`radar_odometry_refine_runs`, 0 unless written).
-            // On the radar alone it costs 2 ms a rotation past issue 35's median, and capped
-            // to pay for itself it drifts more: not there (slam-node/README.md, "A
+            // on its start: beside the wheels it follows their steering noise, on the radar
+            // alone the motion held. Run once more without hard pairs from its result, it
+            // follows less, and it takes the place of the runs again with hard pairs
+            // (`radar_odometry_refine_runs`, 0 unless written) (slam-node/README.md, "A
             // registration without hard pairs").
             s.scan_match.soft_kernel_m = SOFT_KERNEL_M;
         }
@@ -820,15 +816,18 @@ mod tests {
         assert_eq!(s.scan_match.keyframes, DRIVING_KEYFRAMES);
         assert_eq!(s.scan_match.sigma_theta_rad, FUSED_SIGMA_RAD);
         assert_eq!(s.filter.registration_placement_share, 0.0);
-        // Beside the wheels each registration is run once more without hard pairs, and not
-        // again with hard pairs; on the radar alone, neither; written, the configuration's.
+        // Beside the wheels and on the radar alone each registration is run once more
+        // without hard pairs, and not again with hard pairs; written, the configuration's.
         assert_eq!(s.scan_match.refine_runs, 0);
         assert_eq!(s.scan_match.soft_kernel_m, SOFT_KERNEL_M);
         let matching = |toml: &str| {
             let m = derive_from(toml, &profile::CTS350X).settings.scan_match;
             (m.refine_runs, m.soft_kernel_m)
         };
-        assert_eq!(matching("[odometry]\nsource = \"none\"\n"), (0, 0.0));
+        assert_eq!(
+            matching("[odometry]\nsource = \"none\"\n"),
+            (0, SOFT_KERNEL_M)
+        );
         assert_eq!(
             matching("[odometry]\nsource = \"none\"\nradar_odometry_soft_kernel_m = 0.1\n"),
             (0, 0.1)
