@@ -106,7 +106,7 @@ pub fn register_soft(
         let (s, c) = t.theta.sin_cos();
         let mut h = Matrix3::<f64>::zeros();
         let mut g = Vector3::<f64>::zeros();
-        let (mut n, mut lines, mut sum_r2, mut sum_w) = (0usize, 0usize, 0.0, 0.0f64);
+        let (mut n, mut lines, mut sum_r2) = (0usize, 0usize, 0.0);
         for (p, list) in current.iter().zip(listed.iter_mut()) {
             let moved = [t.x + c * p[0] - s * p[1], t.y + s * p[0] + c * p[1]];
             let jt = [-s * p[0] - c * p[1], c * p[0] - s * p[1]];
@@ -182,7 +182,6 @@ pub fn register_soft(
                     }
                 }
             }
-            sum_w += 1.0;
             if on_line {
                 lines += 1;
             }
@@ -193,7 +192,7 @@ pub fn register_soft(
             pose: t,
             pairs: n,
             line_pairs: lines,
-            rms_m: (sum_r2 / sum_w.max(1.0)).sqrt(),
+            rms_m: (sum_r2 / n.max(1) as f64).sqrt(),
             iterations: it + 1,
             information: h,
         });
