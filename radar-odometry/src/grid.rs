@@ -56,19 +56,24 @@ impl PointGrid {
             starts: vec![0; nx * ny + 1],
             order: Vec::new(),
         };
+        // A counting sort in place: each cell's count, then its end (a running sum), then,
+        // the points taken last to first, each cell's end moved back over its points to its
+        // start, so that a cell keeps its points in their given order.
         let cells: Vec<Option<usize>> = points.iter().map(|p| grid.cell_of(p)).collect();
         for c in cells.iter().flatten() {
-            grid.starts[c + 1] += 1;
+            grid.starts[*c] += 1;
         }
-        for c in 0..nx * ny {
-            grid.starts[c + 1] += grid.starts[c];
+        let mut end = 0;
+        for s in &mut grid.starts[..nx * ny] {
+            end += *s;
+            *s = end;
         }
-        let mut next = grid.starts.clone();
-        grid.order = vec![0; grid.starts[nx * ny] as usize];
-        for (i, c) in cells.iter().enumerate() {
+        grid.starts[nx * ny] = end;
+        grid.order = vec![0; end as usize];
+        for (i, c) in cells.iter().enumerate().rev() {
             if let Some(c) = *c {
-                grid.order[next[c] as usize] = i as u32;
-                next[c] += 1;
+                grid.starts[c] -= 1;
+                grid.order[grid.starts[c] as usize] = i as u32;
             }
         }
         grid
