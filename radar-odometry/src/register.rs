@@ -128,7 +128,16 @@ pub fn register_soft(
                             .map(|nb| (nb.item as usize, nb.distance)),
                     );
                 }
-                *list = Some((moved, near.iter().map(|&(i, _)| i as u32).collect()));
+                // At a crawl only the reference's surfaces (points with a normal) are
+                // neighbours: kept out of the list, not weighed and then dropped.
+                let surface = |i: usize| reference.normals.get(i).is_some_and(|n| n.is_some());
+                *list = Some((
+                    moved,
+                    near.iter()
+                        .filter(|&&(i, _)| !surfaces_only || surface(i))
+                        .map(|&(i, _)| i as u32)
+                        .collect(),
+                ));
             }
             near.clear();
             if let Some((_, indices)) = list.as_ref() {
@@ -140,9 +149,6 @@ pub fn register_soft(
                         }
                     }
                 }
-            }
-            if surfaces_only {
-                near.retain(|&(i, _)| reference.normals.get(i).is_some_and(|n| n.is_some()));
             }
             // `near` holds each neighbour's kernel weight.
             let total: f64 = near.iter().map(|&(_, k)| k).sum();
