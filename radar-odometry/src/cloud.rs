@@ -90,10 +90,21 @@ impl ReferenceCloud {
     pub fn surface_distance(&self, p: &[f64; 2], max_m: f64) -> Option<(usize, f64)> {
         let (i, d) = self.nearest_within(p, max_m)?;
         let q = self.points.get(i)?;
-        Some(match self.normals.get(i).copied().flatten() {
+        Some(match self.normal(i) {
             Some(n) => (i, ((p[0] - q[0]) * n[0] + (p[1] - q[1]) * n[1]).abs()),
             None => (i, d),
         })
+    }
+
+    /// Point `i`'s normal, `None` when it lies on no line-like surface (or there is no
+    /// point `i`).
+    pub fn normal(&self, i: usize) -> Option<[f64; 2]> {
+        self.normals.get(i).copied().flatten()
+    }
+
+    /// Whether point `i` lies on a line-like surface (has a normal).
+    pub fn has_normal(&self, i: usize) -> bool {
+        self.normal(i).is_some()
     }
 
     /// How many points have a normal (lie on a line-like surface).

@@ -130,11 +130,10 @@ pub fn register_soft(
                 }
                 // At a crawl only the reference's surfaces (points with a normal) are
                 // neighbours: kept out of the list, not weighed and then dropped.
-                let surface = |i: usize| reference.normals.get(i).is_some_and(|n| n.is_some());
                 *list = Some((
                     moved,
                     near.iter()
-                        .filter(|&&(i, _)| !surfaces_only || surface(i))
+                        .filter(|&&(i, _)| !surfaces_only || reference.has_normal(i))
                         .map(|&(i, _)| i as u32)
                         .collect(),
                 ));
