@@ -7,8 +7,9 @@
 //!    are rasterised into a polar transmission buffer of [`OCCLUSION_CELLS`] cells: each
 //!    cell keeps the ranges at which its ray crosses an outline and the crossing's
 //!    transmission;
-//! 2. each scatterer within reach gets its incidence angle (diffuse `cos^2` plus the
-//!    specular lobe), its two-way transmission through every outline in front of it in its
+//! 2. each scatterer within reach gets the largest return its incidence (diffuse `cos^2`
+//!    plus the specular lobe) can give over the rotation, a bound for the culling and the
+//!    lists (the incidence itself is taken per azimuth, below), its two-way transmission through every outline in front of it in its
 //!    cell (its own outline excepted), and, for Swerling 1 and 3, its draw for the rotation;
 //!    a scatterer whose mean return cannot reach [`NEGLIGIBLE_POWER`] is dropped here (so
 //!    what is hidden costs nothing per azimuth);
@@ -25,7 +26,9 @@
 //!
 //! Per azimuth: the pose at the azimuth's own time; each candidate in its lists' buckets
 //! within the window (the list's offset plus its shell's margin) gets its exact range and
-//! offset from the beam's axis from that pose (movers at that time), its two-way antenna
+//! offset from the beam's axis from that pose (movers at that time), a surface's incidence
+//! from that pose (a front's specular flash lights square to where the radar is, not to
+//! the rotation's middle, a quarter rotation away for the azimuths abeam), its two-way antenna
 //! gain, its speckle draw (Swerling 2 and 4) and the receiver's gain at its range (the
 //! range read short by the radar's range-Doppler coupling times its closing speed), and is
 //! deposited into the range line (split linearly between the two bins about it, which are
@@ -173,10 +176,32 @@ struct Candidate {
     pos: [f64; 2],
     /// World velocity (movers), m/s.
     vel: [f64; 2],
-    /// Mean power factor: effective cross section x visibility x the rotation's draw.
+    /// Mean power factor: effective cross section x visibility x the rotation's draw; for a
+    /// surface, the largest its incidence gives over the rotation (a bound for culling and
+    /// for the lists; each azimuth deposits its own from `diffuse` and `specular`).
     power: f32,
     /// Draw per look: 0 none, 2 exponential, 4 chi-square(4).
     per_look: u8,
+    /// A surface's world normal (zero: a point scatterer, `power` as it is).
+    normal: [f32; 2],
+    /// A surface's diffuse and specular cross sections times everything else in `power`
+    /// but the incidence: `power` is their largest over the rotation.
+    diffuse: f32,
+    specular: f32,
+    /// The middle pose's power (a ghost's source).
+    ghost_power: f32,
+}
+
+/// A surface scatterer's cross section at incidence `cos_i` (cosine from its normal):
+/// the diffuse part falls to [`ROUGH_FLOOR`] at grazing, the specular lobe peaks square on.
+fn incidence_sigma(diffuse: f64, specular: f64, cos_i: f64) -> f64 {
+    let mut sigma = diffuse * (ROUGH_FLOOR + (1.0 - ROUGH_FLOOR) * cos_i * cos_i);
+    // The specular lobe is below 1e-10 of its peak beyond 5 widths.
+    if specular > 0.0 && cos_i > SPECULAR_COS_LIMIT {
+        let inc = cos_i.acos();
+        sigma += specular * (-(inc / SPECULAR_LOBE_RAD).powi(2)).exp();
+    }
+    sigma
 }
 
 /// A list of candidates of one strength (how far off the beam's axis they still matter),
@@ -270,6 +295,16 @@ impl Deposit<'_> {
         }
         let g = rx.pattern_at(cross / along);
         let r = (px * px + py * py).sqrt();
+        // A surface's incidence from where the radar is for this azimuth, not from the
+        // rotation's middle: a front's specular flash lights square to the azimuth's own
+        // pose (0.6 m either way along the track at 10 m/s a quarter rotation off).
+        let power = if c.normal == [0.0, 0.0] {
+            c.power
+        } else {
+            let (nx, ny) = (f64::from(c.normal[0]), f64::from(c.normal[1]));
+            let cos_i = ((nx * px + ny * py) / r).abs().min(1.0);
+            incidence_sigma(f64::from(c.diffuse), f64::from(c.specular), cos_i) as f32
+        };
         // Range-Doppler coupling: the return reads `coupling x closing speed` short, the
         // closing speed being the relative velocity along the line of sight.
         let shift = ((self.ux - self.coupling_s * c.vel[0]) * px
@@ -289,7 +324,7 @@ impl Deposit<'_> {
         let Some(&gain) = rx.signal_per_m2.get(b0) else {
             return 0;
         };
-        let p = c.power * g * gain * speckle;
+        let p = power * g * gain * speckle;
         if let Some([lo, hi, ..]) = line.power.get_mut(b0..) {
             *lo += p * (1.0 - w);
             *hi += p * w;
@@ -974,16 +1009,23 @@ impl RealisticCursor {
                 1.0
             };
             let mut sigma = f64::from(s.diffuse_m2);
+            let mut bound = sigma;
+            let (mut cand_diffuse, mut cand_specular) = (0.0f64, 0.0f64);
             if normal != [0.0, 0.0] {
-                let cos_i = ((normal[0] * dx + normal[1] * dy) / r).abs().min(1.0);
-                sigma *= ROUGH_FLOOR + (1.0 - ROUGH_FLOOR) * cos_i * cos_i;
-                // The specular lobe is below 1e-10 of its peak beyond 5 widths.
-                if s.specular_m2 > 0.0 && cos_i > SPECULAR_COS_LIMIT {
-                    let inc = cos_i.acos();
-                    sigma += f64::from(s.specular_m2) * (-(inc / SPECULAR_LOBE_RAD).powi(2)).exp();
-                }
+                let (d, sp) = (f64::from(s.diffuse_m2), f64::from(s.specular_m2));
+                let cos_mid = ((normal[0] * dx + normal[1] * dy) / r).abs().min(1.0);
+                sigma = incidence_sigma(d, sp, cos_mid);
+                // The largest the incidence can give over the rotation (the azimuth's own
+                // pose sets it when deposited): the direction from the radar turns by at
+                // most asin(shift / r) from the middle pose's, the shift being the radar's
+                // travel (and a mover's) in half a rotation, padded.
+                let shift = shift_m[usize::from(vel != [0.0, 0.0])];
+                let sway = (shift / r).min(1.0).asin();
+                bound = incidence_sigma(d, sp, (cos_mid.acos() - sway).max(0.0).cos());
+                cand_diffuse = d;
+                cand_specular = sp;
             }
-            sigma *= f64::from(model.elevation.gain(s.drop_m, r));
+            let elev = f64::from(model.elevation.gain(s.drop_m, r));
             let (draw, per_look) = if !spec.speckle {
                 (1.0, 0)
             } else {
@@ -995,8 +1037,9 @@ impl RealisticCursor {
                     Swerling::Four => (1.0, 4),
                 }
             };
-            let mean = sigma as f32 * vis;
-            let power = mean * draw;
+            let factor = elev * f64::from(vis) * f64::from(draw);
+            let mid_power = (sigma * factor) as f32;
+            let power = (bound * factor) as f32;
             // The largest this can ever deposit (speckle tables top out near 9x the mean).
             if power * max_gain * 9.0 < NEGLIGIBLE_POWER {
                 continue;
@@ -1014,6 +1057,10 @@ impl RealisticCursor {
                 vel,
                 power,
                 per_look,
+                normal: [normal[0] as f32, normal[1] as f32],
+                diffuse: (cand_diffuse * factor) as f32,
+                specular: (cand_specular * factor) as f32,
+                ghost_power: mid_power,
             });
         }
 
@@ -1056,7 +1103,7 @@ impl RealisticCursor {
                 } else {
                     1.0
                 };
-                let power = src.power * r2 as f32 * mirror_vis;
+                let power = src.ghost_power * r2 as f32 * mirror_vis;
                 if power * max_gain * 9.0 < NEGLIGIBLE_POWER {
                     continue;
                 }
@@ -1066,6 +1113,7 @@ impl RealisticCursor {
                     vel: [0.0, 0.0],
                     power,
                     per_look: src.per_look,
+                    ..Candidate::default()
                 });
                 ghosts += 1;
             }
