@@ -7,9 +7,9 @@
 //!    are rasterised into a polar transmission buffer of [`OCCLUSION_CELLS`] cells: each
 //!    cell keeps the ranges at which its ray crosses an outline and the crossing's
 //!    transmission;
-//! 2. each scatterer within reach gets the largest return its incidence (diffuse `cos^2`
-//!    plus the specular lobe) can give over the rotation, a bound for the culling and the
-//!    lists (the incidence itself is taken per azimuth, below), its two-way transmission through every outline in front of it in its
+//! 2. each scatterer within reach gets its incidence angle (diffuse `cos^2` plus the
+//!    specular lobe) from where the radar is when its beam sweeps it (the rotation's
+//!    motion samples at the azimuth of its bearing), its two-way transmission through every outline in front of it in its
 //!    cell (its own outline excepted), and, for Swerling 1 and 3, its draw for the rotation;
 //!    a scatterer whose mean return cannot reach [`NEGLIGIBLE_POWER`] is dropped here (so
 //!    what is hidden costs nothing per azimuth);
@@ -26,9 +26,7 @@
 //!
 //! Per azimuth: the pose at the azimuth's own time; each candidate in its lists' buckets
 //! within the window (the list's offset plus its shell's margin) gets its exact range and
-//! offset from the beam's axis from that pose (movers at that time), a surface's incidence
-//! from that pose (a front's specular flash lights square to where the radar is, not to
-//! the rotation's middle, a quarter rotation away for the azimuths abeam), its two-way antenna
+//! offset from the beam's axis from that pose (movers at that time), its two-way antenna
 //! gain, its speckle draw (Swerling 2 and 4) and the receiver's gain at its range (the
 //! range read short by the radar's range-Doppler coupling times its closing speed), and is
 //! deposited into the range line (split linearly between the two bins about it, which are
@@ -176,32 +174,32 @@ struct Candidate {
     pos: [f64; 2],
     /// World velocity (movers), m/s.
     vel: [f64; 2],
-    /// Mean power factor: effective cross section x visibility x the rotation's draw; for a
-    /// surface, the largest its incidence gives over the rotation (a bound for culling and
-    /// for the lists; each azimuth deposits its own from `diffuse` and `specular`).
+    /// Mean power factor: effective cross section x visibility x the rotation's draw.
     power: f32,
     /// Draw per look: 0 none, 2 exponential, 4 chi-square(4).
     per_look: u8,
-    /// A surface's world normal (zero: a point scatterer, `power` as it is).
-    normal: [f32; 2],
-    /// A surface's diffuse and specular cross sections times everything else in `power`
-    /// but the incidence: `power` is their largest over the rotation.
-    diffuse: f32,
-    specular: f32,
-    /// The middle pose's power (a ghost's source).
-    ghost_power: f32,
 }
 
-/// A surface scatterer's cross section at incidence `cos_i` (cosine from its normal):
-/// the diffuse part falls to [`ROUGH_FLOOR`] at grazing, the specular lobe peaks square on.
-fn incidence_sigma(diffuse: f64, specular: f64, cos_i: f64) -> f64 {
-    let mut sigma = diffuse * (ROUGH_FLOOR + (1.0 - ROUGH_FLOOR) * cos_i * cos_i);
-    // The specular lobe is below 1e-10 of its peak beyond 5 widths.
-    if specular > 0.0 && cos_i > SPECULAR_COS_LIMIT {
-        let inc = cos_i.acos();
-        sigma += specular * (-(inc / SPECULAR_LOBE_RAD).powi(2)).exp();
+/// The radar's position a fraction `f` (0 to 1) of the way through the rotation, linear
+/// between the rotation's motion samples (`sampled`, [`MOTION_SAMPLES`] + 1 of them).
+fn sweep_position(sampled: &[[f64; 2]; MOTION_SAMPLES as usize + 1], f: f64) -> [f64; 2] {
+    let u = f.clamp(0.0, 1.0) * MOTION_SAMPLES as f64;
+    let i = (u as usize).min(MOTION_SAMPLES as usize - 1);
+    let w = u - i as f64;
+    match (sampled.get(i), sampled.get(i + 1)) {
+        (Some(a), Some(b)) => [a[0] + w * (b[0] - a[0]), a[1] + w * (b[1] - a[1])],
+        _ => sampled[0],
     }
-    sigma
+}
+
+/// `acos(c)^2` for `c` within [`SPECULAR_COS_LIMIT`] of one (angles under 10 degrees), by
+/// its series in `x = 1 - c`: `acos(c) = sqrt(2 x) (1 + x / 12 + 3 x^2 / 160 + ...)`, good
+/// to a relative 1e-7 there (the next term is `5 x^3 / 896`), without the arc cosine.
+#[inline]
+fn acos_squared_near_one(c: f64) -> f64 {
+    let x = (1.0 - c).max(0.0);
+    let k = 1.0 + x / 12.0 + 3.0 * x * x / 160.0;
+    2.0 * x * k * k
 }
 
 /// A list of candidates of one strength (how far off the beam's axis they still matter),
@@ -295,16 +293,6 @@ impl Deposit<'_> {
         }
         let g = rx.pattern_at(cross / along);
         let r = (px * px + py * py).sqrt();
-        // A surface's incidence from where the radar is for this azimuth, not from the
-        // rotation's middle: a front's specular flash lights square to the azimuth's own
-        // pose (0.6 m either way along the track at 10 m/s a quarter rotation off).
-        let power = if c.normal == [0.0, 0.0] {
-            c.power
-        } else {
-            let (nx, ny) = (f64::from(c.normal[0]), f64::from(c.normal[1]));
-            let cos_i = ((nx * px + ny * py) / r).abs().min(1.0);
-            incidence_sigma(f64::from(c.diffuse), f64::from(c.specular), cos_i) as f32
-        };
         // Range-Doppler coupling: the return reads `coupling x closing speed` short, the
         // closing speed being the relative velocity along the line of sight.
         let shift = ((self.ux - self.coupling_s * c.vel[0]) * px
@@ -324,7 +312,7 @@ impl Deposit<'_> {
         let Some(&gain) = rx.signal_per_m2.get(b0) else {
             return 0;
         };
-        let p = power * g * gain * speckle;
+        let p = c.power * g * gain * speckle;
         if let Some([lo, hi, ..]) = line.power.get_mut(b0..) {
             *lo += p * (1.0 - w);
             *hi += p * w;
@@ -804,10 +792,16 @@ impl RealisticCursor {
         let mut travel_m: f64 = 0.0;
         let mut turn_rad: f64 = 0.0;
         let mut speed_mps: f64 = 0.0;
+        // The radar's position at each motion sample (azimuth `(n - 1) s / MOTION_SAMPLES`
+        // of the rotation): where it is when its beam sweeps a scatterer, for the incidence.
+        let mut sampled = [[0.0f64; 2]; MOTION_SAMPLES as usize + 1];
         for s in 0..=MOTION_SAMPLES {
             let k = first + n.saturating_sub(1) * s / MOTION_SAMPLES;
             let offset_ns = offset_ns(radar, k);
             let p = trajectory.pose_with(cursor, offset_ns)?;
+            if let Some(slot) = sampled.get_mut(s as usize) {
+                *slot = [p.x, p.y];
+            }
             travel_m = travel_m.max((p.x - mid.x).hypot(p.y - mid.y));
             turn_rad = turn_rad.max(wrap_angle(p.theta - mid.theta).abs());
             speed_mps = speed_mps.max(trajectory.controls_at(offset_ns).0.abs());
@@ -1009,23 +1003,28 @@ impl RealisticCursor {
                 1.0
             };
             let mut sigma = f64::from(s.diffuse_m2);
-            let mut bound = sigma;
-            let (mut cand_diffuse, mut cand_specular) = (0.0f64, 0.0f64);
             if normal != [0.0, 0.0] {
-                let (d, sp) = (f64::from(s.diffuse_m2), f64::from(s.specular_m2));
-                let cos_mid = ((normal[0] * dx + normal[1] * dy) / r).abs().min(1.0);
-                sigma = incidence_sigma(d, sp, cos_mid);
-                // The largest the incidence can give over the rotation (the azimuth's own
-                // pose sets it when deposited): the direction from the radar turns by at
-                // most asin(shift / r) from the middle pose's, the shift being the radar's
-                // travel (and a mover's) in half a rotation, padded.
-                let shift = shift_m[usize::from(vel != [0.0, 0.0])];
-                let sway = (shift / r).min(1.0).asin();
-                bound = incidence_sigma(d, sp, (cos_mid.acos() - sway).max(0.0).cos());
-                cand_diffuse = d;
-                cand_specular = sp;
+                // The incidence from where the radar is when its beam sweeps the scatterer
+                // (the azimuth of its bearing from the middle pose), not from the middle
+                // pose: a front's specular flash lights square to the radar, a quarter
+                // rotation (0.6 m at 10 m/s) from the middle for the azimuths abeam.
+                let f = wrap_angle(mid.theta - world_angle).rem_euclid(std::f64::consts::TAU)
+                    / std::f64::consts::TAU;
+                let [sx, sy] = sweep_position(&sampled, f);
+                let t_off = (f - 0.5) * 2.0 * half_rot_s;
+                let ex = pos[0] + vel[0] * t_off - sx;
+                let ey = pos[1] + vel[1] * t_off - sy;
+                let re = (ex * ex + ey * ey).sqrt().max(1e-9);
+                let cos_i = ((normal[0] * ex + normal[1] * ey) / re).abs().min(1.0);
+                sigma *= ROUGH_FLOOR + (1.0 - ROUGH_FLOOR) * cos_i * cos_i;
+                // The specular lobe is below 1e-10 of its peak beyond 5 widths.
+                if s.specular_m2 > 0.0 && cos_i > SPECULAR_COS_LIMIT {
+                    let inc2 = acos_squared_near_one(cos_i);
+                    sigma += f64::from(s.specular_m2)
+                        * (-inc2 / (SPECULAR_LOBE_RAD * SPECULAR_LOBE_RAD)).exp();
+                }
             }
-            let elev = f64::from(model.elevation.gain(s.drop_m, r));
+            sigma *= f64::from(model.elevation.gain(s.drop_m, r));
             let (draw, per_look) = if !spec.speckle {
                 (1.0, 0)
             } else {
@@ -1037,9 +1036,8 @@ impl RealisticCursor {
                     Swerling::Four => (1.0, 4),
                 }
             };
-            let factor = elev * f64::from(vis) * f64::from(draw);
-            let mid_power = (sigma * factor) as f32;
-            let power = (bound * factor) as f32;
+            let mean = sigma as f32 * vis;
+            let power = mean * draw;
             // The largest this can ever deposit (speckle tables top out near 9x the mean).
             if power * max_gain * 9.0 < NEGLIGIBLE_POWER {
                 continue;
@@ -1057,10 +1055,6 @@ impl RealisticCursor {
                 vel,
                 power,
                 per_look,
-                normal: [normal[0] as f32, normal[1] as f32],
-                diffuse: (cand_diffuse * factor) as f32,
-                specular: (cand_specular * factor) as f32,
-                ghost_power: mid_power,
             });
         }
 
@@ -1103,7 +1097,7 @@ impl RealisticCursor {
                 } else {
                     1.0
                 };
-                let power = src.ghost_power * r2 as f32 * mirror_vis;
+                let power = src.power * r2 as f32 * mirror_vis;
                 if power * max_gain * 9.0 < NEGLIGIBLE_POWER {
                     continue;
                 }
@@ -1113,7 +1107,6 @@ impl RealisticCursor {
                     vel: [0.0, 0.0],
                     power,
                     per_look: src.per_look,
-                    ..Candidate::default()
                 });
                 ghosts += 1;
             }
@@ -1373,6 +1366,20 @@ impl Bits {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_arc_cosines_square_near_one_agrees_with_libm() {
+        let mut c = SPECULAR_COS_LIMIT;
+        while c <= 1.0 {
+            let exact = c.acos().powi(2);
+            let got = acos_squared_near_one(c);
+            assert!(
+                (got - exact).abs() <= 1e-7 * exact + 1e-15,
+                "{c}: {got} vs {exact}"
+            );
+            c += 1e-6;
+        }
+    }
 
     #[test]
     fn the_fast_arctangent_agrees_with_libm_to_a_nanoradian() {
