@@ -126,25 +126,26 @@ fn drive(
 
 /// The swerve on the shipped street and on three other speckle, clutter and traffic draws
 /// (scene seeds 2-4), radar only and with the gyro. Measured (2026-12-07, the renderer
-/// lighting each surface from the radar's own pose), RMS position and heading over the
-/// swerve, alone / with the gyro:
+/// lighting each surface from where the radar is when its beam sweeps it), RMS position and
+/// heading over the swerve, alone / with the gyro:
 ///
 /// | scene seed | radar only | with the gyro | gyro bias learned (true 0.005 rad/s) |
 /// |---|---|---|---|
-/// | shipped (11) | 0.565 m, 0.0183 rad | 0.608 m, 0.0136 rad | 0.0070 +- 0.0017 |
-/// | 2 | 0.169 m, 0.0069 rad | 0.140 m, 0.0041 rad | 0.0065 |
-/// | 3 | 0.211 m, 0.0081 rad | 1.931 m, 0.0301 rad | 0.0065 |
-/// | 4 | 0.246 m, 0.0096 rad | 0.633 m, 0.0143 rad | 0.0063 |
+/// | shipped (11) | 0.561 m, 0.0179 rad | 1.156 m, 0.0196 rad | 0.0065 +- 0.0017 |
+/// | 2 | 0.289 m, 0.0099 rad | 0.181 m, 0.0061 rad | 0.0072 |
+/// | 3 | 0.359 m, 0.0081 rad | 0.268 m, 0.0069 rad | 0.0073 |
+/// | 4 | 0.584 m, 0.0171 rad | 0.991 m, 0.0139 rad | 0.0064 |
 ///
-/// The gyro does not beat the radar alone here (it did on the shipped seed alone, with
-/// the renderer before, which this test used to assert): the registrations teach its bias
-/// 1-2 mrad/s high on every draw (with a gyro of no bias at all: +0.0012 to +0.0022 rad/s
-/// on eight draws of eight), and the learned bias turns the heading clockwise between the
-/// registrations (slam-node/README.md, "A gyro on the swerving street"). Guarded here: the
-/// radar alone within 0.6 m and 0.02 rad on every draw; with the gyro, its bias learned
-/// within three of its standard deviations of the truth and the drive within 2.5 m and
-/// 0.04 rad on every draw, and the gyro's heading better than the radar alone's on the
-/// shipped draw.
+/// The gyro does not beat the radar alone here: it did on the shipped draw alone, with the
+/// renderer before, which this test used to assert; over eight draws the mean is 0.63 m and
+/// 0.0133 rad alone, 0.91 m and 0.0156 rad with the gyro (0.46 / 0.0130 and 0.85 / 0.0146
+/// with the renderer before). The registrations teach the gyro's bias 1-2 mrad/s high on
+/// every draw (with a gyro of no bias at all: +0.0012 to +0.0022 rad/s on eight draws of
+/// eight), and the learned bias turns the heading between the registrations
+/// (slam-node/README.md, "The simulator's incidence from the radar's own pose"). Guarded
+/// here, on every draw: the radar alone within 0.8 m and 0.025 rad; with the gyro, its bias
+/// learned within three of its standard deviations of the truth and the drive within 2.5 m
+/// and 0.04 rad.
 #[test]
 fn a_swerve_driven_on_the_radar_alone_or_with_a_gyro_stays_near_the_truth() {
     for seed in [None, Some(2), Some(3), Some(4)] {
@@ -160,19 +161,13 @@ fn a_swerve_driven_on_the_radar_alone_or_with_a_gyro_stays_near_the_truth() {
         let (bias, sigma) = gyro.bias_rad_s.expect("a bias learned");
         assert!((bias - 0.005).abs() < 3.0 * sigma, "{gyro:?}");
         assert!(
-            pos_alone < 0.6 && heading_alone < 0.02,
+            pos_alone < 0.8 && heading_alone < 0.025,
             "seed {seed:?}: radar only {pos_alone} m {heading_alone} rad"
         );
         assert!(
             pos_gyro < 2.5 && heading_gyro < 0.04,
             "seed {seed:?}: with the gyro {pos_gyro} m {heading_gyro} rad"
         );
-        if seed.is_none() {
-            assert!(
-                heading_gyro < 0.9 * heading_alone,
-                "with the gyro {heading_gyro} rad, without {heading_alone} rad"
-            );
-        }
     }
 }
 
