@@ -140,8 +140,8 @@ fn drive(
 /// renderer before, which this test used to assert; over eight draws the mean is 0.63 m and
 /// 0.0133 rad alone, 0.91 m and 0.0156 rad with the gyro (0.46 / 0.0130 and 0.85 / 0.0146
 /// with the renderer before). The registrations teach the gyro's bias 1-2 mrad/s high on
-/// every draw (with a gyro of no bias at all: +0.0012 to +0.0022 rad/s on eight draws of
-/// eight), and the learned bias turns the heading between the registrations
+/// every draw (with a gyro of no bias at all, on the renderer's per-azimuth incidence first
+/// written: +0.0012 to +0.0022 rad/s on eight draws of eight), and the learned bias turns the heading between the registrations
 /// (slam-node/README.md, "The simulator's incidence from the radar's own pose"). Guarded
 /// here, on every draw: the radar alone within 0.8 m and 0.025 rad; with the gyro, its bias
 /// learned within three of its standard deviations of the truth and the drive within 2.5 m
