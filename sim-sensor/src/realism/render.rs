@@ -9,10 +9,11 @@
 //!    transmission;
 //! 2. each scatterer within reach gets its incidence angle (diffuse `cos^2` plus the
 //!    specular lobe) from where the radar is when its beam sweeps it (the rotation's
-//!    motion samples at the azimuth of its bearing), its two-way transmission through every outline in front of it in its
-//!    cell (its own outline excepted), and, for Swerling 1 and 3, its draw for the rotation;
-//!    a scatterer whose mean return cannot reach [`NEGLIGIBLE_POWER`] is dropped here (so
-//!    what is hidden costs nothing per azimuth);
+//!    motion samples at the azimuth of its bearing), its two-way transmission through
+//!    every outline in front of it in its cell (its own outline excepted), and, for
+//!    Swerling 1 and 3, its draw for the rotation; a scatterer whose mean return cannot
+//!    reach [`NEGLIGIBLE_POWER`] is dropped here (so what is hidden costs nothing per
+//!    azimuth);
 //! 3. ghosts: each strong scatterer (`ghost_min_rcs_m2`) within `ghost_range_m` mirrored in
 //!    each mirror outline (building fronts, walls) within that range, where the mirror
 //!    point lies on the outline and both radar and source are on its front side, becomes a
@@ -1002,14 +1003,14 @@ impl RealisticCursor {
             } else {
                 1.0
             };
+            let bearing_mid = wrap_angle(mid.theta - world_angle);
             let mut sigma = f64::from(s.diffuse_m2);
             if normal != [0.0, 0.0] {
                 // The incidence from where the radar is when its beam sweeps the scatterer
                 // (the azimuth of its bearing from the middle pose), not from the middle
                 // pose: a front's specular flash lights square to the radar, a quarter
                 // rotation (0.6 m at 10 m/s) from the middle for the azimuths abeam.
-                let f = wrap_angle(mid.theta - world_angle).rem_euclid(std::f64::consts::TAU)
-                    / std::f64::consts::TAU;
+                let f = bearing_mid.rem_euclid(std::f64::consts::TAU) / std::f64::consts::TAU;
                 let [sx, sy] = sweep_position(&sampled, f);
                 let t_off = (f - 0.5) * 2.0 * half_rot_s;
                 let ex = pos[0] + vel[0] * t_off - sx;
@@ -1050,7 +1051,7 @@ impl RealisticCursor {
                 self.sources.push((all.len(), s.outline));
             }
             all.push(Candidate {
-                bearing_mid: wrap_angle(mid.theta - world_angle),
+                bearing_mid,
                 pos,
                 vel,
                 power,
