@@ -242,7 +242,25 @@ impl PlaceDescriptor {
         let reach = 3.0 * blur;
         let ring_reach = (reach / ring_m).ceil() as i64;
         let inv_two_var = 1.0 / (2.0 * blur * blur);
-        let mut cells = Box::new([0f32; CELLS]);
+        // Each sector's centre bearing, and how many sectors either side of a point's own a
+        // ring's cells can lie within the kernel's reach: the same for every point.
+        let centre: [(f64, f64); SECTORS] = std::array::from_fn(|si| {
+            let b = (si as f64 + 0.5) * sector_rad;
+            (b.cos(), b.sin())
+        });
+        let halves: [i64; RINGS] = std::array::from_fn(|ri| {
+            let rc = (ri as f64 + 0.5) * ring_m;
+            let half = if rc > reach {
+                ((reach / rc).asin() / sector_rad).ceil() as i64 + 1
+            } else {
+                SECTORS as i64 / 2
+            };
+            half.min(SECTORS as i64 / 2)
+        });
+        // The nearest point's squared distance from each cell's centre: the kernel falls
+        // with distance, so the largest value reaching a cell is the nearest point's, and it
+        // is taken once a cell, not once a point and cell.
+        let mut nearest = Box::new([f64::INFINITY; CELLS]);
         let mut n = 0usize;
         for [px, py] in points {
             let (x, y) = (px - origin[0], py - origin[1]);
@@ -256,24 +274,30 @@ impl PlaceDescriptor {
             let sector = (bearing / sector_rad) as i64;
             for ri in (ring - ring_reach).max(0)..=(ring + ring_reach).min(RINGS as i64 - 1) {
                 let rc = (ri as f64 + 0.5) * ring_m;
-                // Sectors whose centre on this ring can lie within the kernel's reach.
-                let half = if rc > reach {
-                    ((reach / rc).asin() / sector_rad).ceil() as i64 + 1
-                } else {
-                    SECTORS as i64 / 2
-                };
-                let half = half.min(SECTORS as i64 / 2);
+                let half = halves[ri as usize];
+                let row = &mut nearest[ri as usize * SECTORS..(ri as usize + 1) * SECTORS];
                 for ds in -half..=half {
-                    let si = (sector + ds).rem_euclid(SECTORS as i64);
-                    let b = (si as f64 + 0.5) * sector_rad;
-                    let (cx, cy) = (rc * b.cos(), rc * b.sin());
+                    // `sector` is within [0, SECTORS] (a bearing may round up to a turn) and `half`
+                    // at most SECTORS / 2: one wrap is enough.
+                    let si = match sector + ds {
+                        s if s < 0 => s + SECTORS as i64,
+                        s if s >= SECTORS as i64 => s - SECTORS as i64,
+                        s => s,
+                    } as usize;
+                    let (cos, sin) = centre[si];
+                    let (cx, cy) = (rc * cos, rc * sin);
                     let d2 = (cx - x) * (cx - x) + (cy - y) * (cy - y);
-                    let w = (-d2 * inv_two_var).exp() as f32;
-                    let cell = &mut cells[ri as usize * SECTORS + si as usize];
-                    if w > *cell {
-                        *cell = w;
+                    let cell = &mut row[si];
+                    if d2 < *cell {
+                        *cell = d2;
                     }
                 }
+            }
+        }
+        let mut cells = Box::new([0f32; CELLS]);
+        for (cell, &d2) in cells.iter_mut().zip(nearest.iter()) {
+            if d2.is_finite() {
+                *cell = (-d2 * inv_two_var).exp() as f32;
             }
         }
         if n < settings.min_points {
@@ -446,5 +470,80 @@ impl PlaceIndex {
         best.sort_by(|a, b| a.1.total_cmp(&b.1));
         best.truncate(k);
         best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each cell as the descriptor defines it, point by point: the largest kernel value of
+    /// the points whose reach (the rings and sectors a point's kernel can touch) covers it.
+    fn cells_point_by_point(points: &[[f64; 2]], settings: &PlaceSettings) -> Vec<f32> {
+        let ring_m = settings.max_range_m / RINGS as f64;
+        let sector_rad = TAU / SECTORS as f64;
+        let reach = 3.0 * settings.blur_m;
+        let ring_reach = (reach / ring_m).ceil() as i64;
+        let mut cells = vec![0f32; CELLS];
+        for &[x, y] in points {
+            let r = x.hypot(y);
+            if r >= settings.max_range_m {
+                continue;
+            }
+            let ring = (r / ring_m) as i64;
+            let sector = (y.atan2(x).rem_euclid(TAU) / sector_rad) as i64;
+            for ri in (ring - ring_reach).max(0)..=(ring + ring_reach).min(RINGS as i64 - 1) {
+                let rc = (ri as f64 + 0.5) * ring_m;
+                let half = if rc > reach {
+                    ((reach / rc).asin() / sector_rad).ceil() as i64 + 1
+                } else {
+                    SECTORS as i64 / 2
+                }
+                .min(SECTORS as i64 / 2);
+                for ds in -half..=half {
+                    let si = (sector + ds).rem_euclid(SECTORS as i64);
+                    let b = (si as f64 + 0.5) * sector_rad;
+                    let d2 = (rc * b.cos() - x).powi(2) + (rc * b.sin() - y).powi(2);
+                    let w = (-d2 / (2.0 * settings.blur_m * settings.blur_m)).exp() as f32;
+                    let cell = &mut cells[ri as usize * SECTORS + si as usize];
+                    *cell = cell.max(w);
+                }
+            }
+        }
+        cells
+    }
+
+    #[test]
+    fn each_cell_holds_the_largest_kernel_value_that_reaches_it() {
+        let mut s = 0x9E37_79B9_7F4A_7C15u64;
+        let mut uniform = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let settings = PlaceSettings::default();
+        // Near the origin (every sector in reach), along the range's edge, and between.
+        let points: Vec<[f64; 2]> = (0..3000)
+            .map(|i| {
+                let r = match i % 3 {
+                    0 => 3.0 * uniform(),
+                    1 => settings.max_range_m - 2.0 * uniform(),
+                    _ => settings.max_range_m * uniform(),
+                };
+                let b = TAU * uniform();
+                [r * b.cos(), r * b.sin()]
+            })
+            .collect();
+        let d = PlaceDescriptor::new(points.iter().copied(), &settings).unwrap();
+        let want = cells_point_by_point(&points, &settings);
+        let differ = d
+            .cells
+            .iter()
+            .zip(&want)
+            .filter(|(a, b)| (**a - **b).abs() > 1e-6)
+            .count();
+        assert_eq!(differ, 0, "{differ} of {CELLS} cells differ");
+        assert!(want.iter().any(|&w| w > 0.0 && w < 1.0));
     }
 }

@@ -88,11 +88,18 @@ impl ScoreGrid {
         (x.is_finite() && y.is_finite()).then_some((x as i64, y as i64))
     }
 
-    fn at(&self, x: i64, y: i64) -> f32 {
-        if x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64 {
-            return 0.0;
-        }
-        self.data[y as usize * self.width + x as usize]
+    /// Row `y` of the grid (none outside it).
+    fn row(&self, y: i64) -> Option<&[f32]> {
+        let y = usize::try_from(y).ok().filter(|&y| y < self.height)?;
+        Some(&self.data[y * self.width..(y + 1) * self.width])
+    }
+
+    /// The shifts `dx` within `-half..=half` that keep column `x + dx` on the grid: the
+    /// first and how many (none when no shift does).
+    fn span(&self, x: i64, half: i64) -> Option<(i64, usize)> {
+        let lo = (-half).max(x.saturating_neg());
+        let hi = half.min((self.width as i64 - 1).saturating_sub(x));
+        (lo <= hi).then(|| (lo, (hi - lo + 1) as usize))
     }
 
     /// Bytes held.
@@ -156,9 +163,19 @@ pub fn correlate(
         sums.iter_mut().for_each(|v| *v = 0.0);
         for &(x, y) in &cells {
             for (j, dy) in (-n_xy..=n_xy).enumerate() {
+                // The window's shifts that land on the grid: the rest score nothing (the
+                // grid holds no negative value, so leaving them out adds nothing either).
+                let (Some(grid_row), Some(shifts)) =
+                    (grid.row(y.saturating_add(dy)), grid.span(x, n_xy))
+                else {
+                    continue;
+                };
                 let row = &mut sums[j * side..(j + 1) * side];
-                for (i, dx) in (-n_xy..=n_xy).enumerate() {
-                    row[i] += grid.at(x + dx, y + dy);
+                let first = (x + shifts.0) as usize;
+                let values = &grid_row[first..first + shifts.1];
+                let at = (shifts.0 + n_xy) as usize;
+                for (sum, value) in row[at..at + shifts.1].iter_mut().zip(values) {
+                    *sum += *value;
                 }
             }
         }
@@ -273,6 +290,76 @@ mod tests {
             rival.expect("a rival").score < 0.7 * best.score,
             "{rival:?}"
         );
+    }
+
+    /// The search's best, scored the plain way: every shift of every heading, each point's
+    /// cell read one at a time, nothing outside the grid.
+    fn best_cell_by_cell(grid: &ScoreGrid, points: &[[f64; 2]], prior: &Pose2, w: &Window) -> Peak {
+        let at = |x: i64, y: i64| -> f32 {
+            if x < 0 || y < 0 || x >= grid.width as i64 || y >= grid.height as i64 {
+                return 0.0;
+            }
+            grid.data[y as usize * grid.width + x as usize]
+        };
+        let n_xy = (w.half_m / grid.cell_m).ceil() as i64;
+        let n_t = (w.half_rad / w.step_rad).ceil() as i64;
+        let mut best = Peak {
+            pose: *prior,
+            score: f64::NEG_INFINITY,
+        };
+        for it in -n_t..=n_t {
+            let theta = wrap_angle(prior.theta + it as f64 * w.step_rad);
+            let (s, c) = theta.sin_cos();
+            let cells: Vec<(i64, i64)> = points
+                .iter()
+                .filter_map(|p| {
+                    grid.cell([prior.x + c * p[0] - s * p[1], prior.y + s * p[0] + c * p[1]])
+                })
+                .collect();
+            for dy in -n_xy..=n_xy {
+                for dx in -n_xy..=n_xy {
+                    let sum: f32 = cells.iter().fold(0.0, |a, &(x, y)| a + at(x + dx, y + dy));
+                    let score = f64::from(sum) / points.len() as f64;
+                    // The last of equals, as `max_by` keeps.
+                    if score >= best.score {
+                        best = Peak {
+                            pose: Pose2::new(
+                                prior.x + dx as f64 * grid.cell_m,
+                                prior.y + dy as f64 * grid.cell_m,
+                                theta,
+                            ),
+                            score,
+                        };
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn a_window_that_overhangs_the_grid_scores_as_cell_by_cell() {
+        // A short wall and posts: a small grid, and a window of 6 m around a prior 4 m off
+        // its corner, so that most shifts put points off the grid on one side or another.
+        let mut reference: Vec<[f64; 2]> = (0..30).map(|k| [k as f64 * 0.3, 0.0]).collect();
+        reference.extend([[2.0, 3.0], [7.5, -2.0], [4.0, 5.5]]);
+        let grid = ScoreGrid::new(&reference, 0.4, 0.3, 1 << 20).expect("grid");
+        let window = Window {
+            half_m: 6.0,
+            half_rad: 0.05,
+            step_rad: 0.01,
+        };
+        for prior in [
+            Pose2::new(-4.0, -4.0, 0.02),
+            Pose2::new(12.0, 6.0, -0.03),
+            Pose2::new(3.0, 0.5, 0.0),
+        ] {
+            let want = best_cell_by_cell(&grid, &reference, &prior, &window);
+            let (got, _) = correlate(&grid, &reference, &prior, &window, 3.0, 3).expect("peak");
+            assert_eq!(got.score, want.score, "{prior:?}");
+            assert_eq!(got.pose, want.pose, "{prior:?}");
+            assert!(got.score > 0.0, "{prior:?}");
+        }
     }
 
     #[test]
