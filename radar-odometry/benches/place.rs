@@ -10,15 +10,12 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use radar_odometry::{PlaceDescriptor, PlaceQuery, PlaceSettings};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
 fn block() -> Vec<[f64; 2]> {
-    let mut s = 0x2545_F491_4F6C_DD1Du64;
-    let mut uniform = move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut uniform = move || rng.gen::<f64>();
     let mut pts = Vec::with_capacity(3000);
     while pts.len() < 3000 {
         let along = -70.0 + 140.0 * uniform();

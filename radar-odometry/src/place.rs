@@ -515,13 +515,9 @@ mod tests {
 
     #[test]
     fn each_cell_holds_the_largest_kernel_value_that_reaches_it() {
-        let mut s = 0x9E37_79B9_7F4A_7C15u64;
-        let mut uniform = move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut uniform = move || rng.gen::<f64>();
         let settings = PlaceSettings::default();
         // Near the origin (every sector in reach), along the range's edge, and between.
         let points: Vec<[f64; 2]> = (0..3000)
