@@ -1,7 +1,9 @@
 //! The reference cloud a registration pairs against: the previous rotation's points, a k-d
-//! tree over them for the widest queries, a uniform grid for the registration's gated
+//! tree over them for the widest queries (built at the first), a uniform grid for the registration's gated
 //! nearest-neighbour queries, and each point's surface normal where its neighbours lie along a
 //! line. Built once a rotation in O(n log n).
+
+use std::sync::OnceLock;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
@@ -14,7 +16,9 @@ use crate::grid::PointGrid;
 #[derive(Debug)]
 pub struct ReferenceCloud {
     pub(crate) points: Vec<[f64; 2]>,
-    pub(crate) tree: ImmutableKdTree<f64, 2>,
+    /// Built at its first query ([`ReferenceCloud::tree`]): a registration whose gates all
+    /// stay within the pair grid's reach never needs it.
+    tree: OnceLock<ImmutableKdTree<f64, 2>>,
     /// A uniform grid over the points for the registration's gated nearest-neighbour
     /// queries (the k-d tree answers those that would reach too many cells).
     pub(crate) grid: PointGrid,
@@ -38,16 +42,15 @@ const LINE_EIGEN_RATIO: f64 = 0.05;
 pub(crate) const GRID_MAX_REACH: i64 = 4;
 
 impl ReferenceCloud {
-    /// Builds the tree, the pair grid (cells half `pair_gate_m` wide; none when that is not
-    /// positive, and every pair query goes to the tree) and the normals: O(n log n), once a
-    /// rotation. Neighbours for the normals are taken within `radius_m`.
+    /// Builds the pair grid (cells half `pair_gate_m` wide; none when that is not positive,
+    /// and every pair query goes to the tree) and the normals, once a rotation; the k-d tree
+    /// waits for its first query. Neighbours for the normals are taken within `radius_m`.
     pub fn new(points: Vec<[f64; 2]>, radius_m: f64, pair_gate_m: f64) -> Self {
-        let tree = ImmutableKdTree::new_from_slice(&points);
         let grid = PointGrid::new(&points, 0.5 * pair_gate_m);
         let normals = normals(&points, radius_m);
         Self {
             points,
-            tree,
+            tree: OnceLock::new(),
             grid,
             normals,
             surfaces_only_within_m: 0.0,
@@ -73,13 +76,19 @@ impl ReferenceCloud {
         &self.points
     }
 
+    /// The k-d tree over the points, built on the first call.
+    pub(crate) fn tree(&self) -> &ImmutableKdTree<f64, 2> {
+        self.tree
+            .get_or_init(|| ImmutableKdTree::new_from_slice(&self.points))
+    }
+
     /// The point nearest `p` within `max_m`: its index and distance (m); `None` when there
     /// is none that close or the cloud is empty.
     pub fn nearest_within(&self, p: &[f64; 2], max_m: f64) -> Option<(usize, f64)> {
         if self.points.is_empty() {
             return None;
         }
-        let nn = self.tree.nearest_one::<SquaredEuclidean>(p);
+        let nn = self.tree().nearest_one::<SquaredEuclidean>(p);
         let d = nn.distance.max(0.0).sqrt();
         (d <= max_m).then_some((nn.item as usize, d))
     }
@@ -124,7 +133,7 @@ pub(crate) fn normals(points: &[[f64; 2]], radius_m: f64) -> Vec<Option<[f64; 2]
     points
         .iter()
         .map(|p| {
-            grid.within(points, p, radius_m, &mut near);
+            grid.within(p, radius_m, &mut near);
             if near.len() > NORMAL_NEIGHBOURS {
                 near.select_nth_unstable_by(NORMAL_NEIGHBOURS - 1, |a, b| a.1.total_cmp(&b.1));
                 near.truncate(NORMAL_NEIGHBOURS);
@@ -220,8 +229,8 @@ pub(crate) mod tests {
         let (mut within, mut beyond) = (0, 0);
         for _ in 0..20_000 {
             let q = [-90.0 + 180.0 * uniform(), -30.0 + 60.0 * uniform()];
-            let nn = cloud.tree.nearest_one::<SquaredEuclidean>(&q);
-            let grid = cloud.grid.nearest_within(&points, &q, gate);
+            let nn = cloud.tree().nearest_one::<SquaredEuclidean>(&q);
+            let grid = cloud.grid.nearest_within(&q, gate);
             if nn.distance <= gate * gate {
                 within += 1;
                 let (i, d2) = grid.expect("a point within the gate is in a neighbouring cell");

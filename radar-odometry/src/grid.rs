@@ -9,7 +9,9 @@ const MAX_GRID_CELLS: usize = 1 << 18;
 /// odometry builds one a rotation with cells half its pair gate wide; truth scoring one per
 /// run over the scene's features. A few contiguous
 /// row slices and distances a query, against a k-d tree's descent; memory 4 bytes a cell
-/// (at most [`MAX_GRID_CELLS`]) and 4 a point.
+/// (at most [`MAX_GRID_CELLS`]) and 20 a point: the grid keeps its own copy of the points in
+/// cell order, so that a row of cells is read from contiguous memory rather than gathered
+/// point by point from the caller's order (the same distances, in the same order).
 #[derive(Debug, Default)]
 pub struct PointGrid {
     origin: [f64; 2],
@@ -20,6 +22,8 @@ pub struct PointGrid {
     starts: Vec<u32>,
     /// Point indices sorted by cell.
     order: Vec<u32>,
+    /// The points in `order`'s order: `sorted[k] == points[order[k]]`.
+    sorted: Vec<[f64; 2]>,
 }
 
 impl PointGrid {
@@ -55,6 +59,7 @@ impl PointGrid {
             ny,
             starts: vec![0; nx * ny + 1],
             order: Vec::new(),
+            sorted: Vec::new(),
         };
         // A counting sort in place: each cell's count, then its end (a running sum), then,
         // the points taken last to first, each cell's end moved back over its points to its
@@ -76,7 +81,18 @@ impl PointGrid {
                 grid.order[grid.starts[c] as usize] = i as u32;
             }
         }
+        grid.sorted = grid.order.iter().map(|&i| points[i as usize]).collect();
         grid
+    }
+
+    /// How many points the grid holds (the finite ones inside it).
+    pub fn len(&self) -> usize {
+        self.order.len()
+    }
+
+    /// Whether the grid holds no point.
+    pub fn is_empty(&self) -> bool {
+        self.order.is_empty()
     }
 
     /// The cell holding `p`, `None` outside the grid or for a non-finite point.
@@ -106,20 +122,15 @@ impl PointGrid {
             .then(|| (gate_m / self.cell_m).ceil().clamp(1.0, 1e6) as i64)
     }
 
-    /// The point of `points` nearest to `q` if it is within `gate_m`, with its squared
-    /// distance. Rows of cells are searched outwards from the query's and
+    /// The point nearest to `q` if it is within `gate_m`: its index in the points the grid
+    /// was built over, and its squared distance. Rows of cells are searched outwards from the query's and
     /// skipped once they are farther than the best found; a row's cells are contiguous.
-    pub fn nearest_within(
-        &self,
-        points: &[[f64; 2]],
-        q: &[f64; 2],
-        gate_m: f64,
-    ) -> Option<(usize, f64)> {
-        self.search::<false>(points, q, gate_m).0
+    pub fn nearest_within(&self, q: &[f64; 2], gate_m: f64) -> Option<(usize, f64)> {
+        self.search::<false>(q, gate_m).0
     }
 
     /// [`PointGrid::nearest_within`]'s answer, and a squared distance within which no other
-    /// point of `points` lies: the second nearest's within the gate, the gate's where there
+    /// point of the grid lies: the second nearest's within the gate, the gate's where there
     /// is none, 0 where nothing can be said (an empty grid, a non-finite query). A query
     /// moved by `d` since keeps the same answer while the nearest's distance plus `d` stays
     /// below that distance's root minus `d` (an iterative registration's next iteration).
@@ -127,32 +138,26 @@ impl PointGrid {
     /// cells than [`PointGrid::nearest_within`].
     pub fn nearest_within_and_clear(
         &self,
-        points: &[[f64; 2]],
         q: &[f64; 2],
         gate_m: f64,
     ) -> (Option<(usize, f64)>, f64) {
-        self.search::<true>(points, q, gate_m)
+        self.search::<true>(q, gate_m)
     }
 
-    /// The point indices of row `iy`'s cells `x0..=x1` (contiguous in `order`); the caller
-    /// keeps the row and columns inside the grid.
-    fn row(&self, iy: i64, x0: i64, x1: i64) -> &[u32] {
+    /// The point indices of row `iy`'s cells `x0..=x1` and the points themselves (both
+    /// contiguous, in cell order); the caller keeps the row and columns inside the grid.
+    fn row(&self, iy: i64, x0: i64, x1: i64) -> (&[u32], &[[f64; 2]]) {
         let row = iy as usize * self.nx;
         let from = self.starts[row + x0 as usize] as usize;
         let to = self.starts[row + x1 as usize + 1] as usize;
-        &self.order[from..to]
+        (&self.order[from..to], &self.sorted[from..to])
     }
 
-    /// Every point of `points` within `radius_m` of `q`, with its squared distance, into
+    /// Every point of the grid within `radius_m` of `q` (its index in the points the grid was
+    /// built over), with its squared distance, into
     /// `out` (cleared first), in the grid's order; nothing for an empty grid or a
     /// non-finite query.
-    pub fn within(
-        &self,
-        points: &[[f64; 2]],
-        q: &[f64; 2],
-        radius_m: f64,
-        out: &mut Vec<(usize, f64)>,
-    ) {
+    pub fn within(&self, q: &[f64; 2], radius_m: f64, out: &mut Vec<(usize, f64)>) {
         out.clear();
         let (Some(reach), Some((cx, cy))) = (self.reach(radius_m), self.cell_coords(q)) else {
             return;
@@ -166,8 +171,8 @@ impl PointGrid {
             return;
         }
         for iy in y0..=y1 {
-            for &i in self.row(iy, x0, x1) {
-                let p = points[i as usize];
+            let (indices, points) = self.row(iy, x0, x1);
+            for (&i, p) in indices.iter().zip(points) {
                 let d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]);
                 if d2 <= r2 {
                     out.push((i as usize, d2));
@@ -178,12 +183,7 @@ impl PointGrid {
 
     /// The search of both: with `CLEAR`, the bound that skips rows is the second nearest's
     /// distance, kept as the second value; without, the nearest's (the second value is 0).
-    fn search<const CLEAR: bool>(
-        &self,
-        points: &[[f64; 2]],
-        q: &[f64; 2],
-        gate_m: f64,
-    ) -> (Option<(usize, f64)>, f64) {
+    fn search<const CLEAR: bool>(&self, q: &[f64; 2], gate_m: f64) -> (Option<(usize, f64)>, f64) {
         let (Some(reach), Some((cx, cy))) = (self.reach(gate_m), self.cell_coords(q)) else {
             return (None, 0.0);
         };
@@ -211,8 +211,8 @@ impl PointGrid {
             if dy * dy > bound {
                 continue;
             }
-            for &i in self.row(iy, x0, x1) {
-                let p = points[i as usize];
+            let (indices, points) = self.row(iy, x0, x1);
+            for (&i, p) in indices.iter().zip(points) {
                 let d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]);
                 if d2 > bound {
                     continue;
@@ -256,7 +256,7 @@ mod tests {
         assert!(grid.cell_m > 0.3);
         assert_eq!(grid.order.len(), points.len(), "every point is in a cell");
         for (i, p) in points.iter().enumerate() {
-            let (j, d2) = grid.nearest_within(&points, p, 0.3).expect("itself");
+            let (j, d2) = grid.nearest_within(p, 0.3).expect("itself");
             assert_eq!((points[j], d2), (points[i], 0.0));
         }
     }
@@ -277,7 +277,7 @@ mod tests {
             3,
             "the three finite points are in the grid"
         );
-        let near = |g: &PointGrid, q: [f64; 2]| g.nearest_within(&points, &q, 2.0);
+        let near = |g: &PointGrid, q: [f64; 2]| g.nearest_within(&q, 2.0);
         assert_eq!(near(&grid, [1e9, 2.0]).map(|n| n.0), Some(1));
         assert!(near(&grid, [f64::NAN, 0.0]).is_none());
         assert!(near(&grid, [1e300, 0.0]).is_none());
@@ -313,7 +313,7 @@ mod tests {
                     .min_by(|a, b| a.1.total_cmp(&b.1));
                 // Every point within the gate, as the scan finds them.
                 let mut within = Vec::new();
-                grid.within(&points, &query, gate, &mut within);
+                grid.within(&query, gate, &mut within);
                 within.sort_by_key(|w| w.0);
                 let all: Vec<(usize, f64)> = points
                     .iter()
@@ -322,7 +322,7 @@ mod tests {
                     .filter(|&(_, d2)| d2 <= gate * gate)
                     .collect();
                 assert_eq!(within, all, "{query:?} gate {gate}");
-                let found = grid.nearest_within(&points, &query, gate);
+                let found = grid.nearest_within(&query, gate);
                 assert_eq!(
                     found.map(|f| f.0),
                     linear.map(|l| l.0),
@@ -330,7 +330,7 @@ mod tests {
                 );
                 // The same answer with the bound on the others: the second nearest within
                 // the gate, or the gate.
-                let (again, clear2) = grid.nearest_within_and_clear(&points, &query, gate);
+                let (again, clear2) = grid.nearest_within_and_clear(&query, gate);
                 assert_eq!(again, found);
                 let second = points
                     .iter()

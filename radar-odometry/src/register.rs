@@ -115,14 +115,12 @@ pub fn register_soft(
             });
             if fresh {
                 if use_grid {
-                    reference
-                        .grid
-                        .within(&reference.points, &moved, listed_r, &mut near);
+                    reference.grid.within(&moved, listed_r, &mut near);
                 } else {
                     near.clear();
                     near.extend(
                         reference
-                            .tree
+                            .tree()
                             .within_unsorted::<SquaredEuclidean>(&moved, listed_r * listed_r)
                             .iter()
                             .map(|nb| (nb.item as usize, nb.distance)),
@@ -348,11 +346,8 @@ fn icp(
                 {
                     Some(kept) => kept,
                     None => {
-                        let (nearest, clear2) = reference.grid.nearest_within_and_clear(
-                            &reference.points,
-                            &moved,
-                            gate,
-                        );
+                        let (nearest, clear2) =
+                            reference.grid.nearest_within_and_clear(&moved, gate);
                         *last_search = Some(Searched {
                             at: moved,
                             gate,
@@ -364,7 +359,7 @@ fn icp(
                 }
             } else {
                 *last_search = None;
-                let nn = reference.tree.nearest_one::<SquaredEuclidean>(&moved);
+                let nn = reference.tree().nearest_one::<SquaredEuclidean>(&moved);
                 Some((nn.item as usize, nn.distance))
             };
             let Some((i, distance2)) = nearest else {
@@ -646,8 +641,8 @@ mod tests {
             ];
             let q = if n % 9 == 0 { *p } else { q };
             for gate in [0.6, 0.3, 0.12] {
-                let (nearest, clear2) = grid.nearest_within_and_clear(&world, &q, gate);
-                assert_eq!(nearest, grid.nearest_within(&world, &q, gate));
+                let (nearest, clear2) = grid.nearest_within_and_clear(&q, gate);
+                assert_eq!(nearest, grid.nearest_within(&q, gate));
                 let searched = Searched {
                     at: q,
                     gate,
@@ -667,7 +662,7 @@ mod tests {
                         }
                         assert_eq!(
                             answer,
-                            grid.nearest_within(&world, &to, narrowed),
+                            grid.nearest_within(&to, narrowed),
                             "{q:?} moved {moved} gate {gate} -> {narrowed}"
                         );
                     }

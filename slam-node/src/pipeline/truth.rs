@@ -130,9 +130,8 @@ pub struct TruthObserver {
     observation_errors: Option<ObservationErrorStats>,
     association_errors: u64,
     clutter_associations: u64,
-    /// The true features' positions and a grid over them: each associated observation is
-    /// scored with two nearest-feature queries, and a city has thousands of features.
-    positions: Vec<[f64; 2]>,
+    /// A grid over the true features' positions: each associated observation is scored with
+    /// two nearest-feature queries, and a city has thousands of features.
     grid: PointGrid,
 }
 
@@ -147,7 +146,6 @@ impl TruthObserver {
         let positions: Vec<[f64; 2]> = oracle.features().iter().map(|f| [f.x_m, f.y_m]).collect();
         Self {
             grid: PointGrid::new(&positions, MAPPED_GATE_M),
-            positions,
             in_range: vec![false; oracle.features().len()],
             oracle,
             pose_errors: PoseErrorStats::default(),
@@ -160,9 +158,7 @@ impl TruthObserver {
     /// The index of the true feature nearest to `xy` within `gate_m` ([`nearest_feature`]
     /// through the grid).
     fn nearest(&self, xy: [f64; 2], gate_m: f64) -> Option<usize> {
-        self.grid
-            .nearest_within(&self.positions, &xy, gate_m)
-            .map(|(i, _)| i)
+        self.grid.nearest_within(&xy, gate_m).map(|(i, _)| i)
     }
 
     /// The true pose at `t_s`.
