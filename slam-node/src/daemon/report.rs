@@ -385,12 +385,13 @@ impl fmt::Display for RadarOdometry<'_> {
                 r.onsets, r.probed
             )?;
         }
-        if r.crawled > 0 {
+        if r.crawled > 0 || r.searched_crawl_runs > 0 {
             writeln!(
                 f,
-                "  radar odometry at a crawl: {} rotations under {} m; their registrations started that short paired with the reference's surfaces only (not the ground's clutter)",
+                "  radar odometry at a crawl: {} rotations under {} m; their registrations started that short paired with the reference's surfaces only (not the ground's clutter), and {} runs of a searched one (no motion estimate) again from its result so",
                 r.crawled,
-                radar_odometry::matcher::CRAWL_SURFACES_ONLY_M
+                radar_odometry::matcher::CRAWL_SURFACES_ONLY_M,
+                r.searched_crawl_runs
             )?;
         }
         if r.refined > 0 {

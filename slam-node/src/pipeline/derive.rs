@@ -557,8 +557,9 @@ impl PipelineSettings {
             s.scan_match.onset_probes = true;
             // Pulling away or crawling, a rotation's shift is within the pair gate of the
             // ground's clutter, whose shadows turn with the vehicle: the registrations pair
-            // with surfaces only (slam-node/README.md, "Registrations at a crawl pair with surfaces
-            // only").
+            // with surfaces only, the first (searched) one run again from its result so
+            // (slam-node/README.md, "Registrations at a crawl pair with surfaces only", "The
+            // first registration at a pull-away").
             s.scan_match.crawl_surfaces_only = true;
             // The radar alone loses a degree or two of each junction's turn: a submap's scan
             // gathered on through one is bent, and closures aligning it put the frames
