@@ -85,16 +85,6 @@ impl PointGrid {
         grid
     }
 
-    /// How many points the grid holds (the finite ones inside it).
-    pub fn len(&self) -> usize {
-        self.order.len()
-    }
-
-    /// Whether the grid holds no point.
-    pub fn is_empty(&self) -> bool {
-        self.order.is_empty()
-    }
-
     /// The cell holding `p`, `None` outside the grid or for a non-finite point.
     fn cell_of(&self, p: &[f64; 2]) -> Option<usize> {
         let (ix, iy) = self.cell_coords(p)?;

@@ -843,15 +843,16 @@ impl ScanMatcher {
             let reg = if search {
                 self.counts.searched += 1;
                 let found = self.search(&fit, end);
-                // Both clouds as they were seen, and the previous rotation's span over
-                // this one's, to place them along the motion found.
-                let seen_both = match (as_seen.as_ref(), previous_seen.as_ref(), previous_span_s) {
-                    (Some(now), Some(before), Some(before_s)) => {
-                        Some((now, before, before_s / span_s))
-                    }
-                    _ => None,
-                };
                 if self.settings.crawl_surfaces_only {
+                    // Both clouds as they were seen, and the previous rotation's span over
+                    // this one's, to place them along the motion found.
+                    let seen_both =
+                        match (as_seen.as_ref(), previous_seen.as_ref(), previous_span_s) {
+                            (Some(now), Some(before), Some(before_s)) => {
+                                Some((now, before, before_s / span_s))
+                            }
+                            _ => None,
+                        };
                     found.map(|r| {
                         self.searched_crawl_again(reference, &local, seen_both, r, min_pairs)
                     })
@@ -1080,10 +1081,8 @@ impl ScanMatcher {
                 Some(((sensor, fractions), (before, before_fractions), ratio))
                     if ratio.is_finite() && ratio > 0.0 =>
                 {
-                    let twist = log(&r.pose);
-                    let previous = exp([ratio * twist[0], ratio * twist[1], ratio * twist[2]]);
                     let placed_reference = ReferenceCloud::new(
-                        place_along(&previous, before, before_fractions),
+                        place_along(&along(&r.pose, ratio), before, before_fractions),
                         self.settings.normal_radius_m,
                         gate,
                     )
