@@ -172,7 +172,11 @@ pub struct RawOdometry {
     /// if measured: once the recent ones follow more than 0.6 of it on the average, and
     /// until they follow under 0.35, their heading and the motion across the track are not
     /// used (found so within the first 20 probed, the steering offset learned from
-    /// the ones before is forgotten); a WARN and the summary say so. Default false: on the
+    /// the ones before is forgotten); a WARN and the summary say so. Below that, the recent
+    /// average share is taken out of each registration's heading before the filter uses
+    /// it (moved away from the odometry's heading it started from, and widened, by
+    /// `1 / (1 - share)`, the share at most 0.5), so the odometry's heading is not counted
+    /// twice. Default false: on the
     /// Oxford scans the share a registration follows measured 0.10-0.96 a rotation (0.55 on
     /// the mean, against 0.18 on the realistic city and 0.73 on a road of lamp posts), and
     /// with the evaluation's biased odometry their registrations were taken as unpinned

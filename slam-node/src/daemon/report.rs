@@ -420,7 +420,7 @@ impl fmt::Display for RadarOdometry<'_> {
             // The thresholds from the library, so the line says what the code does.
             writeln!(
                 f,
-                "  radar odometry's start probes: {} registrations run again from headings {} mrad either side (every {}th after the first {}, while recent ones followed under {} of their start); they followed {:.2} of their start's heading on the mean; {} where the scene did not pin the heading (once the last ten or so followed more than {} of it on the average, until under {}: their heading and the motion across the track not used; found so within the first {}, the steering offset's variance put back to its prior)",
+                "  radar odometry's start probes: {} registrations run again from headings {} mrad either side (every {}th after the first {}, while recent ones followed under {} of their start); they followed {:.2} of their start's heading on the mean; {} where the scene did not pin the heading (once the last ten or so followed more than {} of it on the average, until under {}: their heading and the motion across the track not used; found so within the first {}, the steering offset's variance put back to its prior); elsewhere the recent average share, at most {}, taken out of each registration's heading before the filter used it",
                 r.start_probed,
                 1000.0 * radar_odometry::matcher::START_PROBE_RAD,
                 radar_odometry::matcher::START_PROBE_SPARSE_EVERY,
@@ -430,7 +430,8 @@ impl fmt::Display for RadarOdometry<'_> {
                 r.start_unpinned,
                 radar_odometry::matcher::START_FOLLOW_UNPINNED,
                 radar_odometry::matcher::START_FOLLOW_PINNED,
-                radar_odometry::matcher::START_FOLLOW_EARLY
+                radar_odometry::matcher::START_FOLLOW_EARLY,
+                radar_odometry::matcher::MAX_UNFOLLOWED_SHARE
             )?;
         }
         if m.drives {

@@ -266,10 +266,14 @@ impl RadarOdometryStage {
             // Driving, the registration is the motion: composed onto the mark, not fused
             // with a prediction that only repeats the last rotation's motion.
             self.widen_for_a_manoeuvre(ekf, m);
+            // Measured against the estimate it started from (with start probes: beside a
+            // sensor of the vehicle's own), the share of that start it followed is taken
+            // out, so the prediction is not counted twice (`RotationMotion::unfollowed`).
+            let (motion, covariance) = m.unfollowed(&tally.rel);
             let result = if self.compose {
-                ekf.compose_motion_since_mark(m.motion, &m.covariance)
+                ekf.compose_motion_since_mark(motion, &covariance)
             } else {
-                ekf.observe_motion_since_mark(m.motion, &m.covariance, gate)
+                ekf.observe_motion_since_mark(motion, &covariance, gate)
             };
             match result {
                 Ok(outcome) => {
